@@ -1,0 +1,101 @@
+#pragma once
+// AgentNode holds every decision an agent makes. It is pure: time arrives inside the
+// messages, randomness is seeded from the scenario, and everything leaves through an
+// AgentOutput, so the same logic runs over DDS (agent_main.cc) and over an in-memory bus.
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <vector>
+
+#include "agent/radio_gate.h"
+#include "common/config/scenario.h"
+#include "common/map/landmark_map.h"
+#include "common/map/map_codec.h"
+#include "common/slam/dead_reckoning_mapper.h"
+#include "common/types/messages.h"
+
+namespace mapmesh {
+
+// Where an agent's messages go.
+class AgentOutput {
+ public:
+  virtual ~AgentOutput() = default;
+  virtual void PublishMap(const MapMessage& msg) = 0;
+  virtual void PublishStatus(const AgentStatus& status) = 0;
+};
+
+// Bytes a map message occupies on the wire: its payload plus the fixed fields.
+std::size_t WireBytes(const MapMessage& msg);
+
+// Counters of everything the agent consumed, dropped or rejected, and why.
+struct AgentStats {
+  std::uint32_t odom_processed = 0;
+  std::uint32_t odom_rejected = 0;      // non-finite values, dt <= 0, or stamp going backwards
+  std::uint32_t scans_processed = 0;
+  std::uint32_t scans_rejected = 0;     // non-finite stamp
+  std::uint32_t scans_before_start = 0; // stamped in the first odometry interval: discarded
+  std::uint32_t scans_late = 0;         // arrived after their interval was processed
+  std::uint32_t scans_missing = 0;      // announced by odometry but never arrived
+  std::uint32_t maps_sent = 0;
+  std::uint64_t bytes_sent = 0;
+  std::uint32_t maps_received = 0;      // passed the radio gate and decoded
+  std::uint64_t bytes_received = 0;     // of messages that passed the radio gate
+  std::uint32_t maps_out_of_range = 0;
+  std::uint32_t maps_lost = 0;          // dropped by the radio loss model
+  std::uint32_t maps_unknown_sender = 0;
+  std::array<std::uint32_t, kMapDecodeErrorCount> maps_rejected{};  // by MapDecodeError
+  std::map<RobotId, std::uint32_t> maps_received_from;
+  std::uint32_t MapsRejected() const;
+};
+
+class AgentNode {
+ public:
+  // scenario must contain a robot with id self.
+  AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incarnation, AgentOutput& out);
+
+  void OnOdometry(const Odometry& odom);
+  void OnScan(const Scan& scan);
+  void OnLinks(const RadioLinks& links);
+  void OnMap(const MapMessage& msg);
+
+  RobotId id() const { return self_; }
+  AgentStatus Status() const;
+  LandmarkMap LocalMap() const { return mapper_.Map(); }
+  Pose2 Pose() const { return mapper_.pose(); }
+  double processed_until() const { return processed_until_; }
+  const AgentStats& stats() const { return stats_; }
+  // The latest decoded map of each peer, by sender and kind.
+  const std::map<std::pair<RobotId, MapKind>, LandmarkMap>& peer_maps() const { return peer_maps_; }
+
+ private:
+  // Processes every queued odometry interval whose scans have all arrived.
+  void Drain();
+  void ProcessInterval(const Odometry& odom);
+  void AfterInterval(const Odometry& odom);
+  void PublishLocalMap();
+
+  // An odometry interval waits for its scans for at most this many later intervals.
+  static constexpr std::size_t kMaxPendingOdometry = 100;
+
+  AgentOptions options_;
+  std::vector<RobotId> robot_ids_;  // the robots of this run; maps from others are rejected
+  RobotId self_;
+  std::uint32_t incarnation_;
+  AgentOutput& out_;
+  RadioGate gate_;
+  DeadReckoningMapper mapper_;
+
+  bool started_ = false;
+  double processed_until_ = 0.0;
+  std::map<double, Odometry> pending_odom_;
+  std::multimap<double, Scan> pending_scans_;
+  double next_map_publish_s_ = 0.0;
+  double next_status_s_ = 0.0;
+  std::uint32_t local_version_ = 0;
+  AgentStats stats_;
+  std::map<std::pair<RobotId, MapKind>, LandmarkMap> peer_maps_;
+};
+
+}  // namespace mapmesh

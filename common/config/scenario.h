@@ -1,0 +1,138 @@
+#pragma once
+// Scenario file format v1: the one description of an experiment that the feeder, every
+// agent and the launcher read. Every struct has defaults, so a minimal scenario is short;
+// docs/SCENARIOS.md lists every key. Loading is strict (see yaml_reader.h).
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/geometry/pose2.h"
+#include "common/types/messages.h"
+
+namespace mapmesh {
+
+// An axis-aligned rectangle [xmin, ymin, xmax, ymax] in metres.
+struct Rect {
+  double xmin = 0.0, ymin = 0.0, xmax = 0.0, ymax = 0.0;
+  double Width() const { return xmax - xmin; }
+  double Height() const { return ymax - ymin; }
+  bool Contains(const Eigen::Vector2d& p) const {
+    return p.x() >= xmin && p.x() <= xmax && p.y() >= ymin && p.y() <= ymax;
+  }
+};
+
+// How landmarks are generated when the scenario does not list them.
+struct LandmarkGeneratorOptions {
+  std::string type = "uniform";   // uniform: uniform random points (thesis 4.1.1)
+  int count = 100;                // number of landmarks
+  Rect area_m{0, 0, 50, 50};      // where they are placed
+  double min_spacing_m = 1.0;     // minimum distance between any two landmarks
+};
+
+struct WorldOptions {
+  double control_period_s = 0.1;  // simulation and odometry step
+  // Exactly one landmark source: an inline list, a CSV file, or a generator.
+  std::vector<Eigen::Vector2d> landmarks;              // from world.landmarks.list or .csv
+  std::string landmarks_csv;                           // resolved path, empty if not used
+  std::optional<LandmarkGeneratorOptions> generator;   // world.landmarks.generator
+  Rect bounds_m;  // area robots may roam; defaults to the landmark area
+};
+
+// Unicycle motion of a simulated robot and the noise on its odometry.
+struct MotionOptions {
+  double speed_mps = 0.3;               // forward speed
+  double max_turn_rate_dps = 30.0;      // turn-rate limit, deg/s
+  double sigma_v_mps = 0.03;            // odometry noise on v
+  double sigma_w_radps = 0.0524;        // odometry noise on w (3 deg/s)
+  double waypoint_radius_m = 0.5;       // switch to the next waypoint inside this radius
+};
+
+// Range-bearing sensor of a simulated robot.
+struct SensorOptions {
+  double max_range_m = 8.0;             // LMS-200-like range
+  double fov_deg = 180.0;               // field of view, centred on the heading
+  double sigma_range_m = 0.05;          // range noise
+  double sigma_bearing_deg = 1.0;       // bearing noise
+  int scan_every_steps = 5;             // one scan per this many control steps
+  bool signatures = false;              // share landmark identities (known correspondence)
+};
+
+// A robot's path: a list of waypoints, or random waypoints drawn in an area.
+struct PathOptions {
+  std::string type = "random";          // waypoints | random
+  std::vector<Eigen::Vector2d> points;  // type waypoints
+  int count = 8;                        // type random: number of waypoints
+  std::optional<Rect> area_m;           // type random: where (default: world bounds)
+  bool loop = true;                     // start over after the last waypoint
+};
+
+struct RobotSpec {
+  RobotId id = 0;
+  Pose2 start;                          // true start pose (theta in radians)
+  bool start_given = false;             // false: drawn at random in the world bounds
+  PathOptions path;
+  MotionOptions motion;
+  SensorOptions sensor;
+};
+
+struct RadioOptions {
+  double range_m = 20.0;                // robots further apart cannot hear each other
+  double loss_probability = 0.0;        // chance that a map message is dropped
+  double bandwidth_bytes_per_s = 0.0;   // per link; 0 means unlimited
+  double links_period_s = 0.5;          // how often the feeder publishes the link table
+};
+
+struct AgentOptions {
+  std::string slam = "dead_reckoning";  // dead_reckoning (more estimators come later)
+  double map_publish_period_s = 2.0;    // scenario seconds between map publications
+  double status_period_s = 1.0;         // scenario seconds between status reports
+  double association_gate_m = 1.0;     // dead reckoning without signatures: merge radius
+};
+
+struct FeederOptions {
+  std::string pace = "lockstep";        // lockstep: as fast as agents go | realtime
+  double realtime_factor = 1.0;         // realtime: scenario seconds per wall second
+  double lockstep_window_s = 0.5;       // lockstep: data published between barriers
+  double startup_timeout_s = 30.0;      // wall seconds to wait for every agent to appear
+  double truth_period_s = 0.5;          // trajectory sampling in truth.json
+};
+
+struct Scenario {
+  int version = 1;
+  std::string name;
+  std::string description;
+  std::string path;                     // the file it was loaded from
+  std::uint64_t seed = 1;
+  double duration_s = 60.0;
+  WorldOptions world;
+  std::vector<RobotSpec> robots;        // resolved: exactly the robots of this run
+  RadioOptions radio;
+  AgentOptions agent;
+  FeederOptions feeder;
+
+  // The robot with this id, or nullptr.
+  const RobotSpec* FindRobot(RobotId id) const;
+};
+
+// A command-line override "a.b.c=value" (value parsed as YAML).
+struct ConfigOverride {
+  std::string key_path;
+  std::string value;
+};
+// Parses "a.b.c=value"; throws ConfigError on a malformed string.
+ConfigOverride ParseOverride(const std::string& text);
+
+// Loads and validates a scenario. agents > 0 resizes the robot list to that many robots:
+// the first listed ones, then robots generated from robots.defaults with seeded random
+// starts and paths. Throws ConfigError (one line naming file, line and key) on any problem.
+Scenario LoadScenario(const std::string& file, const std::vector<ConfigOverride>& overrides = {},
+                      int agents = 0);
+
+// Same, from YAML text (file is used only in messages and to resolve relative paths).
+Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
+                       const std::vector<ConfigOverride>& overrides = {}, int agents = 0);
+
+}  // namespace mapmesh

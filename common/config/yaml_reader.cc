@@ -1,0 +1,162 @@
+#include "common/config/yaml_reader.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace mapmesh {
+
+YamlReader::YamlReader(YAML::Node node, std::string path, std::shared_ptr<const YamlSource> source)
+    : node_(std::move(node)), path_(std::move(path)), source_(std::move(source)) {
+  if (node_ && !node_.IsNull() && !node_.IsMap()) {
+    FailAt(node_, path_, "expected a mapping of keys");
+  }
+}
+
+int YamlReader::LineOf(const YAML::Node& node) const {
+  if (node && node.Mark().line >= 0) return node.Mark().line + 1;
+  if (node_ && node_.Mark().line >= 0) return node_.Mark().line + 1;
+  return 1;
+}
+
+void YamlReader::FailAt(const YAML::Node& node, const std::string& key_path,
+                        const std::string& reason) const {
+  const std::string shown = key_path.empty() ? "(top level)" : key_path;
+  // A key set with --set (or anything below it) is reported as such: its line is not in the file.
+  for (const std::string& o : source_->overridden) {
+    if (key_path == o || key_path.rfind(o + ".", 0) == 0 || key_path.rfind(o + "[", 0) == 0) {
+      throw ConfigError(source_->file + ": --set " + shown + ": " + reason);
+    }
+  }
+  throw ConfigError(source_->file + ":" + std::to_string(LineOf(node)) + ": " + shown + ": " +
+                    reason);
+}
+
+void YamlReader::Fail(const std::string& key, const std::string& reason) const {
+  YAML::Node n;
+  if (node_ && node_.IsMap() && node_[key]) n = node_[key];
+  FailAt(n, KeyPath(key), reason);
+}
+
+bool YamlReader::Has(const std::string& key) const {
+  return node_ && node_.IsMap() && node_[key] && !node_[key].IsNull();
+}
+
+YAML::Node YamlReader::Raw(const std::string& key) {
+  read_.insert(key);
+  if (!node_ || !node_.IsMap()) return YAML::Node();
+  const YAML::Node n = node_[key];
+  return n ? n : YAML::Node();
+}
+
+template <typename T>
+void YamlReader::GetScalar(const std::string& key, T& out, const char* type_name) {
+  read_.insert(key);
+  if (!Has(key)) return;
+  const YAML::Node n = node_[key];
+  if (!n.IsScalar()) Fail(key, std::string("expected ") + type_name);
+  try {
+    out = n.as<T>();
+  } catch (const YAML::Exception&) {
+    Fail(key, std::string("expected ") + type_name + ", got '" + n.Scalar() + "'");
+  }
+}
+
+void YamlReader::Get(const std::string& key, double& out) {
+  GetScalar(key, out, "a number");
+  if (Has(key) && !std::isfinite(out)) Fail(key, "must be finite");
+}
+void YamlReader::Get(const std::string& key, int& out) { GetScalar(key, out, "an integer"); }
+void YamlReader::Get(const std::string& key, std::uint64_t& out) {
+  if (Has(key) && node_[key].IsScalar() && !node_[key].Scalar().empty() &&
+      node_[key].Scalar()[0] == '-') {
+    Fail(key, "must be a non-negative integer");
+  }
+  GetScalar(key, out, "a non-negative integer");
+}
+void YamlReader::Get(const std::string& key, bool& out) { GetScalar(key, out, "true or false"); }
+void YamlReader::Get(const std::string& key, std::string& out) { GetScalar(key, out, "a string"); }
+
+void YamlReader::GetVector(const std::string& key, std::vector<double>& out, std::size_t expected_len) {
+  read_.insert(key);
+  if (!Has(key)) return;
+  const YAML::Node n = node_[key];
+  if (!n.IsSequence() || n.size() != expected_len) {
+    Fail(key, "expected a list of " + std::to_string(expected_len) + " numbers");
+  }
+  std::vector<double> v;
+  for (const auto& e : n) {
+    try {
+      v.push_back(e.as<double>());
+    } catch (const YAML::Exception&) {
+      Fail(key, "expected a list of " + std::to_string(expected_len) + " numbers");
+    }
+    if (!std::isfinite(v.back())) Fail(key, "values must be finite");
+  }
+  out = std::move(v);
+}
+
+void YamlReader::GetChoice(const std::string& key, std::string& out,
+                           const std::vector<std::string>& choices) {
+  Get(key, out);
+  for (const auto& c : choices) {
+    if (out == c) return;
+  }
+  std::string list;
+  for (const auto& c : choices) list += (list.empty() ? "" : ", ") + c;
+  Fail(key, "must be one of " + list + " (got '" + out + "')");
+}
+
+void YamlReader::CheckPositive(const std::string& key, double v) const {
+  if (!(v > 0.0)) {
+    std::ostringstream s;
+    s << "must be > 0 (got " << v << ")";
+    Fail(key, s.str());
+  }
+}
+void YamlReader::CheckNonNegative(const std::string& key, double v) const {
+  if (!(v >= 0.0)) {
+    std::ostringstream s;
+    s << "must be >= 0 (got " << v << ")";
+    Fail(key, s.str());
+  }
+}
+void YamlReader::CheckRange(const std::string& key, double v, double lo, double hi) const {
+  if (!(v >= lo && v <= hi)) {
+    std::ostringstream s;
+    s << "must be in [" << lo << ", " << hi << "] (got " << v << ")";
+    Fail(key, s.str());
+  }
+}
+
+YamlReader YamlReader::Child(const std::string& key) {
+  read_.insert(key);
+  YAML::Node n;
+  if (node_ && node_.IsMap() && node_[key]) n = node_[key];
+  if (n && !n.IsNull() && !n.IsMap()) Fail(key, "expected a mapping of keys");
+  return YamlReader(n, KeyPath(key), source_);
+}
+
+void YamlReader::ForEach(const std::string& key,
+                         const std::function<void(const YAML::Node&, const std::string&)>& fn) {
+  read_.insert(key);
+  if (!Has(key)) return;
+  const YAML::Node n = node_[key];
+  if (!n.IsSequence()) Fail(key, "expected a list");
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    fn(n[i], KeyPath(key) + "[" + std::to_string(i) + "]");
+  }
+}
+
+YamlReader YamlReader::Element(const YAML::Node& node, const std::string& path) const {
+  return YamlReader(node, path, source_);
+}
+
+void YamlReader::Finish() const {
+  if (!node_ || !node_.IsMap()) return;
+  for (const auto& kv : node_) {
+    const std::string key = kv.first.as<std::string>();
+    if (!read_.count(key)) FailAt(kv.first, KeyPath(key), "unknown key");
+  }
+}
+
+}  // namespace mapmesh

@@ -1,0 +1,81 @@
+#pragma once
+// Strict, typed access to one YAML mapping: every key read is remembered, and Finish()
+// rejects the keys nobody asked for. Every error is a ConfigError naming file, line and key.
+
+#include <yaml-cpp/yaml.h>
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "common/config/config_error.h"
+
+namespace mapmesh {
+
+// Where a YAML tree came from, and which key paths were set on the command line.
+struct YamlSource {
+  std::string file;
+  std::set<std::string> overridden;  // key paths given with --set
+};
+
+class YamlReader {
+ public:
+  // node must be a mapping (or null, treated as empty); path is its dotted key path.
+  YamlReader(YAML::Node node, std::string path, std::shared_ptr<const YamlSource> source);
+
+  // Throws ConfigError for `key` (relative to this mapping) with `reason`.
+  [[noreturn]] void Fail(const std::string& key, const std::string& reason) const;
+  // Same, for a node anywhere below this mapping.
+  [[noreturn]] void FailAt(const YAML::Node& node, const std::string& key_path,
+                           const std::string& reason) const;
+
+  bool Has(const std::string& key) const;
+  // The raw node for key (marks it as read); null node when absent.
+  YAML::Node Raw(const std::string& key);
+
+  // Reads an optional scalar into out; leaves out unchanged when absent.
+  void Get(const std::string& key, double& out);
+  void Get(const std::string& key, int& out);
+  void Get(const std::string& key, std::uint64_t& out);
+  void Get(const std::string& key, bool& out);
+  void Get(const std::string& key, std::string& out);
+  // Reads a fixed-length list of numbers ([x, y, theta] and the like).
+  void GetVector(const std::string& key, std::vector<double>& out, std::size_t expected_len);
+
+  // Reads a string that must be one of `choices`.
+  void GetChoice(const std::string& key, std::string& out, const std::vector<std::string>& choices);
+
+  // Range checks on a value already read; they fail with the key's line.
+  void CheckPositive(const std::string& key, double v) const;
+  void CheckNonNegative(const std::string& key, double v) const;
+  void CheckRange(const std::string& key, double v, double lo, double hi) const;
+
+  // A child mapping (an empty one when absent).
+  YamlReader Child(const std::string& key);
+  // A child sequence; each element is passed to fn with its index path.
+  void ForEach(const std::string& key, const std::function<void(const YAML::Node&, const std::string&)>& fn);
+  // Reader for an element of a sequence obtained with ForEach.
+  YamlReader Element(const YAML::Node& node, const std::string& path) const;
+
+  // Rejects keys that were never read. Call once all known keys have been read.
+  void Finish() const;
+
+  const std::string& path() const { return path_; }
+  const YamlSource& source() const { return *source_; }
+  int LineOf(const YAML::Node& node) const;
+  std::string KeyPath(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+
+ private:
+  template <typename T>
+  void GetScalar(const std::string& key, T& out, const char* type_name);
+
+  YAML::Node node_;
+  std::string path_;
+  std::shared_ptr<const YamlSource> source_;
+  std::set<std::string> read_;
+};
+
+}  // namespace mapmesh

@@ -1,0 +1,52 @@
+#pragma once
+// SE(2) poses and angle helpers.
+
+#include <Eigen/Core>
+#include <cmath>
+#include <numbers>
+
+namespace mapmesh {
+
+// Wraps an angle to [-pi, pi).
+inline double WrapAngle(double a) {
+  constexpr double kTwoPi = 2.0 * std::numbers::pi;
+  a = std::fmod(a + std::numbers::pi, kTwoPi);
+  if (a < 0) a += kTwoPi;
+  return a - std::numbers::pi;
+}
+
+inline constexpr double DegToRad(double d) { return d * std::numbers::pi / 180.0; }
+inline constexpr double RadToDeg(double r) { return r * 180.0 / std::numbers::pi; }
+
+// A rigid 2D pose (x, y, theta): maps points from its own frame into the parent frame.
+struct Pose2 {
+  double x = 0.0;
+  double y = 0.0;
+  double theta = 0.0;
+
+  // Maps a point given in this pose's frame into the parent frame.
+  Eigen::Vector2d Apply(const Eigen::Vector2d& p) const {
+    const double c = std::cos(theta), s = std::sin(theta);
+    return {x + c * p.x() - s * p.y(), y + s * p.x() + c * p.y()};
+  }
+  // Composition: (this * other) maps other's frame into this pose's parent frame.
+  Pose2 operator*(const Pose2& o) const {
+    const Eigen::Vector2d t = Apply({o.x, o.y});
+    return {t.x(), t.y(), WrapAngle(theta + o.theta)};
+  }
+  // The inverse transform: maps parent-frame points into this pose's frame.
+  Pose2 Inverse() const {
+    const double c = std::cos(theta), s = std::sin(theta);
+    return {-c * x - s * y, s * x - c * y, WrapAngle(-theta)};
+  }
+  Eigen::Vector2d Translation() const { return {x, y}; }
+  Eigen::Matrix2d Rotation() const {
+    const double c = std::cos(theta), s = std::sin(theta);
+    Eigen::Matrix2d r;
+    r << c, -s, s, c;
+    return r;
+  }
+  Eigen::Vector3d Vector() const { return {x, y, theta}; }
+};
+
+}  // namespace mapmesh

@@ -1,0 +1,116 @@
+#include "common/io/run_files.h"
+
+#include <cstdio>
+#include <fstream>
+#include <stdexcept>
+
+namespace mapmesh::io {
+
+json MapToJson(const LandmarkMap& map) {
+  json lms = json::array();
+  for (const Landmark& l : map.landmarks) {
+    lms.push_back({{"id", l.id},
+                   {"signature", l.signature},
+                   {"x", l.mean.x()},
+                   {"y", l.mean.y()},
+                   {"cov", {l.cov(0, 0), l.cov(0, 1), l.cov(1, 1)}}});
+  }
+  return {{"landmarks", lms}};
+}
+
+LandmarkMap MapFromJson(const json& j) {
+  LandmarkMap map;
+  try {
+    for (const auto& e : j.at("landmarks")) {
+      Landmark l;
+      l.id = e.at("id").get<std::uint32_t>();
+      l.signature = e.value("signature", -1);
+      l.mean = {e.at("x").get<double>(), e.at("y").get<double>()};
+      const auto& c = e.at("cov");
+      l.cov << c.at(0).get<double>(), c.at(1).get<double>(), c.at(1).get<double>(),
+          c.at(2).get<double>();
+      map.landmarks.push_back(l);
+    }
+  } catch (const json::exception& ex) {
+    throw std::runtime_error(std::string("malformed map: ") + ex.what());
+  }
+  return map;
+}
+
+const RobotTruth* RunTruth::Find(RobotId id) const {
+  for (const auto& r : robots) {
+    if (r.id == id) return &r;
+  }
+  return nullptr;
+}
+
+json TruthToJson(const RunTruth& truth) {
+  json lms = json::array();
+  for (std::size_t i = 0; i < truth.landmarks.size(); ++i) {
+    lms.push_back({{"id", i}, {"x", truth.landmarks[i].x()}, {"y", truth.landmarks[i].y()}});
+  }
+  json robots = json::array();
+  for (const RobotTruth& r : truth.robots) {
+    json traj = json::array();
+    for (const TruthSample& s : r.trajectory) {
+      traj.push_back({s.t, s.pose.x, s.pose.y, s.pose.theta});
+    }
+    robots.push_back({{"id", r.id},
+                      {"start", {r.start.x, r.start.y, r.start.theta}},
+                      {"trajectory", traj}});
+  }
+  return {{"scenario", truth.scenario},
+          {"duration_s", truth.duration_s},
+          {"landmarks", lms},
+          {"seen", truth.seen},
+          {"robots", robots}};
+}
+
+RunTruth TruthFromJson(const json& j) {
+  RunTruth t;
+  try {
+    t.scenario = j.value("scenario", "");
+    t.duration_s = j.value("duration_s", 0.0);
+    for (const auto& l : j.at("landmarks")) t.landmarks.emplace_back(l.at("x"), l.at("y"));
+    t.seen = j.value("seen", std::vector<int>{});
+    for (const auto& r : j.at("robots")) {
+      RobotTruth rt;
+      rt.id = r.at("id");
+      const auto& s = r.at("start");
+      rt.start = {s.at(0), s.at(1), s.at(2)};
+      for (const auto& p : r.at("trajectory")) {
+        rt.trajectory.push_back({p.at(0), {p.at(1), p.at(2), p.at(3)}});
+      }
+      t.robots.push_back(std::move(rt));
+    }
+  } catch (const json::exception& ex) {
+    throw std::runtime_error(std::string("malformed truth: ") + ex.what());
+  }
+  return t;
+}
+
+void WriteJsonAtomic(const std::string& path, const json& j) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp);
+    if (!out) throw std::runtime_error(tmp + ": cannot open for writing");
+    out << j.dump(1) << '\n';
+    out.flush();
+    if (!out) throw std::runtime_error(tmp + ": write failed");
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    throw std::runtime_error(path + ": cannot rename from " + tmp);
+  }
+}
+
+json ReadJson(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open");
+  try {
+    return json::parse(in);
+  } catch (const json::exception& ex) {
+    throw std::runtime_error(path + ": " + ex.what());
+  }
+}
+
+}  // namespace mapmesh::io

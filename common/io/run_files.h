@@ -1,0 +1,53 @@
+#pragma once
+// The JSON files of a run directory (truth.json, the agents' map files) and atomic file
+// writing. Like config/ and transport/, this module does I/O and so sits outside the pure
+// core; the core never includes it.
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "common/geometry/pose2.h"
+#include "common/map/landmark_map.h"
+#include "common/types/messages.h"
+
+namespace mapmesh::io {
+
+using nlohmann::json;
+
+// {"landmarks": [{"id", "signature", "x", "y", "cov": [xx, xy, yy]}...]}
+json MapToJson(const LandmarkMap& map);
+// Throws std::runtime_error on a malformed document.
+LandmarkMap MapFromJson(const json& j);
+
+struct TruthSample {
+  double t = 0.0;
+  Pose2 pose;
+};
+
+struct RobotTruth {
+  RobotId id = 0;
+  Pose2 start;
+  std::vector<TruthSample> trajectory;
+};
+
+// truth.json: everything an evaluation needs to know about the world of a run.
+struct RunTruth {
+  std::string scenario;
+  double duration_s = 0.0;
+  std::vector<Eigen::Vector2d> landmarks;  // index = landmark id = signature
+  std::vector<int> seen;                   // landmarks that any robot observed
+  std::vector<RobotTruth> robots;
+  const RobotTruth* Find(RobotId id) const;
+};
+
+json TruthToJson(const RunTruth& truth);
+RunTruth TruthFromJson(const json& j);
+
+// Writes path.tmp then renames it over path, so readers never see a partial file.
+// Throws std::runtime_error naming the path on failure.
+void WriteJsonAtomic(const std::string& path, const json& j);
+// Throws std::runtime_error naming the path on a missing file or a parse error.
+json ReadJson(const std::string& path);
+
+}  // namespace mapmesh::io

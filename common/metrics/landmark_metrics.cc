@@ -1,0 +1,84 @@
+#include "common/metrics/landmark_metrics.h"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <tuple>
+
+namespace mapmesh {
+
+double Nees(const Eigen::Vector2d& estimate, const Eigen::Matrix2d& cov, const Eigen::Vector2d& truth) {
+  const double det = cov.determinant();
+  if (!(det > 0.0) || !std::isfinite(det)) return std::numeric_limits<double>::infinity();
+  const Eigen::Vector2d e = estimate - truth;
+  return e.dot(cov.inverse() * e);
+}
+
+std::vector<int> MatchToTruth(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
+                              double gate_m) {
+  std::vector<int> match(map.size(), -1);
+  std::vector<bool> used(truth.size(), false);
+  std::vector<std::tuple<double, std::size_t, std::size_t>> candidates;
+  for (std::size_t i = 0; i < map.size(); ++i) {
+    const Landmark& l = map.landmarks[i];
+    if (l.signature >= 0) {
+      if (static_cast<std::size_t>(l.signature) < truth.size()) match[i] = l.signature;
+      continue;
+    }
+    for (std::size_t j = 0; j < truth.size(); ++j) {
+      const double d = (l.mean - truth[j]).norm();
+      if (d <= gate_m) candidates.emplace_back(d, i, j);
+    }
+  }
+  for (int m : match) {
+    if (m >= 0) used[m] = true;
+  }
+  std::sort(candidates.begin(), candidates.end());
+  for (const auto& [d, i, j] : candidates) {
+    if (match[i] >= 0 || used[j]) continue;
+    match[i] = static_cast<int>(j);
+    used[j] = true;
+  }
+  return match;
+}
+
+MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
+                       const std::vector<int>& seen, double gate_m) {
+  MapQuality q;
+  q.landmarks = static_cast<int>(map.size());
+  const std::vector<int> match = MatchToTruth(map, truth, gate_m);
+  std::vector<bool> present(truth.size(), false);
+  double se = 0.0, nees = 0.0;
+  int consistent = 0;
+  for (std::size_t i = 0; i < map.size(); ++i) {
+    if (match[i] < 0) continue;
+    const Landmark& l = map.landmarks[i];
+    const Eigen::Vector2d& t = truth[match[i]];
+    present[match[i]] = true;
+    ++q.matched;
+    se += (l.mean - t).squaredNorm();
+    const double e = Nees(l.mean, l.cov, t);
+    nees += e;
+    if (e < kChi2Dof2P95) ++consistent;
+  }
+  if (q.matched > 0) {
+    q.rmse_m = std::sqrt(se / q.matched);
+    q.nees_mean = nees / q.matched;
+    q.consistent_ratio = static_cast<double>(consistent) / q.matched;
+  }
+  std::vector<bool> counted(truth.size(), seen.empty());
+  for (int j : seen) {
+    if (j >= 0 && static_cast<std::size_t>(j) < truth.size()) counted[j] = true;
+  }
+  int denom = 0, covered = 0;
+  for (std::size_t j = 0; j < truth.size(); ++j) {
+    if (!counted[j]) continue;
+    ++denom;
+    if (present[j]) ++covered;
+  }
+  q.coverage = denom > 0 ? static_cast<double>(covered) / denom : 0.0;
+  return q;
+}
+
+}  // namespace mapmesh

@@ -1,0 +1,38 @@
+#pragma once
+// Map quality against ground truth: RMSE, NEES (thesis eq. 94), the consistent-landmark
+// ratio at the 95 % chi-square bound, and coverage.
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "common/map/landmark_map.h"
+
+namespace mapmesh {
+
+// 95 % bound of a chi-square with 2 degrees of freedom.
+inline constexpr double kChi2Dof2P95 = 5.991464547107979;
+
+// NEES of one 2D estimate: e^T cov^-1 e (thesis eq. 94). Infinite when cov is singular.
+double Nees(const Eigen::Vector2d& estimate, const Eigen::Matrix2d& cov, const Eigen::Vector2d& truth);
+
+// Each estimated landmark's true counterpart (index into truth), or -1.
+// A landmark with a signature is matched to that true landmark; one without is matched to
+// the nearest true landmark within gate_m (each true landmark at most once, closest first).
+std::vector<int> MatchToTruth(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
+                              double gate_m);
+
+struct MapQuality {
+  int landmarks = 0;          // landmarks in the map
+  int matched = 0;            // of which have a true counterpart
+  double rmse_m = 0.0;        // over matched landmarks
+  double nees_mean = 0.0;     // over matched landmarks
+  double consistent_ratio = 0.0;  // share of matched landmarks with NEES below kChi2Dof2P95
+  double coverage = 0.0;      // share of `seen` true landmarks that the map contains
+};
+
+// Quality of a map already expressed in the truth frame. seen lists the true landmarks that
+// any robot observed (the coverage denominator); empty means all of them.
+MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
+                       const std::vector<int>& seen, double gate_m = 2.0);
+
+}  // namespace mapmesh

@@ -1,0 +1,56 @@
+#pragma once
+// The baseline estimator (`slam: dead_reckoning`): the pose is integrated from odometry
+// alone and each landmark is the average of its observations projected through that pose.
+// It ignores pose uncertainty, so its covariances are optimistic; it exists as a simple,
+// honest reference for the filters that replace it.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include "common/geometry/pose2.h"
+#include "common/map/landmark_map.h"
+#include "common/slam/motion_model.h"
+#include "common/types/messages.h"
+
+namespace mapmesh {
+
+struct DeadReckoningOptions {
+  double sigma_range_m = 0.05;       // sensor range noise, for landmark covariances
+  double sigma_bearing_rad = 0.0175; // sensor bearing noise
+  double association_gate_m = 1.0;   // without signatures: join the nearest landmark within this
+};
+
+class DeadReckoningMapper {
+ public:
+  explicit DeadReckoningMapper(const DeadReckoningOptions& options);
+
+  // Moves the pose by one odometry interval (unicycle model, no noise).
+  void Predict(const UnicycleControl& u, double dt);
+  // Adds the landmark observations of a scan (robot sightings are ignored).
+  void Observe(const std::vector<Observation>& obs);
+
+  const Pose2& pose() const { return pose_; }
+  // The current map: one landmark per signature (or per nearest-neighbour cluster).
+  LandmarkMap Map() const;
+  std::size_t size() const { return tracks_.size(); }
+
+ private:
+  struct Track {
+    std::uint32_t id = 0;
+    std::int32_t signature = -1;
+    std::uint32_t n = 0;
+    Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+    Eigen::Matrix2d sum_outer = Eigen::Matrix2d::Zero();
+    Eigen::Matrix2d sum_noise = Eigen::Matrix2d::Zero();  // sum of projected sensor covariances
+    Eigen::Vector2d Mean() const { return sum / n; }
+  };
+
+  DeadReckoningOptions options_;
+  Pose2 pose_;
+  std::vector<Track> tracks_;
+  std::unordered_map<std::int32_t, std::size_t> by_signature_;
+};
+
+}  // namespace mapmesh

@@ -1,0 +1,138 @@
+#include "common/transport/convert.h"
+
+namespace mapmesh::transport {
+namespace {
+
+template <typename Seq, typename Elem>
+Seq Borrow(std::vector<Elem>& v) {
+  Seq s{};
+  s._maximum = static_cast<std::uint32_t>(v.size());
+  s._length = static_cast<std::uint32_t>(v.size());
+  s._buffer = v.data();
+  s._release = false;
+  return s;
+}
+
+}  // namespace
+
+mapmesh_msg_Odometry ToMsg(const Odometry& v, MsgScratch&) {
+  return {v.robot_id, v.seq, v.stamp, v.dt, v.v, v.w, v.steering, v.scans_in_interval, v.sync};
+}
+
+Odometry FromMsg(const mapmesh_msg_Odometry& m) {
+  return {m.robot_id, m.seq, m.stamp, m.dt, m.v, m.w, m.steering, m.scans_in_interval, m.sync};
+}
+
+mapmesh_msg_Scan ToMsg(const Scan& v, MsgScratch& scratch) {
+  scratch.obs.clear();
+  for (const Observation& o : v.obs) {
+    scratch.obs.push_back({static_cast<float>(o.range), static_cast<float>(o.bearing), o.signature,
+                           static_cast<std::uint8_t>(o.kind)});
+  }
+  mapmesh_msg_Scan m{};
+  m.robot_id = v.robot_id;
+  m.seq = v.seq;
+  m.stamp = v.stamp;
+  m.obs = Borrow<dds_sequence_mapmesh_msg_Observation>(scratch.obs);
+  return m;
+}
+
+Scan FromMsg(const mapmesh_msg_Scan& m) {
+  Scan s;
+  s.robot_id = m.robot_id;
+  s.seq = m.seq;
+  s.stamp = m.stamp;
+  s.obs.reserve(m.obs._length);
+  for (std::uint32_t i = 0; i < m.obs._length; ++i) {
+    const auto& o = m.obs._buffer[i];
+    s.obs.push_back({o.range, o.bearing, o.signature,
+                     o.kind == 1 ? ObservationKind::kRobot : ObservationKind::kLandmark});
+  }
+  return s;
+}
+
+mapmesh_msg_RadioLinks ToMsg(const RadioLinks& v, MsgScratch& scratch) {
+  scratch.links.clear();
+  for (const Link& l : v.links) scratch.links.push_back({l.a, l.b});
+  mapmesh_msg_RadioLinks m{};
+  m.stamp = v.stamp;
+  m.links = Borrow<dds_sequence_mapmesh_msg_Link>(scratch.links);
+  return m;
+}
+
+RadioLinks FromMsg(const mapmesh_msg_RadioLinks& m) {
+  RadioLinks r;
+  r.stamp = m.stamp;
+  for (std::uint32_t i = 0; i < m.links._length; ++i) {
+    r.links.push_back({m.links._buffer[i].a, m.links._buffer[i].b});
+  }
+  return r;
+}
+
+mapmesh_msg_GroundTruth ToMsg(const GroundTruth& v, MsgScratch&) {
+  return {v.robot_id, v.stamp, v.x, v.y, v.theta};
+}
+
+GroundTruth FromMsg(const mapmesh_msg_GroundTruth& m) {
+  return {m.robot_id, m.stamp, m.x, m.y, m.theta};
+}
+
+mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch&) {
+  mapmesh_msg_MapMessage m{};
+  m.robot_id = v.robot_id;
+  m.kind = static_cast<std::uint8_t>(v.kind);
+  m.version = v.version;
+  m.stamp = v.stamp;
+  m.payload._maximum = static_cast<std::uint32_t>(v.payload.size());
+  m.payload._length = static_cast<std::uint32_t>(v.payload.size());
+  m.payload._buffer = const_cast<std::uint8_t*>(v.payload.data());
+  m.payload._release = false;
+  return m;
+}
+
+MapMessage FromMsg(const mapmesh_msg_MapMessage& m) {
+  MapMessage v;
+  v.robot_id = m.robot_id;
+  v.kind = m.kind == 1 ? MapKind::kGlobal : MapKind::kLocal;
+  v.version = m.version;
+  v.stamp = m.stamp;
+  if (m.payload._length > 0) v.payload.assign(m.payload._buffer, m.payload._buffer + m.payload._length);
+  return v;
+}
+
+mapmesh_msg_AgentStatus ToMsg(const AgentStatus& v, MsgScratch& scratch) {
+  scratch.ids.assign(v.peers_aligned.begin(), v.peers_aligned.end());
+  mapmesh_msg_AgentStatus m{};
+  m.robot_id = v.robot_id;
+  m.incarnation = v.incarnation;
+  m.processed_until = v.processed_until;
+  m.odom_processed = v.odom_processed;
+  m.scans_processed = v.scans_processed;
+  m.local_landmarks = v.local_landmarks;
+  m.global_landmarks = v.global_landmarks;
+  m.maps_received = v.maps_received;
+  m.maps_dropped = v.maps_dropped;
+  m.bytes_sent = v.bytes_sent;
+  m.bytes_received = v.bytes_received;
+  m.peers_aligned = Borrow<dds_sequence_uint32>(scratch.ids);
+  return m;
+}
+
+AgentStatus FromMsg(const mapmesh_msg_AgentStatus& m) {
+  AgentStatus s;
+  s.robot_id = m.robot_id;
+  s.incarnation = m.incarnation;
+  s.processed_until = m.processed_until;
+  s.odom_processed = m.odom_processed;
+  s.scans_processed = m.scans_processed;
+  s.local_landmarks = m.local_landmarks;
+  s.global_landmarks = m.global_landmarks;
+  s.maps_received = m.maps_received;
+  s.maps_dropped = m.maps_dropped;
+  s.bytes_sent = m.bytes_sent;
+  s.bytes_received = m.bytes_received;
+  s.peers_aligned.assign(m.peers_aligned._buffer, m.peers_aligned._buffer + m.peers_aligned._length);
+  return s;
+}
+
+}  // namespace mapmesh::transport

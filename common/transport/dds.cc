@@ -1,0 +1,134 @@
+#include "common/transport/dds.h"
+
+namespace mapmesh::transport {
+
+DdsError::DdsError(const std::string& what, dds_return_t rc)
+    : std::runtime_error(what + ": " + dds_strretcode(rc)), rc_(rc) {}
+
+dds_return_t Check(dds_return_t rc, const char* what) {
+  if (rc < 0) throw DdsError(what, rc);
+  return rc;
+}
+
+void Entity::Reset() {
+  if (e_ > 0) dds_delete(e_);  // a failure here (already deleted with its parent) is harmless
+  e_ = 0;
+}
+
+Qos::Qos() : q_(dds_create_qos()) {
+  if (!q_) throw std::bad_alloc();
+}
+Qos::~Qos() { dds_delete_qos(q_); }
+Qos::Qos(const Qos& o) : q_(dds_create_qos()) {
+  if (!q_) throw std::bad_alloc();
+  Check(dds_copy_qos(q_, o.q_), "dds_copy_qos");
+}
+Qos& Qos::operator=(const Qos& o) {
+  if (this != &o) Check(dds_copy_qos(q_, o.q_), "dds_copy_qos");
+  return *this;
+}
+Qos& Qos::Reliable(double max_blocking_s) {
+  dds_qset_reliability(q_, DDS_RELIABILITY_RELIABLE, ToDuration(max_blocking_s));
+  return *this;
+}
+Qos& Qos::BestEffort() {
+  dds_qset_reliability(q_, DDS_RELIABILITY_BEST_EFFORT, 0);
+  return *this;
+}
+Qos& Qos::KeepAll() {
+  dds_qset_history(q_, DDS_HISTORY_KEEP_ALL, 0);
+  return *this;
+}
+Qos& Qos::KeepLast(int depth) {
+  dds_qset_history(q_, DDS_HISTORY_KEEP_LAST, depth);
+  return *this;
+}
+Qos& Qos::Volatile() {
+  dds_qset_durability(q_, DDS_DURABILITY_VOLATILE);
+  return *this;
+}
+Qos& Qos::TransientLocal() {
+  dds_qset_durability(q_, DDS_DURABILITY_TRANSIENT_LOCAL);
+  return *this;
+}
+Qos& Qos::Liveliness(double lease_s) {
+  dds_qset_liveliness(q_, DDS_LIVELINESS_AUTOMATIC, ToDuration(lease_s));
+  return *this;
+}
+Qos& Qos::NoAutoDispose() {
+  dds_qset_writer_data_lifecycle(q_, false);
+  return *this;
+}
+
+Domain::Domain(dds_domainid_t id, const std::string& config)
+    : Entity(Check(dds_create_domain(id, config.c_str()), "dds_create_domain")) {}
+
+Participant::Participant(dds_domainid_t domain)
+    : Entity(Check(dds_create_participant(domain, nullptr, nullptr), "dds_create_participant")) {}
+
+Topic::Topic(const Participant& p, const dds_topic_descriptor_t* desc, const std::string& name,
+             const Qos& qos)
+    : Entity(Check(dds_create_topic(p.get(), desc, name.c_str(), qos.get(), nullptr),
+                   "dds_create_topic")) {}
+
+RawWriter::RawWriter(const Participant& p, const Topic& t, const Qos& qos)
+    : Entity(Check(dds_create_writer(p.get(), t.get(), qos.get(), nullptr), "dds_create_writer")) {}
+
+void RawWriter::Write(const void* sample) const { Check(dds_write(e_, sample), "dds_write"); }
+
+std::uint32_t RawWriter::MatchedReaders() const {
+  dds_publication_matched_status_t st;
+  Check(dds_get_publication_matched_status(e_, &st), "dds_get_publication_matched_status");
+  return st.current_count;
+}
+
+bool RawWriter::WaitForAcks(double timeout_s) const {
+  const dds_return_t rc = dds_wait_for_acks(e_, ToDuration(timeout_s));
+  if (rc == DDS_RETCODE_TIMEOUT) return false;
+  Check(rc, "dds_wait_for_acks");
+  return true;
+}
+
+RawReader::RawReader(const Participant& p, const Topic& t, const Qos& qos)
+    : Entity(Check(dds_create_reader(p.get(), t.get(), qos.get(), nullptr), "dds_create_reader")) {}
+
+std::uint32_t RawReader::MatchedWriters() const {
+  dds_subscription_matched_status_t st;
+  Check(dds_get_subscription_matched_status(e_, &st), "dds_get_subscription_matched_status");
+  return st.current_count;
+}
+
+GuardCondition::GuardCondition(const Participant& p)
+    : Entity(Check(dds_create_guardcondition(p.get()), "dds_create_guardcondition")) {}
+
+void GuardCondition::Trigger() const {
+  Check(dds_set_guardcondition(e_, true), "dds_set_guardcondition");
+}
+
+bool GuardCondition::Triggered() const {
+  bool t = false;
+  Check(dds_read_guardcondition(e_, &t), "dds_read_guardcondition");
+  return t;
+}
+
+WaitSet::WaitSet(const Participant& p)
+    : Entity(Check(dds_create_waitset(p.get()), "dds_create_waitset")) {}
+
+void WaitSet::AttachReader(const RawReader& r, dds_attach_t tag) {
+  Entity cond(Check(dds_create_readcondition(r.get(), DDS_ANY_STATE), "dds_create_readcondition"));
+  Check(dds_waitset_attach(e_, cond.get(), tag), "dds_waitset_attach");
+  conditions_.push_back(std::move(cond));
+}
+
+void WaitSet::AttachGuard(const GuardCondition& g, dds_attach_t tag) {
+  Check(dds_waitset_attach(e_, g.get(), tag), "dds_waitset_attach");
+}
+
+std::vector<dds_attach_t> WaitSet::Wait(double timeout_s) const {
+  dds_attach_t tags[16];
+  const dds_return_t n =
+      Check(dds_waitset_wait(e_, tags, 16, ToDuration(timeout_s)), "dds_waitset_wait");
+  return std::vector<dds_attach_t>(tags, tags + std::min<dds_return_t>(n, 16));
+}
+
+}  // namespace mapmesh::transport

@@ -1,0 +1,141 @@
+#pragma once
+// Small RAII owners over the Cyclone DDS C API. This directory is the only code that
+// includes dds.h. Every dds_* return is checked; failures throw DdsError with the call and
+// dds_strretcode's text.
+
+#include <dds/dds.h>
+
+#include <chrono>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace mapmesh::transport {
+
+class DdsError : public std::runtime_error {
+ public:
+  DdsError(const std::string& what, dds_return_t rc);
+  dds_return_t code() const { return rc_; }
+
+ private:
+  dds_return_t rc_;
+};
+
+// Throws DdsError when rc is negative; returns rc otherwise.
+dds_return_t Check(dds_return_t rc, const char* what);
+
+inline dds_duration_t ToDuration(double seconds) {
+  return static_cast<dds_duration_t>(seconds * 1e9);
+}
+
+// Owns one DDS entity handle; deleting it deletes its children too.
+class Entity {
+ public:
+  Entity() = default;
+  explicit Entity(dds_entity_t e) : e_(e) {}
+  ~Entity() { Reset(); }
+  Entity(Entity&& o) noexcept : e_(o.e_) { o.e_ = 0; }
+  Entity& operator=(Entity&& o) noexcept {
+    if (this != &o) {
+      Reset();
+      e_ = o.e_;
+      o.e_ = 0;
+    }
+    return *this;
+  }
+  Entity(const Entity&) = delete;
+  Entity& operator=(const Entity&) = delete;
+
+  dds_entity_t get() const { return e_; }
+  explicit operator bool() const { return e_ > 0; }
+  void Reset();
+
+ protected:
+  dds_entity_t e_ = 0;
+};
+
+// A QoS builder: Qos().Reliable().KeepAll().TransientLocal().
+class Qos {
+ public:
+  Qos();
+  ~Qos();
+  Qos(const Qos& o);
+  Qos& operator=(const Qos& o);
+
+  Qos& Reliable(double max_blocking_s = 10.0);
+  Qos& BestEffort();
+  Qos& KeepAll();
+  Qos& KeepLast(int depth);
+  Qos& Volatile();
+  Qos& TransientLocal();
+  // Automatic liveliness with this lease: readers learn of a dead writer after about lease_s.
+  Qos& Liveliness(double lease_s);
+  // Writers only: do not dispose instances when the writer goes away.
+  Qos& NoAutoDispose();
+
+  const dds_qos_t* get() const { return q_; }
+
+ private:
+  dds_qos_t* q_;
+};
+
+// A Cyclone domain with an explicit configuration (XML text or file:// URI). Create it
+// before the participants of that domain; when absent, Cyclone reads CYCLONEDDS_URI.
+class Domain : public Entity {
+ public:
+  Domain(dds_domainid_t id, const std::string& config);
+};
+
+class Participant : public Entity {
+ public:
+  explicit Participant(dds_domainid_t domain);
+};
+
+class Topic : public Entity {
+ public:
+  Topic(const Participant& p, const dds_topic_descriptor_t* desc, const std::string& name,
+        const Qos& qos);
+};
+
+// Untyped writer and reader; the typed ones in typed.h wrap them.
+class RawWriter : public Entity {
+ public:
+  RawWriter(const Participant& p, const Topic& t, const Qos& qos);
+  void Write(const void* sample) const;
+  // Number of readers currently matched.
+  std::uint32_t MatchedReaders() const;
+  // Waits until every reliable reader acknowledged; false on timeout.
+  bool WaitForAcks(double timeout_s) const;
+};
+
+class RawReader : public Entity {
+ public:
+  RawReader(const Participant& p, const Topic& t, const Qos& qos);
+  std::uint32_t MatchedWriters() const;
+};
+
+// A guard condition: something a WaitSet can wait for, triggered from any thread.
+class GuardCondition : public Entity {
+ public:
+  explicit GuardCondition(const Participant& p);
+  void Trigger() const;
+  bool Triggered() const;
+};
+
+// Waits until one of the attached readers has data, or a guard condition triggers.
+class WaitSet : public Entity {
+ public:
+  explicit WaitSet(const Participant& p);
+  // Attaches a reader (its data-available condition) or a guard condition. The attach
+  // argument is returned by Wait when that entity triggers.
+  void AttachReader(const RawReader& r, dds_attach_t tag);
+  void AttachGuard(const GuardCondition& g, dds_attach_t tag);
+  // Returns the tags of the entities that triggered; empty on timeout.
+  std::vector<dds_attach_t> Wait(double timeout_s) const;
+
+ private:
+  std::vector<Entity> conditions_;
+};
+
+}  // namespace mapmesh::transport

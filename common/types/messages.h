@@ -1,0 +1,89 @@
+#pragma once
+// Value types exchanged between the feeder, the agents and the launcher. They mirror
+// idl/mapmesh.idl; transport/convert.h maps between the two.
+
+#include <cstdint>
+#include <vector>
+
+namespace mapmesh {
+
+using RobotId = std::uint32_t;
+
+// Odometry over (stamp - dt, stamp]. Unicycle robots use v and w, car-like robots v and
+// steering. scans_in_interval tells the agent how many scans of this interval to wait for.
+struct Odometry {
+  RobotId robot_id = 0;
+  std::uint32_t seq = 0;
+  double stamp = 0.0;            // s, end of the interval
+  double dt = 0.0;               // s, length of the interval
+  double v = 0.0;                // m/s
+  double w = 0.0;                // rad/s
+  double steering = 0.0;         // rad
+  std::uint32_t scans_in_interval = 0;
+  bool sync = false;             // lockstep barrier: report status after processing this
+};
+
+enum class ObservationKind : std::uint8_t { kLandmark = 0, kRobot = 1 };
+
+// One range-bearing reading in the sensor frame (bearing from the robot's heading).
+struct Observation {
+  double range = 0.0;            // m
+  double bearing = 0.0;          // rad
+  std::int32_t signature = -1;   // identity when the scenario shares it, else -1
+  ObservationKind kind = ObservationKind::kLandmark;
+};
+
+struct Scan {
+  RobotId robot_id = 0;
+  std::uint32_t seq = 0;
+  double stamp = 0.0;            // s
+  std::vector<Observation> obs;
+};
+
+// An unordered pair of robots that can hear each other; a < b.
+struct Link {
+  RobotId a = 0;
+  RobotId b = 0;
+  bool operator==(const Link&) const = default;
+};
+
+struct RadioLinks {
+  double stamp = 0.0;
+  std::vector<Link> links;
+};
+
+// True pose of a robot, for evaluation only.
+struct GroundTruth {
+  RobotId robot_id = 0;
+  double stamp = 0.0;
+  double x = 0.0, y = 0.0, theta = 0.0;
+};
+
+enum class MapKind : std::uint8_t { kLocal = 0, kGlobal = 1 };
+
+// A map as it travels: the payload is the codec of common/map/map_codec.h.
+struct MapMessage {
+  RobotId robot_id = 0;
+  MapKind kind = MapKind::kLocal;
+  std::uint32_t version = 0;
+  double stamp = 0.0;
+  std::vector<std::uint8_t> payload;
+};
+
+// What an agent has done so far.
+struct AgentStatus {
+  RobotId robot_id = 0;
+  std::uint32_t incarnation = 0;
+  double processed_until = 0.0;  // s, all data with stamps up to here has been applied
+  std::uint32_t odom_processed = 0;
+  std::uint32_t scans_processed = 0;
+  std::uint32_t local_landmarks = 0;
+  std::uint32_t global_landmarks = 0;
+  std::uint32_t maps_received = 0;
+  std::uint32_t maps_dropped = 0;
+  std::uint64_t bytes_sent = 0;
+  std::uint64_t bytes_received = 0;
+  std::vector<RobotId> peers_aligned;
+};
+
+}  // namespace mapmesh

@@ -1,0 +1,63 @@
+// mapmesh-eval: scores the maps of a run directory against its truth.json and prints one
+// JSON document on stdout (scripts/swarm merges it into summary.json).
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <filesystem>
+
+#include "common/io/run_files.h"
+#include "common/metrics/landmark_metrics.h"
+
+namespace mapmesh {
+namespace {
+
+using io::json;
+
+json QualityJson(const MapQuality& q) {
+  return {{"landmarks", q.landmarks},   {"matched", q.matched},
+          {"rmse_m", q.rmse_m},         {"nees_mean", q.nees_mean},
+          {"consistent_ratio", q.consistent_ratio}, {"coverage", q.coverage}};
+}
+
+int Run(int argc, char** argv) {
+  CLI::App app{"mapmesh-eval: scores a run's maps against its ground truth (JSON on stdout)"};
+  std::string run_dir;
+  double gate_m = 2.0;
+  app.add_option("--run", run_dir, "run directory (holds truth.json and agent_<id>/)")->required();
+  app.add_option("--gate", gate_m, "metres: landmarks without a signature match the nearest true one within this");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) return app.exit(e);
+    std::fprintf(stderr, "mapmesh-eval: %s (see --help)\n", e.what());
+    return 2;
+  }
+  const io::RunTruth truth = io::TruthFromJson(io::ReadJson(run_dir + "/truth.json"));
+  json agents = json::object();
+  for (const io::RobotTruth& robot : truth.robots) {
+    const std::string dir = run_dir + "/agent_" + std::to_string(robot.id);
+    json entry = json::object();
+    for (const char* kind : {"local", "global"}) {
+      const std::string path = dir + "/" + kind + "_map.json";
+      if (!std::filesystem::exists(path)) continue;
+      // Each map is in its robot's own frame: the true start pose maps it into the world.
+      const LandmarkMap map = TransformMap(io::MapFromJson(io::ReadJson(path)), robot.start);
+      entry[kind] = QualityJson(EvaluateMap(map, truth.landmarks, truth.seen, gate_m));
+    }
+    agents[std::to_string(robot.id)] = entry;
+  }
+  std::printf("%s\n", json{{"agents", agents}, {"seen_landmarks", truth.seen.size()}}.dump(1).c_str());
+  return 0;
+}
+
+}  // namespace
+}  // namespace mapmesh
+
+int main(int argc, char** argv) {
+  try {
+    return mapmesh::Run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "mapmesh-eval: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,120 @@
+#include "sim_feeder/agent_tracker.h"
+
+#include <sstream>
+
+namespace mapmesh {
+
+AgentTracker::AgentTracker(const std::vector<RobotId>& ids) {
+  for (RobotId id : ids) agents_[id];
+}
+
+void AgentTracker::OnStatus(const AgentStatus& status) {
+  auto it = agents_.find(status.robot_id);
+  if (it == agents_.end()) return;
+  State& s = it->second;
+  if (s.stale_incarnation && *s.stale_incarnation == status.incarnation) return;
+  if (s.dead && !s.stale_incarnation) return;  // killed, and no restart announced
+  if (s.incarnation && *s.incarnation != status.incarnation) {
+    // A new process for this robot: its progress starts over.
+    s.subscribed = false;
+  }
+  s.dead = false;
+  s.seen = true;
+  s.incarnation = status.incarnation;
+  s.last = status;
+}
+
+void AgentTracker::OnGone(RobotId id) {
+  auto it = agents_.find(id);
+  if (it == agents_.end() || !it->second.seen) return;
+  it->second.dead = true;
+  it->second.stale_incarnation = it->second.incarnation;
+  it->second.seen = false;
+}
+
+void AgentTracker::SetSubscribed(RobotId id, bool subscribed) {
+  auto it = agents_.find(id);
+  if (it != agents_.end()) it->second.subscribed = subscribed;
+}
+
+void AgentTracker::MarkDead(RobotId id) {
+  auto it = agents_.find(id);
+  if (it == agents_.end()) return;
+  State& s = it->second;
+  s.dead = true;
+  s.seen = false;
+  s.subscribed = false;
+  if (s.incarnation) s.stale_incarnation = s.incarnation;
+}
+
+void AgentTracker::ExpectRestart(RobotId id) {
+  auto it = agents_.find(id);
+  if (it == agents_.end()) return;
+  State& s = it->second;
+  if (s.incarnation) s.stale_incarnation = s.incarnation;
+  s.dead = false;
+  s.seen = false;
+  s.subscribed = false;
+}
+
+bool AgentTracker::IsUp(RobotId id) const {
+  auto it = agents_.find(id);
+  return it != agents_.end() && !it->second.dead && it->second.seen && it->second.subscribed;
+}
+
+bool AgentTracker::IsDead(RobotId id) const {
+  auto it = agents_.find(id);
+  return it != agents_.end() && it->second.dead;
+}
+
+std::vector<RobotId> AgentTracker::Pending() const {
+  std::vector<RobotId> out;
+  for (const auto& [id, s] : agents_) {
+    if (!s.dead && !(s.seen && s.subscribed)) out.push_back(id);
+  }
+  return out;
+}
+
+std::vector<RobotId> AgentTracker::Lagging(double stamp) const {
+  std::vector<RobotId> out;
+  for (const auto& [id, s] : agents_) {
+    if (IsUp(id) && s.last.processed_until + 1e-9 < stamp) out.push_back(id);
+  }
+  return out;
+}
+
+std::vector<RobotId> AgentTracker::Up() const {
+  std::vector<RobotId> out;
+  for (const auto& [id, s] : agents_) {
+    if (IsUp(id)) out.push_back(id);
+  }
+  return out;
+}
+
+std::vector<AgentStatus> AgentTracker::Statuses() const {
+  std::vector<AgentStatus> out;
+  for (const auto& [id, s] : agents_) {
+    if (s.incarnation) out.push_back(s.last);
+  }
+  return out;
+}
+
+std::optional<std::uint32_t> AgentTracker::dead_incarnation(RobotId id) const {
+  auto it = agents_.find(id);
+  return it == agents_.end() ? std::nullopt : it->second.stale_incarnation;
+}
+
+std::optional<ControlCommand> ParseControl(const std::string& line) {
+  std::istringstream s(line);
+  std::string word;
+  if (!(s >> word)) return std::nullopt;
+  if (word == "continue") return ControlCommand{ControlCommand::Kind::kContinue};
+  if (word == "stop") return ControlCommand{ControlCommand::Kind::kStop};
+  long id = 0;
+  if (!(s >> id) || id <= 0) return std::nullopt;
+  if (word == "dead") return ControlCommand{ControlCommand::Kind::kDead, static_cast<RobotId>(id)};
+  if (word == "expect") return ControlCommand{ControlCommand::Kind::kExpect, static_cast<RobotId>(id)};
+  return std::nullopt;
+}
+
+}  // namespace mapmesh

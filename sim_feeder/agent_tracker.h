@@ -1,0 +1,65 @@
+#pragma once
+// What the feeder knows about each agent of the run, for lockstep pacing: whether it is
+// up and subscribed, dead, or restarting, and how far it has processed. Pure: the DDS
+// facts (status samples, matched-reader counts) and launcher commands come in as calls.
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/types/messages.h"
+
+namespace mapmesh {
+
+class AgentTracker {
+ public:
+  explicit AgentTracker(const std::vector<RobotId>& ids);
+
+  // A status sample from an agent process.
+  void OnStatus(const AgentStatus& status);
+  // The agent's status writer went away (DDS liveliness lost or instance disposed).
+  void OnGone(RobotId id);
+  // subscribed: every sensor writer of this robot has matched a reader since the last
+  // restart (the caller compares cumulative match counts).
+  void SetSubscribed(RobotId id, bool subscribed);
+  // The launcher killed the agent: stop waiting for it.
+  void MarkDead(RobotId id);
+  // The launcher restarted the agent: wait for a new incarnation to come up.
+  void ExpectRestart(RobotId id);
+
+  // Up: a status from the current incarnation has arrived and the sensor topics are matched.
+  bool IsUp(RobotId id) const;
+  bool IsDead(RobotId id) const;
+  // Agents neither up nor dead (starting or restarting).
+  std::vector<RobotId> Pending() const;
+  // Up agents whose processed_until is below stamp.
+  std::vector<RobotId> Lagging(double stamp) const;
+  std::vector<RobotId> Up() const;
+  // The latest status of each agent that has sent one.
+  std::vector<AgentStatus> Statuses() const;
+  // Incarnation of the last dead process, to ignore its late statuses.
+  std::optional<std::uint32_t> dead_incarnation(RobotId id) const;
+
+ private:
+  struct State {
+    bool seen = false;        // a status of the current incarnation arrived
+    bool subscribed = false;
+    bool dead = false;
+    std::optional<std::uint32_t> incarnation;
+    std::optional<std::uint32_t> stale_incarnation;  // killed process: ignore its statuses
+    AgentStatus last;
+  };
+  std::map<RobotId, State> agents_;
+};
+
+// A launcher command read from the feeder's stdin: "dead ID", "expect ID", "continue",
+// "stop". Returns nullopt for anything else.
+struct ControlCommand {
+  enum class Kind { kDead, kExpect, kContinue, kStop } kind;
+  RobotId id = 0;
+};
+std::optional<ControlCommand> ParseControl(const std::string& line);
+
+}  // namespace mapmesh

@@ -1,0 +1,426 @@
+// mapmesh-feeder: plays the world of a scenario over DDS (odometry, scans, radio links and
+// ground truth), paced in lockstep with the agents or in real time, and writes truth.json.
+// With --events it prints one JSON object per line on stdout (progress, holds, the end);
+// with --control it reads launcher commands on stdin ("dead ID", "expect ID", "continue").
+
+#include <poll.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <thread>
+
+#include "common/config/config_error.h"
+#include "common/config/scenario.h"
+#include "common/io/run_files.h"
+#include "common/transport/session.h"
+#include "common/transport/shutdown.h"
+#include "common/transport/topics.h"
+#include "common/transport/typed.h"
+#include "sim_feeder/agent_tracker.h"
+#include "sim_feeder/simulator.h"
+#include "sim_feeder/world.h"
+
+namespace mapmesh {
+namespace {
+
+namespace tp = transport;
+using io::json;
+using Clock = std::chrono::steady_clock;
+
+// Exit codes: 0 done, 1 internal error, 2 bad arguments or scenario, 3 agents failed to
+// start, 130 interrupted.
+constexpr int kExitStartup = 3;
+constexpr int kExitInterrupted = 130;
+
+class Interrupted : public std::runtime_error {
+ public:
+  Interrupted() : std::runtime_error("interrupted") {}
+};
+
+// Launcher commands arriving on stdin, read without blocking.
+class ControlInput {
+ public:
+  explicit ControlInput(bool enabled) : enabled_(enabled) {}
+  std::vector<ControlCommand> Poll() {
+    std::vector<ControlCommand> out;
+    if (!enabled_ || eof_) return out;
+    pollfd pfd{STDIN_FILENO, POLLIN, 0};
+    while (::poll(&pfd, 1, 0) > 0 && (pfd.revents & (POLLIN | POLLHUP))) {
+      char buf[512];
+      const ssize_t n = ::read(STDIN_FILENO, buf, sizeof buf);
+      if (n <= 0) {
+        eof_ = true;
+        break;
+      }
+      pending_.append(buf, static_cast<std::size_t>(n));
+    }
+    std::size_t nl;
+    while ((nl = pending_.find('\n')) != std::string::npos) {
+      const std::string line = pending_.substr(0, nl);
+      pending_.erase(0, nl + 1);
+      if (auto c = ParseControl(line)) {
+        out.push_back(*c);
+      } else if (!line.empty()) {
+        spdlog::warn("ignoring control line '{}'", line);
+      }
+    }
+    return out;
+  }
+  bool enabled() const { return enabled_; }
+
+ private:
+  bool enabled_;
+  bool eof_ = false;
+  std::string pending_;
+};
+
+// Everything the feeder publishes and listens to.
+struct Channels {
+  Channels(const tp::Participant& p, const Scenario& sc)
+      : links(p, tp::kLinksTopic, tp::LinksQos()),
+        truth(p, tp::kTruthTopic, tp::TruthQos()),
+        status(p, tp::kStatusTopic, tp::StatusQos()) {
+    for (const RobotSpec& r : sc.robots) {
+      odom.emplace(r.id, std::make_unique<tp::Writer<Odometry>>(p, tp::OdomTopic(r.id), tp::SensorQos()));
+      scan.emplace(r.id, std::make_unique<tp::Writer<Scan>>(p, tp::ScanTopic(r.id), tp::SensorQos()));
+    }
+  }
+  // Cumulative number of readers ever matched by both sensor writers of a robot.
+  std::uint32_t TotalMatches(RobotId id) const {
+    dds_publication_matched_status_t a, b;
+    tp::Check(dds_get_publication_matched_status(odom.at(id)->raw().get(), &a), "matched status");
+    tp::Check(dds_get_publication_matched_status(scan.at(id)->raw().get(), &b), "matched status");
+    return std::min(a.total_count, b.total_count);
+  }
+  std::map<RobotId, std::unique_ptr<tp::Writer<Odometry>>> odom;
+  std::map<RobotId, std::unique_ptr<tp::Writer<Scan>>> scan;
+  tp::Writer<RadioLinks> links;
+  tp::Writer<GroundTruth> truth;
+  tp::Reader<AgentStatus> status;
+};
+
+class Feeder {
+ public:
+  Feeder(const Scenario& sc, Channels& ch, AgentTracker& tracker, ControlInput& control,
+         tp::ShutdownSignal& shutdown, bool events, double stall_timeout_s)
+      : sc_(sc), ch_(ch), tracker_(tracker), control_(control), shutdown_(shutdown),
+        events_(events), stall_timeout_s_(stall_timeout_s) {
+    for (const RobotSpec& r : sc.robots) matches_at_restart_[r.id] = 0;
+  }
+
+  // Reads statuses, liveliness changes, subscriptions and launcher commands.
+  void Pump() {
+    if (shutdown_.requested()) throw Interrupted();
+    for (const auto& s : ch_.status.Take()) {
+      if (s.valid) {
+        spdlog::trace("status {} inc {} t {:.2f}", s.value.robot_id, s.value.incarnation, s.value.processed_until);
+        tracker_.OnStatus(s.value);
+      } else if (!s.alive) {
+        // The writer of that status instance is gone: liveliness expired or it was disposed.
+        if (!tracker_.IsDead(s.value.robot_id)) {
+          spdlog::warn("agent {} lost (DDS liveliness)", s.value.robot_id);
+          tracker_.OnGone(s.value.robot_id);
+        }
+      }
+    }
+    for (const auto& [id, base] : matches_at_restart_) {
+      tracker_.SetSubscribed(id, ch_.TotalMatches(id) > base);
+    }
+    for (const ControlCommand& c : control_.Poll()) {
+      switch (c.kind) {
+        case ControlCommand::Kind::kDead:
+          tracker_.MarkDead(c.id);
+          spdlog::info("agent {} killed", c.id);
+          break;
+        case ControlCommand::Kind::kExpect:
+          if (matches_at_restart_.count(c.id)) matches_at_restart_[c.id] = ch_.TotalMatches(c.id);
+          tracker_.ExpectRestart(c.id);
+          spdlog::info("agent {} restarting", c.id);
+          break;
+        case ControlCommand::Kind::kContinue: continue_ = true; break;
+        case ControlCommand::Kind::kStop: throw Interrupted();
+      }
+    }
+  }
+
+  // Waits until no agent is starting; agents that do not come up in time count as failed.
+  std::vector<RobotId> WaitForAgents(double timeout_s) {
+    const auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
+    while (Clock::now() < deadline) {
+      Pump();
+      if (tracker_.Pending().empty()) return {};
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return tracker_.Pending();
+  }
+
+  // Lockstep barrier: waits until every up agent has processed everything up to stamp.
+  void WaitForBarrier(double stamp) {
+    auto last_progress = Clock::now();
+    double best = -1.0;
+    while (true) {
+      Pump();
+      const auto lagging = tracker_.Lagging(stamp);
+      if (lagging.empty()) return;
+      double slowest = stamp;
+      for (const AgentStatus& s : tracker_.Statuses()) {
+        if (tracker_.IsUp(s.robot_id)) slowest = std::min(slowest, s.processed_until);
+      }
+      if (slowest > best) {
+        best = slowest;
+        last_progress = Clock::now();
+      } else if (Clock::now() - last_progress > std::chrono::duration<double>(stall_timeout_s_)) {
+        for (RobotId id : lagging) {
+          spdlog::error("agent {} made no progress for {:.0f} s; no longer waiting for it", id,
+                        stall_timeout_s_);
+          tracker_.MarkDead(id);
+        }
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+  }
+
+  // Stops at a hold point until the launcher says continue, then waits for restarted agents.
+  void Hold(double stamp) {
+    Emit({{"event", "hold"}, {"t", stamp}});
+    continue_ = false;
+    while (!continue_) {
+      Pump();
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    const auto failed = WaitForAgents(sc_.feeder.startup_timeout_s);
+    for (RobotId id : failed) {
+      spdlog::error("restarted agent {} did not come up within {:.0f} s", id, sc_.feeder.startup_timeout_s);
+      tracker_.MarkDead(id);
+    }
+  }
+
+  void Emit(const json& event) {
+    if (!events_) return;
+    std::fputs((event.dump() + "\n").c_str(), stdout);
+    std::fflush(stdout);
+  }
+
+  json Progress(double stamp) const {
+    std::uint64_t maps = 0;
+    json alive = json::array();
+    for (const AgentStatus& s : tracker_.Statuses()) {
+      if (tracker_.IsUp(s.robot_id)) {
+        alive.push_back(s.robot_id);
+        maps += s.maps_received;
+      }
+    }
+    return {{"event", "progress"}, {"t", stamp}, {"duration", sc_.duration_s}, {"alive", alive},
+            {"maps_received", maps}};
+  }
+
+ private:
+  const Scenario& sc_;
+  Channels& ch_;
+  AgentTracker& tracker_;
+  ControlInput& control_;
+  tp::ShutdownSignal& shutdown_;
+  bool events_;
+  double stall_timeout_s_;
+  bool continue_ = false;
+  std::map<RobotId, std::uint32_t> matches_at_restart_;
+};
+
+int Run(int argc, char** argv) {
+  tp::ShutdownSignal shutdown;  // first: block SIGINT/SIGTERM before any thread starts
+
+  CLI::App app{"mapmesh-feeder: simulates (or replays) the world and publishes it over DDS"};
+  std::string scenario_path, out_dir = ".", dds_config, pace, log_level = "info";
+  int domain = -1, agents = 0;
+  double rate = 0.0, stall_timeout_s = 120.0;
+  bool check_only = false, events = false, control_enabled = false;
+  std::vector<std::string> sets;
+  std::vector<double> holds;
+  app.add_option("--scenario", scenario_path, "scenario YAML file")->required();
+  app.add_option("--domain", domain, "DDS domain id (required unless --check)")->check(CLI::Range(0, 232));
+  app.add_option("--agents", agents, "number of robots (default: the scenario's)");
+  app.add_option("--set", sets, "override a scenario key: key.path=value (repeatable)");
+  app.add_option("--out", out_dir, "directory for truth.json and feeder.json");
+  app.add_option("--dds-config", dds_config,
+                 "Cyclone DDS XML config (default: CYCLONEDDS_URI, else the shipped loopback config)");
+  app.add_option("--pace", pace, "override feeder.pace")->check(CLI::IsMember({"lockstep", "realtime"}));
+  app.add_option("--rate", rate, "override feeder.realtime_factor")->check(CLI::PositiveNumber);
+  app.add_option("--hold-at", holds, "pause at these scenario times until 'continue' on stdin");
+  app.add_option("--stall-timeout", stall_timeout_s, "lockstep: give up on an agent stuck this many wall seconds");
+  app.add_flag("--check", check_only, "validate the scenario and exit");
+  app.add_flag("--events", events, "print JSON events on stdout");
+  app.add_flag("--control", control_enabled, "read launcher commands on stdin");
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) return app.exit(e);
+    std::fprintf(stderr, "mapmesh-feeder: %s (see --help)\n", e.what());
+    return 2;
+  }
+  auto logger = spdlog::stderr_color_mt("feeder");
+  spdlog::set_default_logger(logger);
+  spdlog::set_pattern("[%H:%M:%S.%e] [feeder] [%l] %v");
+  spdlog::set_level(spdlog::level::from_str(log_level));
+
+  Scenario sc;
+  std::vector<Eigen::Vector2d> landmarks;
+  try {
+    std::vector<ConfigOverride> overrides;
+    for (const auto& s : sets) overrides.push_back(ParseOverride(s));
+    sc = LoadScenario(scenario_path, overrides, agents);
+    landmarks = BuildLandmarks(sc);
+  } catch (const ConfigError& e) {
+    std::fprintf(stderr, "mapmesh-feeder: %s\n", e.what());
+    return 2;
+  }
+  if (!pace.empty()) sc.feeder.pace = pace;
+  if (rate > 0.0) sc.feeder.realtime_factor = rate;
+  if (check_only) {
+    std::printf("%s: ok: %zu robots, %zu landmarks, %.1f s\n", scenario_path.c_str(),
+                sc.robots.size(), landmarks.size(), sc.duration_s);
+    return 0;
+  }
+  if (domain < 0) {
+    std::fprintf(stderr, "mapmesh-feeder: --domain is required (see --help)\n");
+    return 2;
+  }
+  std::filesystem::create_directories(out_dir);
+
+  tp::Session session(domain, dds_config, MAPMESH_SOURCE_DIR "/config/cyclonedds-loopback.xml");
+  Channels ch(session.participant(), sc);
+  std::vector<RobotId> ids;
+  for (const auto& r : sc.robots) ids.push_back(r.id);
+  AgentTracker tracker(ids);
+  ControlInput control(control_enabled);
+  shutdown.Watch(nullptr);
+  Feeder feeder(sc, ch, tracker, control, shutdown, events, stall_timeout_s);
+  const bool lockstep = sc.feeder.pace == "lockstep";
+  spdlog::info("scenario {}: {} robots, {} landmarks, {:.1f} s, pace {}, domain {}", sc.name,
+               sc.robots.size(), landmarks.size(), sc.duration_s, sc.feeder.pace, domain);
+
+  Simulator sim(sc, landmarks);
+  io::RunTruth truth;
+  truth.scenario = sc.name;
+  truth.duration_s = sc.duration_s;
+  truth.landmarks = landmarks;
+  for (const auto& [id, start] : sim.Truth().starts) truth.robots.push_back({id, start, {}});
+  std::map<RobotId, std::uint32_t> odom_sent, scans_sent;
+
+  const auto wall_start = Clock::now();
+  int exit_code = 0;
+  try {
+    const auto failed = feeder.WaitForAgents(sc.feeder.startup_timeout_s);
+    if (!failed.empty()) {
+      std::string list;
+      for (RobotId id : failed) list += (list.empty() ? "" : ",") + std::to_string(id);
+      std::fprintf(stderr, "mapmesh-feeder: agents %s did not start within %.0f s\n", list.c_str(),
+                   sc.feeder.startup_timeout_s);
+      return kExitStartup;
+    }
+    feeder.Emit({{"event", "start"}, {"robots", ids}, {"duration", sc.duration_s}});
+    std::sort(holds.begin(), holds.end());
+    std::deque<double> hold_queue(holds.begin(), holds.end());
+    const double window = sc.feeder.lockstep_window_s;
+    double next_barrier = 0.0;
+    double next_truth_sample = 0.0;
+    auto last_progress = Clock::now() - std::chrono::seconds(10);
+    const auto sim_start = Clock::now();
+    while (!sim.Done()) {
+      FeedBatch b = sim.Next();
+      const bool last = sim.Done();
+      const bool barrier = b.stamp + 1e-9 >= next_barrier || last ||
+                           (!hold_queue.empty() && b.stamp + 1e-9 >= hold_queue.front());
+      if (barrier) {
+        for (Odometry& o : b.odom) o.sync = true;
+      }
+      if (!lockstep) {
+        const auto due = sim_start + std::chrono::duration_cast<Clock::duration>(
+                                         std::chrono::duration<double>(b.stamp / sc.feeder.realtime_factor));
+        while (Clock::now() < due) {
+          feeder.Pump();
+          std::this_thread::sleep_until(std::min(due, Clock::now() + std::chrono::milliseconds(20)));
+        }
+      }
+      if (b.links) ch.links.Write(*b.links);
+      for (const Scan& s : b.scans) {
+        ch.scan.at(s.robot_id)->Write(s);
+        ++scans_sent[s.robot_id];
+      }
+      for (const Odometry& o : b.odom) {
+        ch.odom.at(o.robot_id)->Write(o);
+        ++odom_sent[o.robot_id];
+      }
+      for (const GroundTruth& g : b.truth) ch.truth.Write(g);
+      if (b.stamp + 1e-9 >= next_truth_sample || last) {
+        for (const GroundTruth& g : b.truth) {
+          for (auto& r : truth.robots) {
+            if (r.id == g.robot_id) r.trajectory.push_back({g.stamp, {g.x, g.y, g.theta}});
+          }
+        }
+        next_truth_sample += sc.feeder.truth_period_s;
+      }
+      if (barrier) {
+        if (lockstep) feeder.WaitForBarrier(b.stamp);
+        feeder.Pump();
+        while (next_barrier <= b.stamp + 1e-9) next_barrier += window;
+        if (Clock::now() - last_progress > std::chrono::milliseconds(500) || last) {
+          feeder.Emit(feeder.Progress(b.stamp));
+          last_progress = Clock::now();
+        }
+        while (!hold_queue.empty() && b.stamp + 1e-9 >= hold_queue.front()) {
+          hold_queue.pop_front();
+          if (control.enabled()) feeder.Hold(b.stamp);
+        }
+      }
+    }
+  } catch (const Interrupted&) {
+    spdlog::warn("interrupted: writing what was played so far");
+    exit_code = kExitInterrupted;
+  }
+
+  // Let reliable readers acknowledge the tail of the streams before the writers go away.
+  for (auto& [id, w] : ch.odom) w->raw().WaitForAcks(2.0);
+  for (auto& [id, w] : ch.scan) w->raw().WaitForAcks(2.0);
+
+  const double wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  for (std::size_t i = 0; i < sim.Truth().seen.size(); ++i) {
+    if (sim.Truth().seen[i]) truth.seen.push_back(static_cast<int>(i));
+  }
+  io::WriteJsonAtomic(out_dir + "/truth.json", io::TruthToJson(truth));
+  json per_robot = json::array();
+  for (RobotId id : ids) {
+    per_robot.push_back({{"id", id}, {"odom_sent", odom_sent[id]}, {"scans_sent", scans_sent[id]}});
+  }
+  io::WriteJsonAtomic(out_dir + "/feeder.json", {{"scenario", sc.name},
+                                                 {"sim_duration_s", sc.duration_s},
+                                                 {"wall_s", wall_s},
+                                                 {"pace", sc.feeder.pace},
+                                                 {"interrupted", exit_code != 0},
+                                                 {"robots", per_robot}});
+  feeder.Emit({{"event", "done"}, {"wall_s", wall_s}, {"interrupted", exit_code != 0}});
+  spdlog::info("done in {:.1f} s wall", wall_s);
+  return exit_code;
+}
+
+}  // namespace
+}  // namespace mapmesh
+
+int main(int argc, char** argv) {
+  try {
+    return mapmesh::Run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "mapmesh-feeder: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,43 @@
+#pragma once
+// One simulated robot's pieces: the waypoint follower (thesis Fig. 27) and the
+// LMS-200-like range-bearing sensor with the visibility tests of thesis 4.1.4.
+
+#include <Eigen/Core>
+#include <random>
+#include <vector>
+
+#include "common/config/scenario.h"
+#include "common/geometry/pose2.h"
+#include "common/slam/motion_model.h"
+#include "common/types/messages.h"
+
+namespace mapmesh {
+
+// Progress along a path.
+struct FollowerState {
+  std::size_t next = 0;   // index of the waypoint being approached
+  bool finished = false;  // a non-looping path was completed: the robot stands still
+};
+
+// The control that steers `pose` toward the next waypoint: turn at up to the maximum rate,
+// drive at the configured speed (turning in place when the waypoint is behind), and switch
+// to the following waypoint inside the waypoint radius.
+UnicycleControl FollowWaypoints(const Pose2& pose, const PathOptions& path,
+                                const MotionOptions& motion, double dt, FollowerState& state);
+
+// Thesis 4.1.4: bounding box, bounding line (in front of the robot) and bounding circle
+// tests, then the field of view when it is narrower than 180 degrees.
+bool IsVisible(const Pose2& pose, const Eigen::Vector2d& landmark, const SensorOptions& sensor);
+
+// Noise-free range and bearing to a point (thesis eq. 100).
+Observation RangeBearing(const Pose2& pose, const Eigen::Vector2d& point);
+
+// Observations of every visible landmark, with Gaussian range and bearing noise.
+// Signatures are the landmark indices when sensor.signatures is set, else -1. When
+// indices is given, the index of each observed landmark is appended to it.
+std::vector<Observation> SenseLandmarks(const Pose2& pose,
+                                        const std::vector<Eigen::Vector2d>& landmarks,
+                                        const SensorOptions& sensor, std::mt19937_64& rng,
+                                        std::vector<int>* indices = nullptr);
+
+}  // namespace mapmesh

@@ -1,0 +1,71 @@
+#include "sim_feeder/simulator.h"
+
+#include <cmath>
+
+#include "sim_feeder/radio_model.h"
+
+namespace mapmesh {
+
+Simulator::Simulator(const Scenario& scenario, std::vector<Eigen::Vector2d> landmarks)
+    : scenario_(scenario), dt_(scenario.world.control_period_s) {
+  truth_.landmarks = std::move(landmarks);
+  truth_.seen.assign(truth_.landmarks.size(), false);
+  last_step_ = static_cast<std::uint64_t>(std::floor(scenario_.duration_s / dt_ + 1e-9));
+  robots_.reserve(scenario_.robots.size());
+  for (const RobotSpec& spec : scenario_.robots) {
+    Robot r{&spec, spec.start, {}, std::mt19937_64(scenario_.seed * 6364136223846793005ULL + spec.id)};
+    robots_.push_back(std::move(r));
+    truth_.starts.emplace_back(spec.id, spec.start);
+  }
+}
+
+bool Simulator::Done() const { return step_ > last_step_; }
+
+RadioLinks Simulator::Links(double stamp) const {
+  std::vector<RobotPosition> pos;
+  for (const Robot& r : robots_) pos.push_back({r.spec->id, r.pose.x, r.pose.y});
+  return {stamp, LinksInRange(pos, scenario_.radio.range_m)};
+}
+
+FeedBatch Simulator::Next() {
+  FeedBatch b;
+  const std::uint64_t k = step_++;
+  b.stamp = static_cast<double>(k) * dt_;
+  if (k > 0) {
+    std::normal_distribution<double> n01(0.0, 1.0);
+    for (Robot& r : robots_) {
+      const RobotSpec& spec = *r.spec;
+      const UnicycleControl u = FollowWaypoints(r.pose, spec.path, spec.motion, dt_, r.follower);
+      r.pose = UnicycleMotion(r.pose, u, dt_);
+      Odometry o;
+      o.robot_id = spec.id;
+      o.seq = r.odom_seq++;
+      o.stamp = b.stamp;
+      o.dt = dt_;
+      o.v = u.v_mps + spec.motion.sigma_v_mps * n01(r.rng);
+      o.w = u.w_radps + spec.motion.sigma_w_radps * n01(r.rng);
+      if (k % static_cast<std::uint64_t>(spec.sensor.scan_every_steps) == 0) {
+        Scan s;
+        s.robot_id = spec.id;
+        s.seq = r.scan_seq++;
+        s.stamp = b.stamp;
+        seen_scratch_.clear();
+        s.obs = SenseLandmarks(r.pose, truth_.landmarks, spec.sensor, r.rng, &seen_scratch_);
+        for (int i : seen_scratch_) truth_.seen[i] = true;
+        b.scans.push_back(std::move(s));
+        o.scans_in_interval = 1;
+      }
+      b.odom.push_back(o);
+    }
+  }
+  for (const Robot& r : robots_) {
+    b.truth.push_back({r.spec->id, b.stamp, r.pose.x, r.pose.y, r.pose.theta});
+  }
+  if (b.stamp + 1e-9 >= next_links_s_) {
+    b.links = Links(b.stamp);
+    next_links_s_ += scenario_.radio.links_period_s;
+  }
+  return b;
+}
+
+}  // namespace mapmesh

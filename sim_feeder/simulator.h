@@ -1,0 +1,49 @@
+#pragma once
+// The simulated world: unicycle robots following their paths among point landmarks, with
+// noisy odometry, noisy range-bearing scans, ground truth and radio links. Deterministic
+// for a given scenario: every robot draws from its own generator seeded from the scenario
+// seed and its id, so a robot's streams do not depend on how many robots run.
+
+#include <random>
+#include <vector>
+
+#include "common/config/scenario.h"
+#include "sim_feeder/feed_source.h"
+#include "sim_feeder/robot_sim.h"
+
+namespace mapmesh {
+
+class Simulator : public FeedSource {
+ public:
+  Simulator(const Scenario& scenario, std::vector<Eigen::Vector2d> landmarks);
+  Simulator(const Simulator&) = delete;
+  Simulator& operator=(const Simulator&) = delete;
+
+  bool Done() const override;
+  // Step 0 is the initial instant (truth and links only); each later step advances one
+  // control period and carries every robot's odometry, and scans every scan_every_steps.
+  FeedBatch Next() override;
+  const WorldTruth& Truth() const override { return truth_; }
+
+ private:
+  struct Robot {
+    const RobotSpec* spec;
+    Pose2 pose;
+    FollowerState follower;
+    std::mt19937_64 rng;
+    std::uint32_t odom_seq = 0;
+    std::uint32_t scan_seq = 0;
+  };
+  RadioLinks Links(double stamp) const;
+
+  Scenario scenario_;
+  WorldTruth truth_;
+  std::vector<Robot> robots_;
+  std::uint64_t step_ = 0;
+  std::uint64_t last_step_ = 0;
+  double dt_;
+  double next_links_s_ = 0.0;
+  std::vector<int> seen_scratch_;
+};
+
+}  // namespace mapmesh
