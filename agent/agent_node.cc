@@ -74,8 +74,9 @@ void AgentNode::Drain() {
     const Odometry odom = pending_odom_.begin()->second;
     if (!started_) {
       // The first interval only moves the pose: its scans may have been missed while this
-      // process was discovering the feeder.
+      // process was discovering the feeder. The map frame is the pose at its start.
       started_ = true;
+      mapper_.Predict({odom.v, odom.w}, odom.dt);
       processed_until_ = odom.stamp;
       pending_odom_.erase(pending_odom_.begin());
       auto end = pending_scans_.upper_bound(odom.stamp);

@@ -62,6 +62,11 @@ bool AgentTracker::IsUp(RobotId id) const {
   return it != agents_.end() && !it->second.dead && it->second.seen && it->second.subscribed;
 }
 
+bool AgentTracker::IsSubscribed(RobotId id) const {
+  auto it = agents_.find(id);
+  return it != agents_.end() && it->second.subscribed;
+}
+
 bool AgentTracker::IsDead(RobotId id) const {
   auto it = agents_.find(id);
   return it != agents_.end() && it->second.dead;

@@ -32,6 +32,7 @@ class AgentTracker {
   // Up: a status from the current incarnation has arrived and the sensor topics are matched.
   bool IsUp(RobotId id) const;
   bool IsDead(RobotId id) const;
+  bool IsSubscribed(RobotId id) const;
   // Agents neither up nor dead (starting or restarting).
   std::vector<RobotId> Pending() const;
   // Up agents whose processed_until is below stamp.

@@ -132,7 +132,9 @@ class Feeder {
       }
     }
     for (const auto& [id, base] : matches_at_restart_) {
-      tracker_.SetSubscribed(id, ch_.TotalMatches(id) > base);
+      const bool sub = ch_.TotalMatches(id) > base;
+      if (sub != tracker_.IsSubscribed(id)) spdlog::debug("agent {} subscribed={}", id, sub);
+      tracker_.SetSubscribed(id, sub);
     }
     for (const ControlCommand& c : control_.Poll()) {
       switch (c.kind) {
@@ -286,6 +288,19 @@ int Run(int argc, char** argv) {
   }
   if (!pace.empty()) sc.feeder.pace = pace;
   if (rate > 0.0) sc.feeder.realtime_factor = rate;
+  if (check_only && events) {
+    std::vector<RobotId> robot_ids;
+    for (const auto& r : sc.robots) robot_ids.push_back(r.id);
+    std::printf("%s\n", json{{"event", "check"},
+                             {"name", sc.name},
+                             {"robots", robot_ids},
+                             {"landmarks", landmarks.size()},
+                             {"duration", sc.duration_s},
+                             {"pace", sc.feeder.pace}}
+                             .dump()
+                             .c_str());
+    return 0;
+  }
   if (check_only) {
     std::printf("%s: ok: %zu robots, %zu landmarks, %.1f s\n", scenario_path.c_str(),
                 sc.robots.size(), landmarks.size(), sc.duration_s);
@@ -389,9 +404,12 @@ int Run(int argc, char** argv) {
     exit_code = kExitInterrupted;
   }
 
-  // Let reliable readers acknowledge the tail of the streams before the writers go away.
-  for (auto& [id, w] : ch.odom) w->raw().WaitForAcks(2.0);
-  for (auto& [id, w] : ch.scan) w->raw().WaitForAcks(2.0);
+  // Let the agents that are up acknowledge the tail of their streams before the writers go
+  // away (a killed agent's reader stays matched until its lease ends; do not wait for it).
+  for (RobotId id : tracker.Up()) {
+    ch.odom.at(id)->raw().WaitForAcks(2.0);
+    ch.scan.at(id)->raw().WaitForAcks(2.0);
+  }
 
   const double wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
   for (std::size_t i = 0; i < sim.Truth().seen.size(); ++i) {

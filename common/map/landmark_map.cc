@@ -20,11 +20,6 @@ bool IsValidCovariance(const Eigen::Matrix2d& cov) {
   return cov(0, 0) >= 0.0 && cov(1, 1) >= 0.0 && det >= -1e-12 * scale * scale;
 }
 
-}  // namespace mapmesh
-
-#include "common/geometry/pose2.h"
-
-namespace mapmesh {
 
 LandmarkMap TransformMap(const LandmarkMap& map, const Pose2& pose) {
   LandmarkMap out = map;

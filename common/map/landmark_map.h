@@ -6,6 +6,8 @@
 #include <optional>
 #include <vector>
 
+#include "common/geometry/pose2.h"
+
 namespace mapmesh {
 
 // One landmark estimate in its map's frame.
@@ -29,10 +31,7 @@ struct LandmarkMap {
 // True when cov is finite, symmetric (to 1e-9 relative) and positive semi-definite.
 bool IsValidCovariance(const Eigen::Matrix2d& cov);
 
-}  // namespace mapmesh
-
-namespace mapmesh {
-struct Pose2;
 // The map expressed in a parent frame: means mapped by `pose`, covariances rotated.
 LandmarkMap TransformMap(const LandmarkMap& map, const Pose2& pose);
+
 }  // namespace mapmesh

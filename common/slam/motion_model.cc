@@ -3,42 +3,41 @@
 #include <cmath>
 
 namespace mapmesh {
+namespace {
 
+// sin(u)/u and its derivative, with Taylor series near 0 (no cancellation).
+double Sinc(double u) {
+  if (std::abs(u) < 1e-4) return 1.0 - u * u / 6.0 + u * u * u * u / 120.0;
+  return std::sin(u) / u;
+}
+double SincDerivative(double u) {
+  if (std::abs(u) < 1e-4) return -u / 3.0 + u * u * u / 30.0;
+  return (u * std::cos(u) - std::sin(u)) / (u * u);
+}
+
+}  // namespace
+
+// Eq. 99 rewritten with sin(a + b) - sin(a) = 2 cos(a + b/2) sin(b/2) (and its cosine twin):
+//   x' = x + v dt cos(th + w dt / 2) sinc(w dt / 2),  y' = y + v dt sin(th + w dt / 2) sinc(w dt / 2).
+// It is exactly eq. 99 for w != 0, tends to eq. 98 as w -> 0, and loses no precision near 0.
 Pose2 UnicycleMotion(const Pose2& pose, const UnicycleControl& u, double dt,
                      Eigen::Matrix3d* j_pose, Eigen::Matrix<double, 3, 2>* j_control) {
-  const double v = u.v_mps, w = u.w_radps, th = pose.theta;
-  const double s0 = std::sin(th), c0 = std::cos(th);
-  // Below this turn rate eq. 99 loses precision; use its limit (eq. 98) and its Taylor
-  // expansion for the derivative with respect to w.
-  constexpr double kSmallW = 1e-6;
-  Pose2 out;
-  if (std::abs(w) < kSmallW) {
-    out = {pose.x + v * dt * c0, pose.y + v * dt * s0, WrapAngle(th + w * dt)};
-    if (j_pose) {
-      *j_pose << 1, 0, -v * dt * s0,  //
-          0, 1, v * dt * c0,          //
-          0, 0, 1;
-    }
-    if (j_control) {
-      *j_control << dt * c0, -0.5 * v * dt * dt * s0,  //
-          dt * s0, 0.5 * v * dt * dt * c0,             //
-          0, dt;
-    }
-    return out;
-  }
-  const double th1 = th + w * dt;
-  const double s1 = std::sin(th1), c1 = std::cos(th1);
-  const double r = v / w;
-  out = {pose.x + r * (s1 - s0), pose.y + r * (c0 - c1), WrapAngle(th1)};
+  const double half = 0.5 * u.w_radps * dt;
+  const double a = pose.theta + half;
+  const double ca = std::cos(a), sa = std::sin(a);
+  const double s = Sinc(half);
+  const double d = u.v_mps * dt;
+  const Pose2 out{pose.x + d * ca * s, pose.y + d * sa * s, WrapAngle(pose.theta + u.w_radps * dt)};
   if (j_pose) {
-    *j_pose << 1, 0, r * (c1 - c0),  //
-        0, 1, r * (s1 - s0),         //
+    *j_pose << 1, 0, -d * sa * s,  //
+        0, 1, d * ca * s,          //
         0, 0, 1;
   }
   if (j_control) {
-    const double dr_dw = -v / (w * w);
-    *j_control << (s1 - s0) / w, dr_dw * (s1 - s0) + r * c1 * dt,  //
-        (c0 - c1) / w, dr_dw * (c0 - c1) + r * s1 * dt,             //
+    const double ds = SincDerivative(half) * 0.5 * dt;  // d sinc / d w
+    const double da = 0.5 * dt;                         // d a / d w
+    *j_control << dt * ca * s, d * (-sa * da * s + ca * ds),  //
+        dt * sa * s, d * (ca * da * s + sa * ds),             //
         0, dt;
   }
   return out;

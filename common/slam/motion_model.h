@@ -14,7 +14,8 @@ struct UnicycleControl {
   double w_radps = 0.0;
 };
 
-// Unicycle motion over dt (thesis eq. 98 when w == 0, eq. 99 otherwise).
+// Unicycle motion over dt: thesis eq. 99, which tends to eq. 98 as w -> 0, evaluated in a
+// form that stays exact near w = 0.
 // Optional Jacobians: d(pose')/d(pose) (3x3) and d(pose')/d(v, w) (3x2).
 Pose2 UnicycleMotion(const Pose2& pose, const UnicycleControl& u, double dt,
                      Eigen::Matrix3d* j_pose = nullptr,

@@ -1,0 +1,440 @@
+"""`swarm run`: one experiment. Starts N agents and the feeder on a private DDS domain, kills
+and restarts agents at scenario times, ends the run, stops every process it started (also
+when interrupted), scores the maps and writes DIR/summary.json."""
+
+import ctypes
+import json
+import os
+import selectors
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from .domain import DomainLease
+from .progress import Progress
+
+REPO = Path(__file__).resolve().parents[2]
+PR_SET_PDEATHSIG = 1
+
+
+class RunError(Exception):
+    """A failure with a one-line reason; `exit_code` is the launcher's exit status."""
+
+    def __init__(self, message, exit_code=1):
+        super().__init__(message)
+        self.exit_code = exit_code
+
+
+class Interrupted(Exception):
+    pass
+
+
+def bin_dir():
+    return Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
+
+
+def binary(name):
+    path = bin_dir() / name
+    if not path.exists():
+        raise RunError(f"{path} not found: build first (cmake -S . -B build && cmake --build build -j2)")
+    return str(path)
+
+
+def _child_setup():
+    # Own process group (a terminal's Ctrl-C reaches only the launcher, which stops the
+    # children in order), and die with the launcher even if it is SIGKILLed.
+    os.setpgrp()
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    except OSError:
+        pass
+
+
+def parse_schedule(items, what):
+    """['2@10', '3@12.5'] -> [(10.0, 2), (12.5, 3)]"""
+    out = []
+    for item in items or []:
+        try:
+            rid, t = item.split("@")
+            rid, t = int(rid), float(t)
+            if rid <= 0 or t < 0:
+                raise ValueError
+        except ValueError:
+            raise RunError(f"--{what} {item}: expected ID@T with a robot id and a time in scenario seconds", 2)
+        out.append((t, rid))
+    return out
+
+
+class Proc:
+    """One started process and what it cost."""
+
+    def __init__(self, popen):
+        self.popen = popen
+        self.pid = popen.pid
+        self.returncode = None
+        self.cpu_s = 0.0
+        self.max_rss_mb = 0.0
+
+    def _reaped(self, status, usage):
+        self.returncode = os.waitstatus_to_exitcode(status)
+        self.popen.returncode = self.returncode  # so Popen never waits for it again
+        self.cpu_s = usage.ru_utime + usage.ru_stime
+        self.max_rss_mb = usage.ru_maxrss / 1024.0
+
+    def poll(self):
+        if self.returncode is None:
+            try:
+                pid, status, usage = os.wait4(self.pid, os.WNOHANG)
+            except ChildProcessError:
+                return self.returncode
+            if pid == self.pid:
+                self._reaped(status, usage)
+        return self.returncode
+
+    def wait(self, timeout):
+        end = time.monotonic() + timeout
+        while self.poll() is None and time.monotonic() < end:
+            time.sleep(0.02)
+        return self.returncode
+
+    def signal(self, sig):
+        if self.poll() is None:
+            try:
+                os.kill(self.pid, sig)
+            except ProcessLookupError:
+                pass
+
+    def stop(self, grace_s):
+        """SIGTERM, then SIGKILL after grace_s."""
+        if self.poll() is not None:
+            return self.returncode
+        self.signal(signal.SIGTERM)
+        if self.wait(grace_s) is None:
+            self.signal(signal.SIGKILL)
+            self.wait(5.0)
+        return self.returncode
+
+
+class AgentSlot:
+    """Everything about one robot's agent across its incarnations."""
+
+    def __init__(self, rid):
+        self.id = rid
+        self.procs = []
+        self.killed_at = []
+        self.restarted_at = []
+        self.alive_at_end = False
+
+    @property
+    def current(self):
+        return self.procs[-1] if self.procs else None
+
+
+class SwarmRun:
+    def __init__(self, args):
+        self.args = args
+        self.scenario = str(Path(args.scenario))
+        self.out = Path(args.out)
+        self.kills = parse_schedule(args.kill, "kill")
+        self.restarts = parse_schedule(args.restart, "restart")
+        self.common = []  # arguments every process gets
+        if args.agents:
+            self.common += ["--agents", str(args.agents)]
+        for s in args.set or []:
+            self.common += ["--set", s]
+        self.feeder = None
+        self.agents = {}
+        self.lease = None
+        self.info = None
+
+    # ----- set-up -------------------------------------------------------------------------
+    def check_scenario(self):
+        cmd = [binary("mapmesh-feeder"), "--scenario", self.scenario, "--check", "--events"] + self.common
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            msg = (r.stderr.strip().splitlines() or ["scenario check failed"])[-1]
+            raise RunError(msg.removeprefix("mapmesh-feeder: "), 2)
+        self.info = json.loads(r.stdout.strip().splitlines()[-1])
+        ids = set(self.info["robots"])
+        for t, rid in self.kills + self.restarts:
+            if rid not in ids:
+                raise RunError(f"--kill/--restart {rid}@{t}: no robot {rid} in this run (robots {sorted(ids)})", 2)
+            if t > self.info["duration"]:
+                raise RunError(f"--kill/--restart {rid}@{t}: after the end of the run ({self.info['duration']} s)", 2)
+
+    def agent_cmd(self, rid, incarnation):
+        cmd = [binary("mapmesh-agent"), "--scenario", self.scenario, "--id", str(rid),
+               "--domain", str(self.lease.id), "--out", str(self.out / f"agent_{rid}"),
+               "--incarnation", str(incarnation)] + self.common
+        return cmd
+
+    def spawn(self, cmd, log_path, append=False, **kw):
+        log = open(log_path, "ab" if append else "wb")
+        try:
+            p = subprocess.Popen(cmd, stdout=kw.pop("stdout", log), stderr=log, preexec_fn=_child_setup,
+                                 cwd=REPO, **kw)
+        finally:
+            log.close()
+        return Proc(p)
+
+    def start_agent(self, rid):
+        slot = self.agents[rid]
+        (self.out / f"agent_{rid}").mkdir(parents=True, exist_ok=True)
+        incarnation = len(slot.procs) + 1
+        slot.procs.append(self.spawn(self.agent_cmd(rid, incarnation), self.out / f"agent_{rid}" / "agent.log",
+                                     append=incarnation > 1))
+
+    # ----- the run ------------------------------------------------------------------------
+    def execute(self):
+        self.check_scenario()
+        self.out.mkdir(parents=True, exist_ok=True)
+        for stale in ["summary.json", "truth.json", "feeder.json"]:
+            (self.out / stale).unlink(missing_ok=True)
+        self.lease = DomainLease()
+        wall_start = time.monotonic()
+        interrupted = False
+        try:
+            for rid in self.info["robots"]:
+                self.agents[rid] = AgentSlot(rid)
+                self.start_agent(rid)
+            holds = sorted({t for t, _ in self.kills + self.restarts})
+            cmd = [binary("mapmesh-feeder"), "--scenario", self.scenario, "--domain", str(self.lease.id),
+                   "--out", str(self.out), "--events", "--control"] + self.common
+            if self.args.pace:
+                cmd += ["--pace", self.args.pace]
+            if self.args.rate:
+                cmd += ["--rate", str(self.args.rate)]
+            for t in holds:
+                cmd += ["--hold-at", str(t)]
+            self.feeder = self.spawn(cmd, self.out / "feeder.log", stdout=subprocess.PIPE, stdin=subprocess.PIPE)
+            self.loop(wall_start)
+        except Interrupted:
+            interrupted = True
+        finally:
+            self.stop_all()
+            self.lease.close()
+        wall_s = time.monotonic() - wall_start
+        return self.summarise(wall_s, interrupted)
+
+    def send(self, line):
+        try:
+            self.feeder.popen.stdin.write((line + "\n").encode())
+            self.feeder.popen.stdin.flush()
+        except (BrokenPipeError, OSError):
+            pass
+
+    def on_hold(self, t):
+        for when, rid in sorted(self.kills):
+            if when <= t + 1e-9 and rid not in self.done_kills.get(when, set()):
+                self.done_kills.setdefault(when, set()).add(rid)
+                slot = self.agents[rid]
+                if slot.current and slot.current.poll() is None:
+                    slot.current.signal(signal.SIGKILL)
+                    slot.current.wait(5.0)
+                    slot.killed_at.append(t)
+                    self.reported_dead.add(slot.current.pid)
+                    self.send(f"dead {rid}")
+                    self.progress.note(f"t={t:.1f}s killed agent {rid}")
+        for when, rid in sorted(self.restarts):
+            if when <= t + 1e-9 and rid not in self.done_restarts.get(when, set()):
+                self.done_restarts.setdefault(when, set()).add(rid)
+                slot = self.agents[rid]
+                if slot.current and slot.current.poll() is None:
+                    self.progress.note(f"t={t:.1f}s --restart {rid}: agent {rid} is still running; not restarted")
+                    continue
+                self.send(f"expect {rid}")
+                self.start_agent(rid)
+                slot.restarted_at.append(t)
+                self.progress.note(f"t={t:.1f}s restarted agent {rid}")
+        self.send("continue")
+
+    def loop(self, wall_start):
+        self.done_kills, self.done_restarts = {}, {}
+        self.reported_dead = set()  # pids whose end the feeder has been told about
+        self.progress = Progress(self.info["duration"], quiet=self.args.quiet)
+        deadline = wall_start + self.args.timeout
+        sel = selectors.DefaultSelector()
+        out = self.feeder.popen.stdout
+        os.set_blocking(out.fileno(), False)
+        sel.register(out, selectors.EVENT_READ)
+        buf = b""
+        old_handlers = {s: signal.signal(s, self._on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            while True:
+                if time.monotonic() > deadline:
+                    raise RunError(f"run exceeded --timeout {self.args.timeout:.0f} s; stopped", 1)
+                eof = False
+                for _key, _ in sel.select(timeout=0.25):
+                    chunk = out.read()
+                    if chunk == b"":
+                        eof = True
+                    elif chunk:
+                        buf += chunk
+                while b"\n" in buf:
+                    line, buf = buf.split(b"\n", 1)
+                    self.on_event(line)
+                # An agent that died on its own must not hold up lockstep.
+                for rid, slot in self.agents.items():
+                    p = slot.current
+                    if p and p.poll() is not None and p.pid not in self.reported_dead:
+                        self.reported_dead.add(p.pid)
+                        self.progress.note(f"agent {rid} exited unexpectedly (code {p.returncode})")
+                        self.send(f"dead {rid}")
+                if eof or self.feeder.poll() is not None:
+                    break
+            code = self.feeder.wait(30.0)
+            if code != 0:
+                raise RunError(f"mapmesh-feeder exited with code {code}: see {self.out / 'feeder.log'}", 1)
+        finally:
+            for s, h in old_handlers.items():
+                signal.signal(s, h)
+            self.progress.finish()
+
+    def _on_signal(self, signum, _frame):
+        raise Interrupted()
+
+    def on_event(self, line):
+        try:
+            ev = json.loads(line)
+        except ValueError:
+            return
+        kind = ev.get("event")
+        if kind == "hold":
+            self.on_hold(ev["t"])
+        elif kind == "progress":
+            self.progress.update(ev)
+        elif kind == "done":
+            for slot in self.agents.values():
+                slot.alive_at_end = slot.current is not None and slot.current.poll() is None
+
+    def stop_all(self):
+        """Stops every process this run started: agents politely (they write their maps),
+        then the feeder; anything that does not stop in time is killed."""
+        for slot in self.agents.values():
+            if slot.current is not None and slot.current.poll() is None:
+                slot.current.signal(signal.SIGTERM)
+        for slot in self.agents.values():
+            if slot.current is not None:
+                slot.current.stop(15.0)
+        if self.feeder is not None:
+            if self.feeder.poll() is None:
+                self.send("stop")
+            self.feeder.stop(10.0)
+            if self.feeder.popen.stdout:
+                self.feeder.popen.stdout.close()
+            if self.feeder.popen.stdin:
+                try:
+                    self.feeder.popen.stdin.close()
+                except OSError:
+                    pass
+
+    # ----- results ------------------------------------------------------------------------
+    def summarise(self, wall_s, interrupted):
+        scores = {}
+        truth = self.out / "truth.json"
+        if truth.exists():
+            r = subprocess.run([binary("mapmesh-eval"), "--run", str(self.out)], capture_output=True, text=True)
+            if r.returncode == 0:
+                scores = json.loads(r.stdout).get("agents", {})
+            else:
+                print(f"swarm: mapmesh-eval failed: {r.stderr.strip()}", file=sys.stderr)
+        feeder_stats = {}
+        fpath = self.out / "feeder.json"
+        if fpath.exists():
+            feeder_stats = {r["id"]: r for r in json.loads(fpath.read_text()).get("robots", [])}
+        agents = []
+        for rid, slot in self.agents.items():
+            stats = {}
+            spath = self.out / f"agent_{rid}" / "stats.json"
+            if spath.exists() and slot.current and slot.current.returncode == 0:
+                stats = json.loads(spath.read_text())
+            score = scores.get(str(rid), {})
+            sent = feeder_stats.get(rid, {})
+            agents.append({
+                "id": rid,
+                "alive_at_end": slot.alive_at_end,
+                "exit_code": slot.current.returncode if slot.current else None,
+                "restarts": len(slot.restarted_at),
+                "killed_at": slot.killed_at,
+                "restarted_at": slot.restarted_at,
+                "local": score.get("local"),
+                "global": score.get("global"),
+                "peers_aligned": stats.get("peers_aligned", []),
+                "alignment_errors": {},
+                "maps_received": stats.get("maps_received"),
+                "maps_dropped": _maps_dropped(stats),
+                "bytes_sent": stats.get("bytes_sent"),
+                "bytes_received": stats.get("bytes_received"),
+                "odom_processed": stats.get("odom_processed"),
+                "scans_processed": stats.get("scans_processed"),
+                "odom_sent": sent.get("odom_sent"),
+                "scans_sent": sent.get("scans_sent"),
+                "cpu_s": round(sum(p.cpu_s for p in slot.procs), 3),
+                "max_rss_mb": round(max((p.max_rss_mb for p in slot.procs), default=0.0), 1),
+            })
+        duration = self.info["duration"]
+        summary = {
+            "scenario": self.info["name"],
+            "scenario_file": self.scenario,
+            "sim_duration_s": duration,
+            "wall_s": round(wall_s, 3),
+            "real_time_factor": round(duration / wall_s, 3) if wall_s > 0 else None,
+            "pace": self.args.pace or self.info["pace"],
+            "interrupted": interrupted,
+            "kills": [{"id": r, "t": t} for t, r in self.kills],
+            "restarts": [{"id": r, "t": t} for t, r in self.restarts],
+            "feeder": {"exit_code": self.feeder.returncode if self.feeder else None,
+                       "cpu_s": round(self.feeder.cpu_s, 3) if self.feeder else None,
+                       "max_rss_mb": round(self.feeder.max_rss_mb, 1) if self.feeder else None},
+            "agents": agents,
+        }
+        tmp = self.out / "summary.json.tmp"
+        tmp.write_text(json.dumps(summary, indent=1) + "\n")
+        tmp.replace(self.out / "summary.json")
+        return summary
+
+
+def _maps_dropped(stats):
+    if not stats:
+        return None
+    rejected = sum(stats.get("maps_rejected", {}).values())
+    return stats.get("maps_out_of_range", 0) + stats.get("maps_lost", 0) + stats.get("maps_unknown_sender", 0) + rejected
+
+
+def format_table(summary):
+    def num(v, fmt):
+        return "-" if v is None else format(v, fmt)
+
+    rows = [("id", "alive", "exit", "restarts", "lm_local", "rmse_local", "lm_global", "rmse_global",
+             "maps_rx", "kB_tx", "kB_rx", "cpu_s", "rss_MB")]
+    for a in summary["agents"]:
+        loc, glo = a["local"] or {}, a["global"] or {}
+        rows.append((str(a["id"]), "yes" if a["alive_at_end"] else "no", num(a["exit_code"], "d"),
+                     str(a["restarts"]), num(loc.get("landmarks"), "d"), num(loc.get("rmse_m"), ".3f"),
+                     num(glo.get("landmarks"), "d"), num(glo.get("rmse_m"), ".3f"), num(a["maps_received"], "d"),
+                     num(None if a["bytes_sent"] is None else a["bytes_sent"] / 1000, ".1f"),
+                     num(None if a["bytes_received"] is None else a["bytes_received"] / 1000, ".1f"),
+                     num(a["cpu_s"], ".2f"), num(a["max_rss_mb"], ".1f")))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in rows]
+    head = (f"{summary['scenario']}: {summary['sim_duration_s']:.1f} s simulated in {summary['wall_s']:.1f} s wall "
+            f"(x{summary['real_time_factor']:.1f})")
+    return "\n".join([head] + lines)
+
+
+def cmd_run(args):
+    run = SwarmRun(args)
+    summary = run.execute()
+    print(format_table(summary))
+    print(f"summary: {Path(args.out) / 'summary.json'}")
+    if summary["interrupted"]:
+        return 130
+    killed = {k["id"] for k in summary["kills"]}
+    bad = [a["id"] for a in summary["agents"]
+           if a["alive_at_end"] and a["exit_code"] != 0 or (not a["alive_at_end"] and a["id"] not in killed)]
+    if bad:
+        print(f"swarm: agents {bad} did not end cleanly (see their agent.log)", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,176 @@
+#include "agent/agent_node.h"
+
+#include <gtest/gtest.h>
+
+#include "common/config/scenario.h"
+
+namespace mapmesh {
+namespace {
+
+// Collects what the agent publishes.
+class Capture : public AgentOutput {
+ public:
+  void PublishMap(const MapMessage& m) override { maps.push_back(m); }
+  void PublishStatus(const AgentStatus& s) override { statuses.push_back(s); }
+  std::vector<MapMessage> maps;
+  std::vector<AgentStatus> statuses;
+};
+
+Scenario TwoRobots() {
+  return ParseScenario(R"(version: 1
+world: {landmarks: {list: [[5, 0], [0, 5]]}}
+robots:
+  list:
+    - {id: 1, start: [0, 0, 0]}
+    - {id: 2, start: [1, 0, 0]}
+agent: {map_publish_period_s: 1.0, status_period_s: 0.5}
+)",
+                       "test.yaml");
+}
+
+Odometry Odom(double stamp, std::uint32_t scans, bool sync = false) {
+  Odometry o;
+  o.robot_id = 1;
+  o.stamp = stamp;
+  o.dt = 0.1;
+  o.v = 1.0;
+  o.w = 0.0;
+  o.scans_in_interval = scans;
+  o.sync = sync;
+  return o;
+}
+
+Scan ScanAt(double stamp, double range, double bearing, int sig) {
+  Scan s;
+  s.robot_id = 1;
+  s.stamp = stamp;
+  s.obs.push_back({range, bearing, sig, ObservationKind::kLandmark});
+  return s;
+}
+
+class AgentNodeTest : public ::testing::Test {
+ protected:
+  Scenario sc_ = TwoRobots();
+  Capture out_;
+  AgentNode node_{sc_, 1, 1, out_};
+};
+
+TEST_F(AgentNodeTest, WaitsForTheScansAnIntervalAnnounces) {
+  node_.OnOdometry(Odom(0.1, 0));
+  EXPECT_DOUBLE_EQ(node_.processed_until(), 0.1);
+  node_.OnOdometry(Odom(0.2, 1));  // its scan has not arrived
+  EXPECT_DOUBLE_EQ(node_.processed_until(), 0.1);
+  node_.OnOdometry(Odom(0.3, 0));  // queued behind 0.2
+  EXPECT_DOUBLE_EQ(node_.processed_until(), 0.1);
+  // The scan at 0.15 is applied at x = 0.15 (v = 1 m/s from x = 0.1): landmark at 5 m ahead.
+  node_.OnScan(ScanAt(0.15, 4.85, 0.0, 0));
+  EXPECT_DOUBLE_EQ(node_.processed_until(), 0.3);
+  EXPECT_EQ(node_.stats().scans_processed, 1u);
+  EXPECT_EQ(node_.stats().odom_processed, 3u);
+  const LandmarkMap m = node_.LocalMap();
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_NEAR(m.landmarks[0].mean.x(), 5.0, 1e-9);
+  EXPECT_NEAR(node_.Pose().x, 0.3, 1e-12);
+}
+
+TEST_F(AgentNodeTest, ScansArrivingBeforeTheirOdometryAreKept) {
+  node_.OnOdometry(Odom(0.1, 0));
+  node_.OnScan(ScanAt(0.2, 4.8, 0.0, 0));
+  node_.OnOdometry(Odom(0.2, 1));
+  EXPECT_EQ(node_.stats().scans_processed, 1u);
+  EXPECT_NEAR(node_.LocalMap().landmarks[0].mean.x(), 5.0, 1e-9);
+}
+
+TEST_F(AgentNodeTest, FirstIntervalDiscardsItsScans) {
+  // A (re)started agent may have missed part of its first interval.
+  node_.OnScan(ScanAt(0.1, 4.9, 0.0, 0));
+  node_.OnOdometry(Odom(0.1, 1));
+  EXPECT_EQ(node_.stats().scans_before_start, 1u);
+  EXPECT_EQ(node_.stats().scans_processed, 0u);
+  EXPECT_DOUBLE_EQ(node_.processed_until(), 0.1);
+}
+
+TEST_F(AgentNodeTest, RejectsBadOdometryAndLateScans) {
+  node_.OnOdometry(Odom(0.1, 0));
+  Odometry nan = Odom(0.2, 0);
+  nan.v = std::nan("");
+  node_.OnOdometry(nan);
+  Odometry back = Odom(0.05, 0);
+  node_.OnOdometry(back);
+  Odometry zero_dt = Odom(0.3, 0);
+  zero_dt.dt = 0.0;
+  node_.OnOdometry(zero_dt);
+  EXPECT_EQ(node_.stats().odom_rejected, 3u);
+  node_.OnScan(ScanAt(0.05, 1.0, 0.0, 0));
+  EXPECT_EQ(node_.stats().scans_late, 1u);
+  EXPECT_DOUBLE_EQ(node_.processed_until(), 0.1);
+}
+
+TEST_F(AgentNodeTest, GivesUpOnAScanThatNeverComes) {
+  node_.OnOdometry(Odom(0.1, 0));
+  node_.OnOdometry(Odom(0.2, 1));
+  for (int k = 3; k < 200; ++k) node_.OnOdometry(Odom(0.1 * k, 0));
+  EXPECT_EQ(node_.stats().scans_missing, 1u);
+  EXPECT_GT(node_.processed_until(), 0.2);
+}
+
+TEST_F(AgentNodeTest, PublishesMapsAndStatusOnItsPeriodsAndBarriers) {
+  for (int k = 1; k <= 30; ++k) node_.OnOdometry(Odom(0.1 * k, 0, k == 7));
+  // Maps at t = 0.1 (first), 1.0, 2.0, 3.0; statuses at 0.1, 0.5, 0.7 (sync), 1.0, ..., 3.0.
+  ASSERT_EQ(out_.maps.size(), 4u);
+  EXPECT_EQ(out_.maps[0].version, 1u);
+  EXPECT_EQ(out_.maps[3].version, 4u);
+  EXPECT_EQ(out_.maps[0].kind, MapKind::kLocal);
+  EXPECT_EQ(out_.maps[0].robot_id, 1u);
+  EXPECT_TRUE(DecodeMap(out_.maps[3].payload).ok());
+  std::vector<double> stamps;
+  for (const auto& s : out_.statuses) stamps.push_back(s.processed_until);
+  ASSERT_EQ(stamps.size(), 8u);
+  EXPECT_NEAR(stamps[2], 0.7, 1e-12);
+  EXPECT_NEAR(stamps.back(), 3.0, 1e-9);
+  EXPECT_EQ(node_.stats().maps_sent, 4u);
+  std::uint64_t bytes = 0;
+  for (const auto& m : out_.maps) bytes += WireBytes(m);
+  EXPECT_EQ(node_.stats().bytes_sent, bytes);
+}
+
+MapMessage PeerMap(RobotId from, std::vector<std::uint8_t> payload) {
+  MapMessage m;
+  m.robot_id = from;
+  m.version = 1;
+  m.payload = std::move(payload);
+  return m;
+}
+
+TEST_F(AgentNodeTest, PeerMapsPassTheRadioGateOnly) {
+  LandmarkMap peer;
+  peer.landmarks.push_back({0, -1, {1, 2}, Eigen::Matrix2d::Identity()});
+  const auto payload = EncodeMap(peer);
+  node_.OnMap(PeerMap(2, payload));  // no link table yet
+  EXPECT_EQ(node_.stats().maps_out_of_range, 1u);
+  node_.OnLinks({0.0, {{1, 2}}});
+  node_.OnMap(PeerMap(2, payload));
+  EXPECT_EQ(node_.stats().maps_received, 1u);
+  EXPECT_EQ(node_.stats().bytes_received, WireBytes(PeerMap(2, payload)));
+  ASSERT_EQ(node_.peer_maps().count({2, MapKind::kLocal}), 1u);
+  node_.OnLinks({1.0, {}});
+  node_.OnMap(PeerMap(2, payload));
+  EXPECT_EQ(node_.stats().maps_out_of_range, 2u);
+  EXPECT_EQ(node_.stats().maps_received, 1u);
+}
+
+TEST_F(AgentNodeTest, RejectsUnknownSendersMalformedMapsAndIgnoresItself) {
+  node_.OnLinks({0.0, {{1, 2}, {1, 9}}});
+  node_.OnMap(PeerMap(9, EncodeMap({})));  // robot 9 is not in the run
+  EXPECT_EQ(node_.stats().maps_unknown_sender, 1u);
+  node_.OnMap(PeerMap(2, {1, 2, 3}));
+  EXPECT_EQ(node_.stats().maps_rejected[static_cast<int>(MapDecodeError::kTruncated)], 1u);
+  node_.OnMap(PeerMap(1, EncodeMap({})));  // our own echo
+  EXPECT_EQ(node_.stats().maps_received, 0u);
+  EXPECT_TRUE(node_.peer_maps().empty());
+  const AgentStatus s = node_.Status();
+  EXPECT_EQ(s.maps_dropped, 2u);
+}
+
+}  // namespace
+}  // namespace mapmesh

@@ -1,0 +1,209 @@
+#include "common/config/scenario.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "common/config/config_error.h"
+
+namespace mapmesh {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ScenarioTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("mapmesh_scenario_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string Write(const std::string& name, const std::string& text) {
+    const fs::path p = dir_ / name;
+    std::ofstream(p) << text;
+    return p.string();
+  }
+  // The ConfigError message of loading text, or "" when it loads.
+  std::string ErrorOf(const std::string& text, const std::vector<ConfigOverride>& o = {}) {
+    const std::string path = Write("s.yaml", text);
+    try {
+      LoadScenario(path, o);
+    } catch (const ConfigError& e) {
+      return e.what();
+    }
+    return "";
+  }
+  fs::path dir_;
+};
+
+constexpr const char* kMinimal = R"(version: 1
+world:
+  landmarks:
+    list: [[0, 0], [5, 5], [10, 0]]
+robots:
+  list:
+    - id: 1
+      start: [0, 0, 90]
+)";
+
+TEST_F(ScenarioTest, MinimalScenarioGetsDefaults) {
+  const Scenario s = LoadScenario(Write("min.yaml", kMinimal));
+  EXPECT_EQ(s.name, "min");
+  EXPECT_EQ(s.world.landmarks.size(), 3u);
+  ASSERT_EQ(s.robots.size(), 1u);
+  const RobotSpec& r = s.robots[0];
+  EXPECT_EQ(r.id, 1u);
+  EXPECT_NEAR(r.start.theta, M_PI / 2, 1e-12);
+  // Thesis defaults (ALGORITHMS.md section 1).
+  EXPECT_DOUBLE_EQ(r.motion.speed_mps, 0.3);
+  EXPECT_DOUBLE_EQ(r.motion.max_turn_rate_dps, 30.0);
+  EXPECT_DOUBLE_EQ(r.motion.sigma_v_mps, 0.03);
+  EXPECT_DOUBLE_EQ(r.motion.sigma_w_radps, 0.0524);
+  EXPECT_DOUBLE_EQ(r.sensor.max_range_m, 8.0);
+  EXPECT_DOUBLE_EQ(r.sensor.fov_deg, 180.0);
+  EXPECT_DOUBLE_EQ(r.sensor.sigma_range_m, 0.05);
+  EXPECT_DOUBLE_EQ(r.sensor.sigma_bearing_deg, 1.0);
+  EXPECT_EQ(r.sensor.scan_every_steps, 5);
+  EXPECT_FALSE(r.sensor.signatures);
+  EXPECT_DOUBLE_EQ(s.world.control_period_s, 0.1);
+  EXPECT_EQ(r.path.type, "random");
+  EXPECT_EQ(r.path.points.size(), 8u);
+  for (const auto& p : r.path.points) EXPECT_TRUE(s.world.bounds_m.Contains(p));
+}
+
+TEST_F(ScenarioTest, UnknownKeyNamesFileLineAndKey) {
+  const std::string text = std::string(kMinimal) + "      sensor:\n        max_range_m: 5\n        colour: red\n";
+  const std::string err = ErrorOf(text);
+  EXPECT_NE(err.find("s.yaml:11: robots.list[0].sensor.colour: unknown key"), std::string::npos) << err;
+}
+
+TEST_F(ScenarioTest, UnknownTopLevelKey) {
+  const std::string err = ErrorOf(std::string(kMinimal) + "radioo: {range_m: 3}\n");
+  EXPECT_NE(err.find("s.yaml:9: radioo: unknown key"), std::string::npos) << err;
+}
+
+TEST_F(ScenarioTest, NegativeSensorRange) {
+  const std::string err = ErrorOf(std::string(kMinimal) + "      sensor: {max_range_m: -2}\n");
+  EXPECT_NE(err.find("s.yaml:9: robots.list[0].sensor.max_range_m: must be >= 0 (got -2)"),
+            std::string::npos)
+      << err;
+}
+
+TEST_F(ScenarioTest, WrongType) {
+  const std::string err = ErrorOf(std::string(kMinimal) + "duration_s: soon\n");
+  EXPECT_NE(err.find("s.yaml:9: duration_s: expected a number, got 'soon'"), std::string::npos) << err;
+  const std::string err2 = ErrorOf(std::string(kMinimal) + "seed: -4\n");
+  EXPECT_NE(err2.find("s.yaml:9: seed: must be a non-negative integer"), std::string::npos) << err2;
+}
+
+TEST_F(ScenarioTest, MissingLandmarksFile) {
+  const std::string err = ErrorOf(R"(version: 1
+world:
+  landmarks:
+    csv: nowhere.csv
+robots: {count: 1}
+)");
+  EXPECT_NE(err.find("s.yaml:4: world.landmarks.csv: cannot open landmarks file"), std::string::npos) << err;
+  EXPECT_NE(err.find("nowhere.csv"), std::string::npos) << err;
+}
+
+TEST_F(ScenarioTest, LandmarksCsvIsResolvedBesideTheScenario) {
+  Write("lm.csv", "x,y\n# a comment\n1.5, 2\n\n3,4\n");
+  const Scenario s = LoadScenario(Write("c.yaml", R"(version: 1
+world:
+  landmarks: {csv: lm.csv}
+robots: {count: 2}
+)"));
+  ASSERT_EQ(s.world.landmarks.size(), 2u);
+  EXPECT_DOUBLE_EQ(s.world.landmarks[0].x(), 1.5);
+  EXPECT_DOUBLE_EQ(s.world.landmarks[1].y(), 4.0);
+  EXPECT_EQ(s.robots.size(), 2u);
+}
+
+TEST_F(ScenarioTest, MalformedCsvRowNamesTheCsvLine) {
+  Write("bad.csv", "1,2\n3,oops\n");
+  const std::string err = ErrorOf("version: 1\nworld:\n  landmarks: {csv: bad.csv}\nrobots: {count: 1}\n");
+  EXPECT_NE(err.find("bad.csv:2: expected 'x,y'"), std::string::npos) << err;
+}
+
+TEST_F(ScenarioTest, OtherBadValues) {
+  EXPECT_NE(ErrorOf("version: 2\n").find("s.yaml:1: version: unsupported"), std::string::npos);
+  EXPECT_NE(ErrorOf(std::string(kMinimal) + "    - id: 1\n").find("s.yaml:9: robots.list[1].id: duplicate robot id"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(std::string(kMinimal) + "radio: {loss_probability: 1.5}\n")
+                .find("radio.loss_probability: must be in [0, 1]"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(std::string(kMinimal) + "feeder: {pace: warp}\n").find("feeder.pace: must be one of lockstep, realtime"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("version: 1\nworld:\n  landmarks:\n    list: [[0, 0]]\n    csv: a.csv\nrobots: {count: 1}\n")
+                .find("world.landmarks: give exactly one of"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("world: {landmarks: {list: [[1, 2, 3]]}}\nrobots: {count: 1}\n").find("world.landmarks.list[0]: expected a point"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("world: {landmarks: {generator: {count: 5000, area_m: [0, 0, 10, 10], min_spacing_m: 1}}}\nrobots: {count: 1}\n")
+                .find("world.landmarks.generator.count: cannot place 5000"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("world: {landmarks: {list: []}}\n").find("the scenario has no robots"), std::string::npos);
+  EXPECT_NE(ErrorOf("world: [\n").find("s.yaml:"), std::string::npos);  // YAML syntax error
+}
+
+TEST_F(ScenarioTest, OverridesApplyAndAreReportedAsSuch) {
+  const std::string path = Write("o.yaml", kMinimal);
+  const Scenario s = LoadScenario(path, {ParseOverride("radio.range_m=0"),
+                                         ParseOverride("robots.list[0].sensor.max_range_m=12")});
+  EXPECT_DOUBLE_EQ(s.radio.range_m, 0.0);
+  EXPECT_DOUBLE_EQ(s.robots[0].sensor.max_range_m, 12.0);
+  const std::string err = ErrorOf(kMinimal, {ParseOverride("robots.list[0].sensor.max_range_m=-1")});
+  EXPECT_NE(err.find("--set robots.list[0].sensor.max_range_m: must be >= 0"), std::string::npos) << err;
+  EXPECT_NE(ErrorOf(kMinimal, {ParseOverride("radio.rnage_m=3")}).find("--set radio.rnage_m: unknown key"),
+            std::string::npos);
+  EXPECT_THROW(ParseOverride("novalue"), ConfigError);
+}
+
+TEST_F(ScenarioTest, AgentsScalesTheRobotListDeterministically) {
+  const std::string path = Write("g.yaml", R"(version: 1
+seed: 11
+world:
+  landmarks:
+    generator: {count: 50, area_m: [0, 0, 30, 20]}
+robots:
+  count: 2
+  list:
+    - id: 4
+      start: [1, 1, 0]
+      path: {type: waypoints, points: [[5, 5], [10, 5]]}
+)");
+  const Scenario two = LoadScenario(path);
+  ASSERT_EQ(two.robots.size(), 2u);
+  EXPECT_EQ(two.robots[0].id, 4u);
+  EXPECT_EQ(two.robots[1].id, 5u);
+  const Scenario eight = LoadScenario(path, {}, 8);
+  ASSERT_EQ(eight.robots.size(), 8u);
+  // Robot k is the same whatever N is, and generated robots stay in the world.
+  EXPECT_EQ(eight.robots[1].start.x, two.robots[1].start.x);
+  EXPECT_EQ(eight.robots[1].path.points, two.robots[1].path.points);
+  for (const RobotSpec& r : eight.robots) {
+    EXPECT_TRUE(eight.world.bounds_m.Contains({r.start.x, r.start.y}));
+  }
+  EXPECT_EQ(eight.robots[0].path.points.size(), 2u);
+  EXPECT_EQ(LoadScenario(path, {}, 1).robots.size(), 1u);
+  // A different seed moves the generated robots.
+  const Scenario other = LoadScenario(path, {ParseOverride("seed=12")}, 8);
+  EXPECT_NE(other.robots[3].start.x, eight.robots[3].start.x);
+}
+
+TEST_F(ScenarioTest, ShippedScenariosLoad) {
+  for (const auto& entry : fs::directory_iterator(MAPMESH_SOURCE_DIR "/scenarios")) {
+    if (entry.path().extension() != ".yaml") continue;
+    SCOPED_TRACE(entry.path().string());
+    EXPECT_NO_THROW(LoadScenario(entry.path().string()));
+  }
+}
+
+}  // namespace
+}  // namespace mapmesh

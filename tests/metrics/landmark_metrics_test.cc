@@ -1,0 +1,71 @@
+#include "common/metrics/landmark_metrics.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <random>
+
+namespace mapmesh {
+namespace {
+
+TEST(Nees, IsTheMahalanobisSquare) {
+  Eigen::Matrix2d cov;
+  cov << 4, 0, 0, 1;
+  EXPECT_DOUBLE_EQ(Nees({2, 1}, cov, {0, 0}), 1.0 + 1.0);
+  EXPECT_TRUE(std::isinf(Nees({1, 0}, Eigen::Matrix2d::Zero(), {0, 0})));
+}
+
+TEST(Nees, AveragesTwoForAConsistentEstimator) {
+  // Samples drawn from the stated covariance have mean NEES 2 (2 dof).
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> n(0, 1);
+  Eigen::Matrix2d cov;
+  cov << 0.5, 0.2, 0.2, 0.3;
+  const Eigen::Matrix2d l = cov.llt().matrixL();
+  double sum = 0;
+  const int kN = 20000;
+  for (int i = 0; i < kN; ++i) sum += Nees(l * Eigen::Vector2d(n(rng), n(rng)), cov, {0, 0});
+  EXPECT_NEAR(sum / kN, 2.0, 0.06);  // standard error of the mean is 2/sqrt(N) = 0.014
+}
+
+TEST(MatchToTruth, UsesSignaturesThenNearestWithinGate) {
+  const std::vector<Eigen::Vector2d> truth{{0, 0}, {10, 0}, {20, 0}};
+  LandmarkMap m;
+  m.landmarks.push_back({0, 2, {0.1, 0}, Eigen::Matrix2d::Identity()});   // signature 2 wins
+  m.landmarks.push_back({1, -1, {10.3, 0}, Eigen::Matrix2d::Identity()}); // nearest: 1
+  m.landmarks.push_back({2, -1, {10.5, 0}, Eigen::Matrix2d::Identity()}); // 1 taken already
+  m.landmarks.push_back({3, -1, {50, 0}, Eigen::Matrix2d::Identity()});   // outside the gate
+  const auto match = MatchToTruth(m, truth, 2.0);
+  EXPECT_EQ(match, (std::vector<int>{2, 1, -1, -1}));
+}
+
+TEST(EvaluateMap, RmseNeesAndCoverage) {
+  const std::vector<Eigen::Vector2d> truth{{0, 0}, {10, 0}, {20, 0}, {30, 0}};
+  LandmarkMap m;
+  m.landmarks.push_back({0, 0, {0.3, 0.4}, Eigen::Matrix2d::Identity() * 0.25});  // err 0.5, nees 1
+  m.landmarks.push_back({1, 1, {10, 0}, Eigen::Matrix2d::Identity()});            // err 0, nees 0
+  m.landmarks.push_back({2, 2, {23, 0}, Eigen::Matrix2d::Identity()});            // err 3, nees 9
+  const MapQuality q = EvaluateMap(m, truth, {0, 1, 2, 3});
+  EXPECT_EQ(q.landmarks, 3);
+  EXPECT_EQ(q.matched, 3);
+  EXPECT_NEAR(q.rmse_m, std::sqrt((0.25 + 0 + 9) / 3), 1e-12);
+  EXPECT_NEAR(q.nees_mean, (1.0 + 0.0 + 9.0) / 3, 1e-12);
+  EXPECT_NEAR(q.consistent_ratio, 2.0 / 3, 1e-12);
+  EXPECT_NEAR(q.coverage, 0.75, 1e-12);
+  // Coverage counts only landmarks that were seen.
+  EXPECT_NEAR(EvaluateMap(m, truth, {0, 3}).coverage, 0.5, 1e-12);
+}
+
+TEST(TransformMap, MovesMeansAndRotatesCovariances) {
+  LandmarkMap m;
+  Eigen::Matrix2d cov;
+  cov << 4, 0, 0, 1;
+  m.landmarks.push_back({0, -1, {1, 0}, cov});
+  const LandmarkMap t = TransformMap(m, {5, 5, M_PI / 2});
+  EXPECT_NEAR((t.landmarks[0].mean - Eigen::Vector2d(5, 6)).norm(), 0, 1e-12);
+  EXPECT_NEAR(t.landmarks[0].cov(0, 0), 1, 1e-12);
+  EXPECT_NEAR(t.landmarks[0].cov(1, 1), 4, 1e-12);
+}
+
+}  // namespace
+}  // namespace mapmesh

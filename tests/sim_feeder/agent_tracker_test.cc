@@ -1,0 +1,93 @@
+#include "sim_feeder/agent_tracker.h"
+
+#include <gtest/gtest.h>
+
+namespace mapmesh {
+namespace {
+
+AgentStatus St(RobotId id, std::uint32_t inc, double t) {
+  AgentStatus s;
+  s.robot_id = id;
+  s.incarnation = inc;
+  s.processed_until = t;
+  return s;
+}
+
+TEST(AgentTracker, AnAgentIsUpOnceItReportedAndSubscribed) {
+  AgentTracker t({1, 2});
+  EXPECT_EQ(t.Pending(), (std::vector<RobotId>{1, 2}));
+  t.OnStatus(St(1, 10, 0));
+  EXPECT_FALSE(t.IsUp(1));
+  t.SetSubscribed(1, true);
+  EXPECT_TRUE(t.IsUp(1));
+  EXPECT_EQ(t.Pending(), std::vector<RobotId>{2});
+  t.OnStatus(St(7, 1, 0));  // not in the run: ignored
+  EXPECT_EQ(t.Statuses().size(), 1u);
+}
+
+TEST(AgentTracker, LaggingListsUpAgentsBehindTheBarrier) {
+  AgentTracker t({1, 2});
+  for (RobotId id : {1u, 2u}) {
+    t.OnStatus(St(id, id, 0.0));
+    t.SetSubscribed(id, true);
+  }
+  t.OnStatus(St(1, 1, 1.0));
+  EXPECT_EQ(t.Lagging(1.0), std::vector<RobotId>{2});
+  t.OnStatus(St(2, 2, 1.0));
+  EXPECT_TRUE(t.Lagging(1.0).empty());
+}
+
+TEST(AgentTracker, KilledAgentsAreNotWaitedForAndTheirLateStatusesIgnored) {
+  AgentTracker t({1});
+  t.OnStatus(St(1, 5, 0.0));
+  t.SetSubscribed(1, true);
+  t.MarkDead(1);
+  EXPECT_TRUE(t.IsDead(1));
+  EXPECT_TRUE(t.Lagging(10.0).empty());
+  EXPECT_TRUE(t.Pending().empty());
+  t.OnStatus(St(1, 5, 0.5));  // in flight when it was killed
+  EXPECT_TRUE(t.IsDead(1));
+}
+
+TEST(AgentTracker, RestartWaitsForTheNewIncarnation) {
+  AgentTracker t({1});
+  t.OnStatus(St(1, 5, 3.0));
+  t.SetSubscribed(1, true);
+  t.MarkDead(1);
+  t.ExpectRestart(1);
+  EXPECT_EQ(t.Pending(), std::vector<RobotId>{1});
+  t.OnStatus(St(1, 5, 3.0));  // the old process
+  EXPECT_FALSE(t.IsUp(1));
+  t.OnStatus(St(1, 6, 0.0));
+  t.SetSubscribed(1, true);
+  EXPECT_TRUE(t.IsUp(1));
+  EXPECT_EQ(t.Lagging(3.5), std::vector<RobotId>{1});
+}
+
+TEST(AgentTracker, LivelinessLossMarksDead) {
+  AgentTracker t({1});
+  t.OnGone(1);  // never seen: nothing to do
+  EXPECT_FALSE(t.IsDead(1));
+  t.OnStatus(St(1, 5, 0.0));
+  t.SetSubscribed(1, true);
+  t.OnGone(1);
+  EXPECT_TRUE(t.IsDead(1));
+  t.OnStatus(St(1, 9, 0.0));  // an unannounced new process comes back
+  t.SetSubscribed(1, true);
+  EXPECT_TRUE(t.IsUp(1));
+}
+
+TEST(ParseControl, Commands) {
+  EXPECT_EQ(ParseControl("dead 3")->kind, ControlCommand::Kind::kDead);
+  EXPECT_EQ(ParseControl("dead 3")->id, 3u);
+  EXPECT_EQ(ParseControl("expect 12")->kind, ControlCommand::Kind::kExpect);
+  EXPECT_EQ(ParseControl("continue")->kind, ControlCommand::Kind::kContinue);
+  EXPECT_EQ(ParseControl("stop")->kind, ControlCommand::Kind::kStop);
+  EXPECT_FALSE(ParseControl("dead").has_value());
+  EXPECT_FALSE(ParseControl("dead -1").has_value());
+  EXPECT_FALSE(ParseControl("launch 2").has_value());
+  EXPECT_FALSE(ParseControl("").has_value());
+}
+
+}  // namespace
+}  // namespace mapmesh

@@ -1,0 +1,97 @@
+#include "sim_feeder/simulator.h"
+
+#include <gtest/gtest.h>
+
+#include "sim_feeder/radio_model.h"
+#include "sim_feeder/world.h"
+
+namespace mapmesh {
+namespace {
+
+Scenario Small(std::uint64_t seed, int agents = 0) {
+  return ParseScenario(R"(version: 1
+duration_s: 20
+world: {landmarks: {generator: {count: 60, area_m: [0, 0, 30, 30], min_spacing_m: 1}}}
+robots:
+  count: 3
+  defaults: {sensor: {signatures: true}}
+radio: {range_m: 15, links_period_s: 1.0}
+)",
+                       "sim.yaml", {ParseOverride("seed=" + std::to_string(seed))}, agents);
+}
+
+// Flattens everything a simulator produces, for comparisons.
+std::vector<double> Stream(Simulator& sim) {
+  std::vector<double> v;
+  while (!sim.Done()) {
+    const FeedBatch b = sim.Next();
+    v.push_back(b.stamp);
+    for (const auto& o : b.odom) v.insert(v.end(), {double(o.robot_id), o.v, o.w, double(o.scans_in_interval)});
+    for (const auto& s : b.scans) {
+      for (const auto& o : s.obs) v.insert(v.end(), {o.range, o.bearing, double(o.signature)});
+    }
+    for (const auto& t : b.truth) v.insert(v.end(), {t.x, t.y, t.theta});
+    if (b.links) v.push_back(double(b.links->links.size()));
+  }
+  return v;
+}
+
+TEST(Simulator, IsDeterministicPerSeed) {
+  const Scenario a = Small(3), b = Small(3), c = Small(4);
+  Simulator sa(a, BuildLandmarks(a)), sb(b, BuildLandmarks(b)), sc(c, BuildLandmarks(c));
+  const auto va = Stream(sa), vb = Stream(sb), vc = Stream(sc);
+  EXPECT_EQ(va, vb);
+  EXPECT_NE(va, vc);
+}
+
+TEST(Simulator, ProducesTheExpectedStreams) {
+  const Scenario s = Small(5);
+  Simulator sim(s, BuildLandmarks(s));
+  int batches = 0, odom = 0, scans = 0, links = 0;
+  double last = -1;
+  while (!sim.Done()) {
+    const FeedBatch b = sim.Next();
+    EXPECT_GT(b.stamp, last);
+    last = b.stamp;
+    ++batches;
+    odom += static_cast<int>(b.odom.size());
+    scans += static_cast<int>(b.scans.size());
+    links += b.links.has_value();
+    for (const auto& o : b.odom) {
+      const bool scanned = std::any_of(b.scans.begin(), b.scans.end(),
+                                       [&](const Scan& sc) { return sc.robot_id == o.robot_id; });
+      EXPECT_EQ(o.scans_in_interval, scanned ? 1u : 0u);
+    }
+    EXPECT_EQ(b.truth.size(), 3u);
+  }
+  EXPECT_EQ(batches, 201);        // t = 0, 0.1, ..., 20
+  EXPECT_EQ(odom, 200 * 3);       // none at t = 0
+  EXPECT_EQ(scans, 40 * 3);       // every 5th step
+  EXPECT_EQ(links, 21);           // every second, from t = 0
+  EXPECT_NEAR(last, 20.0, 1e-9);
+  const auto& seen = sim.Truth().seen;
+  EXPECT_GT(std::count(seen.begin(), seen.end(), true), 0);
+}
+
+TEST(Simulator, ARobotsStreamDoesNotDependOnHowManyRun) {
+  const Scenario three = Small(8), five = Small(8, 5);
+  Simulator s3(three, BuildLandmarks(three)), s5(five, BuildLandmarks(five));
+  for (int k = 0; k < 100; ++k) {
+    const FeedBatch a = s3.Next(), b = s5.Next();
+    ASSERT_EQ(a.truth[1].x, b.truth[1].x);
+    if (!a.odom.empty()) {
+      ASSERT_EQ(a.odom[2].v, b.odom[2].v);
+    }
+  }
+}
+
+TEST(LinksInRange, PairsWithinRangeOnly) {
+  const auto links = LinksInRange({{3, 0, 0}, {1, 5, 0}, {2, 20, 0}}, 10.0);
+  ASSERT_EQ(links.size(), 1u);
+  EXPECT_EQ(links[0], (Link{1, 3}));
+  EXPECT_TRUE(LinksInRange({{1, 0, 0}, {2, 0, 0}}, 0.0).empty());
+  EXPECT_EQ(LinksInRange({{1, 0, 0}, {2, 15, 0}, {3, 30, 0}}, 15.0).size(), 2u);
+}
+
+}  // namespace
+}  // namespace mapmesh

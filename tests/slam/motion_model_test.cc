@@ -1,0 +1,89 @@
+#include "common/slam/motion_model.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "tests/testing/numeric_jacobian.h"
+
+namespace mapmesh {
+namespace {
+
+TEST(UnicycleMotion, StraightStepFollowsEq98) {
+  // x' = x + V dt cos th, y' = y + V dt sin th.
+  const Pose2 p = UnicycleMotion({1.0, 2.0, M_PI / 6}, {0.3, 0.0}, 0.1);
+  EXPECT_NEAR(p.x, 1.0 + 0.03 * std::cos(M_PI / 6), 1e-12);
+  EXPECT_NEAR(p.y, 2.0 + 0.03 * std::sin(M_PI / 6), 1e-12);
+  EXPECT_NEAR(p.theta, M_PI / 6, 1e-12);
+}
+
+TEST(UnicycleMotion, TurningStepFollowsEq99) {
+  // V = 0.3, W = 0.5236, dt = 0.1 from (0, 0, 0): worked by hand.
+  // x' = V/W sin(W dt) = 0.5729565 * 0.0523361 = 0.0299863
+  // y' = V/W (1 - cos(W dt)) = 0.5729565 * 0.0013705 = 0.00078522
+  const Pose2 p = UnicycleMotion({0.0, 0.0, 0.0}, {0.3, 0.5236}, 0.1);
+  EXPECT_NEAR(p.x, 0.0299863, 1e-7);
+  EXPECT_NEAR(p.y, 0.00078522, 1e-8);
+  EXPECT_NEAR(p.theta, 0.05236, 1e-12);
+}
+
+TEST(UnicycleMotion, QuarterCircleEndsWhereGeometrySays) {
+  // Turning at w for pi/(2w) seconds traces a quarter circle of radius v/w.
+  const double v = 0.3, w = 0.5;
+  const Pose2 p = UnicycleMotion({0, 0, 0}, {v, w}, M_PI / (2 * w));
+  EXPECT_NEAR(p.x, v / w, 1e-12);
+  EXPECT_NEAR(p.y, v / w, 1e-12);
+  EXPECT_NEAR(p.theta, M_PI / 2, 1e-12);
+}
+
+TEST(UnicycleMotion, WrapsHeading) {
+  const Pose2 p = UnicycleMotion({0, 0, M_PI - 0.01}, {0.0, 1.0}, 0.1);
+  EXPECT_NEAR(p.theta, -M_PI + 0.09, 1e-12);
+}
+
+TEST(UnicycleMotion, ContinuousAtZeroTurnRate) {
+  const Pose2 a = UnicycleMotion({1, 2, 0.3}, {0.5, 0.0}, 0.1);
+  // A turn rate of 1e-9 rad/s bends a 5 cm step by about 2.5e-12 m.
+  const Pose2 b = UnicycleMotion({1, 2, 0.3}, {0.5, 1e-9}, 0.1);
+  EXPECT_NEAR(a.x, b.x, 1e-11);
+  EXPECT_NEAR(a.y, b.y, 1e-11);
+  // And eq. 99 evaluated directly at a moderate rate agrees with the stable form.
+  const double v = 0.5, w = 0.01, dt = 0.1, th = 0.3;
+  const Pose2 c = UnicycleMotion({1, 2, th}, {v, w}, dt);
+  EXPECT_NEAR(c.x, 1 + v / w * (std::sin(th + w * dt) - std::sin(th)), 1e-12);
+  EXPECT_NEAR(c.y, 2 + v / w * (std::cos(th) - std::cos(th + w * dt)), 1e-12);
+}
+
+class UnicycleJacobianTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(UnicycleJacobianTest, MatchesNumericalDifferentiation) {
+  std::mt19937_64 rng(GetParam());
+  std::uniform_real_distribution<double> u(-5, 5), ua(-M_PI, M_PI), uv(0.0, 1.0), uw(-1.0, 1.0);
+  const double dt = 0.1;
+  for (int trial = 0; trial < 20; ++trial) {
+    const Eigen::Vector3d x(u(rng), u(rng), ua(rng));
+    // Include turn rates at and near zero, where the model switches form.
+    const double w = trial % 5 == 0 ? 0.0 : (trial % 5 == 1 ? 1e-7 : uw(rng));
+    const Eigen::Vector2d c(uv(rng), w);
+    Eigen::Matrix3d jx;
+    Eigen::Matrix<double, 3, 2> ju;
+    UnicycleMotion({x(0), x(1), x(2)}, {c(0), c(1)}, dt, &jx, &ju);
+    auto f_pose = [&](const Eigen::VectorXd& s) {
+      const Pose2 p = UnicycleMotion({s(0), s(1), s(2)}, {c(0), c(1)}, dt);
+      return Eigen::VectorXd(p.Vector());
+    };
+    auto f_ctrl = [&](const Eigen::VectorXd& s) {
+      const Pose2 p = UnicycleMotion({x(0), x(1), x(2)}, {s(0), s(1)}, dt);
+      return Eigen::VectorXd(p.Vector());
+    };
+    const Eigen::MatrixXd njx = testing::NumericJacobian(f_pose, x, 1e-6, {2});
+    const Eigen::MatrixXd nju = testing::NumericJacobian(f_ctrl, c, 1e-6, {2});
+    EXPECT_LT((jx - njx).cwiseAbs().maxCoeff(), 1e-7) << "w=" << w << "\n" << jx << "\n" << njx;
+    EXPECT_LT((ju - nju).cwiseAbs().maxCoeff(), 1e-7) << "w=" << w << "\n" << ju << "\n" << nju;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, UnicycleJacobianTest, ::testing::Range(1, 6));
+
+}  // namespace
+}  // namespace mapmesh
