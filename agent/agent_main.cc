@@ -49,6 +49,7 @@ json StatsJson(const AgentNode& node) {
   const Pose2 pose = node.Pose();
   return {{"id", node.id()},
           {"processed_until", node.processed_until()},
+          {"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
           {"pose", {pose.x, pose.y, pose.theta}},
           {"local_landmarks", node.LocalMap().size()},
           {"odom_processed", s.odom_processed},

@@ -76,6 +76,7 @@ void AgentNode::Drain() {
       // The first interval only moves the pose: its scans may have been missed while this
       // process was discovering the feeder. The map frame is the pose at its start.
       started_ = true;
+      frame_origin_stamp_ = odom.stamp - odom.dt;
       mapper_.Predict({odom.v, odom.w}, odom.dt);
       processed_until_ = odom.stamp;
       pending_odom_.erase(pending_odom_.begin());

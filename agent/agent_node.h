@@ -65,6 +65,9 @@ class AgentNode {
   LandmarkMap LocalMap() const { return mapper_.Map(); }
   Pose2 Pose() const { return mapper_.pose(); }
   double processed_until() const { return processed_until_; }
+  // Scenario time at which the local map frame was fixed (the robot's pose then is its origin);
+  // nullopt before the first odometry.
+  std::optional<double> frame_origin_stamp() const { return frame_origin_stamp_; }
   const AgentStats& stats() const { return stats_; }
   // The latest decoded map of each peer, by sender and kind.
   const std::map<std::pair<RobotId, MapKind>, LandmarkMap>& peer_maps() const { return peer_maps_; }
@@ -88,6 +91,7 @@ class AgentNode {
   DeadReckoningMapper mapper_;
 
   bool started_ = false;
+  std::optional<double> frame_origin_stamp_;
   double processed_until_ = 0.0;
   std::map<double, Odometry> pending_odom_;
   std::multimap<double, Scan> pending_scans_;

@@ -37,11 +37,19 @@ int Run(int argc, char** argv) {
   for (const io::RobotTruth& robot : truth.robots) {
     const std::string dir = run_dir + "/agent_" + std::to_string(robot.id);
     json entry = json::object();
+    // A map's frame is the robot's pose when its agent's session began: the start of the run,
+    // or later for a restarted agent (its stats.json says when).
+    Pose2 origin = robot.start;
+    if (std::filesystem::exists(dir + "/stats.json")) {
+      const json stats = io::ReadJson(dir + "/stats.json");
+      if (stats.contains("frame_origin_stamp") && stats["frame_origin_stamp"].is_number()) {
+        origin = robot.PoseAt(stats["frame_origin_stamp"].get<double>());
+      }
+    }
     for (const char* kind : {"local", "global"}) {
       const std::string path = dir + "/" + kind + "_map.json";
       if (!std::filesystem::exists(path)) continue;
-      // Each map is in its robot's own frame: the true start pose maps it into the world.
-      const LandmarkMap map = TransformMap(io::MapFromJson(io::ReadJson(path)), robot.start);
+      const LandmarkMap map = TransformMap(io::MapFromJson(io::ReadJson(path)), origin);
       entry[kind] = QualityJson(EvaluateMap(map, truth.landmarks, truth.seen, gate_m));
     }
     agents[std::to_string(robot.id)] = entry;

@@ -1,5 +1,6 @@
 #include "common/io/run_files.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <stdexcept>
@@ -35,6 +36,19 @@ LandmarkMap MapFromJson(const json& j) {
     throw std::runtime_error(std::string("malformed map: ") + ex.what());
   }
   return map;
+}
+
+Pose2 RobotTruth::PoseAt(double t) const {
+  if (trajectory.empty()) return start;
+  if (t <= trajectory.front().t) return trajectory.front().pose;
+  if (t >= trajectory.back().t) return trajectory.back().pose;
+  auto hi = std::lower_bound(trajectory.begin(), trajectory.end(), t,
+                             [](const TruthSample& s, double v) { return s.t < v; });
+  auto lo = hi - 1;
+  const double a = (t - lo->t) / (hi->t - lo->t);
+  const Pose2& p = lo->pose;
+  const Pose2& q = hi->pose;
+  return {p.x + a * (q.x - p.x), p.y + a * (q.y - p.y), WrapAngle(p.theta + a * WrapAngle(q.theta - p.theta))};
 }
 
 const RobotTruth* RunTruth::Find(RobotId id) const {

@@ -29,6 +29,8 @@ struct RobotTruth {
   RobotId id = 0;
   Pose2 start;
   std::vector<TruthSample> trajectory;
+  // The true pose at time t, interpolated between samples (clamped to the ends).
+  Pose2 PoseAt(double t) const;
 };
 
 // truth.json: everything an evaluation needs to know about the world of a run.

@@ -1,0 +1,219 @@
+"""End-to-end tests: real processes over DDS, driven through scripts/swarm. Each run leases
+its own DDS domain, so these tests run in parallel; every subprocess has a hard timeout."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+BIN = Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
+SWARM = [sys.executable, str(REPO / "scripts" / "swarm")]
+DATA = Path(__file__).resolve().parent / "data"
+
+
+def leftover_processes(marker):
+    """PIDs of processes whose command line mentions marker (the run directory)."""
+    out = subprocess.run(["ps", "-eo", "pid,args"], capture_output=True, text=True).stdout
+    return [line for line in out.splitlines() if marker in line and "ps -eo" not in line]
+
+
+class SwarmCase(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory(prefix="mapmesh_it_")
+        self.out = Path(self.tmp.name) / "run"
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def swarm(self, *args, timeout=240):
+        r = subprocess.run(SWARM + ["run"] + [str(a) for a in args] + ["--out", str(self.out), "--timeout", "200"],
+                           capture_output=True, text=True, timeout=timeout)
+        return r
+
+    def summary(self):
+        return json.loads((self.out / "summary.json").read_text())
+
+
+class PipelineTest(SwarmCase):
+    def test_lockstep_agents_consume_every_message_and_exchange_maps(self):
+        r = self.swarm(DATA / "three.yaml")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        s = self.summary()
+        self.assertEqual(len(s["agents"]), 3)
+        for a in s["agents"]:
+            self.assertTrue(a["alive_at_end"])
+            self.assertEqual(a["exit_code"], 0)
+            self.assertEqual(a["odom_processed"], a["odom_sent"], a)
+            self.assertEqual(a["scans_processed"], a["scans_sent"], a)
+            self.assertEqual(a["odom_sent"], 300)
+            self.assertEqual(a["scans_sent"], 60)
+            self.assertGreater(a["maps_received"], 0)
+            self.assertGreater(a["bytes_sent"], 0)
+            self.assertGreater(a["local"]["landmarks"], 0)
+            self.assertGreaterEqual(a["cpu_s"], 0.0)
+            self.assertGreater(a["max_rss_mb"], 0.0)
+        for key in ["scenario", "sim_duration_s", "wall_s", "real_time_factor", "agents"]:
+            self.assertIn(key, s)
+        # The table is printed, one line per agent.
+        self.assertEqual(sum(1 for line in r.stdout.splitlines() if line.strip()[:1].isdigit()), 3)
+        truth = json.loads((self.out / "truth.json").read_text())
+        self.assertEqual(len(truth["robots"]), 3)
+        self.assertEqual(len(truth["landmarks"]), 60)
+
+    def test_radio_range_zero_means_no_maps(self):
+        r = self.swarm(DATA / "three.yaml", "--set", "radio.range_m=0")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        for a in self.summary()["agents"]:
+            self.assertEqual(a["maps_received"], 0)
+            self.assertGreater(a["maps_dropped"], 0)  # they were sent, and gated
+
+    def test_eight_agents_on_a_shipped_scenario(self):
+        r = self.swarm(REPO / "scenarios" / "park4.yaml", "--agents", "8", "--set", "radio.range_m=200",
+                       "--set", "duration_s=30")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        agents = self.summary()["agents"]
+        self.assertEqual([a["id"] for a in agents], list(range(1, 9)))
+        for a in agents:
+            self.assertTrue(a["alive_at_end"])
+            self.assertEqual(a["exit_code"], 0)
+            self.assertGreater(a["maps_received"], 0)
+
+    def test_kill_leaves_the_others_running_and_nothing_behind(self):
+        r = self.swarm(DATA / "three.yaml", "--kill", "2@10")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        agents = {a["id"]: a for a in self.summary()["agents"]}
+        self.assertFalse(agents[2]["alive_at_end"])
+        self.assertEqual(agents[2]["exit_code"], -9)
+        self.assertEqual(agents[2]["killed_at"], [10.0])
+        for rid in (1, 3):
+            self.assertTrue(agents[rid]["alive_at_end"])
+            self.assertEqual(agents[rid]["exit_code"], 0)
+            self.assertEqual(agents[rid]["odom_processed"], agents[rid]["odom_sent"])
+        self.assertEqual(leftover_processes(str(self.out)), [])
+
+    def test_restart_brings_the_agent_back(self):
+        r = self.swarm(DATA / "three.yaml", "--kill", "2@10", "--restart", "2@15")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        a = {a["id"]: a for a in self.summary()["agents"]}[2]
+        self.assertTrue(a["alive_at_end"])
+        self.assertEqual(a["exit_code"], 0)
+        self.assertEqual(a["restarts"], 1)
+        # The new process ran from t = 15 s: it consumed the last 15 s (the first interval
+        # after it joined only moves the pose).
+        self.assertGreaterEqual(a["odom_processed"], 140)
+        self.assertLessEqual(a["odom_processed"], 151)
+        self.assertEqual(leftover_processes(str(self.out)), [])
+
+    def test_interrupted_run_stops_every_process(self):
+        p = subprocess.Popen(SWARM + ["run", str(DATA / "three.yaml"), "--out", str(self.out), "--pace", "realtime",
+                                      "--rate", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and len(leftover_processes(str(self.out))) < 4:
+            time.sleep(0.1)
+        self.assertGreaterEqual(len(leftover_processes(str(self.out))), 4)  # 3 agents + feeder
+        time.sleep(1.0)
+        p.send_signal(signal.SIGINT)
+        out, err = p.communicate(timeout=60)
+        self.assertEqual(p.returncode, 130, out + err)
+        self.assertEqual(leftover_processes(str(self.out)), [])
+        self.assertTrue(self.summary()["interrupted"])
+
+
+class FeederLivelinessTest(SwarmCase):
+    def test_an_agent_killed_behind_the_feeders_back_does_not_stall_lockstep(self):
+        """Without the launcher: the feeder must notice the dead agent through DDS liveliness
+        (lease 1 s), far sooner than its 60 s stall timeout."""
+        sys.path.insert(0, str(REPO / "scripts"))
+        from mapmesh.domain import DomainLease
+        lease = DomainLease()
+        self.out.mkdir(parents=True)
+        scen = str(DATA / "three.yaml")
+        common = ["--scenario", scen, "--domain", str(lease.id), "--set", "duration_s=60"]
+        agents = [subprocess.Popen([str(BIN / "mapmesh-agent"), "--id", str(i), "--out", str(self.out / f"a{i}")] + common,
+                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for i in (1, 2, 3)]
+        try:
+            feeder = subprocess.Popen([str(BIN / "mapmesh-feeder"), "--out", str(self.out), "--events", "--control",
+                                       "--hold-at", "5", "--stall-timeout", "60"] + common,
+                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for line in feeder.stdout:  # lockstep up to t = 5 s, then the feeder holds
+                if json.loads(line).get("event") == "hold":
+                    break
+            agents[1].send_signal(signal.SIGKILL)  # the feeder is not told
+            start = time.monotonic()
+            feeder.stdin.write("continue\n")
+            feeder.stdin.flush()
+            out, err = feeder.communicate(timeout=90)
+            elapsed = time.monotonic() - start
+            self.assertEqual(feeder.returncode, 0, err)
+            self.assertIn("agent 2 lost (DDS liveliness)", err)
+            self.assertLess(elapsed, 20.0)
+            self.assertIn('"event":"done"', out)
+        finally:
+            for a in agents:
+                if a.poll() is None:
+                    a.terminate()
+                    a.wait(timeout=20)
+            lease.close()
+
+
+class BadInputTest(unittest.TestCase):
+    CASES = {
+        "bad_unknown_key.yaml": ":7: robots.defaults.sensor.range_colour: unknown key",
+        "bad_negative_range.yaml": ":8: robots.defaults.sensor.max_range_m: must be >= 0 (got -3)",
+        "bad_missing_file.yaml": ":4: world.landmarks.csv: cannot open landmarks file",
+    }
+
+    def test_feeder_and_swarm_reject_bad_scenarios_with_one_line(self):
+        for name, expected in self.CASES.items():
+            path = DATA / name
+            with self.subTest(name=name, tool="feeder"):
+                r = subprocess.run([str(BIN / "mapmesh-feeder"), "--scenario", str(path), "--domain", "1"],
+                                   capture_output=True, text=True, timeout=30)
+                self.assertNotEqual(r.returncode, 0)
+                lines = r.stderr.strip().splitlines()
+                self.assertEqual(len(lines), 1, r.stderr)
+                self.assertIn(str(path) + expected, lines[0])
+            with self.subTest(name=name, tool="agent"):
+                r = subprocess.run([str(BIN / "mapmesh-agent"), "--scenario", str(path), "--id", "1", "--domain", "1"],
+                                   capture_output=True, text=True, timeout=30)
+                self.assertNotEqual(r.returncode, 0)
+                self.assertIn(str(path) + expected, r.stderr)
+            with tempfile.TemporaryDirectory() as tmp, self.subTest(name=name, tool="swarm"):
+                r = subprocess.run(SWARM + ["run", str(path), "--out", tmp], capture_output=True, text=True, timeout=60)
+                self.assertEqual(r.returncode, 2)
+                lines = r.stderr.strip().splitlines()
+                self.assertEqual(len(lines), 1, r.stderr)
+                self.assertIn(str(path) + expected, lines[0])
+
+    def test_bad_arguments(self):
+        r = subprocess.run(SWARM + ["run", str(DATA / "three.yaml"), "--out", "/tmp/x", "--kill", "nine@ten"],
+                           capture_output=True, text=True, timeout=30)
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("--kill nine@ten: expected ID@T", r.stderr)
+        r = subprocess.run(SWARM + ["run", str(DATA / "three.yaml"), "--out", "/tmp/x", "--kill", "7@3"],
+                           capture_output=True, text=True, timeout=30)
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("no robot 7 in this run", r.stderr)
+        r = subprocess.run([str(BIN / "mapmesh-agent"), "--scenario", "x.yaml"], capture_output=True, text=True, timeout=30)
+        self.assertEqual(r.returncode, 2)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1)
+
+
+class HelpTest(unittest.TestCase):
+    def test_every_executable_answers_help(self):
+        for cmd in ([str(BIN / "mapmesh-agent")], [str(BIN / "mapmesh-feeder")], [str(BIN / "mapmesh-eval")],
+                    SWARM, SWARM + ["run"]):
+            with self.subTest(cmd=cmd[-1]):
+                r = subprocess.run(cmd + ["--help"], capture_output=True, text=True, timeout=30)
+                self.assertEqual(r.returncode, 0, r.stderr)
+                self.assertIn("--", r.stdout)
+
+
+if __name__ == "__main__":
+    unittest.main()

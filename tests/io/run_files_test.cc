@@ -1,0 +1,70 @@
+#include "common/io/run_files.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+namespace mapmesh::io {
+namespace {
+
+TEST(RunFiles, MapJsonRoundTrips) {
+  LandmarkMap m;
+  Eigen::Matrix2d c;
+  c << 0.5, 0.1, 0.1, 0.2;
+  m.landmarks.push_back({7, 3, {1.25, -2.5}, c});
+  m.landmarks.push_back({9, -1, {0, 0}, Eigen::Matrix2d::Identity()});
+  const LandmarkMap back = MapFromJson(MapToJson(m));
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back.landmarks[0].id, 7u);
+  EXPECT_EQ(back.landmarks[0].signature, 3);
+  EXPECT_EQ(back.landmarks[0].mean, m.landmarks[0].mean);
+  EXPECT_EQ(back.landmarks[0].cov, c);
+  EXPECT_THROW(MapFromJson(json{{"landmarks", {{{"x", 1}}}}}), std::runtime_error);
+}
+
+TEST(RunFiles, TruthRoundTripsAndInterpolates) {
+  RunTruth t;
+  t.scenario = "s";
+  t.duration_s = 2;
+  t.landmarks = {{1, 2}, {3, 4}};
+  t.seen = {1};
+  RobotTruth r;
+  r.id = 4;
+  r.start = {0, 0, 0};
+  r.trajectory = {{0.0, {0, 0, 3.0}}, {1.0, {2, 4, -3.0}}};
+  t.robots.push_back(r);
+  const RunTruth back = TruthFromJson(TruthToJson(t));
+  ASSERT_NE(back.Find(4), nullptr);
+  EXPECT_EQ(back.Find(5), nullptr);
+  EXPECT_EQ(back.seen, std::vector<int>{1});
+  const Pose2 mid = back.Find(4)->PoseAt(0.5);
+  EXPECT_NEAR(mid.x, 1.0, 1e-12);
+  EXPECT_NEAR(mid.y, 2.0, 1e-12);
+  // Heading interpolates the short way round, through pi.
+  EXPECT_NEAR(std::abs(mid.theta), M_PI, 1e-9);
+  EXPECT_NEAR(back.Find(4)->PoseAt(5.0).x, 2.0, 1e-12);   // clamped
+  EXPECT_NEAR(back.Find(4)->PoseAt(-1.0).x, 0.0, 1e-12);
+}
+
+TEST(RunFiles, AtomicWriteAndReadErrors) {
+  const std::string dir = std::filesystem::temp_directory_path() / ("mapmesh_io_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  WriteJsonAtomic(dir + "/a.json", {{"k", 1}});
+  EXPECT_FALSE(std::filesystem::exists(dir + "/a.json.tmp"));
+  EXPECT_EQ(ReadJson(dir + "/a.json")["k"], 1);
+  std::ofstream(dir + "/bad.json") << "{not json";
+  try {
+    ReadJson(dir + "/bad.json");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.json"), std::string::npos);
+  }
+  EXPECT_THROW(ReadJson(dir + "/missing.json"), std::runtime_error);
+  EXPECT_THROW(WriteJsonAtomic(dir + "/no/such/dir/x.json", {}), std::runtime_error);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace mapmesh::io
