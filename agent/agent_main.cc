@@ -2,17 +2,14 @@
 // and status out, peers' maps in through the radio gate; on SIGTERM/SIGINT it writes its
 // final maps and statistics and exits 0.
 
-#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
-#include <CLI/CLI.hpp>
 #include <chrono>
 #include <filesystem>
 
 #include "agent/agent_node.h"
-#include "common/config/config_error.h"
-#include "common/config/scenario.h"
+#include "common/app/process.h"
 #include "common/io/run_files.h"
 #include "common/transport/session.h"
 #include "common/transport/shutdown.h"
@@ -82,52 +79,30 @@ void WriteOutputs(const AgentNode& node, const std::string& dir) {
 int Run(int argc, char** argv) {
   tp::ShutdownSignal shutdown;  // first: block SIGINT/SIGTERM before any thread starts
 
-  CLI::App app{"mapmesh-agent: one robot's SLAM and map-sharing process"};
-  std::string scenario_path, out_dir, dds_config, log_level = "info";
-  int id = 0, domain = -1, agents = 0;
+  CLI::App cli{"mapmesh-agent: one robot's SLAM and map-sharing process"};
+  app::ProcessOptions po;
+  std::string out_dir;
+  int id = 0;
   unsigned incarnation = static_cast<unsigned>(::getpid());
-  std::vector<std::string> sets;
-  app.add_option("--scenario", scenario_path, "scenario YAML file")->required();
-  app.add_option("--id", id, "robot id this agent runs for")->required()->check(CLI::PositiveNumber);
-  app.add_option("--domain", domain, "DDS domain id (the launcher picks a free one)")
-      ->required()->check(CLI::Range(0, 232));
-  app.add_option("--agents", agents, "number of robots in the run (as given to the launcher)");
-  app.add_option("--set", sets, "override a scenario key: key.path=value (repeatable)");
-  app.add_option("--out", out_dir, "directory for the final maps and stats (default agent_<id>)");
-  app.add_option("--dds-config", dds_config,
-                 "Cyclone DDS XML config (default: CYCLONEDDS_URI, else the shipped loopback config)");
-  app.add_option("--incarnation", incarnation, "number identifying this start of the agent");
-  app.add_option("--log-level", log_level, "trace|debug|info|warn|error")
-      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    if (e.get_exit_code() == 0) return app.exit(e);
-    std::fprintf(stderr, "mapmesh-agent: %s (see --help)\n", e.what());
-    return 2;
-  }
-  auto logger = spdlog::stderr_color_mt("agent");
-  spdlog::set_default_logger(logger);
-  spdlog::set_pattern("[%H:%M:%S.%e] [agent " + std::to_string(id) + "] [%l] %v");
-  spdlog::set_level(spdlog::level::from_str(log_level));
+  app::AddScenarioOptions(cli, po);
+  cli.add_option("--id", id, "robot id this agent runs for")->required()->check(CLI::PositiveNumber);
+  app::AddDdsOptions(cli, po, /*domain_required=*/true);
+  cli.add_option("--out", out_dir, "directory for the final maps and stats (default agent_<id>)");
+  cli.add_option("--incarnation", incarnation, "number identifying this start of the agent");
+  if (auto code = app::ParseArgs(cli, "mapmesh-agent", argc, argv)) return *code;
+  app::SetupLogging("agent " + std::to_string(id), po.log_level);
   if (out_dir.empty()) out_dir = "agent_" + std::to_string(id);
 
-  Scenario scenario;
-  try {
-    std::vector<ConfigOverride> overrides;
-    for (const auto& s : sets) overrides.push_back(ParseOverride(s));
-    scenario = LoadScenario(scenario_path, overrides, agents);
-  } catch (const ConfigError& e) {
-    std::fprintf(stderr, "mapmesh-agent: %s\n", e.what());
-    return 2;
-  }
+  const std::optional<Scenario> loaded = app::LoadScenarioOrReport("mapmesh-agent", po);
+  if (!loaded) return 2;
+  const Scenario& scenario = *loaded;
   if (!scenario.FindRobot(static_cast<RobotId>(id))) {
     std::fprintf(stderr, "mapmesh-agent: %s: robots: no robot with id %d in this run\n",
-                 scenario_path.c_str(), id);
+                 po.scenario_path.c_str(), id);
     return 2;
   }
 
-  tp::Session session(domain, dds_config, MAPMESH_SOURCE_DIR "/config/cyclonedds-loopback.xml");
+  tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
   const tp::Participant& p = session.participant();
   const RobotId self = static_cast<RobotId>(id);
   tp::Reader<Odometry> odom(p, tp::OdomTopic(self), tp::SensorQos());
@@ -145,7 +120,7 @@ int Run(int argc, char** argv) {
   waitset.AttachReader(maps.raw(), 4);
   waitset.AttachGuard(stop, 5);
   shutdown.Watch(&stop);
-  spdlog::info("up: scenario {} domain {} config {} incarnation {}", scenario.name, domain,
+  spdlog::info("up: scenario {} domain {} config {} incarnation {}", scenario.name, po.domain,
                session.config_used(), incarnation);
 
   // Status also goes out on a wall-clock beat: the feeder learns we exist before any data,
@@ -187,10 +162,5 @@ int Run(int argc, char** argv) {
 }  // namespace mapmesh
 
 int main(int argc, char** argv) {
-  try {
-    return mapmesh::Run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "mapmesh-agent: %s\n", e.what());
-    return 1;
-  }
+  return mapmesh::app::GuardedMain("mapmesh-agent", [&] { return mapmesh::Run(argc, argv); });
 }

@@ -1,10 +1,10 @@
 // mapmesh-eval: scores the maps of a run directory against its truth.json and prints one
 // JSON document on stdout (scripts/swarm merges it into summary.json).
 
-#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
 
+#include "common/app/process.h"
 #include "common/io/run_files.h"
 #include "common/metrics/landmark_metrics.h"
 
@@ -20,18 +20,12 @@ json QualityJson(const MapQuality& q) {
 }
 
 int Run(int argc, char** argv) {
-  CLI::App app{"mapmesh-eval: scores a run's maps against its ground truth (JSON on stdout)"};
+  CLI::App cli{"mapmesh-eval: scores a run's maps against its ground truth (JSON on stdout)"};
   std::string run_dir;
   double gate_m = 2.0;
-  app.add_option("--run", run_dir, "run directory (holds truth.json and agent_<id>/)")->required();
-  app.add_option("--gate", gate_m, "metres: landmarks without a signature match the nearest true one within this");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    if (e.get_exit_code() == 0) return app.exit(e);
-    std::fprintf(stderr, "mapmesh-eval: %s (see --help)\n", e.what());
-    return 2;
-  }
+  cli.add_option("--run", run_dir, "run directory (holds truth.json and agent_<id>/)")->required();
+  cli.add_option("--gate", gate_m, "metres: landmarks without a signature match the nearest true one within this");
+  if (auto code = app::ParseArgs(cli, "mapmesh-eval", argc, argv)) return *code;
   const io::RunTruth truth = io::TruthFromJson(io::ReadJson(run_dir + "/truth.json"));
   json agents = json::object();
   for (const io::RobotTruth& robot : truth.robots) {
@@ -62,10 +56,5 @@ int Run(int argc, char** argv) {
 }  // namespace mapmesh
 
 int main(int argc, char** argv) {
-  try {
-    return mapmesh::Run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "mapmesh-eval: %s\n", e.what());
-    return 1;
-  }
+  return mapmesh::app::GuardedMain("mapmesh-eval", [&] { return mapmesh::Run(argc, argv); });
 }

@@ -4,11 +4,9 @@
 // with --control it reads launcher commands on stdin ("dead ID", "expect ID", "continue").
 
 #include <poll.h>
-#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
-#include <CLI/CLI.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -17,8 +15,8 @@
 #include <map>
 #include <thread>
 
+#include "common/app/process.h"
 #include "common/config/config_error.h"
-#include "common/config/scenario.h"
 #include "common/io/run_files.h"
 #include "common/transport/session.h"
 #include "common/transport/shutdown.h"
@@ -240,47 +238,30 @@ class Feeder {
 int Run(int argc, char** argv) {
   tp::ShutdownSignal shutdown;  // first: block SIGINT/SIGTERM before any thread starts
 
-  CLI::App app{"mapmesh-feeder: simulates (or replays) the world and publishes it over DDS"};
-  std::string scenario_path, out_dir = ".", dds_config, pace, log_level = "info";
-  int domain = -1, agents = 0;
+  CLI::App cli{"mapmesh-feeder: simulates (or replays) the world and publishes it over DDS"};
+  app::ProcessOptions po;
+  std::string out_dir = ".", pace;
   double rate = 0.0, stall_timeout_s = 120.0;
   bool check_only = false, events = false, control_enabled = false;
-  std::vector<std::string> sets;
   std::vector<double> holds;
-  app.add_option("--scenario", scenario_path, "scenario YAML file")->required();
-  app.add_option("--domain", domain, "DDS domain id (required unless --check)")->check(CLI::Range(0, 232));
-  app.add_option("--agents", agents, "number of robots (default: the scenario's)");
-  app.add_option("--set", sets, "override a scenario key: key.path=value (repeatable)");
-  app.add_option("--out", out_dir, "directory for truth.json and feeder.json");
-  app.add_option("--dds-config", dds_config,
-                 "Cyclone DDS XML config (default: CYCLONEDDS_URI, else the shipped loopback config)");
-  app.add_option("--pace", pace, "override feeder.pace")->check(CLI::IsMember({"lockstep", "realtime"}));
-  app.add_option("--rate", rate, "override feeder.realtime_factor")->check(CLI::PositiveNumber);
-  app.add_option("--hold-at", holds, "pause at these scenario times until 'continue' on stdin");
-  app.add_option("--stall-timeout", stall_timeout_s, "lockstep: give up on an agent stuck this many wall seconds");
-  app.add_flag("--check", check_only, "validate the scenario and exit");
-  app.add_flag("--events", events, "print JSON events on stdout");
-  app.add_flag("--control", control_enabled, "read launcher commands on stdin");
-  app.add_option("--log-level", log_level, "trace|debug|info|warn|error")
-      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    if (e.get_exit_code() == 0) return app.exit(e);
-    std::fprintf(stderr, "mapmesh-feeder: %s (see --help)\n", e.what());
-    return 2;
-  }
-  auto logger = spdlog::stderr_color_mt("feeder");
-  spdlog::set_default_logger(logger);
-  spdlog::set_pattern("[%H:%M:%S.%e] [feeder] [%l] %v");
-  spdlog::set_level(spdlog::level::from_str(log_level));
+  app::AddScenarioOptions(cli, po);
+  app::AddDdsOptions(cli, po, /*domain_required=*/false);
+  cli.add_option("--out", out_dir, "directory for truth.json and feeder.json");
+  cli.add_option("--pace", pace, "override feeder.pace")->check(CLI::IsMember({"lockstep", "realtime"}));
+  cli.add_option("--rate", rate, "override feeder.realtime_factor")->check(CLI::PositiveNumber);
+  cli.add_option("--hold-at", holds, "with --control: pause at these scenario times until 'continue'");
+  cli.add_option("--stall-timeout", stall_timeout_s, "lockstep: give up on an agent stuck this many wall seconds");
+  cli.add_flag("--check", check_only, "validate the scenario and exit (no DDS)");
+  cli.add_flag("--events", events, "print JSON events on stdout");
+  cli.add_flag("--control", control_enabled, "read launcher commands on stdin");
+  if (auto code = app::ParseArgs(cli, "mapmesh-feeder", argc, argv)) return *code;
+  app::SetupLogging("feeder", po.log_level);
 
-  Scenario sc;
+  std::optional<Scenario> loaded = app::LoadScenarioOrReport("mapmesh-feeder", po);
+  if (!loaded) return 2;
+  Scenario& sc = *loaded;
   std::vector<Eigen::Vector2d> landmarks;
   try {
-    std::vector<ConfigOverride> overrides;
-    for (const auto& s : sets) overrides.push_back(ParseOverride(s));
-    sc = LoadScenario(scenario_path, overrides, agents);
     landmarks = BuildLandmarks(sc);
   } catch (const ConfigError& e) {
     std::fprintf(stderr, "mapmesh-feeder: %s\n", e.what());
@@ -302,17 +283,17 @@ int Run(int argc, char** argv) {
     return 0;
   }
   if (check_only) {
-    std::printf("%s: ok: %zu robots, %zu landmarks, %.1f s\n", scenario_path.c_str(),
+    std::printf("%s: ok: %zu robots, %zu landmarks, %.1f s\n", po.scenario_path.c_str(),
                 sc.robots.size(), landmarks.size(), sc.duration_s);
     return 0;
   }
-  if (domain < 0) {
+  if (po.domain < 0) {
     std::fprintf(stderr, "mapmesh-feeder: --domain is required (see --help)\n");
     return 2;
   }
   std::filesystem::create_directories(out_dir);
 
-  tp::Session session(domain, dds_config, MAPMESH_SOURCE_DIR "/config/cyclonedds-loopback.xml");
+  tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
   Channels ch(session.participant(), sc);
   std::vector<RobotId> ids;
   for (const auto& r : sc.robots) ids.push_back(r.id);
@@ -322,7 +303,7 @@ int Run(int argc, char** argv) {
   Feeder feeder(sc, ch, tracker, control, shutdown, events, stall_timeout_s);
   const bool lockstep = sc.feeder.pace == "lockstep";
   spdlog::info("scenario {}: {} robots, {} landmarks, {:.1f} s, pace {}, domain {}", sc.name,
-               sc.robots.size(), landmarks.size(), sc.duration_s, sc.feeder.pace, domain);
+               sc.robots.size(), landmarks.size(), sc.duration_s, sc.feeder.pace, po.domain);
 
   Simulator sim(sc, landmarks);
   io::RunTruth truth;
@@ -435,10 +416,5 @@ int Run(int argc, char** argv) {
 }  // namespace mapmesh
 
 int main(int argc, char** argv) {
-  try {
-    return mapmesh::Run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "mapmesh-feeder: %s\n", e.what());
-    return 1;
-  }
+  return mapmesh::app::GuardedMain("mapmesh-feeder", [&] { return mapmesh::Run(argc, argv); });
 }

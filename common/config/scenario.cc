@@ -89,8 +89,7 @@ Rect BoundingBox(const std::vector<Eigen::Vector2d>& pts, double margin) {
 
 WorldOptions ReadWorld(YamlReader w, const std::string& scenario_dir) {
   WorldOptions o;
-  w.Get("control_period_s", o.control_period_s);
-  w.CheckPositive("control_period_s", o.control_period_s);
+  w.GetPositive("control_period_s", o.control_period_s);
 
   YamlReader lm = w.Child("landmarks");
   const int sources = int(lm.Has("list")) + int(lm.Has("csv")) + int(lm.Has("generator"));
@@ -110,11 +109,9 @@ WorldOptions ReadWorld(YamlReader w, const std::string& scenario_dir) {
     YamlReader g = lm.Child("generator");
     LandmarkGeneratorOptions gen;
     g.GetChoice("type", gen.type, {"uniform"});
-    g.Get("count", gen.count);
-    g.CheckNonNegative("count", gen.count);
+    g.GetNonNegative("count", gen.count);
     gen.area_m = ReadRect(g, "area_m", gen.area_m);
-    g.Get("min_spacing_m", gen.min_spacing_m);
-    g.CheckNonNegative("min_spacing_m", gen.min_spacing_m);
+    g.GetNonNegative("min_spacing_m", gen.min_spacing_m);
     // Random sequential placement jams near 0.69 points per d^2; stay well below it so the
     // generator always finishes.
     const double max_count =
@@ -135,30 +132,20 @@ WorldOptions ReadWorld(YamlReader w, const std::string& scenario_dir) {
 }
 
 void ReadMotion(YamlReader m, MotionOptions& o) {
-  m.Get("speed_mps", o.speed_mps);
-  m.CheckNonNegative("speed_mps", o.speed_mps);
-  m.Get("max_turn_rate_dps", o.max_turn_rate_dps);
-  m.CheckPositive("max_turn_rate_dps", o.max_turn_rate_dps);
-  m.Get("sigma_v_mps", o.sigma_v_mps);
-  m.CheckNonNegative("sigma_v_mps", o.sigma_v_mps);
-  m.Get("sigma_w_radps", o.sigma_w_radps);
-  m.CheckNonNegative("sigma_w_radps", o.sigma_w_radps);
-  m.Get("waypoint_radius_m", o.waypoint_radius_m);
-  m.CheckPositive("waypoint_radius_m", o.waypoint_radius_m);
+  m.GetNonNegative("speed_mps", o.speed_mps);
+  m.GetPositive("max_turn_rate_dps", o.max_turn_rate_dps);
+  m.GetNonNegative("sigma_v_mps", o.sigma_v_mps);
+  m.GetNonNegative("sigma_w_radps", o.sigma_w_radps);
+  m.GetPositive("waypoint_radius_m", o.waypoint_radius_m);
   m.Finish();
 }
 
 void ReadSensor(YamlReader s, SensorOptions& o) {
-  s.Get("max_range_m", o.max_range_m);
-  s.CheckNonNegative("max_range_m", o.max_range_m);
-  s.Get("fov_deg", o.fov_deg);
-  s.CheckRange("fov_deg", o.fov_deg, 1e-9, 360.0);
-  s.Get("sigma_range_m", o.sigma_range_m);
-  s.CheckNonNegative("sigma_range_m", o.sigma_range_m);
-  s.Get("sigma_bearing_deg", o.sigma_bearing_deg);
-  s.CheckNonNegative("sigma_bearing_deg", o.sigma_bearing_deg);
-  s.Get("scan_every_steps", o.scan_every_steps);
-  s.CheckPositive("scan_every_steps", o.scan_every_steps);
+  s.GetNonNegative("max_range_m", o.max_range_m);
+  s.GetInRange("fov_deg", o.fov_deg, 1e-9, 360.0);
+  s.GetNonNegative("sigma_range_m", o.sigma_range_m);
+  s.GetNonNegative("sigma_bearing_deg", o.sigma_bearing_deg);
+  s.GetPositive("scan_every_steps", o.scan_every_steps);
   s.Get("signatures", o.signatures);
   s.Finish();
 }
@@ -171,8 +158,7 @@ void ReadPath(YamlReader p, PathOptions& o) {
   } else if (p.Has("points")) {
     p.Fail("points", "only used with type: waypoints");
   }
-  p.Get("count", o.count);
-  p.CheckPositive("count", o.count);
+  p.GetPositive("count", o.count);
   if (p.Has("area_m")) o.area_m = ReadRect(p, "area_m", Rect{});
   p.Get("loop", o.loop);
   p.Finish();
@@ -180,14 +166,10 @@ void ReadPath(YamlReader p, PathOptions& o) {
 
 RadioOptions ReadRadio(YamlReader r) {
   RadioOptions o;
-  r.Get("range_m", o.range_m);
-  r.CheckNonNegative("range_m", o.range_m);
-  r.Get("loss_probability", o.loss_probability);
-  r.CheckRange("loss_probability", o.loss_probability, 0.0, 1.0);
-  r.Get("bandwidth_bytes_per_s", o.bandwidth_bytes_per_s);
-  r.CheckNonNegative("bandwidth_bytes_per_s", o.bandwidth_bytes_per_s);
-  r.Get("links_period_s", o.links_period_s);
-  r.CheckPositive("links_period_s", o.links_period_s);
+  r.GetNonNegative("range_m", o.range_m);
+  r.GetInRange("loss_probability", o.loss_probability, 0.0, 1.0);
+  r.GetNonNegative("bandwidth_bytes_per_s", o.bandwidth_bytes_per_s);
+  r.GetPositive("links_period_s", o.links_period_s);
   r.Finish();
   return o;
 }
@@ -195,12 +177,9 @@ RadioOptions ReadRadio(YamlReader r) {
 AgentOptions ReadAgent(YamlReader a) {
   AgentOptions o;
   a.GetChoice("slam", o.slam, {"dead_reckoning"});
-  a.Get("map_publish_period_s", o.map_publish_period_s);
-  a.CheckPositive("map_publish_period_s", o.map_publish_period_s);
-  a.Get("status_period_s", o.status_period_s);
-  a.CheckPositive("status_period_s", o.status_period_s);
-  a.Get("association_gate_m", o.association_gate_m);
-  a.CheckPositive("association_gate_m", o.association_gate_m);
+  a.GetPositive("map_publish_period_s", o.map_publish_period_s);
+  a.GetPositive("status_period_s", o.status_period_s);
+  a.GetPositive("association_gate_m", o.association_gate_m);
   a.Finish();
   return o;
 }
@@ -208,14 +187,10 @@ AgentOptions ReadAgent(YamlReader a) {
 FeederOptions ReadFeeder(YamlReader f) {
   FeederOptions o;
   f.GetChoice("pace", o.pace, {"lockstep", "realtime"});
-  f.Get("realtime_factor", o.realtime_factor);
-  f.CheckPositive("realtime_factor", o.realtime_factor);
-  f.Get("lockstep_window_s", o.lockstep_window_s);
-  f.CheckPositive("lockstep_window_s", o.lockstep_window_s);
-  f.Get("startup_timeout_s", o.startup_timeout_s);
-  f.CheckPositive("startup_timeout_s", o.startup_timeout_s);
-  f.Get("truth_period_s", o.truth_period_s);
-  f.CheckPositive("truth_period_s", o.truth_period_s);
+  f.GetPositive("realtime_factor", o.realtime_factor);
+  f.GetPositive("lockstep_window_s", o.lockstep_window_s);
+  f.GetPositive("startup_timeout_s", o.startup_timeout_s);
+  f.GetPositive("truth_period_s", o.truth_period_s);
   f.Finish();
   return o;
 }
@@ -324,8 +299,7 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
   if (sc.name.empty()) sc.name = std::filesystem::path(file).stem().string();
   top.Get("description", sc.description);
   top.Get("seed", sc.seed);
-  top.Get("duration_s", sc.duration_s);
-  top.CheckPositive("duration_s", sc.duration_s);
+  top.GetPositive("duration_s", sc.duration_s);
 
   const std::string dir = std::filesystem::path(file).parent_path().string();
   sc.world = ReadWorld(top.Child("world"), dir.empty() ? "." : dir);

@@ -48,6 +48,22 @@ class YamlReader {
   // Reads a string that must be one of `choices`.
   void GetChoice(const std::string& key, std::string& out, const std::vector<std::string>& choices);
 
+  // Read an optional number and check its range (failing with the key's line).
+  template <typename T>
+  void GetPositive(const std::string& key, T& out) {
+    Get(key, out);
+    CheckPositive(key, out);
+  }
+  template <typename T>
+  void GetNonNegative(const std::string& key, T& out) {
+    Get(key, out);
+    CheckNonNegative(key, out);
+  }
+  void GetInRange(const std::string& key, double& out, double lo, double hi) {
+    Get(key, out);
+    CheckRange(key, out, lo, hi);
+  }
+
   // Range checks on a value already read; they fail with the key's line.
   void CheckPositive(const std::string& key, double v) const;
   void CheckNonNegative(const std::string& key, double v) const;
