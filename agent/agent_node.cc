@@ -18,6 +18,7 @@ DeadReckoningOptions MapperOptions(const Scenario& sc, RobotId self) {
   o.sigma_range_m = robot->sensor.sigma_range_m;
   o.sigma_bearing_rad = DegToRad(robot->sensor.sigma_bearing_deg);
   o.association_gate_m = sc.agent.association_gate_m;
+  o.motion = MotionModelFor(robot->motion);
   return o;
 }
 
@@ -73,23 +74,32 @@ void AgentNode::Drain() {
   while (!pending_odom_.empty()) {
     const Odometry odom = pending_odom_.begin()->second;
     if (!started_) {
-      // The first interval only moves the pose: its scans may have been missed while this
-      // process was discovering the feeder. The map frame is the pose at its start.
       started_ = true;
       frame_origin_stamp_ = odom.stamp - odom.dt;
-      mapper_.Predict({odom.v, odom.w}, odom.dt);
-      processed_until_ = odom.stamp;
-      pending_odom_.erase(pending_odom_.begin());
-      auto end = pending_scans_.upper_bound(odom.stamp);
-      stats_.scans_before_start += static_cast<std::uint32_t>(std::distance(pending_scans_.begin(), end));
-      pending_scans_.erase(pending_scans_.begin(), end);
-      ++stats_.odom_processed;
-      AfterInterval(odom);
-      continue;
+      if (odom.seq == 0) {
+        // The very first interval of the stream: nothing can have been missed, so it is
+        // processed like any other. The map frame is the pose at its start.
+        processed_until_ = odom.stamp - odom.dt;
+      } else {
+        // Joining a running stream (a restart): this interval's scans may have been missed
+        // while this process was discovering the feeder, so it only moves the pose.
+        mapper_.Predict({odom.v, odom.w, odom.steering}, odom.dt);
+        processed_until_ = odom.stamp;
+        pending_odom_.erase(pending_odom_.begin());
+        auto end = pending_scans_.upper_bound(odom.stamp);
+        stats_.scans_before_start += static_cast<std::uint32_t>(std::distance(pending_scans_.begin(), end));
+        pending_scans_.erase(pending_scans_.begin(), end);
+        ++stats_.odom_processed;
+        AfterInterval(odom);
+        continue;
+      }
     }
     const auto end = pending_scans_.upper_bound(odom.stamp);
     const auto have = static_cast<std::uint32_t>(std::distance(pending_scans_.begin(), end));
-    if (have < odom.scans_in_interval && pending_odom_.size() <= kMaxPendingOdometry) return;
+    // Scans travel on their own topic and may arrive after later odometry; wait for them
+    // unless the queue already spans far more than a lockstep window (then they are lost).
+    const bool waited_long = pending_odom_.rbegin()->first - odom.stamp > kMaxScanWaitS;
+    if (have < odom.scans_in_interval && !waited_long) return;
     if (have < odom.scans_in_interval) stats_.scans_missing += odom.scans_in_interval - have;
     pending_odom_.erase(pending_odom_.begin());
     ProcessInterval(odom);
@@ -99,7 +109,7 @@ void AgentNode::Drain() {
 
 void AgentNode::ProcessInterval(const Odometry& odom) {
   // Odometry (v, w) holds over (stamp - dt, stamp]; each scan is applied at its own time.
-  const UnicycleControl u{odom.v, odom.w};
+  const OdometryControl u{odom.v, odom.w, odom.steering};
   double t = std::max(processed_until_, odom.stamp - odom.dt);
   const auto end = pending_scans_.upper_bound(odom.stamp);
   for (auto it = pending_scans_.begin(); it != end; ++it) {

@@ -35,7 +35,7 @@ struct AgentStats {
   std::uint32_t odom_rejected = 0;      // non-finite values, dt <= 0, or stamp going backwards
   std::uint32_t scans_processed = 0;
   std::uint32_t scans_rejected = 0;     // non-finite stamp
-  std::uint32_t scans_before_start = 0; // stamped in the first odometry interval: discarded
+  std::uint32_t scans_before_start = 0; // joining a running stream: first interval's scans dropped
   std::uint32_t scans_late = 0;         // arrived after their interval was processed
   std::uint32_t scans_missing = 0;      // announced by odometry but never arrived
   std::uint32_t maps_sent = 0;
@@ -79,8 +79,9 @@ class AgentNode {
   void AfterInterval(const Odometry& odom);
   void PublishLocalMap();
 
-  // An odometry interval waits for its scans for at most this many later intervals.
-  static constexpr std::size_t kMaxPendingOdometry = 100;
+  // An odometry interval waits for its scans until odometry this many scenario seconds
+  // newer is queued (longer than any lockstep window: see FeederOptions::lockstep_window_s).
+  static constexpr double kMaxScanWaitS = 30.0;
 
   AgentOptions options_;
   std::vector<RobotId> robot_ids_;  // the robots of this run; maps from others are rejected

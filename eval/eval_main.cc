@@ -14,9 +14,14 @@ namespace {
 using io::json;
 
 json QualityJson(const MapQuality& q) {
+  if (!q.evaluated) {
+    return {{"landmarks", q.landmarks}, {"matched", nullptr}, {"rmse_m", nullptr}, {"nees_mean", nullptr},
+            {"consistent_ratio", nullptr}, {"coverage", nullptr}, {"frame", "unknown"}};
+  }
   return {{"landmarks", q.landmarks},   {"matched", q.matched},
           {"rmse_m", q.rmse_m},         {"nees_mean", q.nees_mean},
-          {"consistent_ratio", q.consistent_ratio}, {"coverage", q.coverage}};
+          {"consistent_ratio", q.consistent_ratio}, {"coverage", q.coverage},
+          {"frame", q.aligned ? "aligned" : "true_origin"}};
 }
 
 int Run(int argc, char** argv) {
@@ -32,19 +37,19 @@ int Run(int argc, char** argv) {
     const std::string dir = run_dir + "/agent_" + std::to_string(robot.id);
     json entry = json::object();
     // A map's frame is the robot's pose when its agent's session began: the start of the run,
-    // or later for a restarted agent (its stats.json says when).
-    Pose2 origin = robot.start;
+    // or later for a restarted agent (its stats.json says when). Without a known pose the
+    // map is rigidly aligned to the truth.
+    std::optional<Pose2> origin = robot.start;
     if (std::filesystem::exists(dir + "/stats.json")) {
       const json stats = io::ReadJson(dir + "/stats.json");
-      if (stats.contains("frame_origin_stamp") && stats["frame_origin_stamp"].is_number()) {
-        origin = robot.PoseAt(stats["frame_origin_stamp"].get<double>());
-      }
+      const json& t = stats.value("frame_origin_stamp", json());
+      if (t.is_number() && truth.headings_known) origin = robot.PoseAt(t.get<double>());
     }
     for (const char* kind : {"local", "global"}) {
       const std::string path = dir + "/" + kind + "_map.json";
       if (!std::filesystem::exists(path)) continue;
-      const LandmarkMap map = TransformMap(io::MapFromJson(io::ReadJson(path)), origin);
-      entry[kind] = QualityJson(EvaluateMap(map, truth.landmarks, truth.seen, gate_m));
+      const LandmarkMap map = io::MapFromJson(io::ReadJson(path));
+      entry[kind] = QualityJson(EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, origin, gate_m));
     }
     agents[std::to_string(robot.id)] = entry;
   }

@@ -80,10 +80,11 @@ std::vector<RobotId> AgentTracker::Pending() const {
   return out;
 }
 
-std::vector<RobotId> AgentTracker::Lagging(double stamp) const {
+std::vector<RobotId> AgentTracker::Lagging(const std::map<RobotId, double>& targets) const {
   std::vector<RobotId> out;
-  for (const auto& [id, s] : agents_) {
-    if (IsUp(id) && s.last.processed_until + 1e-9 < stamp) out.push_back(id);
+  for (const auto& [id, target] : targets) {
+    auto it = agents_.find(id);
+    if (it != agents_.end() && IsUp(id) && it->second.last.processed_until + 1e-9 < target) out.push_back(id);
   }
   return out;
 }

@@ -35,8 +35,9 @@ class AgentTracker {
   bool IsSubscribed(RobotId id) const;
   // Agents neither up nor dead (starting or restarting).
   std::vector<RobotId> Pending() const;
-  // Up agents whose processed_until is below stamp.
-  std::vector<RobotId> Lagging(double stamp) const;
+  // Up agents whose processed_until is below their target (agents without a target are not
+  // waited for).
+  std::vector<RobotId> Lagging(const std::map<RobotId, double>& targets) const;
   std::vector<RobotId> Up() const;
   // The latest status of each agent that has sent one.
   std::vector<AgentStatus> Statuses() const;

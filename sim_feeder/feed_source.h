@@ -21,9 +21,10 @@ struct FeedBatch {
 
 // The ground truth an evaluation needs besides the trajectories.
 struct WorldTruth {
-  std::vector<Eigen::Vector2d> landmarks;  // index = signature
-  std::vector<std::pair<RobotId, Pose2>> starts;
-  std::vector<bool> seen;  // per landmark: observed by some robot so far
+  std::vector<Eigen::Vector2d> landmarks;         // index = signature
+  std::vector<std::pair<RobotId, Pose2>> starts;  // robots whose true start pose is known
+  std::vector<bool> seen;                         // per landmark: observed by some robot so far
+  bool headings_known = true;                     // false: truth trajectories are positions only
 };
 
 class FeedSource {

@@ -23,8 +23,8 @@
 #include "common/transport/topics.h"
 #include "common/transport/typed.h"
 #include "sim_feeder/agent_tracker.h"
-#include "sim_feeder/simulator.h"
-#include "sim_feeder/world.h"
+#include "sim_feeder/recording.h"
+#include "sim_feeder/sources.h"
 
 namespace mapmesh {
 namespace {
@@ -162,20 +162,21 @@ class Feeder {
     return tracker_.Pending();
   }
 
-  // Lockstep barrier: waits until every up agent has processed everything up to stamp.
-  void WaitForBarrier(double stamp) {
+  // Lockstep barrier: waits until every up agent has processed what was published to it.
+  void WaitForBarrier(const std::map<RobotId, double>& targets) {
     auto last_progress = Clock::now();
     double best = -1.0;
     while (true) {
       Pump();
-      const auto lagging = tracker_.Lagging(stamp);
+      const auto lagging = tracker_.Lagging(targets);
       if (lagging.empty()) return;
-      double slowest = stamp;
+      // Progress: the sum of what the lagging agents have processed grows.
+      double sum = 0.0;
       for (const AgentStatus& s : tracker_.Statuses()) {
-        if (tracker_.IsUp(s.robot_id)) slowest = std::min(slowest, s.processed_until);
+        if (std::find(lagging.begin(), lagging.end(), s.robot_id) != lagging.end()) sum += s.processed_until;
       }
-      if (slowest > best) {
-        best = slowest;
+      if (sum > best) {
+        best = sum;
         last_progress = Clock::now();
       } else if (Clock::now() - last_progress > std::chrono::duration<double>(stall_timeout_s_)) {
         for (RobotId id : lagging) {
@@ -235,23 +236,95 @@ class Feeder {
   std::map<RobotId, std::uint32_t> matches_at_restart_;
 };
 
+// What the feeder played: truth.json (the world and true trajectories) and feeder.json
+// (what was published per robot, and for datasets what was read).
+class PlayRecord {
+ public:
+  PlayRecord(const Scenario& sc, const FeedSource& source, std::vector<ReplayCounts> counts)
+      : sc_(sc), counts_(std::move(counts)) {
+    truth_.scenario = sc.name;
+    truth_.duration_s = sc.duration_s;
+    truth_.landmarks = source.Truth().landmarks;
+    truth_.headings_known = source.Truth().headings_known;
+    for (const RobotSpec& r : sc.robots) {
+      io::RobotTruth rt;
+      rt.id = r.id;
+      for (const auto& [id, start] : source.Truth().starts) {
+        if (id == r.id) rt.start = start;
+      }
+      truth_.robots.push_back(rt);
+    }
+  }
+  void Add(const FeedBatch& b) {
+    for (const GroundTruth& g : b.truth) {
+      double& next = next_sample_[g.robot_id];
+      if (g.stamp + 1e-9 < next) continue;
+      for (auto& r : truth_.robots) {
+        if (r.id == g.robot_id) r.trajectory.push_back({g.stamp, {g.x, g.y, g.theta}});
+      }
+      next = g.stamp + sc_.feeder.truth_period_s;
+    }
+  }
+  void CountSent(const Scan& s) { ++scans_sent_[s.robot_id]; }
+  void CountSent(const Odometry& o) { ++odom_sent_[o.robot_id]; }
+  void Write(const std::string& dir, const FeedSource& source, double wall_s, bool interrupted) {
+    const auto& seen = source.Truth().seen;
+    truth_.seen.clear();
+    for (std::size_t i = 0; i < seen.size(); ++i) {
+      if (seen[i]) truth_.seen.push_back(static_cast<int>(i));
+    }
+    io::WriteJsonAtomic(dir + "/truth.json", io::TruthToJson(truth_));
+    json robots = json::array();
+    for (const RobotSpec& r : sc_.robots) {
+      json e = {{"id", r.id}, {"odom_sent", odom_sent_[r.id]}, {"scans_sent", scans_sent_[r.id]}};
+      for (const ReplayCounts& c : counts_) {
+        if (c.id != r.id) continue;
+        e["odom_rows"] = c.odom_rows;
+        e["odom_duplicate_rows"] = c.odom_duplicate_rows;
+        e["measurement_rows"] = c.measurement_rows;
+        e["measurement_unknown_barcode"] = c.measurement_unknown;
+        e["robot_sightings"] = c.robot_sightings;
+      }
+      robots.push_back(e);
+    }
+    io::WriteJsonAtomic(dir + "/feeder.json", {{"scenario", sc_.name},
+                                               {"source", sc_.source.type},
+                                               {"sim_duration_s", sc_.duration_s},
+                                               {"wall_s", wall_s},
+                                               {"pace", sc_.feeder.pace},
+                                               {"interrupted", interrupted},
+                                               {"robots", robots}});
+  }
+
+ private:
+  const Scenario& sc_;
+  std::vector<ReplayCounts> counts_;
+  io::RunTruth truth_;
+  std::map<RobotId, double> next_sample_;
+  std::map<RobotId, std::uint32_t> odom_sent_, scans_sent_;
+};
+
 int Run(int argc, char** argv) {
   tp::ShutdownSignal shutdown;  // first: block SIGINT/SIGTERM before any thread starts
 
   CLI::App cli{"mapmesh-feeder: simulates (or replays) the world and publishes it over DDS"};
   app::ProcessOptions po;
-  std::string out_dir = ".", pace;
+  std::string out_dir = ".", pace, datasets, record_path;
   double rate = 0.0, stall_timeout_s = 120.0;
-  bool check_only = false, events = false, control_enabled = false;
+  bool check_only = false, events = false, control_enabled = false, no_dds = false;
   std::vector<double> holds;
   app::AddScenarioOptions(cli, po);
   app::AddDdsOptions(cli, po, /*domain_required=*/false);
   cli.add_option("--out", out_dir, "directory for truth.json and feeder.json");
+  cli.add_option("--datasets", datasets,
+                 "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets beside the sources)");
   cli.add_option("--pace", pace, "override feeder.pace")->check(CLI::IsMember({"lockstep", "realtime"}));
   cli.add_option("--rate", rate, "override feeder.realtime_factor")->check(CLI::PositiveNumber);
   cli.add_option("--hold-at", holds, "with --control: pause at these scenario times until 'continue'");
   cli.add_option("--stall-timeout", stall_timeout_s, "lockstep: give up on an agent stuck this many wall seconds");
-  cli.add_flag("--check", check_only, "validate the scenario and exit (no DDS)");
+  cli.add_option("--record", record_path, "also write the whole stream to this file (see recording.h)");
+  cli.add_flag("--no-dds", no_dds, "with --record: only generate and record, as fast as possible");
+  cli.add_flag("--check", check_only, "validate the scenario (and read its dataset) and exit");
   cli.add_flag("--events", events, "print JSON events on stdout");
   cli.add_flag("--control", control_enabled, "read launcher commands on stdin");
   if (auto code = app::ParseArgs(cli, "mapmesh-feeder", argc, argv)) return *code;
@@ -260,60 +333,73 @@ int Run(int argc, char** argv) {
   std::optional<Scenario> loaded = app::LoadScenarioOrReport("mapmesh-feeder", po);
   if (!loaded) return 2;
   Scenario& sc = *loaded;
-  std::vector<Eigen::Vector2d> landmarks;
+  if (!pace.empty()) sc.feeder.pace = pace;
+  if (rate > 0.0) sc.feeder.realtime_factor = rate;
+  Feed feed;
   try {
-    landmarks = BuildLandmarks(sc);
-  } catch (const ConfigError& e) {
+    feed = MakeFeed(sc, ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot()));
+  } catch (const std::exception& e) {  // ConfigError or DatasetError: one line
     std::fprintf(stderr, "mapmesh-feeder: %s\n", e.what());
     return 2;
   }
-  if (!pace.empty()) sc.feeder.pace = pace;
-  if (rate > 0.0) sc.feeder.realtime_factor = rate;
-  if (check_only && events) {
-    std::vector<RobotId> robot_ids;
-    for (const auto& r : sc.robots) robot_ids.push_back(r.id);
-    std::printf("%s\n", json{{"event", "check"},
-                             {"name", sc.name},
-                             {"robots", robot_ids},
-                             {"landmarks", landmarks.size()},
-                             {"duration", sc.duration_s},
-                             {"pace", sc.feeder.pace}}
-                             .dump()
-                             .c_str());
-    return 0;
-  }
+  FeedSource& source = *feed.source;
+  std::vector<RobotId> ids;
+  for (const auto& r : sc.robots) ids.push_back(r.id);
   if (check_only) {
-    std::printf("%s: ok: %zu robots, %zu landmarks, %.1f s\n", po.scenario_path.c_str(),
-                sc.robots.size(), landmarks.size(), sc.duration_s);
+    if (events) {
+      std::printf("%s\n", json{{"event", "check"},
+                               {"name", sc.name},
+                               {"source", sc.source.type},
+                               {"robots", ids},
+                               {"landmarks", source.Truth().landmarks.size()},
+                               {"duration", sc.duration_s},
+                               {"pace", sc.feeder.pace}}
+                               .dump()
+                               .c_str());
+    } else {
+      std::printf("%s: ok: %zu robots, %zu landmarks, %.1f s\n", po.scenario_path.c_str(),
+                  sc.robots.size(), source.Truth().landmarks.size(), sc.duration_s);
+    }
     return 0;
   }
-  if (po.domain < 0) {
+  if (no_dds && record_path.empty()) {
+    std::fprintf(stderr, "mapmesh-feeder: --no-dds needs --record FILE (see --help)\n");
+    return 2;
+  }
+  if (!no_dds && po.domain < 0) {
     std::fprintf(stderr, "mapmesh-feeder: --domain is required (see --help)\n");
     return 2;
   }
   std::filesystem::create_directories(out_dir);
+  std::optional<RecordingWriter> recording;
+  if (!record_path.empty()) recording.emplace(record_path);
+  PlayRecord record(sc, source, feed.counts);
+  const auto wall_start = Clock::now();
+
+  if (no_dds) {
+    while (!source.Done()) {
+      const FeedBatch b = source.Next();
+      recording->Write(b);
+      record.Add(b);
+      for (const Scan& s : b.scans) record.CountSent(s);
+      for (const Odometry& o : b.odom) record.CountSent(o);
+    }
+    recording->Close();
+    record.Write(out_dir, source, std::chrono::duration<double>(Clock::now() - wall_start).count(), false);
+    return 0;
+  }
 
   tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
   Channels ch(session.participant(), sc);
-  std::vector<RobotId> ids;
-  for (const auto& r : sc.robots) ids.push_back(r.id);
   AgentTracker tracker(ids);
   ControlInput control(control_enabled);
   shutdown.Watch(nullptr);
   Feeder feeder(sc, ch, tracker, control, shutdown, events, stall_timeout_s);
   const bool lockstep = sc.feeder.pace == "lockstep";
-  spdlog::info("scenario {}: {} robots, {} landmarks, {:.1f} s, pace {}, domain {}", sc.name,
-               sc.robots.size(), landmarks.size(), sc.duration_s, sc.feeder.pace, po.domain);
+  spdlog::info("scenario {} ({}): {} robots, {} landmarks, {:.1f} s, pace {}, domain {}", sc.name,
+               sc.source.type, sc.robots.size(), source.Truth().landmarks.size(), sc.duration_s,
+               sc.feeder.pace, po.domain);
 
-  Simulator sim(sc, landmarks);
-  io::RunTruth truth;
-  truth.scenario = sc.name;
-  truth.duration_s = sc.duration_s;
-  truth.landmarks = landmarks;
-  for (const auto& [id, start] : sim.Truth().starts) truth.robots.push_back({id, start, {}});
-  std::map<RobotId, std::uint32_t> odom_sent, scans_sent;
-
-  const auto wall_start = Clock::now();
   int exit_code = 0;
   try {
     const auto failed = feeder.WaitForAgents(sc.feeder.startup_timeout_s);
@@ -328,21 +414,29 @@ int Run(int argc, char** argv) {
     std::sort(holds.begin(), holds.end());
     std::deque<double> hold_queue(holds.begin(), holds.end());
     const double window = sc.feeder.lockstep_window_s;
-    double next_barrier = 0.0;
-    double next_truth_sample = 0.0;
+    double next_barrier = window;
     auto last_progress = Clock::now() - std::chrono::seconds(10);
-    const auto sim_start = Clock::now();
-    while (!sim.Done()) {
-      FeedBatch b = sim.Next();
-      const bool last = sim.Done();
+    const auto play_start = Clock::now();
+    // Lockstep holds back each robot's latest odometry until it is known whether a barrier
+    // comes before that robot's next one: the held message then carries the sync flag, and
+    // the barrier waits for exactly the stamps published per robot.
+    std::map<RobotId, Odometry> held;
+    std::map<RobotId, double> published_until;
+    auto publish_odom = [&](const Odometry& o) {
+      ch.odom.at(o.robot_id)->Write(o);
+      record.CountSent(o);
+      published_until[o.robot_id] = o.stamp;
+    };
+    while (!source.Done()) {
+      const FeedBatch b = source.Next();
+      if (recording) recording->Write(b);
+      record.Add(b);
+      const bool last = source.Done();
       const bool barrier = b.stamp + 1e-9 >= next_barrier || last ||
                            (!hold_queue.empty() && b.stamp + 1e-9 >= hold_queue.front());
-      if (barrier) {
-        for (Odometry& o : b.odom) o.sync = true;
-      }
       if (!lockstep) {
-        const auto due = sim_start + std::chrono::duration_cast<Clock::duration>(
-                                         std::chrono::duration<double>(b.stamp / sc.feeder.realtime_factor));
+        const auto due = play_start + std::chrono::duration_cast<Clock::duration>(
+                                          std::chrono::duration<double>(b.stamp / sc.feeder.realtime_factor));
         while (Clock::now() < due) {
           feeder.Pump();
           std::this_thread::sleep_until(std::min(due, Clock::now() + std::chrono::milliseconds(20)));
@@ -351,33 +445,33 @@ int Run(int argc, char** argv) {
       if (b.links) ch.links.Write(*b.links);
       for (const Scan& s : b.scans) {
         ch.scan.at(s.robot_id)->Write(s);
-        ++scans_sent[s.robot_id];
-      }
-      for (const Odometry& o : b.odom) {
-        ch.odom.at(o.robot_id)->Write(o);
-        ++odom_sent[o.robot_id];
+        record.CountSent(s);
       }
       for (const GroundTruth& g : b.truth) ch.truth.Write(g);
-      if (b.stamp + 1e-9 >= next_truth_sample || last) {
-        for (const GroundTruth& g : b.truth) {
-          for (auto& r : truth.robots) {
-            if (r.id == g.robot_id) r.trajectory.push_back({g.stamp, {g.x, g.y, g.theta}});
-          }
+      for (const Odometry& o : b.odom) {
+        if (!lockstep) {
+          publish_odom(o);
+          continue;
         }
-        next_truth_sample += sc.feeder.truth_period_s;
+        if (auto it = held.find(o.robot_id); it != held.end()) publish_odom(it->second);
+        held[o.robot_id] = o;
       }
-      if (barrier) {
-        if (lockstep) feeder.WaitForBarrier(b.stamp);
-        feeder.Pump();
-        while (next_barrier <= b.stamp + 1e-9) next_barrier += window;
-        if (Clock::now() - last_progress > std::chrono::milliseconds(500) || last) {
-          feeder.Emit(feeder.Progress(b.stamp));
-          last_progress = Clock::now();
-        }
-        while (!hold_queue.empty() && b.stamp + 1e-9 >= hold_queue.front()) {
-          hold_queue.pop_front();
-          if (control.enabled()) feeder.Hold(b.stamp);
-        }
+      if (!barrier) continue;
+      for (auto& [id, o] : held) {
+        o.sync = true;
+        publish_odom(o);
+      }
+      held.clear();
+      if (lockstep) feeder.WaitForBarrier(published_until);
+      feeder.Pump();
+      while (next_barrier <= b.stamp + 1e-9) next_barrier += window;
+      if (Clock::now() - last_progress > std::chrono::milliseconds(500) || last) {
+        feeder.Emit(feeder.Progress(b.stamp));
+        last_progress = Clock::now();
+      }
+      while (!hold_queue.empty() && b.stamp + 1e-9 >= hold_queue.front()) {
+        hold_queue.pop_front();
+        if (control.enabled()) feeder.Hold(b.stamp);
       }
     }
   } catch (const Interrupted&) {
@@ -391,22 +485,9 @@ int Run(int argc, char** argv) {
     ch.odom.at(id)->raw().WaitForAcks(2.0);
     ch.scan.at(id)->raw().WaitForAcks(2.0);
   }
-
+  if (recording) recording->Close();
   const double wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
-  for (std::size_t i = 0; i < sim.Truth().seen.size(); ++i) {
-    if (sim.Truth().seen[i]) truth.seen.push_back(static_cast<int>(i));
-  }
-  io::WriteJsonAtomic(out_dir + "/truth.json", io::TruthToJson(truth));
-  json per_robot = json::array();
-  for (RobotId id : ids) {
-    per_robot.push_back({{"id", id}, {"odom_sent", odom_sent[id]}, {"scans_sent", scans_sent[id]}});
-  }
-  io::WriteJsonAtomic(out_dir + "/feeder.json", {{"scenario", sc.name},
-                                                 {"sim_duration_s", sc.duration_s},
-                                                 {"wall_s", wall_s},
-                                                 {"pace", sc.feeder.pace},
-                                                 {"interrupted", exit_code != 0},
-                                                 {"robots", per_robot}});
+  record.Write(out_dir, source, wall_s, exit_code != 0);
   feeder.Emit({{"event", "done"}, {"wall_s", wall_s}, {"interrupted", exit_code != 0}});
   spdlog::info("done in {:.1f} s wall", wall_s);
   return exit_code;

@@ -24,6 +24,14 @@ UnicycleControl FollowWaypoints(const Pose2& pose, const PathOptions& path,
   const Eigen::Vector2d d = path.points[state.next] - Eigen::Vector2d(pose.x, pose.y);
   const double error = WrapAngle(std::atan2(d.y(), d.x()) - pose.theta);
   const double w_max = DegToRad(motion.max_turn_rate_dps);
+  if (motion.steering == "thesis") {
+    // Thesis Fig. 27: turn at the maximum rate while the heading change needed exceeds what
+    // one step at that rate gives, otherwise do not turn; the forward speed never changes.
+    const double w = std::abs(error) > w_max * dt ? std::copysign(w_max, error) : 0.0;
+    return {motion.speed_mps, w};
+  }
+  // Smooth: close the heading error as fast as the limit allows; turn in place when the
+  // waypoint is behind.
   const double w = std::clamp(error / dt, -w_max, w_max);
   const double v = std::abs(error) > std::numbers::pi / 2 ? 0.0 : motion.speed_mps;
   return {v, w};

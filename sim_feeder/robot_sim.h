@@ -19,9 +19,10 @@ struct FollowerState {
   bool finished = false;  // a non-looping path was completed: the robot stands still
 };
 
-// The control that steers `pose` toward the next waypoint: turn at up to the maximum rate,
-// drive at the configured speed (turning in place when the waypoint is behind), and switch
-// to the following waypoint inside the waypoint radius.
+// The control that steers `pose` toward the next waypoint, switching to the following one
+// inside the waypoint radius. steering "thesis" (Fig. 27): full turn rate toward the
+// waypoint, or none once within one step of it, at constant speed. "smooth": turn rate
+// proportional to the error up to the limit, turning in place when the waypoint is behind.
 UnicycleControl FollowWaypoints(const Pose2& pose, const PathOptions& path,
                                 const MotionOptions& motion, double dt, FollowerState& state);
 

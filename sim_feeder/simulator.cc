@@ -6,9 +6,19 @@
 
 namespace mapmesh {
 
-Simulator::Simulator(const Scenario& scenario, std::vector<Eigen::Vector2d> landmarks)
+Simulator::Simulator(const Scenario& scenario, World world)
     : scenario_(scenario), dt_(scenario.world.control_period_s) {
-  truth_.landmarks = std::move(landmarks);
+  for (RobotSpec& spec : scenario_.robots) {
+    if (spec.path.type != "park" || world.paths.empty()) continue;
+    const Polyline& line = world.paths[spec.path.index % world.paths.size()];
+    spec.path.points.assign(line.begin() + 1, line.end());
+    spec.path.points.insert(spec.path.points.end(), line.rbegin() + 1, line.rend());
+    if (!spec.start_given) {
+      const Eigen::Vector2d d = line[1] - line[0];
+      spec.start = {line[0].x(), line[0].y(), std::atan2(d.y(), d.x())};
+    }
+  }
+  truth_.landmarks = std::move(world.landmarks);
   truth_.seen.assign(truth_.landmarks.size(), false);
   last_step_ = static_cast<std::uint64_t>(std::floor(scenario_.duration_s / dt_ + 1e-9));
   robots_.reserve(scenario_.robots.size());

@@ -10,12 +10,14 @@
 #include "common/config/scenario.h"
 #include "sim_feeder/feed_source.h"
 #include "sim_feeder/robot_sim.h"
+#include "sim_feeder/world.h"
 
 namespace mapmesh {
 
 class Simulator : public FeedSource {
  public:
-  Simulator(const Scenario& scenario, std::vector<Eigen::Vector2d> landmarks);
+  // Robots with path type park walk a footpath of the world there and back.
+  Simulator(const Scenario& scenario, World world);
   Simulator(const Simulator&) = delete;
   Simulator& operator=(const Simulator&) = delete;
 

@@ -56,6 +56,7 @@ std::optional<Scenario> LoadScenarioOrReport(const char* prog, const ProcessOpti
 }
 
 std::string DefaultDdsConfig() { return MAPMESH_SOURCE_DIR "/config/cyclonedds-loopback.xml"; }
+std::string DefaultDatasetsRoot() { return MAPMESH_SOURCE_DIR "/../shared/datasets"; }
 
 int GuardedMain(const char* prog, const std::function<int()>& fn) {
   try {

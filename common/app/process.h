@@ -41,6 +41,8 @@ std::optional<Scenario> LoadScenarioOrReport(const char* prog, const ProcessOpti
 
 // The default Cyclone configuration shipped with the sources.
 std::string DefaultDdsConfig();
+// The default datasets root: ../shared/datasets beside the source checkout.
+std::string DefaultDatasetsRoot();
 
 // Runs fn; an exception that escapes it becomes "prog: what" on stderr and exit code 1.
 int GuardedMain(const char* prog, const std::function<int()>& fn);

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "common/geometry/pose2.h"
+#include "common/slam/motion_model.h"
 #include "common/types/messages.h"
 
 namespace mapmesh {
@@ -24,33 +25,54 @@ struct Rect {
   }
 };
 
+// Where the world's data comes from.
+struct SourceOptions {
+  std::string type = "simulation";  // simulation | mrclam | victoria_park
+  std::string dataset;              // folder under the datasets root (mrclam/MRCLAM_Dataset7, victoria_park)
+  std::vector<RobotId> robots;      // mrclam: which of robots 1-5 (default all)
+  int virtual_robots = 4;           // victoria_park: the run is split into this many robots
+  double overlap_s = 60.0;          // victoria_park: time shared by consecutive segments
+  bool IsDataset() const { return type != "simulation"; }
+};
+
 // How landmarks are generated when the scenario does not list them.
 struct LandmarkGeneratorOptions {
-  std::string type = "uniform";   // uniform: uniform random points (thesis 4.1.1)
+  std::string type = "uniform";   // uniform (thesis 4.1.1) | park (trees along paths) | disc (Downs)
   int count = 100;                // number of landmarks
-  Rect area_m{0, 0, 50, 50};      // where they are placed
+  Rect area_m{0, 0, 50, 50};      // uniform, park: where they are placed
   double min_spacing_m = 1.0;     // minimum distance between any two landmarks
+  int paths = 4;                  // park: number of footpaths crossing the area
+  double path_width_m = 4.0;      // park: trees stand at least half this from a path's centre line
+  double scatter_fraction = 0.2;  // park: share of trees placed away from the paths
+  Eigen::Vector2d center_m{0, 0}; // disc: centre
+  double radius_m = 30.0;         // disc: radius (points at uniform radius and bearing, as Downs)
 };
 
 struct WorldOptions {
   double control_period_s = 0.1;  // simulation and odometry step
-  // Exactly one landmark source: an inline list, a CSV file, or a generator.
+  // Exactly one landmark source for simulations: an inline list, a CSV file, or a generator.
   std::vector<Eigen::Vector2d> landmarks;              // from world.landmarks.list or .csv
   std::string landmarks_csv;                           // resolved path, empty if not used
   std::optional<LandmarkGeneratorOptions> generator;   // world.landmarks.generator
   Rect bounds_m;  // area robots may roam; defaults to the landmark area
 };
 
-// Unicycle motion of a simulated robot and the noise on its odometry.
+// Motion of a robot: its model, the simulated driving, and the noise on its odometry.
 struct MotionOptions {
+  std::string model = "unicycle";       // unicycle | ackermann (Victoria Park's car)
+  AckermannParams ackermann;            // model ackermann: vehicle geometry
+  std::string steering = "thesis";      // thesis: full turn rate or none (Fig. 27) | smooth
   double speed_mps = 0.3;               // forward speed
   double max_turn_rate_dps = 30.0;      // turn-rate limit, deg/s
   double sigma_v_mps = 0.03;            // odometry noise on v
   double sigma_w_radps = 0.0524;        // odometry noise on w (3 deg/s)
-  double waypoint_radius_m = 0.5;       // switch to the next waypoint inside this radius
+  double sigma_steering_rad = 0.0;      // odometry noise on the steering angle (ackermann)
+  double waypoint_radius_m = 1.0;       // switch to the next waypoint inside this radius
+  static MotionOptions ThesisDefaults() { return {}; }
+  static MotionOptions DownsDefaults();
 };
 
-// Range-bearing sensor of a simulated robot.
+// Range-bearing sensor of a robot.
 struct SensorOptions {
   double max_range_m = 8.0;             // LMS-200-like range
   double fov_deg = 180.0;               // field of view, centred on the heading
@@ -58,21 +80,29 @@ struct SensorOptions {
   double sigma_bearing_deg = 1.0;       // bearing noise
   int scan_every_steps = 5;             // one scan per this many control steps
   bool signatures = false;              // share landmark identities (known correspondence)
+  static SensorOptions ThesisDefaults() { return {}; }
+  static SensorOptions DownsDefaults();
 };
 
-// A robot's path: a list of waypoints, or random waypoints drawn in an area.
+// A robot's path.
 struct PathOptions {
-  std::string type = "random";          // waypoints | random
-  std::vector<Eigen::Vector2d> points;  // type waypoints
-  int count = 8;                        // type random: number of waypoints
-  std::optional<Rect> area_m;           // type random: where (default: world bounds)
+  std::string type = "random";          // waypoints | random | circle | lawnmower | park
+  std::vector<Eigen::Vector2d> points;  // waypoints (and the resolved waypoints of other types)
+  int count = 8;                        // random: waypoints; circle: points around (default 36)
+  std::optional<Rect> area_m;           // random, lawnmower: where (default: world bounds)
+  Eigen::Vector2d center_m{0, 0};       // circle
+  double radius_m = 10.0;               // circle
+  double start_angle_deg = 0.0;         // circle: where on the circle the robot starts
+  bool clockwise = false;               // circle
+  double spacing_m = 8.0;               // lawnmower: distance between lanes
+  int index = 0;                        // park: which footpath of the park generator
   bool loop = true;                     // start over after the last waypoint
 };
 
 struct RobotSpec {
   RobotId id = 0;
   Pose2 start;                          // true start pose (theta in radians)
-  bool start_given = false;             // false: drawn at random in the world bounds
+  bool start_given = false;             // false: drawn (or from the path or the dataset)
   PathOptions path;
   MotionOptions motion;
   SensorOptions sensor;
@@ -89,13 +119,13 @@ struct AgentOptions {
   std::string slam = "dead_reckoning";  // dead_reckoning (more estimators come later)
   double map_publish_period_s = 2.0;    // scenario seconds between map publications
   double status_period_s = 1.0;         // scenario seconds between status reports
-  double association_gate_m = 1.0;     // dead reckoning without signatures: merge radius
+  double association_gate_m = 1.0;      // dead reckoning without signatures: merge radius
 };
 
 struct FeederOptions {
   std::string pace = "lockstep";        // lockstep: as fast as agents go | realtime
   double realtime_factor = 1.0;         // realtime: scenario seconds per wall second
-  double lockstep_window_s = 0.5;       // lockstep: data published between barriers
+  double lockstep_window_s = 0.5;       // lockstep: data published between barriers (<= 10 s)
   double startup_timeout_s = 30.0;      // wall seconds to wait for every agent to appear
   double truth_period_s = 0.5;          // trajectory sampling in truth.json
 };
@@ -106,7 +136,9 @@ struct Scenario {
   std::string description;
   std::string path;                     // the file it was loaded from
   std::uint64_t seed = 1;
-  double duration_s = 60.0;
+  double duration_s = 60.0;             // datasets: 0 until the feeder has read the data
+  bool duration_given = false;          // datasets: false replays everything
+  SourceOptions source;
   WorldOptions world;
   std::vector<RobotSpec> robots;        // resolved: exactly the robots of this run
   RadioOptions radio;
@@ -127,12 +159,21 @@ ConfigOverride ParseOverride(const std::string& text);
 
 // Loads and validates a scenario. agents > 0 resizes the robot list to that many robots:
 // the first listed ones, then robots generated from robots.defaults with seeded random
-// starts and paths. Throws ConfigError (one line naming file, line and key) on any problem.
+// starts and paths (mrclam: the first N robots; victoria_park: N virtual robots).
+// Throws ConfigError (one line naming file, line and key) on any problem.
 Scenario LoadScenario(const std::string& file, const std::vector<ConfigOverride>& overrides = {},
                       int agents = 0);
 
 // Same, from YAML text (file is used only in messages and to resolve relative paths).
 Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
                        const std::vector<ConfigOverride>& overrides = {}, int agents = 0);
+
+// The motion model a robot's odometry is interpreted with.
+MotionModel MotionModelFor(const MotionOptions& motion);
+
+// Waypoints of a circle path and the pose at its start (on the circle, facing along it).
+std::vector<Eigen::Vector2d> CircleWaypoints(const PathOptions& path, Pose2* start);
+// Waypoints of a lawnmower (boustrophedon) path over area with lanes spacing_m apart.
+std::vector<Eigen::Vector2d> LawnmowerWaypoints(const Rect& area, double spacing_m);
 
 }  // namespace mapmesh

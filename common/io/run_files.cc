@@ -38,8 +38,8 @@ LandmarkMap MapFromJson(const json& j) {
   return map;
 }
 
-Pose2 RobotTruth::PoseAt(double t) const {
-  if (trajectory.empty()) return start;
+std::optional<Pose2> RobotTruth::PoseAt(double t) const {
+  if (trajectory.empty()) return std::nullopt;
   if (t <= trajectory.front().t) return trajectory.front().pose;
   if (t >= trajectory.back().t) return trajectory.back().pose;
   auto hi = std::lower_bound(trajectory.begin(), trajectory.end(), t,
@@ -48,7 +48,8 @@ Pose2 RobotTruth::PoseAt(double t) const {
   const double a = (t - lo->t) / (hi->t - lo->t);
   const Pose2& p = lo->pose;
   const Pose2& q = hi->pose;
-  return {p.x + a * (q.x - p.x), p.y + a * (q.y - p.y), WrapAngle(p.theta + a * WrapAngle(q.theta - p.theta))};
+  return Pose2{p.x + a * (q.x - p.x), p.y + a * (q.y - p.y),
+               WrapAngle(p.theta + a * WrapAngle(q.theta - p.theta))};
 }
 
 const RobotTruth* RunTruth::Find(RobotId id) const {
@@ -70,13 +71,14 @@ json TruthToJson(const RunTruth& truth) {
       traj.push_back({s.t, s.pose.x, s.pose.y, s.pose.theta});
     }
     robots.push_back({{"id", r.id},
-                      {"start", {r.start.x, r.start.y, r.start.theta}},
+                      {"start", r.start ? json{r.start->x, r.start->y, r.start->theta} : json()},
                       {"trajectory", traj}});
   }
   return {{"scenario", truth.scenario},
           {"duration_s", truth.duration_s},
           {"landmarks", lms},
           {"seen", truth.seen},
+          {"headings_known", truth.headings_known},
           {"robots", robots}};
 }
 
@@ -87,11 +89,12 @@ RunTruth TruthFromJson(const json& j) {
     t.duration_s = j.value("duration_s", 0.0);
     for (const auto& l : j.at("landmarks")) t.landmarks.emplace_back(l.at("x"), l.at("y"));
     t.seen = j.value("seen", std::vector<int>{});
+    t.headings_known = j.value("headings_known", true);
     for (const auto& r : j.at("robots")) {
       RobotTruth rt;
       rt.id = r.at("id");
       const auto& s = r.at("start");
-      rt.start = {s.at(0), s.at(1), s.at(2)};
+      if (!s.is_null()) rt.start = Pose2{s.at(0), s.at(1), s.at(2)};
       for (const auto& p : r.at("trajectory")) {
         rt.trajectory.push_back({p.at(0), {p.at(1), p.at(2), p.at(3)}});
       }

@@ -4,6 +4,7 @@
 // core; the core never includes it.
 
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,10 +28,11 @@ struct TruthSample {
 
 struct RobotTruth {
   RobotId id = 0;
-  Pose2 start;
-  std::vector<TruthSample> trajectory;
-  // The true pose at time t, interpolated between samples (clamped to the ends).
-  Pose2 PoseAt(double t) const;
+  std::optional<Pose2> start;           // unknown for datasets without ground truth
+  std::vector<TruthSample> trajectory;  // may be empty
+  // The true pose at time t, interpolated between samples (clamped to the ends); nullopt
+  // without a trajectory.
+  std::optional<Pose2> PoseAt(double t) const;
 };
 
 // truth.json: everything an evaluation needs to know about the world of a run.
@@ -39,6 +41,7 @@ struct RunTruth {
   double duration_s = 0.0;
   std::vector<Eigen::Vector2d> landmarks;  // index = landmark id = signature
   std::vector<int> seen;                   // landmarks that any robot observed
+  bool headings_known = true;              // false: trajectories are positions only (GPS)
   std::vector<RobotTruth> robots;
   const RobotTruth* Find(RobotId id) const;
 };

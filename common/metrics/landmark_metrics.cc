@@ -6,6 +6,8 @@
 #include <limits>
 #include <tuple>
 
+#include "common/geometry/rigid_fit.h"
+
 namespace mapmesh {
 
 double Nees(const Eigen::Vector2d& estimate, const Eigen::Matrix2d& cov, const Eigen::Vector2d& truth) {
@@ -23,10 +25,13 @@ std::vector<int> MatchToTruth(const LandmarkMap& map, const std::vector<Eigen::V
   for (std::size_t i = 0; i < map.size(); ++i) {
     const Landmark& l = map.landmarks[i];
     if (l.signature >= 0) {
-      if (static_cast<std::size_t>(l.signature) < truth.size()) match[i] = l.signature;
+      if (static_cast<std::size_t>(l.signature) < truth.size() && truth[l.signature].allFinite()) {
+        match[i] = l.signature;
+      }
       continue;
     }
     for (std::size_t j = 0; j < truth.size(); ++j) {
+      if (!truth[j].allFinite()) continue;
       const double d = (l.mean - truth[j]).norm();
       if (d <= gate_m) candidates.emplace_back(d, i, j);
     }
@@ -78,6 +83,30 @@ MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d
     if (present[j]) ++covered;
   }
   q.coverage = denom > 0 ? static_cast<double>(covered) / denom : 0.0;
+  return q;
+}
+
+MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
+                               const std::vector<int>& seen, const std::optional<Pose2>& origin,
+                               double gate_m) {
+  if (origin) return EvaluateMap(TransformMap(map, *origin), truth, seen, gate_m);
+  std::vector<Eigen::Vector2d> src, dst;
+  for (const Landmark& l : map.landmarks) {
+    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < truth.size() &&
+        truth[l.signature].allFinite()) {
+      src.push_back(l.mean);
+      dst.push_back(truth[l.signature]);
+    }
+  }
+  const std::optional<Pose2> fit = FitRigid2D(src, dst);
+  if (!fit) {
+    MapQuality q;
+    q.evaluated = false;
+    q.landmarks = static_cast<int>(map.size());
+    return q;
+  }
+  MapQuality q = EvaluateMap(TransformMap(map, *fit), truth, seen, gate_m);
+  q.aligned = true;
   return q;
 }
 

@@ -3,7 +3,10 @@
 // ratio at the 95 % chi-square bound, and coverage.
 
 #include <Eigen/Core>
+#include <optional>
 #include <vector>
+
+#include "common/geometry/pose2.h"
 
 #include "common/map/landmark_map.h"
 
@@ -22,6 +25,8 @@ std::vector<int> MatchToTruth(const LandmarkMap& map, const std::vector<Eigen::V
                               double gate_m);
 
 struct MapQuality {
+  bool evaluated = true;      // false: the map could not be placed in the truth frame
+  bool aligned = false;       // placed by a rigid fit to the truth rather than a known origin
   int landmarks = 0;          // landmarks in the map
   int matched = 0;            // of which have a true counterpart
   double rmse_m = 0.0;        // over matched landmarks
@@ -34,5 +39,12 @@ struct MapQuality {
 // any robot observed (the coverage denominator); empty means all of them.
 MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
                        const std::vector<int>& seen, double gate_m = 2.0);
+
+// Quality of a map given in its own frame. It is moved into the truth frame by `origin` (the
+// true pose of the frame) when known; otherwise by the least-squares rigid fit of its
+// signature-matched landmarks to the truth (needs two), and then aligned is true.
+MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
+                               const std::vector<int>& seen, const std::optional<Pose2>& origin,
+                               double gate_m = 2.0);
 
 }  // namespace mapmesh

@@ -7,8 +7,8 @@ namespace mapmesh {
 
 DeadReckoningMapper::DeadReckoningMapper(const DeadReckoningOptions& options) : options_(options) {}
 
-void DeadReckoningMapper::Predict(const UnicycleControl& u, double dt) {
-  pose_ = UnicycleMotion(pose_, u, dt);
+void DeadReckoningMapper::Predict(const OdometryControl& u, double dt) {
+  pose_ = MoveRobot(options_.motion, pose_, u, dt);
 }
 
 void DeadReckoningMapper::Observe(const std::vector<Observation>& obs) {

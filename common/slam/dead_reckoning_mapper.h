@@ -17,6 +17,7 @@
 namespace mapmesh {
 
 struct DeadReckoningOptions {
+  MotionModel motion;                // how odometry moves the pose
   double sigma_range_m = 0.05;       // sensor range noise, for landmark covariances
   double sigma_bearing_rad = 0.0175; // sensor bearing noise
   double association_gate_m = 1.0;   // without signatures: join the nearest landmark within this
@@ -26,8 +27,8 @@ class DeadReckoningMapper {
  public:
   explicit DeadReckoningMapper(const DeadReckoningOptions& options);
 
-  // Moves the pose by one odometry interval (unicycle model, no noise).
-  void Predict(const UnicycleControl& u, double dt);
+  // Moves the pose by one odometry interval (no noise).
+  void Predict(const OdometryControl& u, double dt);
   // Adds the landmark observations of a scan (robot sightings are ignored).
   void Observe(const std::vector<Observation>& obs);
 

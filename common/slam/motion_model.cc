@@ -43,4 +43,44 @@ Pose2 UnicycleMotion(const Pose2& pose, const UnicycleControl& u, double dt,
   return out;
 }
 
+Pose2 AckermannMotion(const Pose2& pose, const AckermannControl& u, double dt,
+                      const AckermannParams& p, Eigen::Matrix3d* j_pose,
+                      Eigen::Matrix<double, 3, 2>* j_control) {
+  const double L = p.wheelbase_m, H = p.encoder_offset_m, a = p.laser_a_m, b = p.laser_b_m;
+  const double t = std::tan(u.steering_rad);
+  const double k = 1.0 / (1.0 - t * H / L);  // vc = k v
+  const double vc = k * u.v_mps;
+  const double c = std::cos(pose.theta), s = std::sin(pose.theta);
+  const double fx = vc * c - vc / L * t * (a * s + b * c);
+  const double fy = vc * s + vc / L * t * (a * c - b * s);
+  const double fth = vc / L * t;
+  const Pose2 out{pose.x + dt * fx, pose.y + dt * fy, WrapAngle(pose.theta + dt * fth)};
+  if (j_pose) {
+    *j_pose << 1, 0, dt * (-vc * s - vc / L * t * (a * c - b * s)),  //
+        0, 1, dt * (vc * c + vc / L * t * (-a * s - b * c)),         //
+        0, 0, 1;
+  }
+  if (j_control) {
+    // d vc / d v = k;  d t / d s = 1 + t^2;  d k / d t = k^2 H / L.
+    const double dt_ds = 1.0 + t * t;
+    const double dvc_ds = u.v_mps * k * k * H / L * dt_ds;
+    // f = vc * g(t): g_x = c - t (a s + b c) / L, g_y = s + t (a c - b s) / L, g_th = t / L.
+    const double gx = c - t * (a * s + b * c) / L, gy = s + t * (a * c - b * s) / L, gth = t / L;
+    const double dgx = -(a * s + b * c) / L * dt_ds, dgy = (a * c - b * s) / L * dt_ds,
+                 dgth = dt_ds / L;
+    *j_control << dt * k * gx, dt * (dvc_ds * gx + vc * dgx),  //
+        dt * k * gy, dt * (dvc_ds * gy + vc * dgy),             //
+        dt * k * gth, dt * (dvc_ds * gth + vc * dgth);
+  }
+  return out;
+}
+
+Pose2 MoveRobot(const MotionModel& model, const Pose2& pose, const OdometryControl& u, double dt,
+                Eigen::Matrix3d* j_pose, Eigen::Matrix<double, 3, 2>* j_control) {
+  if (model.kind == MotionModel::Kind::kAckermann) {
+    return AckermannMotion(pose, {u.v_mps, u.steering_rad}, dt, model.ackermann, j_pose, j_control);
+  }
+  return UnicycleMotion(pose, {u.v_mps, u.w_radps}, dt, j_pose, j_control);
+}
+
 }  // namespace mapmesh

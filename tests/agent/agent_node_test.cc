@@ -31,6 +31,7 @@ agent: {map_publish_period_s: 1.0, status_period_s: 0.5}
 Odometry Odom(double stamp, std::uint32_t scans, bool sync = false) {
   Odometry o;
   o.robot_id = 1;
+  o.seq = static_cast<std::uint32_t>(std::lround(stamp * 10)) - 1;  // 0.1 s steps from seq 0
   o.stamp = stamp;
   o.dt = 0.1;
   o.v = 1.0;
@@ -81,13 +82,25 @@ TEST_F(AgentNodeTest, ScansArrivingBeforeTheirOdometryAreKept) {
   EXPECT_NEAR(node_.LocalMap().landmarks[0].mean.x(), 5.0, 1e-9);
 }
 
-TEST_F(AgentNodeTest, FirstIntervalDiscardsItsScans) {
-  // A (re)started agent may have missed part of its first interval.
-  node_.OnScan(ScanAt(0.1, 4.9, 0.0, 0));
-  node_.OnOdometry(Odom(0.1, 1));
+TEST_F(AgentNodeTest, TheStreamsFirstIntervalIsProcessedInFull) {
+  node_.OnOdometry(Odom(0.1, 1));  // seq 0 waits for its scan
+  EXPECT_EQ(node_.stats().odom_processed, 0u);
+  node_.OnScan(ScanAt(0.05, 4.95, 0.0, 0));
+  EXPECT_EQ(node_.stats().scans_processed, 1u);
+  EXPECT_DOUBLE_EQ(node_.processed_until(), 0.1);
+  EXPECT_DOUBLE_EQ(*node_.frame_origin_stamp(), 0.0);
+  EXPECT_NEAR(node_.LocalMap().landmarks[0].mean.x(), 5.0, 1e-9);
+}
+
+TEST_F(AgentNodeTest, JoiningARunningStreamDiscardsTheFirstIntervalsScans) {
+  // A restarted agent may have missed part of its first interval.
+  node_.OnScan(ScanAt(3.05, 4.9, 0.0, 0));
+  node_.OnOdometry(Odom(3.1, 1));  // seq 30
   EXPECT_EQ(node_.stats().scans_before_start, 1u);
   EXPECT_EQ(node_.stats().scans_processed, 0u);
-  EXPECT_DOUBLE_EQ(node_.processed_until(), 0.1);
+  EXPECT_DOUBLE_EQ(node_.processed_until(), 3.1);
+  EXPECT_NEAR(*node_.frame_origin_stamp(), 3.0, 1e-12);
+  EXPECT_NEAR(node_.Pose().x, 0.1, 1e-12);  // the first interval still moves the pose
 }
 
 TEST_F(AgentNodeTest, RejectsBadOdometryAndLateScans) {
@@ -109,7 +122,9 @@ TEST_F(AgentNodeTest, RejectsBadOdometryAndLateScans) {
 TEST_F(AgentNodeTest, GivesUpOnAScanThatNeverComes) {
   node_.OnOdometry(Odom(0.1, 0));
   node_.OnOdometry(Odom(0.2, 1));
-  for (int k = 3; k < 200; ++k) node_.OnOdometry(Odom(0.1 * k, 0));
+  for (int k = 3; k < 300; ++k) node_.OnOdometry(Odom(0.1 * k, 0));
+  EXPECT_EQ(node_.stats().scans_missing, 0u);  // 29.9 s of odometry queued: still waiting
+  for (int k = 300; k < 400; ++k) node_.OnOdometry(Odom(0.1 * k, 0));
   EXPECT_EQ(node_.stats().scans_missing, 1u);
   EXPECT_GT(node_.processed_until(), 0.2);
 }

@@ -39,13 +39,22 @@ TEST(RunFiles, TruthRoundTripsAndInterpolates) {
   ASSERT_NE(back.Find(4), nullptr);
   EXPECT_EQ(back.Find(5), nullptr);
   EXPECT_EQ(back.seen, std::vector<int>{1});
-  const Pose2 mid = back.Find(4)->PoseAt(0.5);
+  const Pose2 mid = *back.Find(4)->PoseAt(0.5);
   EXPECT_NEAR(mid.x, 1.0, 1e-12);
   EXPECT_NEAR(mid.y, 2.0, 1e-12);
   // Heading interpolates the short way round, through pi.
   EXPECT_NEAR(std::abs(mid.theta), M_PI, 1e-9);
-  EXPECT_NEAR(back.Find(4)->PoseAt(5.0).x, 2.0, 1e-12);   // clamped
-  EXPECT_NEAR(back.Find(4)->PoseAt(-1.0).x, 0.0, 1e-12);
+  EXPECT_NEAR(back.Find(4)->PoseAt(5.0)->x, 2.0, 1e-12);   // clamped
+  EXPECT_NEAR(back.Find(4)->PoseAt(-1.0)->x, 0.0, 1e-12);
+  EXPECT_TRUE(back.headings_known);
+  // Unknown starts survive the round trip.
+  t.robots[0].start.reset();
+  t.robots[0].trajectory.clear();
+  t.headings_known = false;
+  const RunTruth unknown = TruthFromJson(TruthToJson(t));
+  EXPECT_FALSE(unknown.Find(4)->start.has_value());
+  EXPECT_FALSE(unknown.Find(4)->PoseAt(1.0).has_value());
+  EXPECT_FALSE(unknown.headings_known);
 }
 
 TEST(RunFiles, AtomicWriteAndReadErrors) {

@@ -32,9 +32,11 @@ TEST(AgentTracker, LaggingListsUpAgentsBehindTheBarrier) {
     t.SetSubscribed(id, true);
   }
   t.OnStatus(St(1, 1, 1.0));
-  EXPECT_EQ(t.Lagging(1.0), std::vector<RobotId>{2});
+  EXPECT_EQ(t.Lagging({{1, 1.0}, {2, 1.0}}), std::vector<RobotId>{2});
+  EXPECT_TRUE(t.Lagging({{1, 1.0}, {2, 0.0}}).empty());  // each agent against its own target
+  EXPECT_TRUE(t.Lagging({{1, 1.0}}).empty());            // no target: not waited for
   t.OnStatus(St(2, 2, 1.0));
-  EXPECT_TRUE(t.Lagging(1.0).empty());
+  EXPECT_TRUE(t.Lagging({{1, 1.0}, {2, 1.0}}).empty());
 }
 
 TEST(AgentTracker, KilledAgentsAreNotWaitedForAndTheirLateStatusesIgnored) {
@@ -43,7 +45,7 @@ TEST(AgentTracker, KilledAgentsAreNotWaitedForAndTheirLateStatusesIgnored) {
   t.SetSubscribed(1, true);
   t.MarkDead(1);
   EXPECT_TRUE(t.IsDead(1));
-  EXPECT_TRUE(t.Lagging(10.0).empty());
+  EXPECT_TRUE(t.Lagging({{1, 10.0}}).empty());
   EXPECT_TRUE(t.Pending().empty());
   t.OnStatus(St(1, 5, 0.5));  // in flight when it was killed
   EXPECT_TRUE(t.IsDead(1));
@@ -61,7 +63,7 @@ TEST(AgentTracker, RestartWaitsForTheNewIncarnation) {
   t.OnStatus(St(1, 6, 0.0));
   t.SetSubscribed(1, true);
   EXPECT_TRUE(t.IsUp(1));
-  EXPECT_EQ(t.Lagging(3.5), std::vector<RobotId>{1});
+  EXPECT_EQ(t.Lagging({{1, 3.5}}), std::vector<RobotId>{1});
 }
 
 TEST(AgentTracker, LivelinessLossMarksDead) {

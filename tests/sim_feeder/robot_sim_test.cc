@@ -79,20 +79,38 @@ TEST(SenseLandmarks, NoSignaturesUnlessShared) {
   EXPECT_EQ(idx, std::vector<int>{1});
 }
 
-TEST(FollowWaypoints, TurnsAtMostTheMaximumRateThenDrives) {
+TEST(FollowWaypoints, ThesisSteeringIsFullRateOrNothingAtConstantSpeed) {
+  PathOptions path;
+  path.type = "waypoints";
+  path.points = {{0.0, 10.0}};
+  MotionOptions m;  // thesis defaults
+  FollowerState st;
+  // Waypoint 90 deg to the left: full rate (30 deg/s), speed unchanged.
+  UnicycleControl u = FollowWaypoints({0, 0, 0}, path, m, 0.1, st);
+  EXPECT_NEAR(u.w_radps, DegToRad(30), 1e-12);
+  EXPECT_DOUBLE_EQ(u.v_mps, 0.3);
+  // To the right, and behind: full rate the other way, still driving.
+  u = FollowWaypoints({0, 0, M_PI - 0.1}, path, m, 0.1, st);
+  EXPECT_NEAR(u.w_radps, -DegToRad(30), 1e-12);
+  u = FollowWaypoints({0, 0, -M_PI / 2}, path, m, 0.1, st);
+  EXPECT_DOUBLE_EQ(u.v_mps, 0.3);
+  // Within one step's turn (3 deg) of the bearing: no turn (Fig. 27).
+  u = FollowWaypoints({0, 0, M_PI / 2 - DegToRad(2.5)}, path, m, 0.1, st);
+  EXPECT_DOUBLE_EQ(u.w_radps, 0.0);
+}
+
+TEST(FollowWaypoints, SmoothSteeringClosesTheErrorAndTurnsInPlace) {
   PathOptions path;
   path.type = "waypoints";
   path.points = {{0.0, 10.0}};
   MotionOptions m;
+  m.steering = "smooth";
   FollowerState st;
-  // Waypoint at 90 deg left: turn at the limit (30 deg/s), still driving (error <= 90 deg).
   UnicycleControl u = FollowWaypoints({0, 0, 0}, path, m, 0.1, st);
   EXPECT_NEAR(u.w_radps, DegToRad(30), 1e-12);
   EXPECT_DOUBLE_EQ(u.v_mps, 0.3);
-  // Nearly aligned: the turn rate closes the remaining error in one step.
   u = FollowWaypoints({0, 0, M_PI / 2 - 0.01}, path, m, 0.1, st);
   EXPECT_NEAR(u.w_radps, 0.1, 1e-9);
-  // Behind: turn in place.
   u = FollowWaypoints({0, 0, -M_PI / 2}, path, m, 0.1, st);
   EXPECT_DOUBLE_EQ(u.v_mps, 0.0);
 }
@@ -115,19 +133,23 @@ TEST(FollowWaypoints, SwitchesInsideTheRadiusAndLoops) {
   EXPECT_DOUBLE_EQ(u.v_mps, 0.0);
 }
 
-TEST(FollowWaypoints, ARobotReachesEveryWaypoint) {
-  PathOptions path;
-  path.type = "waypoints";
-  path.points = {{10, 0}, {10, 10}, {0, 10}, {0, 0}};
-  path.loop = false;
-  MotionOptions m;
-  FollowerState st;
-  Pose2 p{0, 0, M_PI};
-  for (int k = 0; k < 3000 && !st.finished; ++k) {
-    p = UnicycleMotion(p, FollowWaypoints(p, path, m, 0.1, st), 0.1);
+TEST(FollowWaypoints, ARobotReachesEveryWaypointWithEitherSteering) {
+  for (const char* steering : {"thesis", "smooth"}) {
+    SCOPED_TRACE(steering);
+    PathOptions path;
+    path.type = "waypoints";
+    path.points = {{10, 0}, {10, 10}, {0, 10}, {0, 0}};
+    path.loop = false;
+    MotionOptions m;
+    m.steering = steering;
+    FollowerState st;
+    Pose2 p{0, 0, M_PI};
+    for (int k = 0; k < 3000 && !st.finished; ++k) {
+      p = UnicycleMotion(p, FollowWaypoints(p, path, m, 0.1, st), 0.1);
+    }
+    EXPECT_TRUE(st.finished);
+    EXPECT_LT(std::hypot(p.x, p.y), m.waypoint_radius_m + 0.05);
   }
-  EXPECT_TRUE(st.finished);
-  EXPECT_LT(std::hypot(p.x, p.y), m.waypoint_radius_m + 0.05);
 }
 
 }  // namespace

@@ -38,7 +38,7 @@ std::vector<double> Stream(Simulator& sim) {
 
 TEST(Simulator, IsDeterministicPerSeed) {
   const Scenario a = Small(3), b = Small(3), c = Small(4);
-  Simulator sa(a, BuildLandmarks(a)), sb(b, BuildLandmarks(b)), sc(c, BuildLandmarks(c));
+  Simulator sa(a, BuildWorld(a)), sb(b, BuildWorld(b)), sc(c, BuildWorld(c));
   const auto va = Stream(sa), vb = Stream(sb), vc = Stream(sc);
   EXPECT_EQ(va, vb);
   EXPECT_NE(va, vc);
@@ -46,7 +46,7 @@ TEST(Simulator, IsDeterministicPerSeed) {
 
 TEST(Simulator, ProducesTheExpectedStreams) {
   const Scenario s = Small(5);
-  Simulator sim(s, BuildLandmarks(s));
+  Simulator sim(s, BuildWorld(s));
   int batches = 0, odom = 0, scans = 0, links = 0;
   double last = -1;
   while (!sim.Done()) {
@@ -75,7 +75,7 @@ TEST(Simulator, ProducesTheExpectedStreams) {
 
 TEST(Simulator, ARobotsStreamDoesNotDependOnHowManyRun) {
   const Scenario three = Small(8), five = Small(8, 5);
-  Simulator s3(three, BuildLandmarks(three)), s5(five, BuildLandmarks(five));
+  Simulator s3(three, BuildWorld(three)), s5(five, BuildWorld(five));
   for (int k = 0; k < 100; ++k) {
     const FeedBatch a = s3.Next(), b = s5.Next();
     ASSERT_EQ(a.truth[1].x, b.truth[1].x);

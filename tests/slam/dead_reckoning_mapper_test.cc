@@ -10,7 +10,7 @@ Observation Obs(double r, double b, int sig) { return {r, b, sig, ObservationKin
 TEST(DeadReckoningMapper, NoiselessObservationsLandOnTheLandmark) {
   DeadReckoningMapper m({});
   // Drive 1 m straight ahead, then see a landmark at (3, 4) in the start frame.
-  for (int i = 0; i < 10; ++i) m.Predict({1.0, 0.0}, 0.1);
+  for (int i = 0; i < 10; ++i) m.Predict({1.0, 0.0, 0.0}, 0.1);
   EXPECT_NEAR(m.pose().x, 1.0, 1e-12);
   const Eigen::Vector2d lm(3.0, 4.0);
   const Eigen::Vector2d d = lm - Eigen::Vector2d(1.0, 0.0);

@@ -87,3 +87,55 @@ INSTANTIATE_TEST_SUITE_P(Seeds, UnicycleJacobianTest, ::testing::Range(1, 6));
 
 }  // namespace
 }  // namespace mapmesh
+
+namespace mapmesh {
+namespace {
+
+TEST(AckermannMotion, OneStepByHand) {
+  // x = (1, 2, 0.3), v = 3 m/s, steering 0.1 rad, dt = 0.025 s, Victoria Park constants.
+  // tan(0.1) = 0.100335; vc = 3 / (1 - 0.100335 * 0.76 / 2.83) = 3.083073
+  // a sin + b cos = 3.78 * 0.295520 + 0.5 * 0.955336 = 1.594734; vc / L tan = 0.109307
+  // x' = 1 + 0.025 (3.083073 * 0.955336 - 0.109307 * 1.594734) = 1.069276
+  // y' = 2 + 0.025 (3.083073 * 0.295520 + 0.109307 * (3.78 * 0.955336 - 0.5 * 0.295520)) = 2.032242
+  // phi' = 0.3 + 0.025 * 0.109307 = 0.302733
+  const Pose2 p = AckermannMotion({1, 2, 0.3}, {3.0, 0.1}, 0.025, AckermannParams::VictoriaPark());
+  EXPECT_NEAR(p.x, 1.069276, 2e-6);
+  EXPECT_NEAR(p.y, 2.032242, 2e-6);
+  EXPECT_NEAR(p.theta, 0.302733, 2e-6);
+}
+
+TEST(AckermannMotion, StraightAheadWithoutSteering) {
+  const Pose2 p = AckermannMotion({0, 0, M_PI / 2}, {2.0, 0.0}, 0.5, {});
+  EXPECT_NEAR(p.x, 0.0, 1e-12);
+  EXPECT_NEAR(p.y, 1.0, 1e-12);
+  EXPECT_NEAR(p.theta, M_PI / 2, 1e-12);
+}
+
+class AckermannJacobianTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(AckermannJacobianTest, MatchesNumericalDifferentiation) {
+  std::mt19937_64 rng(GetParam());
+  std::uniform_real_distribution<double> u(-50, 50), ua(-M_PI, M_PI), uv(0.0, 5.0), us(-0.5, 0.5);
+  const AckermannParams params;
+  for (int trial = 0; trial < 20; ++trial) {
+    const Eigen::Vector3d x(u(rng), u(rng), ua(rng));
+    const Eigen::Vector2d c(uv(rng), us(rng));
+    const double dt = 0.025;
+    Eigen::Matrix3d jx;
+    Eigen::Matrix<double, 3, 2> ju;
+    AckermannMotion({x(0), x(1), x(2)}, {c(0), c(1)}, dt, params, &jx, &ju);
+    auto f_pose = [&](const Eigen::VectorXd& s) {
+      return Eigen::VectorXd(AckermannMotion({s(0), s(1), s(2)}, {c(0), c(1)}, dt, params).Vector());
+    };
+    auto f_ctrl = [&](const Eigen::VectorXd& s) {
+      return Eigen::VectorXd(AckermannMotion({x(0), x(1), x(2)}, {s(0), s(1)}, dt, params).Vector());
+    };
+    EXPECT_LT((jx - testing::NumericJacobian(f_pose, x, 1e-6, {2})).cwiseAbs().maxCoeff(), 1e-7);
+    EXPECT_LT((ju - testing::NumericJacobian(f_ctrl, c, 1e-6, {2})).cwiseAbs().maxCoeff(), 1e-7);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, AckermannJacobianTest, ::testing::Range(1, 6));
+
+}  // namespace
+}  // namespace mapmesh

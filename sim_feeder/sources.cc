@@ -1,0 +1,34 @@
+#include "sim_feeder/sources.h"
+
+#include <cstdlib>
+
+#include "sim_feeder/mrclam.h"
+#include "sim_feeder/simulator.h"
+#include "sim_feeder/victoria_park.h"
+#include "sim_feeder/world.h"
+
+namespace mapmesh {
+
+std::string ResolveDatasetsRoot(const std::string& dir, const std::string& fallback) {
+  if (!dir.empty()) return dir;
+  const char* env = std::getenv("MAPMESH_DATASETS");
+  return env && *env ? std::string(env) : fallback;
+}
+
+Feed MakeFeed(Scenario& scenario, const std::string& datasets_root) {
+  Feed feed;
+  if (!scenario.source.IsDataset()) {
+    feed.source = std::make_unique<Simulator>(scenario, BuildWorld(scenario));
+    return feed;
+  }
+  const std::string dir = datasets_root + "/" + scenario.source.dataset;
+  ReplayData data = scenario.source.type == "mrclam" ? LoadMrclam(dir, scenario)
+                                                     : LoadVictoriaPark(dir, scenario);
+  if (scenario.duration_given) Truncate(data, scenario.duration_s);
+  scenario.duration_s = data.duration_s;
+  feed.counts = data.counts;
+  feed.source = std::make_unique<ReplaySource>(std::move(data), scenario.radio);
+  return feed;
+}
+
+}  // namespace mapmesh
