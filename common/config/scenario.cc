@@ -583,6 +583,11 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
     } else {
       spec = defaults;
       spec.id = next_id++;
+      spec.path.index = i;  // generated robots take the park's footpaths in turn
+    }
+    if (spec.motion.model != "unicycle") {
+      throw ConfigError(file + ": robots: robot " + std::to_string(spec.id) +
+                        ": motion.model " + spec.motion.model + " is only for dataset replays");
     }
     std::mt19937_64 rng(sc.seed * 0x9E3779B97F4A7C15ULL + 0x6d61706d657368ULL + static_cast<std::uint64_t>(i));
     ResolvePath(spec, sc.world.bounds_m, rng);

@@ -207,3 +207,107 @@ TEST_F(ScenarioTest, ShippedScenariosLoad) {
 
 }  // namespace
 }  // namespace mapmesh
+
+namespace mapmesh {
+namespace {
+
+TEST(PathWaypoints, CircleStartsOnTheCircleFacingAlongIt) {
+  PathOptions p;
+  p.type = "circle";
+  p.center_m = {1, 2};
+  p.radius_m = 5;
+  p.count = 4;
+  p.start_angle_deg = 90;
+  Pose2 start;
+  const auto pts = CircleWaypoints(p, &start);
+  ASSERT_EQ(pts.size(), 4u);
+  EXPECT_NEAR(start.x, 1.0, 1e-12);
+  EXPECT_NEAR(start.y, 7.0, 1e-12);
+  EXPECT_NEAR(start.theta, -M_PI, 1e-12);  // counter-clockwise at the top: heading west
+  EXPECT_NEAR(pts[0].x(), -4.0, 1e-12);    // a quarter turn on
+  EXPECT_NEAR(pts[3].y(), 7.0, 1e-12);     // and back to the start
+  p.clockwise = true;
+  CircleWaypoints(p, &start);
+  EXPECT_NEAR(start.theta, 0.0, 1e-12);
+}
+
+TEST(PathWaypoints, LawnmowerSweepsLanes) {
+  const auto pts = LawnmowerWaypoints({0, 0, 20, 10}, 5);
+  ASSERT_EQ(pts.size(), 6u);  // lanes at y = 0, 5, 10
+  EXPECT_EQ(pts[0], Eigen::Vector2d(0, 0));
+  EXPECT_EQ(pts[1], Eigen::Vector2d(20, 0));
+  EXPECT_EQ(pts[2], Eigen::Vector2d(20, 5));
+  EXPECT_EQ(pts[3], Eigen::Vector2d(0, 5));
+  EXPECT_EQ(pts[5], Eigen::Vector2d(20, 10));
+}
+
+class ScenarioExtrasTest : public ::testing::Test {
+ protected:
+  std::string ErrorOf(const std::string& text) {
+    try {
+      ParseScenario(text, "x.yaml");
+    } catch (const ConfigError& e) {
+      return e.what();
+    }
+    return "";
+  }
+};
+
+TEST_F(ScenarioExtrasTest, PathTypesResolveAndRejectForeignKeys) {
+  const Scenario s = ParseScenario(R"(world: {landmarks: {list: [[0, 0]]}}
+robots:
+  list:
+    - {id: 1, path: {type: circle, center_m: [0, 0], radius_m: 5}}
+    - {id: 2, path: {type: lawnmower, area_m: [0, 0, 10, 10], spacing_m: 5}}
+)",
+                                   "x.yaml");
+  EXPECT_EQ(s.robots[0].path.points.size(), 36u);
+  EXPECT_NEAR(s.robots[0].start.x, 5.0, 1e-12);
+  EXPECT_EQ(s.robots[1].path.points.size(), 6u);
+  EXPECT_NE(ErrorOf("world: {landmarks: {list: [[0, 0]]}}\nrobots: {list: [{id: 1, path: {type: circle, spacing_m: 3}}]}\n")
+                .find("robots.list[0].path.spacing_m: not used by path type circle"),
+            std::string::npos);
+}
+
+TEST_F(ScenarioExtrasTest, PresetsSetMotionAndSensor) {
+  const Scenario s = ParseScenario(R"(world: {landmarks: {list: [[0, 0]]}}
+robots:
+  defaults: {preset: downs}
+  list:
+    - {id: 1}
+    - {id: 2, preset: thesis, sensor: {max_range_m: 11}}
+)",
+                                   "x.yaml");
+  EXPECT_DOUBLE_EQ(s.robots[0].motion.speed_mps, 1.0);
+  EXPECT_DOUBLE_EQ(s.robots[0].sensor.max_range_m, 10.0);
+  EXPECT_DOUBLE_EQ(s.robots[0].sensor.fov_deg, 45.0);
+  EXPECT_DOUBLE_EQ(s.robots[1].motion.speed_mps, 0.3);
+  EXPECT_DOUBLE_EQ(s.robots[1].sensor.max_range_m, 11.0);
+  EXPECT_NE(ErrorOf("world: {landmarks: {list: [[0, 0]]}}\nrobots: {defaults: {preset: fast}, count: 1}\n")
+                .find("robots.defaults.preset: must be one of thesis, downs"),
+            std::string::npos);
+}
+
+TEST_F(ScenarioExtrasTest, DatasetSourcesDecideTheRobots) {
+  const Scenario m = ParseScenario("source: {type: mrclam, robots: [2, 4]}\n", "m.yaml");
+  ASSERT_EQ(m.robots.size(), 2u);
+  EXPECT_EQ(m.robots[1].id, 4u);
+  EXPECT_FALSE(m.duration_given);
+  EXPECT_EQ(m.source.dataset, "mrclam/MRCLAM_Dataset7");
+  EXPECT_EQ(ParseScenario("source: {type: mrclam}\n", "m.yaml", {}, 3).robots.size(), 3u);
+  const Scenario v = ParseScenario(
+      "source: {type: victoria_park}\nduration_s: 100\nrobots: {defaults: {motion: {model: ackermann}}}\n", "v.yaml", {}, 6);
+  EXPECT_EQ(v.robots.size(), 6u);
+  EXPECT_EQ(v.source.virtual_robots, 6);
+  EXPECT_TRUE(v.duration_given);
+  EXPECT_EQ(MotionModelFor(v.robots[0].motion).kind, MotionModel::Kind::kAckermann);
+  EXPECT_NE(ErrorOf("source: {type: mrclam, robots: [7]}\n").find("source.robots[0]: MRCLAM has robots 1-5"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("source: {type: mrclam}\nworld: {landmarks: {list: [[0, 0]]}}\n").find("takes its landmarks from the dataset"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("source: {type: mrclam}\nrobots: {count: 3}\n").find("robots.count: a dataset"), std::string::npos);
+  EXPECT_NE(ErrorOf("source: {type: mars}\n").find("source.type: must be one of"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace mapmesh

@@ -37,3 +37,77 @@ TEST(UniformLandmarks, ImpossibleSpacingFailsCleanly) {
 
 }  // namespace
 }  // namespace mapmesh
+
+namespace mapmesh {
+namespace {
+
+TEST(DistanceToPolyline, SegmentsAndEnds) {
+  const Polyline l{{0, 0}, {10, 0}, {10, 10}};
+  EXPECT_NEAR(DistanceToPolyline({5, 3}, l), 3.0, 1e-12);
+  EXPECT_NEAR(DistanceToPolyline({12, 5}, l), 2.0, 1e-12);
+  EXPECT_NEAR(DistanceToPolyline({-3, -4}, l), 5.0, 1e-12);
+}
+
+class ParkTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(ParkTest, TreesLineThePathsAndKeepOffThem) {
+  LandmarkGeneratorOptions o;
+  o.type = "park";
+  o.count = 250;
+  o.area_m = {0, 0, 60, 60};
+  o.paths = 4;
+  o.path_width_m = 5;
+  o.scatter_fraction = 0.2;
+  o.min_spacing_m = 1.5;
+  std::mt19937_64 rng(GetParam());
+  const auto park = GeneratePark(o, rng);
+  ASSERT_TRUE(park.has_value());
+  ASSERT_EQ(park->landmarks.size(), 250u);
+  ASSERT_EQ(park->paths.size(), 4u);
+  int near_a_path = 0;
+  for (std::size_t i = 0; i < park->landmarks.size(); ++i) {
+    const Eigen::Vector2d& p = park->landmarks[i];
+    EXPECT_TRUE(o.area_m.Contains(p));
+    double nearest = 1e9;
+    for (const Polyline& l : park->paths) nearest = std::min(nearest, DistanceToPolyline(p, l));
+    EXPECT_GE(nearest, 2.5 - 1e-9);  // never on a footpath
+    near_a_path += nearest < 2.5 + 5.0;
+    for (std::size_t j = i + 1; j < park->landmarks.size(); ++j) {
+      EXPECT_GE((p - park->landmarks[j]).norm(), 1.5);
+    }
+  }
+  // Most trees stand within a path width of a path's edge (uniform scatter would put only
+  // a minority there).
+  EXPECT_GT(near_a_path, 0.7 * 250);
+  for (const Polyline& l : park->paths) {
+    const Eigen::Vector2d s = l.front();
+    const bool on_edge = std::abs(s.x()) < 1e-9 || std::abs(s.x() - 60) < 1e-9 || std::abs(s.y()) < 1e-9 ||
+                         std::abs(s.y() - 60) < 1e-9;
+    EXPECT_TRUE(on_edge);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, ParkTest, ::testing::Range(1, 4));
+
+TEST(DiscLandmarks, StayInTheDiscWithTheSpacing) {
+  LandmarkGeneratorOptions o;
+  o.type = "disc";
+  o.count = 100;
+  o.center_m = {5, -5};
+  o.radius_m = 30;
+  o.min_spacing_m = 1.0;
+  std::mt19937_64 rng(2);
+  const auto pts = GenerateDiscLandmarks(o, rng);
+  ASSERT_TRUE(pts.has_value());
+  ASSERT_EQ(pts->size(), 100u);
+  int inner = 0;
+  for (std::size_t i = 0; i < pts->size(); ++i) {
+    EXPECT_LE(((*pts)[i] - o.center_m).norm(), 30.0);
+    inner += ((*pts)[i] - o.center_m).norm() < 15.0;
+  }
+  // Uniform radius puts about half the points in the inner half-radius (a quarter of the area).
+  EXPECT_GT(inner, 35);
+}
+
+}  // namespace
+}  // namespace mapmesh
