@@ -62,6 +62,7 @@ json StatsJson(const AgentNode& node) {
           {"bytes_received", s.bytes_received},
           {"maps_out_of_range", s.maps_out_of_range},
           {"maps_lost", s.maps_lost},
+          {"maps_over_bandwidth", s.maps_over_bandwidth},
           {"maps_unknown_sender", s.maps_unknown_sender},
           {"maps_rejected", rejected},
           {"maps_received_from", from}};
@@ -153,8 +154,7 @@ int Run(int argc, char** argv) {
   const AgentStats& st = node.stats();
   spdlog::info("done: t={:.1f}s odom={} scans={} landmarks={} maps_received={} maps_dropped={}",
                node.processed_until(), st.odom_processed, st.scans_processed,
-               node.LocalMap().size(), st.maps_received,
-               st.maps_out_of_range + st.maps_lost + st.maps_unknown_sender + st.MapsRejected());
+               node.LocalMap().size(), st.maps_received, st.MapsDropped());
   return 0;
 }
 

@@ -32,13 +32,17 @@ std::uint32_t AgentStats::MapsRejected() const {
   return n;
 }
 
+std::uint32_t AgentStats::MapsDropped() const {
+  return maps_out_of_range + maps_lost + maps_over_bandwidth + maps_unknown_sender + MapsRejected();
+}
+
 AgentNode::AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incarnation,
                      AgentOutput& out)
     : options_(scenario.agent),
       self_(self),
       incarnation_(incarnation),
       out_(out),
-      gate_(self, RadioGateOptions{scenario.radio.loss_probability},
+      gate_(self, RadioGateOptions{scenario.radio.loss_probability, scenario.radio.bandwidth_bytes_per_s},
             scenario.seed * 1000003ULL + self * 7919ULL + incarnation),
       mapper_(MapperOptions(scenario, self)) {
   for (const auto& r : scenario.robots) robot_ids_.push_back(r.id);
@@ -161,9 +165,10 @@ void AgentNode::OnMap(const MapMessage& msg) {
     ++stats_.maps_unknown_sender;
     return;
   }
-  switch (gate_.Admit(msg.robot_id)) {
+  switch (gate_.Admit(msg.robot_id, WireBytes(msg), msg.stamp)) {
     case GateVerdict::kOutOfRange: ++stats_.maps_out_of_range; return;
     case GateVerdict::kLost: ++stats_.maps_lost; return;
+    case GateVerdict::kBusy: ++stats_.maps_over_bandwidth; return;
     case GateVerdict::kPass: break;
   }
   stats_.bytes_received += WireBytes(msg);
@@ -187,8 +192,7 @@ AgentStatus AgentNode::Status() const {
   s.local_landmarks = static_cast<std::uint32_t>(mapper_.size());
   s.global_landmarks = s.local_landmarks;
   s.maps_received = stats_.maps_received;
-  s.maps_dropped = stats_.maps_out_of_range + stats_.maps_lost + stats_.maps_unknown_sender +
-                   stats_.MapsRejected();
+  s.maps_dropped = stats_.MapsDropped();
   s.bytes_sent = stats_.bytes_sent;
   s.bytes_received = stats_.bytes_received;
   return s;

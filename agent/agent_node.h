@@ -44,10 +44,13 @@ struct AgentStats {
   std::uint64_t bytes_received = 0;     // of messages that passed the radio gate
   std::uint32_t maps_out_of_range = 0;
   std::uint32_t maps_lost = 0;          // dropped by the radio loss model
+  std::uint32_t maps_over_bandwidth = 0; // arrived while the link was still busy
   std::uint32_t maps_unknown_sender = 0;
   std::array<std::uint32_t, kMapDecodeErrorCount> maps_rejected{};  // by MapDecodeError
   std::map<RobotId, std::uint32_t> maps_received_from;
   std::uint32_t MapsRejected() const;
+  // Everything that did not make it into peer_maps(), whatever the reason.
+  std::uint32_t MapsDropped() const;
 };
 
 class AgentNode {

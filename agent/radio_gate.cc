@@ -15,11 +15,16 @@ void RadioGate::UpdateLinks(const RadioLinks& links) {
   }
 }
 
-GateVerdict RadioGate::Admit(RobotId sender) {
+GateVerdict RadioGate::Admit(RobotId sender, std::size_t bytes, double stamp) {
   if (!InRange(sender)) return GateVerdict::kOutOfRange;
   if (options_.loss_probability > 0.0) {
     std::bernoulli_distribution lost(options_.loss_probability);
     if (lost(rng_)) return GateVerdict::kLost;
+  }
+  if (options_.bandwidth_bytes_per_s > 0.0) {
+    double& busy = busy_until_[sender];
+    if (stamp < busy) return GateVerdict::kBusy;
+    busy = stamp + static_cast<double>(bytes) / options_.bandwidth_bytes_per_s;
   }
   return GateVerdict::kPass;
 }

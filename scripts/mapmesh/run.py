@@ -400,7 +400,8 @@ def _maps_dropped(stats):
     if not stats:
         return None
     rejected = sum(stats.get("maps_rejected", {}).values())
-    return stats.get("maps_out_of_range", 0) + stats.get("maps_lost", 0) + stats.get("maps_unknown_sender", 0) + rejected
+    return (stats.get("maps_out_of_range", 0) + stats.get("maps_lost", 0) + stats.get("maps_over_bandwidth", 0)
+            + stats.get("maps_unknown_sender", 0) + rejected)
 
 
 def format_table(summary):

@@ -95,3 +95,41 @@ TEST(LinksInRange, PairsWithinRangeOnly) {
 
 }  // namespace
 }  // namespace mapmesh
+
+namespace mapmesh {
+namespace {
+
+TEST(Simulator, OdometryNoiseHasTheConfiguredMeanAndSpread) {
+  // A robot facing its far waypoint drives straight: commanded v = 0.3, w = 0 throughout,
+  // so the odometry is that plus the configured noise.
+  const Scenario sc = ParseScenario(R"(duration_s: 2000
+world: {landmarks: {list: [[0, 50]]}}
+robots:
+  list:
+    - {id: 1, start: [0, 0, 0], path: {type: waypoints, points: [[100000, 0]]}}
+)",
+                                    "n.yaml");
+  Simulator sim(sc, BuildWorld(sc));
+  double sv = 0, sw = 0, sv2 = 0, sw2 = 0;
+  int n = 0;
+  while (!sim.Done()) {
+    for (const Odometry& o : sim.Next().odom) {
+      const double dv = o.v - 0.3, dw = o.w;
+      sv += dv;
+      sw += dw;
+      sv2 += dv * dv;
+      sw2 += dw * dw;
+      ++n;
+    }
+  }
+  ASSERT_EQ(n, 20000);
+  const double sigma_v = 0.03, sigma_w = 0.0524;
+  EXPECT_NEAR(sv / n, 0.0, 4 * sigma_v / std::sqrt(n));
+  EXPECT_NEAR(sw / n, 0.0, 4 * sigma_w / std::sqrt(n));
+  // Sample variance within 4 standard errors (sd of s^2 / sigma^2 is sqrt(2 / n) = 1 %).
+  EXPECT_NEAR(sv2 / n / (sigma_v * sigma_v), 1.0, 0.04);
+  EXPECT_NEAR(sw2 / n / (sigma_w * sigma_w), 1.0, 0.04);
+}
+
+}  // namespace
+}  // namespace mapmesh
