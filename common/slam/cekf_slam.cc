@@ -1,0 +1,182 @@
+#include "common/slam/cekf_slam.h"
+
+#include <algorithm>
+#include <numeric>
+
+#include "common/check.h"
+#include "common/slam/ekf_slam.h"
+
+namespace mapmesh {
+
+CekfSlam::CekfSlam(const FilterNoise& noise, const CekfOptions& options)
+    : noise_(noise), options_(options), gx_(Eigen::VectorXd::Zero(3)), gp_(Eigen::MatrixXd::Zero(3, 3)) {
+  StartPeriod();
+}
+
+bool CekfSlam::Has(LandmarkId id) const { return global_index_.count(id) || active_slot_.count(id); }
+
+void CekfSlam::StartPeriod() {
+  const Eigen::Vector2d c = gx_.head<2>();
+  center_ = c;
+  const double reach = options_.region_half_m + options_.reach_m;
+  idx_a_ = {0, 1, 2};
+  idx_b_.clear();
+  active_ids_.clear();
+  active_slot_.clear();
+  for (std::size_t g = 0; g < global_ids_.size(); ++g) {
+    const int s = 3 + 2 * static_cast<int>(g);
+    const Eigen::Vector2d m = gx_.segment<2>(s);
+    if ((m - c).cwiseAbs().maxCoeff() <= reach) {
+      active_slot_[global_ids_[g]] = static_cast<int>(active_ids_.size());
+      active_ids_.push_back(global_ids_[g]);
+      idx_a_.insert(idx_a_.end(), {s, s + 1});
+    } else {
+      idx_b_.insert(idx_b_.end(), {s, s + 1});
+    }
+  }
+  period_active_ = active_ids_.size();
+  Eigen::VectorXd xa;
+  Eigen::MatrixXd paa;
+  GatherState(gx_, gp_, idx_a_, &xa, &paa);
+  active_ = EkfState(xa, paa);
+  pab1_ = gp_(idx_a_, idx_b_);
+  const int na = static_cast<int>(idx_a_.size());
+  phi_ = Eigen::MatrixXd::Identity(na, na);
+  psi_ = Eigen::MatrixXd::Zero(na, na);
+  theta_ = Eigen::VectorXd::Zero(na);
+}
+
+void CekfSlam::Predict(const OdometryControl& u, double dt) {
+  const Eigen::Matrix3d j = active_.Predict(noise_.motion, u, dt, noise_.control_cov);
+  // Only the robot rows of the active state move: Phi <- blockdiag(J, I) Phi.
+  phi_.topRows<3>() = (j * phi_.topRows<3>()).eval();
+  const Pose2 r = active_.robot();
+  if ((Eigen::Vector2d(r.x, r.y) - center_).cwiseAbs().maxCoeff() > options_.region_half_m) Switch();
+}
+
+bool CekfSlam::Update(const std::vector<std::pair<LandmarkId, Eigen::Vector2d>>& obs) {
+  if (obs.empty()) return true;
+  std::vector<EkfState::Measurement> m;
+  m.reserve(obs.size());
+  for (const auto& [id, z] : obs) {
+    const auto it = active_slot_.find(id);
+    MAPMESH_CHECK(it != active_slot_.end(), "update of a passive landmark");
+    m.push_back({it->second, z});
+  }
+  EkfState::UpdateTerms t;
+  if (!active_.Update(m, noise_.obs_cov, &t)) return false;
+  // ALGORITHMS.md section 3, from Phi before its own update.
+  theta_.noalias() += phi_.transpose() * t.y;
+  const Eigen::MatrixXd dpsi = phi_.transpose() * (t.beta * phi_);
+  psi_ += 0.5 * (dpsi + dpsi.transpose());
+  phi_ = (phi_ - t.mu * phi_).eval();
+  return true;
+}
+
+void CekfSlam::Add(LandmarkId id, const Eigen::Vector2d& z) {
+  MAPMESH_CHECK(!Has(id), "landmark id already in the filter");
+  Matrix23 gr;
+  const int slot = active_.Augment(z, noise_.obs_cov, &gr);
+  active_slot_[id] = slot;
+  active_ids_.push_back(id);
+  // The new landmark's cross covariance with the passive part is G_r P_rb(k) =
+  // G_r Phi_robot P_ab(k1): it joins Phi as two more rows.
+  const Eigen::MatrixXd rows = gr * phi_.topRows<3>();
+  phi_.conservativeResize(phi_.rows() + 2, Eigen::NoChange);
+  phi_.bottomRows<2>() = rows;
+}
+
+void CekfSlam::Settled(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<LandmarkId>* ids) const {
+  const int n_old = static_cast<int>(gx_.size());
+  const int n_new = 2 * static_cast<int>(active_ids_.size() - period_active_);
+  const int n = n_old + n_new;
+  *ids = global_ids_;
+  std::vector<int> idx_a = idx_a_;
+  for (std::size_t s = period_active_; s < active_ids_.size(); ++s) {
+    const int g = n_old + 2 * static_cast<int>(s - period_active_);
+    idx_a.insert(idx_a.end(), {g, g + 1});
+    ids->push_back(active_ids_[s]);
+  }
+  x->resize(n);
+  p->resize(n, n);
+  x->head(n_old) = gx_;
+  p->topLeftCorner(n_old, n_old) = gp_;
+  // The batch update.
+  const Eigen::MatrixXd pab = phi_ * pab1_;
+  (*x)(idx_b_) += pab1_.transpose() * theta_;
+  Eigen::MatrixXd owed = pab1_.transpose() * (psi_ * pab1_);
+  (*p)(idx_b_, idx_b_) -= 0.5 * (owed + owed.transpose());
+  (*x)(idx_a) = active_.x();
+  (*p)(idx_a, idx_a) = active_.P();
+  (*p)(idx_a, idx_b_) = pab;
+  (*p)(idx_b_, idx_a) = pab.transpose();
+}
+
+void CekfSlam::Switch() {
+  std::vector<LandmarkId> ids;
+  Eigen::VectorXd gx;
+  Eigen::MatrixXd gp;
+  Settled(&gx, &gp, &ids);  // reads gx_ and gp_: not in place
+  gx_.swap(gx);
+  gp_.swap(gp);
+  for (std::size_t s = global_ids_.size(); s < ids.size(); ++s) global_index_[ids[s]] = static_cast<int>(s);
+  global_ids_ = std::move(ids);
+  ++switches_;
+  StartPeriod();
+}
+
+Eigen::Vector2d CekfSlam::Mean(LandmarkId id) const {
+  return active_.landmark(active_slot_.at(id));
+}
+
+Eigen::MatrixXd CekfSlam::JointCov(const std::vector<LandmarkId>& ids) const {
+  std::vector<int> idx{0, 1, 2};
+  for (LandmarkId id : ids) {
+    const int s = 3 + 2 * active_slot_.at(id);
+    idx.insert(idx.end(), {s, s + 1});
+  }
+  return active_.P()(idx, idx);
+}
+
+LandmarkMap CekfSlam::Map() const {
+  // Passive marginals without a full batch update: O(Nb Na^2).
+  LandmarkMap map;
+  for (std::size_t s = 0; s < active_ids_.size(); ++s) {
+    Landmark l;
+    l.id = active_ids_[s];
+    l.mean = active_.landmark(static_cast<int>(s));
+    l.cov = active_.P().block<2, 2>(3 + 2 * s, 3 + 2 * s);
+    map.landmarks.push_back(l);
+  }
+  const Eigen::MatrixXd psi_pab = psi_ * pab1_;
+  for (std::size_t j = 0; j < idx_b_.size(); j += 2) {
+    const int g = idx_b_[j];
+    Landmark l;
+    l.id = global_ids_[(g - 3) / 2];
+    const auto cols = pab1_.middleCols<2>(j);
+    l.mean = gx_.segment<2>(g) + cols.transpose() * theta_;
+    l.cov = gp_.block<2, 2>(g, g) - cols.transpose() * psi_pab.middleCols<2>(j);
+    map.landmarks.push_back(l);
+  }
+  std::sort(map.landmarks.begin(), map.landmarks.end(), [](const Landmark& a, const Landmark& b) { return a.id < b.id; });
+  return map;
+}
+
+void CekfSlam::FullState(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<LandmarkId>* ids) const {
+  Eigen::VectorXd gx;
+  Eigen::MatrixXd gp;
+  std::vector<LandmarkId> gids;
+  Settled(&gx, &gp, &gids);
+  std::vector<int> order(gids.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return gids[a] < gids[b]; });
+  std::vector<int> idx{0, 1, 2};
+  ids->clear();
+  for (int o : order) {
+    idx.insert(idx.end(), {3 + 2 * o, 4 + 2 * o});
+    ids->push_back(gids[o]);
+  }
+  GatherState(gx, gp, idx, x, p);
+}
+
+}  // namespace mapmesh
