@@ -4,6 +4,8 @@
 #include <cmath>
 
 #include "common/check.h"
+#include "common/slam/dead_reckoning_mapper.h"
+#include "common/slam/local_slam.h"
 
 namespace mapmesh {
 namespace {
@@ -11,18 +13,48 @@ namespace {
 // MapMessage fields besides the payload: robot_id, kind, version, stamp, sequence length.
 constexpr std::size_t kMapMessageFixedBytes = 4 + 1 + 4 + 8 + 4;
 
-DeadReckoningOptions MapperOptions(const Scenario& sc, RobotId self) {
+}  // namespace
+
+std::unique_ptr<LocalMapper> MakeLocalMapper(const Scenario& sc, RobotId self) {
   const RobotSpec* robot = sc.FindRobot(self);
   MAPMESH_CHECK(robot != nullptr, "agent id not in the scenario");
-  DeadReckoningOptions o;
-  o.sigma_range_m = robot->sensor.sigma_range_m;
-  o.sigma_bearing_rad = DegToRad(robot->sensor.sigma_bearing_deg);
-  o.association_gate_m = sc.agent.association_gate_m;
-  o.motion = MotionModelFor(robot->motion);
-  return o;
+  const AgentOptions& a = sc.agent;
+  const MotionModel motion = MotionModelFor(robot->motion);
+  if (a.slam == "dead_reckoning") {
+    DeadReckoningOptions o;
+    o.motion = motion;
+    o.sigma_range_m = robot->sensor.sigma_range_m;
+    o.sigma_bearing_rad = DegToRad(robot->sensor.sigma_bearing_deg);
+    o.association_gate_m = a.association_gate_m;
+    return std::make_unique<DeadReckoningMapper>(o);
+  }
+  FilterNoise noise;
+  noise.motion = motion;
+  const double sigma_turn = motion.kind == MotionModel::Kind::kAckermann ? robot->motion.sigma_steering_rad
+                                                                         : robot->motion.sigma_w_radps;
+  noise.control_cov = Eigen::Vector2d(std::pow(robot->motion.sigma_v_mps, 2), sigma_turn * sigma_turn).asDiagonal();
+  noise.obs_cov = Eigen::Vector2d(std::pow(robot->sensor.sigma_range_m, 2),
+                                  std::pow(DegToRad(robot->sensor.sigma_bearing_deg), 2))
+                      .asDiagonal();
+  LocalSlamOptions o;
+  o.filter = a.slam;
+  std::string method = a.association;
+  if (method == "auto") method = robot->sensor.signatures ? "known" : "jcbb";
+  o.association.method = method == "known" ? AssociationMethod::kKnown
+                         : method == "icnn" ? AssociationMethod::kIcnn
+                                            : AssociationMethod::kJcbb;
+  o.association.gate_probability = a.gate_probability;
+  o.association.new_landmark_chi2 = a.new_landmark_chi2;
+  o.tentative = a.tentative;
+  o.tentative_gate_m = a.tentative_gate_m;
+  o.tentative_timeout_s = a.tentative_timeout_s;
+  o.min_range_m = a.min_range_m;
+  o.max_range_m = a.max_range_m;
+  o.cekf.region_half_m = a.region_half_m;
+  const double range = a.max_range_m > 0 ? a.max_range_m : robot->sensor.max_range_m;
+  o.cekf.reach_m = a.region_reach_m > 0 ? a.region_reach_m : range + 4.0;
+  return std::make_unique<LocalSlam>(noise, o);
 }
-
-}  // namespace
 
 std::size_t WireBytes(const MapMessage& msg) { return kMapMessageFixedBytes + msg.payload.size(); }
 
@@ -44,7 +76,7 @@ AgentNode::AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incar
       out_(out),
       gate_(self, RadioGateOptions{scenario.radio.loss_probability, scenario.radio.bandwidth_bytes_per_s},
             scenario.seed * 1000003ULL + self * 7919ULL + incarnation),
-      mapper_(MapperOptions(scenario, self)) {
+      mapper_(MakeLocalMapper(scenario, self)) {
   for (const auto& r : scenario.robots) robot_ids_.push_back(r.id);
 }
 
@@ -87,7 +119,7 @@ void AgentNode::Drain() {
       } else {
         // Joining a running stream (a restart): this interval's scans may have been missed
         // while this process was discovering the feeder, so it only moves the pose.
-        mapper_.Predict({odom.v, odom.w, odom.steering}, odom.dt);
+        mapper_->Predict({odom.v, odom.w, odom.steering}, odom.dt);
         processed_until_ = odom.stamp;
         pending_odom_.erase(pending_odom_.begin());
         auto end = pending_scans_.upper_bound(odom.stamp);
@@ -118,13 +150,13 @@ void AgentNode::ProcessInterval(const Odometry& odom) {
   const auto end = pending_scans_.upper_bound(odom.stamp);
   for (auto it = pending_scans_.begin(); it != end; ++it) {
     const double ts = std::max(it->first, t);
-    if (ts > t) mapper_.Predict(u, ts - t);
+    if (ts > t) mapper_->Predict(u, ts - t);
     t = ts;
-    mapper_.Observe(it->second.obs);
+    mapper_->Observe(it->second.obs, ts);
     ++stats_.scans_processed;
   }
   pending_scans_.erase(pending_scans_.begin(), end);
-  if (odom.stamp > t) mapper_.Predict(u, odom.stamp - t);
+  if (odom.stamp > t) mapper_->Predict(u, odom.stamp - t);
   processed_until_ = odom.stamp;
   ++stats_.odom_processed;
 }
@@ -151,7 +183,7 @@ void AgentNode::PublishLocalMap() {
   msg.kind = MapKind::kLocal;
   msg.version = ++local_version_;
   msg.stamp = processed_until_;
-  msg.payload = EncodeMap(mapper_.Map());
+  msg.payload = EncodeMap(mapper_->Map());
   ++stats_.maps_sent;
   stats_.bytes_sent += WireBytes(msg);
   out_.PublishMap(msg);
@@ -189,7 +221,7 @@ AgentStatus AgentNode::Status() const {
   s.processed_until = processed_until_;
   s.odom_processed = stats_.odom_processed;
   s.scans_processed = stats_.scans_processed;
-  s.local_landmarks = static_cast<std::uint32_t>(mapper_.size());
+  s.local_landmarks = static_cast<std::uint32_t>(mapper_->size());
   s.global_landmarks = s.local_landmarks;
   s.maps_received = stats_.maps_received;
   s.maps_dropped = stats_.MapsDropped();

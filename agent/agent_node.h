@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -13,7 +14,7 @@
 #include "common/config/scenario.h"
 #include "common/map/landmark_map.h"
 #include "common/map/map_codec.h"
-#include "common/slam/dead_reckoning_mapper.h"
+#include "common/slam/local_mapper.h"
 #include "common/types/messages.h"
 
 namespace mapmesh {
@@ -25,6 +26,9 @@ class AgentOutput {
   virtual void PublishMap(const MapMessage& msg) = 0;
   virtual void PublishStatus(const AgentStatus& status) = 0;
 };
+
+// The local estimator the scenario asks for, for robot `self` (its motion model and noise).
+std::unique_ptr<LocalMapper> MakeLocalMapper(const Scenario& scenario, RobotId self);
 
 // Bytes a map message occupies on the wire: its payload plus the fixed fields.
 std::size_t WireBytes(const MapMessage& msg);
@@ -65,8 +69,9 @@ class AgentNode {
 
   RobotId id() const { return self_; }
   AgentStatus Status() const;
-  LandmarkMap LocalMap() const { return mapper_.Map(); }
-  Pose2 Pose() const { return mapper_.pose(); }
+  LandmarkMap LocalMap() const { return mapper_->Map(); }
+  Pose2 Pose() const { return mapper_->pose(); }
+  const LocalMapper& mapper() const { return *mapper_; }
   double processed_until() const { return processed_until_; }
   // Scenario time at which the local map frame was fixed (the robot's pose then is its origin);
   // nullopt before the first odometry.
@@ -92,7 +97,7 @@ class AgentNode {
   std::uint32_t incarnation_;
   AgentOutput& out_;
   RadioGate gate_;
-  DeadReckoningMapper mapper_;
+  std::unique_ptr<LocalMapper> mapper_;
 
   bool started_ = false;
   std::optional<double> frame_origin_stamp_;

@@ -276,7 +276,17 @@ RadioOptions ReadRadio(YamlReader r) {
 
 AgentOptions ReadAgent(YamlReader a) {
   AgentOptions o;
-  a.GetChoice("slam", o.slam, {"dead_reckoning"});
+  a.GetChoice("slam", o.slam, {"cekf", "ekf", "dead_reckoning"});
+  a.GetChoice("association", o.association, {"auto", "known", "icnn", "jcbb"});
+  a.GetInRange("gate_probability", o.gate_probability, 0.5, 0.999999);
+  a.GetPositive("new_landmark_chi2", o.new_landmark_chi2);
+  a.Get("tentative", o.tentative);
+  a.GetPositive("tentative_gate_m", o.tentative_gate_m);
+  a.GetPositive("tentative_timeout_s", o.tentative_timeout_s);
+  a.GetNonNegative("min_range_m", o.min_range_m);
+  a.GetNonNegative("max_range_m", o.max_range_m);
+  a.GetPositive("region_half_m", o.region_half_m);
+  a.GetNonNegative("region_reach_m", o.region_reach_m);
   a.GetPositive("map_publish_period_s", o.map_publish_period_s);
   a.GetPositive("status_period_s", o.status_period_s);
   a.GetPositive("association_gate_m", o.association_gate_m);

@@ -116,7 +116,17 @@ struct RadioOptions {
 };
 
 struct AgentOptions {
-  std::string slam = "dead_reckoning";  // dead_reckoning (more estimators come later)
+  std::string slam = "cekf";            // cekf | ekf | dead_reckoning (a baseline)
+  std::string association = "auto";     // known | icnn | jcbb | auto (known when signatures are shared, else jcbb)
+  double gate_probability = 0.99;       // innovation chi-square gate (outliers and compatibility)
+  double new_landmark_chi2 = 13.82;     // farther than this from every landmark: a new one
+  bool tentative = false;               // new landmarks need a second sighting
+  double tentative_gate_m = 1.0;        // where the second sighting must land
+  double tentative_timeout_s = 30.0;    // how long a first sighting waits
+  double min_range_m = 0.0;             // observations nearer than this are dropped
+  double max_range_m = 0.0;             // and farther than this (0: no limit)
+  double region_half_m = 5.0;           // cekf: region half-size (switch when the robot leaves it)
+  double region_reach_m = 0.0;          // cekf: active landmarks this far beyond the region (0: sensor range + 4 m)
   double map_publish_period_s = 2.0;    // scenario seconds between map publications
   double status_period_s = 1.0;         // scenario seconds between status reports
   double association_gate_m = 1.0;      // dead reckoning without signatures: merge radius

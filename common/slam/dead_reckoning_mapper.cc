@@ -11,9 +11,14 @@ void DeadReckoningMapper::Predict(const OdometryControl& u, double dt) {
   pose_ = MoveRobot(options_.motion, pose_, u, dt);
 }
 
-void DeadReckoningMapper::Observe(const std::vector<Observation>& obs) {
+void DeadReckoningMapper::Observe(const std::vector<Observation>& obs, double /*stamp*/) {
   for (const Observation& o : obs) {
     if (o.kind != ObservationKind::kLandmark) continue;
+    ++stats_.observations;
+    if (!IsValidObservation(o)) {
+      ++stats_.invalid;
+      continue;
+    }
     const double a = pose_.theta + o.bearing;
     const Eigen::Vector2d p(pose_.x + o.range * std::cos(a), pose_.y + o.range * std::sin(a));
     // Sensor noise projected into the map frame: radial sigma_r, tangential r * sigma_b.
@@ -40,6 +45,7 @@ void DeadReckoningMapper::Observe(const std::vector<Observation>& obs) {
       }
     }
     if (idx == tracks_.size()) {
+      ++stats_.initialised;
       Track t;
       t.signature = o.signature;
       t.id = o.signature >= 0 ? static_cast<std::uint32_t>(o.signature)
@@ -48,6 +54,7 @@ void DeadReckoningMapper::Observe(const std::vector<Observation>& obs) {
       if (o.signature >= 0) by_signature_[o.signature] = idx;
     }
     Track& t = tracks_[idx];
+    if (t.n > 0) ++stats_.associated;
     ++t.n;
     t.sum += p;
     t.sum_outer += p * p.transpose();

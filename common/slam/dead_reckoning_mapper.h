@@ -11,6 +11,7 @@
 
 #include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
+#include "common/slam/local_mapper.h"
 #include "common/slam/motion_model.h"
 #include "common/types/messages.h"
 
@@ -23,19 +24,22 @@ struct DeadReckoningOptions {
   double association_gate_m = 1.0;   // without signatures: join the nearest landmark within this
 };
 
-class DeadReckoningMapper {
+class DeadReckoningMapper : public LocalMapper {
  public:
   explicit DeadReckoningMapper(const DeadReckoningOptions& options);
 
   // Moves the pose by one odometry interval (no noise).
-  void Predict(const OdometryControl& u, double dt);
+  void Predict(const OdometryControl& u, double dt) override;
   // Adds the landmark observations of a scan (robot sightings are ignored).
-  void Observe(const std::vector<Observation>& obs);
+  void Observe(const std::vector<Observation>& obs, double stamp = 0.0) override;
 
-  const Pose2& pose() const { return pose_; }
+  Pose2 pose() const override { return pose_; }
+  // Dead reckoning keeps no pose uncertainty.
+  Eigen::Matrix3d pose_cov() const override { return Eigen::Matrix3d::Zero(); }
   // The current map: one landmark per signature (or per nearest-neighbour cluster).
-  LandmarkMap Map() const;
-  std::size_t size() const { return tracks_.size(); }
+  LandmarkMap Map() const override;
+  std::size_t size() const override { return tracks_.size(); }
+  const MapperStats& stats() const override { return stats_; }
 
  private:
   struct Track {
@@ -52,6 +56,7 @@ class DeadReckoningMapper {
   Pose2 pose_;
   std::vector<Track> tracks_;
   std::unordered_map<std::int32_t, std::size_t> by_signature_;
+  MapperStats stats_;
 };
 
 }  // namespace mapmesh

@@ -1,0 +1,48 @@
+#pragma once
+// What an agent's local estimator does: move with odometry, take scans, give a map and pose.
+// Implemented by the filters (LocalSlam) and by the dead-reckoning baseline.
+
+#include <Eigen/Core>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "common/geometry/pose2.h"
+#include "common/map/landmark_map.h"
+#include "common/slam/motion_model.h"
+#include "common/types/messages.h"
+
+namespace mapmesh {
+
+// What happened to the observations a local mapper was given.
+struct MapperStats {
+  std::uint64_t observations = 0;    // landmark observations offered
+  std::uint64_t associated = 0;      // fused into existing landmarks
+  std::uint64_t initialised = 0;     // started a landmark
+  std::uint64_t tentative = 0;       // held until a second sighting
+  std::uint64_t rejected_gate = 0;   // outliers: failed the innovation gate
+  std::uint64_t ambiguous = 0;       // neither compatible nor clearly new: dropped
+  std::uint64_t unidentified = 0;    // known association without a signature: dropped
+  std::uint64_t out_of_range = 0;    // beyond the configured range limits: dropped
+  std::uint64_t invalid = 0;         // NaN, inf or negative range: dropped
+  std::uint64_t failed_updates = 0;  // updates refused (innovation covariance not positive definite)
+};
+
+class LocalMapper {
+ public:
+  virtual ~LocalMapper() = default;
+  virtual void Predict(const OdometryControl& u, double dt) = 0;
+  virtual void Observe(const std::vector<Observation>& obs, double stamp) = 0;
+  virtual LandmarkMap Map() const = 0;
+  virtual Pose2 pose() const = 0;
+  virtual Eigen::Matrix3d pose_cov() const = 0;
+  virtual std::size_t size() const = 0;
+  virtual const MapperStats& stats() const = 0;
+};
+
+// True when an observation can be used at all: finite, non-negative range, finite bearing.
+inline bool IsValidObservation(const Observation& o) {
+  return std::isfinite(o.range) && std::isfinite(o.bearing) && o.range >= 0.0;
+}
+
+}  // namespace mapmesh

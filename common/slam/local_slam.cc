@@ -1,0 +1,127 @@
+#include "common/slam/local_slam.h"
+
+#include <algorithm>
+#include <unordered_set>
+
+#include "common/slam/ekf_slam.h"
+#include "common/slam/observation_model.h"
+
+namespace mapmesh {
+
+LocalSlam::LocalSlam(const FilterNoise& noise, const LocalSlamOptions& options) : noise_(noise), options_(options) {
+  if (options.filter == "ekf") {
+    filter_ = std::make_unique<EkfSlam>(noise);
+  } else {
+    filter_ = std::make_unique<CekfSlam>(noise, options.cekf);
+  }
+}
+
+void LocalSlam::Predict(const OdometryControl& u, double dt) { filter_->Predict(u, dt); }
+
+void LocalSlam::AddOrHold(LandmarkId id, std::int32_t signature, const Eigen::Vector2d& z, double stamp) {
+  if (!options_.tentative) {
+    filter_->Add(id, z);
+    ++stats_.initialised;
+    return;
+  }
+  const Eigen::Vector2d p = InverseRangeBearing(filter_->robot(), z);
+  for (auto it = tentatives_.begin(); it != tentatives_.end(); ++it) {
+    const bool same = signature >= 0 ? it->signature == signature
+                                     : it->signature < 0 && (it->position - p).norm() < options_.tentative_gate_m;
+    if (same) {
+      tentatives_.erase(it);
+      filter_->Add(id, z);
+      ++stats_.initialised;
+      return;
+    }
+  }
+  tentatives_.push_back({p, signature, stamp});
+  ++stats_.tentative;
+  if (signature < 0) --next_id_;  // the id was not used
+}
+
+void LocalSlam::Observe(const std::vector<Observation>& obs, double stamp) {
+  // Forget tentative landmarks that were not seen again in time.
+  std::erase_if(tentatives_, [&](const Tentative& t) { return stamp - t.stamp > options_.tentative_timeout_s; });
+
+  std::vector<Eigen::Vector2d> z;
+  std::vector<std::int32_t> sig;
+  for (const Observation& o : obs) {
+    if (o.kind != ObservationKind::kLandmark) continue;
+    ++stats_.observations;
+    if (!IsValidObservation(o)) {
+      ++stats_.invalid;
+      continue;
+    }
+    if (o.range < options_.min_range_m || (options_.max_range_m > 0.0 && o.range > options_.max_range_m)) {
+      ++stats_.out_of_range;
+      continue;
+    }
+    z.emplace_back(o.range, o.bearing);
+    sig.push_back(o.signature);
+  }
+  if (z.empty()) return;
+
+  const AssociationProblem problem = MakeAssociationProblem(*filter_, noise_.obs_cov, z, sig);
+  const AssociationResult a = Associate(problem, options_.association);
+  stats_.rejected_gate += a.rejected_by_gate;
+  stats_.ambiguous += a.ambiguous;
+  stats_.unidentified += a.unidentified;
+
+  std::vector<std::pair<LandmarkId, Eigen::Vector2d>> updates;
+  std::unordered_set<LandmarkId> updated;
+  std::vector<std::size_t> fresh;
+  for (std::size_t i = 0; i < z.size(); ++i) {
+    if (a.match[i] >= 0) {
+      const LandmarkId id = problem.candidates[a.match[i]];
+      if (updated.insert(id).second) {
+        updates.push_back({id, z[i]});
+      } else {
+        ++stats_.ambiguous;  // a second observation of the same landmark in one scan
+      }
+    } else if (a.match[i] == AssociationResult::kNew) {
+      fresh.push_back(i);
+    }
+  }
+  if (!updates.empty()) {
+    if (filter_->Update(updates)) {
+      stats_.associated += updates.size();
+    } else {
+      ++stats_.failed_updates;
+    }
+  }
+  // New landmarks, from the updated pose.
+  std::vector<Eigen::Vector2d> placed;
+  for (std::size_t i : fresh) {
+    if (options_.association.method == AssociationMethod::kKnown) {
+      const auto id = static_cast<LandmarkId>(sig[i]);
+      if (filter_->Has(id) || updated.count(id)) {
+        ++stats_.ambiguous;  // a landmark outside the active region, or seen twice
+        continue;
+      }
+      updated.insert(id);
+      AddOrHold(id, sig[i], z[i], stamp);
+      continue;
+    }
+    const Eigen::Vector2d p = InverseRangeBearing(filter_->robot(), z[i]);
+    const bool duplicate = std::any_of(placed.begin(), placed.end(), [&](const Eigen::Vector2d& q) {
+      return (q - p).norm() < options_.new_landmark_separation_m;
+    });
+    if (duplicate) {
+      ++stats_.ambiguous;
+      continue;
+    }
+    placed.push_back(p);
+    AddOrHold(next_id_++, -1, z[i], stamp);
+  }
+}
+
+LandmarkMap LocalSlam::Map() const {
+  LandmarkMap m = filter_->Map();
+  if (options_.association.method == AssociationMethod::kKnown) {
+    for (Landmark& l : m.landmarks) l.signature = static_cast<std::int32_t>(l.id);
+  }
+  return m;
+}
+
+}  // namespace mapmesh

@@ -1,0 +1,58 @@
+#pragma once
+// An agent's local map: a landmark filter (full or compressed EKF) with data association,
+// outlier gating and, optionally, tentative landmarks that need a second sighting.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/slam/cekf_slam.h"
+#include "common/slam/data_association.h"
+#include "common/slam/landmark_filter.h"
+#include "common/slam/local_mapper.h"
+
+namespace mapmesh {
+
+struct LocalSlamOptions {
+  std::string filter = "cekf";          // ekf | cekf
+  AssociationOptions association;
+  CekfOptions cekf;
+  bool tentative = false;               // a new landmark enters the map only when seen twice
+  double tentative_gate_m = 1.0;        // a second sighting lands within this of the first
+  double tentative_timeout_s = 30.0;    // tentative landmarks not seen again by then are forgotten
+  double min_range_m = 0.0;             // observations outside [min, max] range are dropped
+  double max_range_m = 0.0;             // (max 0: no limit)
+  double new_landmark_separation_m = 0.5;  // unknown association: new landmarks of one scan closer than this are one
+};
+
+class LocalSlam : public LocalMapper {
+ public:
+  LocalSlam(const FilterNoise& noise, const LocalSlamOptions& options);
+
+  void Predict(const OdometryControl& u, double dt) override;
+  void Observe(const std::vector<Observation>& obs, double stamp) override;
+  LandmarkMap Map() const override;
+  Pose2 pose() const override { return filter_->robot(); }
+  Eigen::Matrix3d pose_cov() const override { return filter_->robot_cov(); }
+  std::size_t size() const override { return filter_->size(); }
+  const MapperStats& stats() const override { return stats_; }
+  const LandmarkFilter& filter() const { return *filter_; }
+
+ private:
+  struct Tentative {
+    Eigen::Vector2d position;  // in the map frame
+    std::int32_t signature;
+    double stamp;
+  };
+  // Adds a landmark now, or holds it as tentative; returns true if it entered the filter.
+  void AddOrHold(LandmarkId id, std::int32_t signature, const Eigen::Vector2d& z, double stamp);
+
+  FilterNoise noise_;
+  LocalSlamOptions options_;
+  std::unique_ptr<LandmarkFilter> filter_;
+  std::vector<Tentative> tentatives_;
+  LandmarkId next_id_ = 0;
+  MapperStats stats_;
+};
+
+}  // namespace mapmesh
