@@ -37,6 +37,8 @@ class DdsOutput : public AgentOutput {
 
 json StatsJson(const AgentNode& node) {
   const AgentStats& s = node.stats();
+  const SyncStats& sync = node.sync_stats();
+  const MapperStats& m = node.mapper().stats();
   json rejected = json::object();
   for (int i = 1; i < kMapDecodeErrorCount; ++i) {
     rejected[std::string(ToString(static_cast<MapDecodeError>(i)))] = s.maps_rejected[i];
@@ -49,13 +51,24 @@ json StatsJson(const AgentNode& node) {
           {"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
           {"pose", {pose.x, pose.y, pose.theta}},
           {"local_landmarks", node.LocalMap().size()},
-          {"odom_processed", s.odom_processed},
-          {"odom_rejected", s.odom_rejected},
-          {"scans_processed", s.scans_processed},
-          {"scans_rejected", s.scans_rejected},
-          {"scans_before_start", s.scans_before_start},
-          {"scans_late", s.scans_late},
-          {"scans_missing", s.scans_missing},
+          {"odom_processed", sync.odom_processed},
+          {"odom_rejected", sync.odom_rejected},
+          {"scans_processed", sync.scans_processed},
+          {"scans_empty", sync.scans_empty},
+          {"scans_rejected", sync.scans_rejected},
+          {"scans_before_start", sync.scans_before_start},
+          {"scans_late", sync.scans_late},
+          {"scans_missing", sync.scans_missing},
+          {"observations", {{"offered", m.observations},
+                            {"associated", m.associated},
+                            {"initialised", m.initialised},
+                            {"tentative", m.tentative},
+                            {"rejected_gate", m.rejected_gate},
+                            {"ambiguous", m.ambiguous},
+                            {"unidentified", m.unidentified},
+                            {"out_of_range", m.out_of_range},
+                            {"invalid", m.invalid},
+                            {"failed_updates", m.failed_updates}}},
           {"maps_sent", s.maps_sent},
           {"bytes_sent", s.bytes_sent},
           {"maps_received", s.maps_received},
@@ -153,7 +166,7 @@ int Run(int argc, char** argv) {
   WriteOutputs(node, out_dir);
   const AgentStats& st = node.stats();
   spdlog::info("done: t={:.1f}s odom={} scans={} landmarks={} maps_received={} maps_dropped={}",
-               node.processed_until(), st.odom_processed, st.scans_processed,
+               node.processed_until(), node.sync_stats().odom_processed, node.sync_stats().scans_processed,
                node.LocalMap().size(), st.maps_received, st.MapsDropped());
   return 0;
 }

@@ -71,6 +71,7 @@ std::uint32_t AgentStats::MapsDropped() const {
 AgentNode::AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incarnation,
                      AgentOutput& out)
     : options_(scenario.agent),
+      sync_(*this),
       self_(self),
       incarnation_(incarnation),
       out_(out),
@@ -80,98 +81,27 @@ AgentNode::AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incar
   for (const auto& r : scenario.robots) robot_ids_.push_back(r.id);
 }
 
-void AgentNode::OnOdometry(const Odometry& odom) {
-  const bool finite = std::isfinite(odom.stamp) && std::isfinite(odom.dt) &&
-                      std::isfinite(odom.v) && std::isfinite(odom.w) &&
-                      std::isfinite(odom.steering);
-  if (!finite || odom.dt <= 0.0 || (started_ && odom.stamp <= processed_until_) ||
-      pending_odom_.count(odom.stamp)) {
-    ++stats_.odom_rejected;
-    return;
-  }
-  pending_odom_.emplace(odom.stamp, odom);
-  Drain();
-}
+void AgentNode::OnOdometry(const Odometry& odom) { sync_.OnOdometry(odom); }
 
-void AgentNode::OnScan(const Scan& scan) {
-  if (!std::isfinite(scan.stamp)) {
-    ++stats_.scans_rejected;
-    return;
-  }
-  if (started_ && scan.stamp <= processed_until_) {
-    ++stats_.scans_late;
-    return;
-  }
-  pending_scans_.emplace(scan.stamp, scan);
-  Drain();
-}
+void AgentNode::OnScan(const Scan& scan) { sync_.OnScan(scan); }
 
-void AgentNode::Drain() {
-  while (!pending_odom_.empty()) {
-    const Odometry odom = pending_odom_.begin()->second;
-    if (!started_) {
-      started_ = true;
-      frame_origin_stamp_ = odom.stamp - odom.dt;
-      if (odom.seq == 0) {
-        // The very first interval of the stream: nothing can have been missed, so it is
-        // processed like any other. The map frame is the pose at its start.
-        processed_until_ = odom.stamp - odom.dt;
-      } else {
-        // Joining a running stream (a restart): this interval's scans may have been missed
-        // while this process was discovering the feeder, so it only moves the pose.
-        mapper_->Predict({odom.v, odom.w, odom.steering}, odom.dt);
-        processed_until_ = odom.stamp;
-        pending_odom_.erase(pending_odom_.begin());
-        auto end = pending_scans_.upper_bound(odom.stamp);
-        stats_.scans_before_start += static_cast<std::uint32_t>(std::distance(pending_scans_.begin(), end));
-        pending_scans_.erase(pending_scans_.begin(), end);
-        ++stats_.odom_processed;
-        AfterInterval(odom);
-        continue;
-      }
-    }
-    const auto end = pending_scans_.upper_bound(odom.stamp);
-    const auto have = static_cast<std::uint32_t>(std::distance(pending_scans_.begin(), end));
-    // Scans travel on their own topic and may arrive after later odometry; wait for them
-    // unless the queue already spans far more than a lockstep window (then they are lost).
-    const bool waited_long = pending_odom_.rbegin()->first - odom.stamp > kMaxScanWaitS;
-    if (have < odom.scans_in_interval && !waited_long) return;
-    if (have < odom.scans_in_interval) stats_.scans_missing += odom.scans_in_interval - have;
-    pending_odom_.erase(pending_odom_.begin());
-    ProcessInterval(odom);
-    AfterInterval(odom);
-  }
-}
+void AgentNode::Move(const OdometryControl& u, double dt) { mapper_->Predict(u, dt); }
 
-void AgentNode::ProcessInterval(const Odometry& odom) {
-  // Odometry (v, w) holds over (stamp - dt, stamp]; each scan is applied at its own time.
-  const OdometryControl u{odom.v, odom.w, odom.steering};
-  double t = std::max(processed_until_, odom.stamp - odom.dt);
-  const auto end = pending_scans_.upper_bound(odom.stamp);
-  for (auto it = pending_scans_.begin(); it != end; ++it) {
-    const double ts = std::max(it->first, t);
-    if (ts > t) mapper_->Predict(u, ts - t);
-    t = ts;
-    mapper_->Observe(it->second.obs, ts);
-    ++stats_.scans_processed;
-  }
-  pending_scans_.erase(pending_scans_.begin(), end);
-  if (odom.stamp > t) mapper_->Predict(u, odom.stamp - t);
-  processed_until_ = odom.stamp;
-  ++stats_.odom_processed;
-}
+void AgentNode::ApplyScan(const Scan& scan, double stamp) { mapper_->Observe(scan.obs, stamp); }
+
+void AgentNode::IntervalDone(const Odometry& odom) { AfterInterval(odom); }
 
 void AgentNode::AfterInterval(const Odometry& odom) {
-  if (processed_until_ + 1e-9 >= next_map_publish_s_) {
+  if (sync_.processed_until() + 1e-9 >= next_map_publish_s_) {
     PublishLocalMap();
     next_map_publish_s_ =
-        (std::floor(processed_until_ / options_.map_publish_period_s + 1e-9) + 1.0) *
+        (std::floor(sync_.processed_until() / options_.map_publish_period_s + 1e-9) + 1.0) *
         options_.map_publish_period_s;
   }
   bool status_due = odom.sync;
-  if (processed_until_ + 1e-9 >= next_status_s_) {
+  if (sync_.processed_until() + 1e-9 >= next_status_s_) {
     status_due = true;
-    next_status_s_ = (std::floor(processed_until_ / options_.status_period_s + 1e-9) + 1.0) *
+    next_status_s_ = (std::floor(sync_.processed_until() / options_.status_period_s + 1e-9) + 1.0) *
                      options_.status_period_s;
   }
   if (status_due) out_.PublishStatus(Status());
@@ -182,7 +112,7 @@ void AgentNode::PublishLocalMap() {
   msg.robot_id = self_;
   msg.kind = MapKind::kLocal;
   msg.version = ++local_version_;
-  msg.stamp = processed_until_;
+  msg.stamp = sync_.processed_until();
   msg.payload = EncodeMap(mapper_->Map());
   ++stats_.maps_sent;
   stats_.bytes_sent += WireBytes(msg);
@@ -218,9 +148,9 @@ AgentStatus AgentNode::Status() const {
   AgentStatus s;
   s.robot_id = self_;
   s.incarnation = incarnation_;
-  s.processed_until = processed_until_;
-  s.odom_processed = stats_.odom_processed;
-  s.scans_processed = stats_.scans_processed;
+  s.processed_until = sync_.processed_until();
+  s.odom_processed = sync_.stats().odom_processed;
+  s.scans_processed = sync_.stats().scans_processed;
   s.local_landmarks = static_cast<std::uint32_t>(mapper_->size());
   s.global_landmarks = s.local_landmarks;
   s.maps_received = stats_.maps_received;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "agent/radio_gate.h"
+#include "agent/sensor_sync.h"
 #include "common/config/scenario.h"
 #include "common/map/landmark_map.h"
 #include "common/map/map_codec.h"
@@ -33,15 +34,8 @@ std::unique_ptr<LocalMapper> MakeLocalMapper(const Scenario& scenario, RobotId s
 // Bytes a map message occupies on the wire: its payload plus the fixed fields.
 std::size_t WireBytes(const MapMessage& msg);
 
-// Counters of everything the agent consumed, dropped or rejected, and why.
+// Counters of the maps the agent sent, received, dropped or rejected, and why.
 struct AgentStats {
-  std::uint32_t odom_processed = 0;
-  std::uint32_t odom_rejected = 0;      // non-finite values, dt <= 0, or stamp going backwards
-  std::uint32_t scans_processed = 0;
-  std::uint32_t scans_rejected = 0;     // non-finite stamp
-  std::uint32_t scans_before_start = 0; // joining a running stream: first interval's scans dropped
-  std::uint32_t scans_late = 0;         // arrived after their interval was processed
-  std::uint32_t scans_missing = 0;      // announced by odometry but never arrived
   std::uint32_t maps_sent = 0;
   std::uint64_t bytes_sent = 0;
   std::uint32_t maps_received = 0;      // passed the radio gate and decoded
@@ -57,7 +51,7 @@ struct AgentStats {
   std::uint32_t MapsDropped() const;
 };
 
-class AgentNode {
+class AgentNode : private SensorSync::Sink {
  public:
   // scenario must contain a robot with id self.
   AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incarnation, AgentOutput& out);
@@ -72,24 +66,22 @@ class AgentNode {
   LandmarkMap LocalMap() const { return mapper_->Map(); }
   Pose2 Pose() const { return mapper_->pose(); }
   const LocalMapper& mapper() const { return *mapper_; }
-  double processed_until() const { return processed_until_; }
+  double processed_until() const { return sync_.processed_until(); }
   // Scenario time at which the local map frame was fixed (the robot's pose then is its origin);
   // nullopt before the first odometry.
-  std::optional<double> frame_origin_stamp() const { return frame_origin_stamp_; }
+  std::optional<double> frame_origin_stamp() const { return sync_.frame_origin_stamp(); }
   const AgentStats& stats() const { return stats_; }
+  const SyncStats& sync_stats() const { return sync_.stats(); }
   // The latest decoded map of each peer, by sender and kind.
   const std::map<std::pair<RobotId, MapKind>, LandmarkMap>& peer_maps() const { return peer_maps_; }
 
  private:
-  // Processes every queued odometry interval whose scans have all arrived.
-  void Drain();
-  void ProcessInterval(const Odometry& odom);
+  // SensorSync::Sink: the robot's data in time order.
+  void Move(const OdometryControl& u, double dt) override;
+  void ApplyScan(const Scan& scan, double stamp) override;
+  void IntervalDone(const Odometry& odom) override;
   void AfterInterval(const Odometry& odom);
   void PublishLocalMap();
-
-  // An odometry interval waits for its scans until odometry this many scenario seconds
-  // newer is queued (longer than any lockstep window: see FeederOptions::lockstep_window_s).
-  static constexpr double kMaxScanWaitS = 30.0;
 
   AgentOptions options_;
   std::vector<RobotId> robot_ids_;  // the robots of this run; maps from others are rejected
@@ -97,13 +89,8 @@ class AgentNode {
   std::uint32_t incarnation_;
   AgentOutput& out_;
   RadioGate gate_;
+  SensorSync sync_;
   std::unique_ptr<LocalMapper> mapper_;
-
-  bool started_ = false;
-  std::optional<double> frame_origin_stamp_;
-  double processed_until_ = 0.0;
-  std::map<double, Odometry> pending_odom_;
-  std::multimap<double, Scan> pending_scans_;
   double next_map_publish_s_ = 0.0;
   double next_status_s_ = 0.0;
   std::uint32_t local_version_ = 0;

@@ -18,11 +18,11 @@ LocalSlam::LocalSlam(const FilterNoise& noise, const LocalSlamOptions& options) 
 
 void LocalSlam::Predict(const OdometryControl& u, double dt) { filter_->Predict(u, dt); }
 
-void LocalSlam::AddOrHold(LandmarkId id, std::int32_t signature, const Eigen::Vector2d& z, double stamp) {
+bool LocalSlam::AddOrHold(LandmarkId id, std::int32_t signature, const Eigen::Vector2d& z, double stamp) {
   if (!options_.tentative) {
     filter_->Add(id, z);
     ++stats_.initialised;
-    return;
+    return true;
   }
   const Eigen::Vector2d p = InverseRangeBearing(filter_->robot(), z);
   for (auto it = tentatives_.begin(); it != tentatives_.end(); ++it) {
@@ -32,22 +32,28 @@ void LocalSlam::AddOrHold(LandmarkId id, std::int32_t signature, const Eigen::Ve
       tentatives_.erase(it);
       filter_->Add(id, z);
       ++stats_.initialised;
-      return;
+      return true;
     }
   }
   tentatives_.push_back({p, signature, stamp});
   ++stats_.tentative;
-  if (signature < 0) --next_id_;  // the id was not used
+  return false;
 }
 
 void LocalSlam::Observe(const std::vector<Observation>& obs, double stamp) {
   // Forget tentative landmarks that were not seen again in time.
   std::erase_if(tentatives_, [&](const Tentative& t) { return stamp - t.stamp > options_.tentative_timeout_s; });
 
+  decisions_.assign(obs.size(), Decision{});
   std::vector<Eigen::Vector2d> z;
   std::vector<std::int32_t> sig;
-  for (const Observation& o : obs) {
-    if (o.kind != ObservationKind::kLandmark) continue;
+  std::vector<std::size_t> source;  // index in obs of each entry of z
+  for (std::size_t k = 0; k < obs.size(); ++k) {
+    const Observation& o = obs[k];
+    if (o.kind != ObservationKind::kLandmark) {
+      decisions_[k].landmark = kNotLandmark;
+      continue;
+    }
     ++stats_.observations;
     if (!IsValidObservation(o)) {
       ++stats_.invalid;
@@ -59,6 +65,7 @@ void LocalSlam::Observe(const std::vector<Observation>& obs, double stamp) {
     }
     z.emplace_back(o.range, o.bearing);
     sig.push_back(o.signature);
+    source.push_back(k);
   }
   if (z.empty()) return;
 
@@ -76,6 +83,7 @@ void LocalSlam::Observe(const std::vector<Observation>& obs, double stamp) {
       const LandmarkId id = problem.candidates[a.match[i]];
       if (updated.insert(id).second) {
         updates.push_back({id, z[i]});
+        decisions_[source[i]].landmark = id;
       } else {
         ++stats_.ambiguous;  // a second observation of the same landmark in one scan
       }
@@ -88,6 +96,9 @@ void LocalSlam::Observe(const std::vector<Observation>& obs, double stamp) {
       stats_.associated += updates.size();
     } else {
       ++stats_.failed_updates;
+      for (Decision& d : decisions_) {
+        if (d.landmark >= 0) d.landmark = kDropped;
+      }
     }
   }
   // New landmarks, from the updated pose.
@@ -100,7 +111,8 @@ void LocalSlam::Observe(const std::vector<Observation>& obs, double stamp) {
         continue;
       }
       updated.insert(id);
-      AddOrHold(id, sig[i], z[i], stamp);
+      const bool added = AddOrHold(id, sig[i], z[i], stamp);
+      decisions_[source[i]] = {added ? static_cast<std::int64_t>(id) : kHeld, added};
       continue;
     }
     const Eigen::Vector2d p = InverseRangeBearing(filter_->robot(), z[i]);
@@ -112,7 +124,9 @@ void LocalSlam::Observe(const std::vector<Observation>& obs, double stamp) {
       continue;
     }
     placed.push_back(p);
-    AddOrHold(next_id_++, -1, z[i], stamp);
+    const bool added = AddOrHold(next_id_, -1, z[i], stamp);
+    decisions_[source[i]] = {added ? static_cast<std::int64_t>(next_id_) : kHeld, added};
+    if (added) ++next_id_;
   }
 }
 

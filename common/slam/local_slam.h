@@ -38,6 +38,17 @@ class LocalSlam : public LocalMapper {
   const MapperStats& stats() const override { return stats_; }
   const LandmarkFilter& filter() const { return *filter_; }
 
+  // What became of each observation of the last scan, in the order given to Observe: the
+  // landmark id it was fused into or started, or one of these.
+  static constexpr std::int64_t kDropped = -1;    // outlier, ambiguous, invalid, out of range
+  static constexpr std::int64_t kHeld = -2;       // tentative
+  static constexpr std::int64_t kNotLandmark = -3;
+  struct Decision {
+    std::int64_t landmark = kDropped;
+    bool initialised = false;  // the observation started this landmark
+  };
+  const std::vector<Decision>& last_decisions() const { return decisions_; }
+
  private:
   struct Tentative {
     Eigen::Vector2d position;  // in the map frame
@@ -45,7 +56,7 @@ class LocalSlam : public LocalMapper {
     double stamp;
   };
   // Adds a landmark now, or holds it as tentative; returns true if it entered the filter.
-  void AddOrHold(LandmarkId id, std::int32_t signature, const Eigen::Vector2d& z, double stamp);
+  bool AddOrHold(LandmarkId id, std::int32_t signature, const Eigen::Vector2d& z, double stamp);
 
   FilterNoise noise_;
   LocalSlamOptions options_;
@@ -53,6 +64,7 @@ class LocalSlam : public LocalMapper {
   std::vector<Tentative> tentatives_;
   LandmarkId next_id_ = 0;
   MapperStats stats_;
+  std::vector<Decision> decisions_;
 };
 
 }  // namespace mapmesh

@@ -66,8 +66,8 @@ TEST_F(AgentNodeTest, WaitsForTheScansAnIntervalAnnounces) {
   // The scan at 0.15 is applied at x = 0.15 (v = 1 m/s from x = 0.1): landmark at 5 m ahead.
   node_.OnScan(ScanAt(0.15, 4.85, 0.0, 0));
   EXPECT_DOUBLE_EQ(node_.processed_until(), 0.3);
-  EXPECT_EQ(node_.stats().scans_processed, 1u);
-  EXPECT_EQ(node_.stats().odom_processed, 3u);
+  EXPECT_EQ(node_.sync_stats().scans_processed, 1u);
+  EXPECT_EQ(node_.sync_stats().odom_processed, 3u);
   const LandmarkMap m = node_.LocalMap();
   ASSERT_EQ(m.size(), 1u);
   EXPECT_NEAR(m.landmarks[0].mean.x(), 5.0, 1e-9);
@@ -78,15 +78,15 @@ TEST_F(AgentNodeTest, ScansArrivingBeforeTheirOdometryAreKept) {
   node_.OnOdometry(Odom(0.1, 0));
   node_.OnScan(ScanAt(0.2, 4.8, 0.0, 0));
   node_.OnOdometry(Odom(0.2, 1));
-  EXPECT_EQ(node_.stats().scans_processed, 1u);
+  EXPECT_EQ(node_.sync_stats().scans_processed, 1u);
   EXPECT_NEAR(node_.LocalMap().landmarks[0].mean.x(), 5.0, 1e-9);
 }
 
 TEST_F(AgentNodeTest, TheStreamsFirstIntervalIsProcessedInFull) {
   node_.OnOdometry(Odom(0.1, 1));  // seq 0 waits for its scan
-  EXPECT_EQ(node_.stats().odom_processed, 0u);
+  EXPECT_EQ(node_.sync_stats().odom_processed, 0u);
   node_.OnScan(ScanAt(0.05, 4.95, 0.0, 0));
-  EXPECT_EQ(node_.stats().scans_processed, 1u);
+  EXPECT_EQ(node_.sync_stats().scans_processed, 1u);
   EXPECT_DOUBLE_EQ(node_.processed_until(), 0.1);
   EXPECT_DOUBLE_EQ(*node_.frame_origin_stamp(), 0.0);
   EXPECT_NEAR(node_.LocalMap().landmarks[0].mean.x(), 5.0, 1e-9);
@@ -96,8 +96,8 @@ TEST_F(AgentNodeTest, JoiningARunningStreamDiscardsTheFirstIntervalsScans) {
   // A restarted agent may have missed part of its first interval.
   node_.OnScan(ScanAt(3.05, 4.9, 0.0, 0));
   node_.OnOdometry(Odom(3.1, 1));  // seq 30
-  EXPECT_EQ(node_.stats().scans_before_start, 1u);
-  EXPECT_EQ(node_.stats().scans_processed, 0u);
+  EXPECT_EQ(node_.sync_stats().scans_before_start, 1u);
+  EXPECT_EQ(node_.sync_stats().scans_processed, 0u);
   EXPECT_DOUBLE_EQ(node_.processed_until(), 3.1);
   EXPECT_NEAR(*node_.frame_origin_stamp(), 3.0, 1e-12);
   EXPECT_NEAR(node_.Pose().x, 0.1, 1e-12);  // the first interval still moves the pose
@@ -113,9 +113,9 @@ TEST_F(AgentNodeTest, RejectsBadOdometryAndLateScans) {
   Odometry zero_dt = Odom(0.3, 0);
   zero_dt.dt = 0.0;
   node_.OnOdometry(zero_dt);
-  EXPECT_EQ(node_.stats().odom_rejected, 3u);
+  EXPECT_EQ(node_.sync_stats().odom_rejected, 3u);
   node_.OnScan(ScanAt(0.05, 1.0, 0.0, 0));
-  EXPECT_EQ(node_.stats().scans_late, 1u);
+  EXPECT_EQ(node_.sync_stats().scans_late, 1u);
   EXPECT_DOUBLE_EQ(node_.processed_until(), 0.1);
 }
 
@@ -123,9 +123,9 @@ TEST_F(AgentNodeTest, GivesUpOnAScanThatNeverComes) {
   node_.OnOdometry(Odom(0.1, 0));
   node_.OnOdometry(Odom(0.2, 1));
   for (int k = 3; k < 300; ++k) node_.OnOdometry(Odom(0.1 * k, 0));
-  EXPECT_EQ(node_.stats().scans_missing, 0u);  // 29.9 s of odometry queued: still waiting
+  EXPECT_EQ(node_.sync_stats().scans_missing, 0u);  // 29.9 s of odometry queued: still waiting
   for (int k = 300; k < 400; ++k) node_.OnOdometry(Odom(0.1 * k, 0));
-  EXPECT_EQ(node_.stats().scans_missing, 1u);
+  EXPECT_EQ(node_.sync_stats().scans_missing, 1u);
   EXPECT_GT(node_.processed_until(), 0.2);
 }
 

@@ -1,0 +1,90 @@
+#include "agent/sensor_sync.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace mapmesh {
+
+void SensorSync::OnOdometry(const Odometry& odom) {
+  const bool finite = std::isfinite(odom.stamp) && std::isfinite(odom.dt) && std::isfinite(odom.v) &&
+                      std::isfinite(odom.w) && std::isfinite(odom.steering);
+  if (!finite || odom.dt <= 0.0 || (started_ && odom.stamp <= processed_until_) || pending_odom_.count(odom.stamp)) {
+    ++stats_.odom_rejected;
+    return;
+  }
+  pending_odom_.emplace(odom.stamp, odom);
+  Drain();
+}
+
+void SensorSync::OnScan(const Scan& scan) {
+  if (!std::isfinite(scan.stamp)) {
+    ++stats_.scans_rejected;
+    return;
+  }
+  if (started_ && scan.stamp <= processed_until_) {
+    ++stats_.scans_late;
+    return;
+  }
+  pending_scans_.emplace(scan.stamp, scan);
+  Drain();
+}
+
+void SensorSync::Drain() {
+  while (!pending_odom_.empty()) {
+    const Odometry odom = pending_odom_.begin()->second;
+    if (!started_) {
+      started_ = true;
+      frame_origin_stamp_ = odom.stamp - odom.dt;
+      if (odom.seq == 0) {
+        // The very first interval of the stream: nothing can have been missed, so it is
+        // processed like any other.
+        processed_until_ = odom.stamp - odom.dt;
+      } else {
+        // Joining a running stream (a restart): this interval's scans may have been missed
+        // while this process was discovering the feeder, so it only moves the robot.
+        sink_.Move({odom.v, odom.w, odom.steering}, odom.dt);
+        processed_until_ = odom.stamp;
+        pending_odom_.erase(pending_odom_.begin());
+        const auto end = pending_scans_.upper_bound(odom.stamp);
+        stats_.scans_before_start += static_cast<std::uint32_t>(std::distance(pending_scans_.begin(), end));
+        pending_scans_.erase(pending_scans_.begin(), end);
+        ++stats_.odom_processed;
+        sink_.IntervalDone(odom);
+        continue;
+      }
+    }
+    const auto end = pending_scans_.upper_bound(odom.stamp);
+    const auto have = static_cast<std::uint32_t>(std::distance(pending_scans_.begin(), end));
+    // Scans travel on their own topic and may arrive after later odometry.
+    const bool waited_long = pending_odom_.rbegin()->first - odom.stamp > kMaxScanWaitS;
+    if (have < odom.scans_in_interval && !waited_long) return;
+    if (have < odom.scans_in_interval) stats_.scans_missing += odom.scans_in_interval - have;
+    pending_odom_.erase(pending_odom_.begin());
+    ProcessInterval(odom);
+    sink_.IntervalDone(odom);
+  }
+}
+
+void SensorSync::ProcessInterval(const Odometry& odom) {
+  // Odometry holds over (stamp - dt, stamp]; each scan is applied at its own time.
+  const OdometryControl u{odom.v, odom.w, odom.steering};
+  double t = std::max(processed_until_, odom.stamp - odom.dt);
+  const auto end = pending_scans_.upper_bound(odom.stamp);
+  for (auto it = pending_scans_.begin(); it != end; ++it) {
+    const double ts = std::max(it->first, t);
+    if (ts > t) sink_.Move(u, ts - t);
+    t = ts;
+    ++stats_.scans_processed;
+    if (it->second.obs.empty()) {
+      ++stats_.scans_empty;
+    } else {
+      sink_.ApplyScan(it->second, ts);
+    }
+  }
+  pending_scans_.erase(pending_scans_.begin(), end);
+  if (odom.stamp > t) sink_.Move(u, odom.stamp - t);
+  processed_until_ = odom.stamp;
+  ++stats_.odom_processed;
+}
+
+}  // namespace mapmesh

@@ -1,0 +1,200 @@
+#include "lab/slam_experiment.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <unordered_map>
+
+#include "agent/agent_node.h"
+#include "agent/sensor_sync.h"
+#include "common/geometry/rigid_fit.h"
+#include "common/metrics/landmark_metrics.h"
+#include "common/slam/local_slam.h"
+#include "sim_feeder/sources.h"
+
+namespace mapmesh::lab {
+namespace {
+
+struct PoseSample {
+  double t;
+  Pose2 pose;
+  Eigen::Matrix3d cov;
+};
+
+// A robot's estimator fed in time order, recording what the scoring needs.
+class RobotRun : public SensorSync::Sink {
+ public:
+  RobotRun(const Scenario& sc, RobotId id, bool hide) : mapper_(MakeLocalMapper(sc, id)), sync_(*this), hide_(hide) {}
+
+  void Move(const OdometryControl& u, double dt) override { mapper_->Predict(u, dt); }
+  void ApplyScan(const Scan& scan, double stamp) override {
+    if (!hide_) {
+      mapper_->Observe(scan.obs, stamp);
+    } else {
+      std::vector<Observation> obs = scan.obs;
+      for (Observation& o : obs) {
+        if (o.kind == ObservationKind::kLandmark) o.signature = -1;
+      }
+      mapper_->Observe(obs, stamp);
+      ScoreAssociations(scan.obs);
+    }
+    samples_.push_back({stamp, mapper_->pose(), mapper_->pose_cov()});
+  }
+  void IntervalDone(const Odometry&) override {}
+
+  SensorSync& sync() { return sync_; }
+  // The true identity of each landmark the estimator started (from the observation that
+  // started it), when signatures were hidden.
+  std::int32_t Identity(LandmarkId id) const {
+    const auto it = identity_.find(id);
+    return it == identity_.end() ? -1 : it->second;
+  }
+  const LocalMapper& mapper() const { return *mapper_; }
+  const std::vector<PoseSample>& samples() const { return samples_; }
+  long associations = 0, wrong = 0, fresh = 0, dropped = 0;
+
+ private:
+  void ScoreAssociations(const std::vector<Observation>& truth_obs) {
+    const auto* slam = dynamic_cast<const LocalSlam*>(mapper_.get());
+    if (!slam) return;
+    const auto& d = slam->last_decisions();
+    for (std::size_t k = 0; k < truth_obs.size() && k < d.size(); ++k) {
+      if (d[k].landmark == LocalSlam::kNotLandmark) continue;
+      if (d[k].landmark < 0) {
+        ++dropped;
+        continue;
+      }
+      if (d[k].initialised) {
+        identity_[d[k].landmark] = truth_obs[k].signature;
+        ++fresh;
+        continue;
+      }
+      ++associations;
+      if (identity_[d[k].landmark] != truth_obs[k].signature) ++wrong;
+    }
+  }
+
+  std::unique_ptr<LocalMapper> mapper_;
+  SensorSync sync_;
+  bool hide_;
+  std::vector<PoseSample> samples_;
+  std::unordered_map<std::int64_t, std::int32_t> identity_;
+};
+
+std::optional<Pose2> TruthAt(const std::vector<GroundTruth>& g, double t) {
+  if (g.empty()) return std::nullopt;
+  auto hi = std::lower_bound(g.begin(), g.end(), t, [](const GroundTruth& a, double v) { return a.stamp < v; });
+  if (hi == g.begin()) return Pose2{hi->x, hi->y, hi->theta};
+  if (hi == g.end()) return Pose2{g.back().x, g.back().y, g.back().theta};
+  const auto lo = hi - 1;
+  const double a = (t - lo->stamp) / (hi->stamp - lo->stamp);
+  return Pose2{lo->x + a * (hi->x - lo->x), lo->y + a * (hi->y - lo->y),
+               WrapAngle(lo->theta + a * WrapAngle(hi->theta - lo->theta))};
+}
+
+}  // namespace
+
+std::vector<SlamRunResult> RunSlam(const Scenario& scenario_in, const SlamRunOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  Scenario sc = scenario_in;
+  Feed feed = MakeFeed(sc, options.datasets_root);
+  std::map<RobotId, std::unique_ptr<RobotRun>> runs;
+  std::map<RobotId, std::vector<GroundTruth>> truth;
+  for (const RobotSpec& r : sc.robots) runs[r.id] = std::make_unique<RobotRun>(sc, r.id, options.hide_signatures);
+  while (!feed.source->Done()) {
+    const FeedBatch b = feed.source->Next();
+    for (const Scan& s : b.scans) runs.at(s.robot_id)->sync().OnScan(s);
+    for (const Odometry& o : b.odom) runs.at(o.robot_id)->sync().OnOdometry(o);
+    for (const GroundTruth& g : b.truth) truth[g.robot_id].push_back(g);
+  }
+  const WorldTruth& world = feed.source->Truth();
+  std::vector<int> seen;
+  for (std::size_t i = 0; i < world.seen.size(); ++i) {
+    if (world.seen[i]) seen.push_back(static_cast<int>(i));
+  }
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  std::vector<SlamRunResult> out;
+  for (const auto& [id, run] : runs) {
+    SlamRunResult r;
+    r.seed = sc.seed;
+    r.robot = id;
+    r.wall_s = wall;
+    LandmarkMap map = run->mapper().Map();
+    if (options.hide_signatures) {
+      for (Landmark& l : map.landmarks) l.signature = run->Identity(l.id);
+    }
+    r.landmarks = static_cast<int>(map.size());
+    // The estimator's frame is the true pose when its stream began.
+    std::optional<Pose2> origin;
+    if (world.headings_known && run->sync().frame_origin_stamp()) {
+      origin = TruthAt(truth[id], *run->sync().frame_origin_stamp());
+    }
+    if (!world.landmarks.empty()) {
+      const MapQuality q = EvaluateOwnFrameMap(map, world.landmarks, seen, origin);
+      r.map_evaluated = q.evaluated;
+      r.map_aligned = q.aligned;
+      r.landmark_rmse_m = q.rmse_m;
+      r.landmark_nees = q.nees_mean;
+      r.consistent_ratio = q.consistent_ratio;
+      r.coverage = q.coverage;
+    }
+    // Pose errors at every scan.
+    std::vector<Eigen::Vector2d> est, tru;
+    double nees = 0.0;
+    for (const PoseSample& s : run->samples()) {
+      const std::optional<Pose2> t = TruthAt(truth[id], s.t);
+      if (!t) break;
+      est.emplace_back(s.pose.x, s.pose.y);
+      if (origin) {
+        const Pose2 rel = origin->Inverse() * *t;
+        tru.emplace_back(rel.x, rel.y);
+        const Eigen::Vector3d e(s.pose.x - rel.x, s.pose.y - rel.y, WrapAngle(s.pose.theta - rel.theta));
+        const Eigen::Matrix3d c = s.cov;
+        if (c.determinant() > 0) {
+          nees += e.dot(c.ldlt().solve(e));
+          ++r.pose_samples;
+        }
+      } else {
+        tru.emplace_back(t->x, t->y);
+      }
+    }
+    if (r.pose_samples > 0) r.pose_nees = nees / r.pose_samples;
+    if (!origin && est.size() >= 2) {
+      // Unknown start: compare shapes after a least-squares rigid fit (as against GPS).
+      if (const auto fit = FitRigid2D(est, tru)) {
+        for (auto& p : est) p = fit->Apply(p);
+        r.trajectory_aligned = true;
+      }
+    }
+    double se = 0.0;
+    for (std::size_t i = 0; i < est.size(); ++i) se += (est[i] - tru[i]).squaredNorm();
+    if (!est.empty()) r.trajectory_rmse_m = std::sqrt(se / est.size());
+    r.associations = run->associations;
+    r.wrong_associations = run->wrong;
+    r.new_landmarks = run->fresh;
+    r.dropped = run->dropped;
+    out.push_back(r);
+  }
+  return out;
+}
+
+std::string SlamCsvHeader() {
+  return "seed,robot,landmarks,map_frame,landmark_rmse_m,landmark_nees,consistent_ratio,coverage,pose_samples,"
+         "pose_nees,trajectory_rmse_m,trajectory_frame,associations,wrong_associations,new_landmarks,dropped,wall_s";
+}
+
+std::string SlamCsvRow(const SlamRunResult& r) {
+  std::ostringstream s;
+  s << r.seed << ',' << r.robot << ',' << r.landmarks << ','
+    << (!r.map_evaluated ? "none" : r.map_aligned ? "aligned" : "true_origin") << ',' << r.landmark_rmse_m << ','
+    << r.landmark_nees << ',' << r.consistent_ratio << ',' << r.coverage << ',' << r.pose_samples << ','
+    << r.pose_nees << ',' << r.trajectory_rmse_m << ',' << (r.trajectory_aligned ? "aligned" : "true_origin") << ','
+    << r.associations << ',' << r.wrong_associations << ',' << r.new_landmarks << ',' << r.dropped << ','
+    << r.wall_s;
+  return s.str();
+}
+
+}  // namespace mapmesh::lab

@@ -1,0 +1,47 @@
+#pragma once
+// In-process SLAM experiments: a scenario's streams (simulated or replayed) go straight into
+// each robot's local estimator, with no DDS, and the result is scored against the truth.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/config/scenario.h"
+
+namespace mapmesh::lab {
+
+struct SlamRunOptions {
+  std::string datasets_root;  // for dataset scenarios
+  bool hide_signatures = false;  // feed the estimator unidentified observations, score associations
+};
+
+// One robot's result in one run.
+struct SlamRunResult {
+  std::uint64_t seed = 0;
+  RobotId robot = 0;
+  int landmarks = 0;
+  bool map_evaluated = false;
+  bool map_aligned = false;           // scored after a rigid fit (start pose unknown)
+  double landmark_rmse_m = 0.0;
+  double landmark_nees = 0.0;         // mean over landmarks (2 dof)
+  double consistent_ratio = 0.0;
+  double coverage = 0.0;
+  int pose_samples = 0;               // scans at which the pose was scored
+  double pose_nees = 0.0;             // mean over scans (3 dof); needs true headings
+  double trajectory_rmse_m = 0.0;     // position error at each scan (after a rigid fit when the start is unknown)
+  bool trajectory_aligned = false;
+  long associations = 0;              // hide_signatures: observations fused into a landmark
+  long wrong_associations = 0;        // ... into a landmark started by another true landmark
+  long new_landmarks = 0;
+  long dropped = 0;
+  double wall_s = 0.0;
+};
+
+// Runs the scenario once (its seed as given) and scores every robot.
+std::vector<SlamRunResult> RunSlam(const Scenario& scenario, const SlamRunOptions& options);
+
+// CSV header and row of a result.
+std::string SlamCsvHeader();
+std::string SlamCsvRow(const SlamRunResult& r);
+
+}  // namespace mapmesh::lab

@@ -1,0 +1,79 @@
+#include "agent/sensor_sync.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+namespace mapmesh {
+namespace {
+
+// Writes down what reaches the estimator, in order.
+class Log : public SensorSync::Sink {
+ public:
+  void Move(const OdometryControl& u, double dt) override { events.push_back("move " + Fmt(dt) + " v" + Fmt(u.v_mps)); }
+  void ApplyScan(const Scan& s, double stamp) override { events.push_back("scan " + Fmt(stamp) + " n" + std::to_string(s.obs.size())); }
+  void IntervalDone(const Odometry& o) override { events.push_back("done " + Fmt(o.stamp)); }
+  static std::string Fmt(double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.2f", v);
+    return b;
+  }
+  std::vector<std::string> events;
+};
+
+Odometry Odom(std::uint32_t seq, double stamp, double dt, std::uint32_t scans) {
+  Odometry o;
+  o.seq = seq;
+  o.stamp = stamp;
+  o.dt = dt;
+  o.v = 1.0;
+  o.scans_in_interval = scans;
+  return o;
+}
+
+Scan ScanAt(double stamp, int n = 1) {
+  Scan s;
+  s.stamp = stamp;
+  s.obs.resize(n, {3.0, 0.1, -1, ObservationKind::kLandmark});
+  return s;
+}
+
+TEST(SensorSync, SplitsAnIntervalAtEachScan) {
+  Log log;
+  SensorSync sync(log);
+  sync.OnScan(ScanAt(0.25));
+  sync.OnScan(ScanAt(0.4));
+  sync.OnOdometry(Odom(0, 0.5, 0.5, 2));
+  EXPECT_EQ(log.events, (std::vector<std::string>{"move 0.25 v1.00", "scan 0.25 n1", "move 0.15 v1.00", "scan 0.40 n1",
+                                                  "move 0.10 v1.00", "done 0.50"}));
+  EXPECT_DOUBLE_EQ(sync.processed_until(), 0.5);
+  EXPECT_DOUBLE_EQ(*sync.frame_origin_stamp(), 0.0);
+}
+
+TEST(SensorSync, RejectsBadInputWithACountedReason) {
+  Log log;
+  SensorSync sync(log);
+  sync.OnOdometry(Odom(0, 0.1, 0.1, 0));
+  Odometry nan = Odom(1, 0.2, 0.1, 0);
+  nan.w = std::numeric_limits<double>::infinity();
+  sync.OnOdometry(nan);
+  sync.OnOdometry(Odom(1, 0.05, 0.1, 0));  // time going backwards
+  sync.OnOdometry(Odom(1, 0.3, -0.1, 0));  // negative dt
+  EXPECT_EQ(sync.stats().odom_rejected, 3u);
+  Scan bad = ScanAt(0.15);
+  bad.stamp = std::nan("");
+  sync.OnScan(bad);
+  EXPECT_EQ(sync.stats().scans_rejected, 1u);
+  sync.OnScan(ScanAt(0.05));  // its interval is done
+  EXPECT_EQ(sync.stats().scans_late, 1u);
+  sync.OnScan(ScanAt(0.15, 0));  // empty
+  sync.OnOdometry(Odom(1, 0.2, 0.1, 1));
+  EXPECT_EQ(sync.stats().scans_empty, 1u);
+  EXPECT_EQ(sync.stats().scans_processed, 1u);
+  for (const auto& e : log.events) EXPECT_EQ(e.rfind("scan", 0), std::string::npos) << e;
+  EXPECT_EQ(sync.stats().odom_processed, 2u);
+}
+
+}  // namespace
+}  // namespace mapmesh
