@@ -33,6 +33,7 @@ std::unique_ptr<LocalMapper> MakeLocalMapper(const Scenario& sc, RobotId self) {
   const double sigma_turn = motion.kind == MotionModel::Kind::kAckermann ? robot->motion.sigma_steering_rad
                                                                          : robot->motion.sigma_w_radps;
   noise.control_cov = Eigen::Vector2d(std::pow(robot->motion.sigma_v_mps, 2), sigma_turn * sigma_turn).asDiagonal();
+  noise.control_period_s = sc.world.control_period_s;
   noise.obs_cov = Eigen::Vector2d(std::pow(robot->sensor.sigma_range_m, 2),
                                   std::pow(DegToRad(robot->sensor.sigma_bearing_deg), 2))
                       .asDiagonal();

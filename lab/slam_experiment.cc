@@ -9,8 +9,8 @@
 
 #include "agent/agent_node.h"
 #include "agent/sensor_sync.h"
-#include "common/geometry/rigid_fit.h"
 #include "common/metrics/landmark_metrics.h"
+#include "common/metrics/trajectory_metrics.h"
 #include "common/slam/local_slam.h"
 #include "sim_feeder/sources.h"
 
@@ -94,6 +94,9 @@ std::optional<Pose2> TruthAt(const std::vector<GroundTruth>& g, double t) {
                WrapAngle(lo->theta + a * WrapAngle(hi->theta - lo->theta))};
 }
 
+// GPS fixes implying a faster jump than this are glitches.
+constexpr double kMaxVehicleSpeedMps = 20.0;
+
 }  // namespace
 
 std::vector<SlamRunResult> RunSlam(const Scenario& scenario_in, const SlamRunOptions& options) {
@@ -140,38 +143,41 @@ std::vector<SlamRunResult> RunSlam(const Scenario& scenario_in, const SlamRunOpt
       r.landmark_nees = q.nees_mean;
       r.consistent_ratio = q.consistent_ratio;
       r.coverage = q.coverage;
+      const MapQuality aligned = EvaluateOwnFrameMap(map, world.landmarks, seen, std::nullopt);
+      if (aligned.evaluated) r.landmark_rmse_aligned_m = aligned.rmse_m;
     }
-    // Pose errors at every scan.
-    std::vector<Eigen::Vector2d> est, tru;
+    // Pose errors at every scan, when the frame's true origin is known.
     double nees = 0.0;
-    for (const PoseSample& s : run->samples()) {
-      const std::optional<Pose2> t = TruthAt(truth[id], s.t);
-      if (!t) break;
-      est.emplace_back(s.pose.x, s.pose.y);
-      if (origin) {
+    std::vector<TimedPosition> est_track, ref_track;
+    for (const PoseSample& s : run->samples()) est_track.push_back({s.t, {s.pose.x, s.pose.y}});
+    if (origin) {
+      for (const PoseSample& s : run->samples()) {
+        const std::optional<Pose2> t = TruthAt(truth[id], s.t);
+        if (!t) break;
         const Pose2 rel = origin->Inverse() * *t;
-        tru.emplace_back(rel.x, rel.y);
+        ref_track.push_back({s.t, {rel.x, rel.y}});
         const Eigen::Vector3d e(s.pose.x - rel.x, s.pose.y - rel.y, WrapAngle(s.pose.theta - rel.theta));
-        const Eigen::Matrix3d c = s.cov;
-        if (c.determinant() > 0) {
-          nees += e.dot(c.ldlt().solve(e));
+        double e_nees = std::nan("");
+        if (s.cov.determinant() > 0) {
+          e_nees = e.dot(s.cov.ldlt().solve(e));
+          nees += e_nees;
           ++r.pose_samples;
         }
-      } else {
-        tru.emplace_back(t->x, t->y);
+        r.trace.push_back({s.t, e.head<2>().norm(), e(2), e_nees});
+      }
+      if (r.pose_samples > 0) r.pose_nees = nees / r.pose_samples;
+      r.trajectory_rmse_m = CompareTrajectory(est_track, ref_track, false).rmse_m;
+    } else {
+      // Unknown frame (GPS reference): compare at the reference fixes, glitches dropped,
+      // after a least-squares rigid fit.
+      for (const GroundTruth& g : truth[id]) ref_track.push_back({g.stamp, {g.x, g.y}});
+      const TrajectoryError e = CompareTrajectory(est_track, DropImplausibleFixes(ref_track, kMaxVehicleSpeedMps), true);
+      r.trajectory_rmse_m = e.rmse_m;
+      r.trajectory_aligned = e.aligned;
+      for (std::size_t i = 0; i < e.times.size(); ++i) {
+        r.trace.push_back({e.times[i], e.errors_m[i], std::nan(""), std::nan("")});
       }
     }
-    if (r.pose_samples > 0) r.pose_nees = nees / r.pose_samples;
-    if (!origin && est.size() >= 2) {
-      // Unknown start: compare shapes after a least-squares rigid fit (as against GPS).
-      if (const auto fit = FitRigid2D(est, tru)) {
-        for (auto& p : est) p = fit->Apply(p);
-        r.trajectory_aligned = true;
-      }
-    }
-    double se = 0.0;
-    for (std::size_t i = 0; i < est.size(); ++i) se += (est[i] - tru[i]).squaredNorm();
-    if (!est.empty()) r.trajectory_rmse_m = std::sqrt(se / est.size());
     r.associations = run->associations;
     r.wrong_associations = run->wrong;
     r.new_landmarks = run->fresh;
@@ -182,7 +188,7 @@ std::vector<SlamRunResult> RunSlam(const Scenario& scenario_in, const SlamRunOpt
 }
 
 std::string SlamCsvHeader() {
-  return "seed,robot,landmarks,map_frame,landmark_rmse_m,landmark_nees,consistent_ratio,coverage,pose_samples,"
+  return "seed,robot,landmarks,map_frame,landmark_rmse_m,landmark_rmse_aligned_m,landmark_nees,consistent_ratio,coverage,pose_samples,"
          "pose_nees,trajectory_rmse_m,trajectory_frame,associations,wrong_associations,new_landmarks,dropped,wall_s";
 }
 
@@ -190,6 +196,7 @@ std::string SlamCsvRow(const SlamRunResult& r) {
   std::ostringstream s;
   s << r.seed << ',' << r.robot << ',' << r.landmarks << ','
     << (!r.map_evaluated ? "none" : r.map_aligned ? "aligned" : "true_origin") << ',' << r.landmark_rmse_m << ','
+    << r.landmark_rmse_aligned_m << ','
     << r.landmark_nees << ',' << r.consistent_ratio << ',' << r.coverage << ',' << r.pose_samples << ','
     << r.pose_nees << ',' << r.trajectory_rmse_m << ',' << (r.trajectory_aligned ? "aligned" : "true_origin") << ','
     << r.associations << ',' << r.wrong_associations << ',' << r.new_landmarks << ',' << r.dropped << ','

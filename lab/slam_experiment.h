@@ -23,6 +23,7 @@ struct SlamRunResult {
   bool map_evaluated = false;
   bool map_aligned = false;           // scored after a rigid fit (start pose unknown)
   double landmark_rmse_m = 0.0;
+  double landmark_rmse_aligned_m = 0.0;  // after a least-squares rigid fit to the truth, whatever the start
   double landmark_nees = 0.0;         // mean over landmarks (2 dof)
   double consistent_ratio = 0.0;
   double coverage = 0.0;
@@ -35,6 +36,11 @@ struct SlamRunResult {
   long new_landmarks = 0;
   long dropped = 0;
   double wall_s = 0.0;
+  // Per scan: time, position error (m), heading error (rad), pose NEES (when scored).
+  struct TracePoint {
+    double t, position_error_m, heading_error_rad, nees;
+  };
+  std::vector<TracePoint> trace;
 };
 
 // Runs the scenario once (its seed as given) and scores every robot.

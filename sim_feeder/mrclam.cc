@@ -64,7 +64,7 @@ ReplayData LoadMrclam(const std::string& dir, const Scenario& scenario) {
     const std::string gt_file = RobotFile(dir, spec.id, "Groundtruth");
     if (std::filesystem::exists(gt_file)) r.gt = ReadTable(gt_file, 4);
     if (r.odom.empty()) throw DatasetError(RobotFile(dir, spec.id, "Odometry") + ": no odometry rows");
-    t0 = std::min(t0, r.odom.front().v[0]);
+    t0 = std::min(t0, r.odom.front().v[0] + scenario.source.odometry_delay_s);
     if (!r.meas.empty()) t0 = std::min(t0, r.meas.front().v[0]);
     raw.push_back(std::move(r));
   }
@@ -110,9 +110,10 @@ ReplayData LoadMrclam(const std::string& dir, const Scenario& scenario) {
       s.scans.back().obs.push_back(o);
     }
 
-    // Odometry: row i holds from its time to the next row's.
+    // Odometry: row i holds from its time (plus the command delay) to the next row's.
     std::vector<TableRow> rows;
-    for (const TableRow& o : r.odom) {
+    for (TableRow o : r.odom) {
+      o.v[0] += scenario.source.odometry_delay_s;
       if (!rows.empty() && o.v[0] <= rows.back().v[0]) {
         ++counts.odom_duplicate_rows;
         continue;

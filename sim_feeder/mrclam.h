@@ -13,7 +13,8 @@ namespace mapmesh {
 // Reads dir (a MRCLAM_DatasetN folder) for the scenario's robots and turns it into streams:
 // - time is rebased so the earliest odometry or measurement of the run is t = 0;
 // - odometry row i (commanded v, w from its time until the next row's) becomes one interval
-//   ending at the next row's time; rows repeating a timestamp are merged (counted); a
+//   ending at the next row's time; with source.odometry_delay_s, commands take effect that
+//   much later than their timestamps (the robots' response lag); rows repeating a timestamp are merged (counted); a
 //   zero-motion interval is put first when a measurement precedes the first row;
 // - measurement rows with the same time form one scan; barcodes of landmarks (subjects
 //   6-20) become landmark observations with signature subject - 6 when the scenario shares

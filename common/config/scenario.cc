@@ -179,6 +179,7 @@ SourceOptions ReadSource(YamlReader r) {
       o.robots.push_back(static_cast<RobotId>(id));
     });
     if (o.robots.empty()) o.robots = {1, 2, 3, 4, 5};
+    r.GetInRange("odometry_delay_s", o.odometry_delay_s, 0.0, 5.0);
   } else {
     r.GetPositive("virtual_robots", o.virtual_robots);
     r.GetNonNegative("overlap_s", o.overlap_s);

@@ -30,6 +30,7 @@ struct SourceOptions {
   std::string type = "simulation";  // simulation | mrclam | victoria_park
   std::string dataset;              // folder under the datasets root (mrclam/MRCLAM_Dataset7, victoria_park)
   std::vector<RobotId> robots;      // mrclam: which of robots 1-5 (default all)
+  double odometry_delay_s = 0.0;    // mrclam: commanded velocities take effect this much later
   int virtual_robots = 4;           // victoria_park: the run is split into this many robots
   double overlap_s = 60.0;          // victoria_park: time shared by consecutive segments
   bool IsDataset() const { return type != "simulation"; }

@@ -19,7 +19,7 @@ void GatherState(const Eigen::VectorXd& x, const Eigen::MatrixXd& p, const std::
 EkfSlam::EkfSlam(const FilterNoise& noise) : noise_(noise) {}
 
 void EkfSlam::Predict(const OdometryControl& u, double dt) {
-  state_.Predict(noise_.motion, u, dt, noise_.control_cov);
+  state_.Predict(noise_.motion, u, dt, noise_.ControlCovFor(dt));
 }
 
 bool EkfSlam::Update(const std::vector<std::pair<LandmarkId, Eigen::Vector2d>>& obs) {

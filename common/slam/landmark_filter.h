@@ -18,8 +18,14 @@ using LandmarkId = std::uint32_t;
 // Process and measurement noise of a filter.
 struct FilterNoise {
   MotionModel motion;
-  Eigen::Matrix2d control_cov = Eigen::Matrix2d::Identity();  // of the model's control vector
+  // Covariance of the model's control vector averaged over control_period_s. Odometry
+  // errors are treated as white noise, so over an interval dt the filter uses
+  // control_cov * control_period_s / dt: the pose uncertainty then grows with time, not
+  // with how often odometry arrives or how an interval is split at scans.
+  Eigen::Matrix2d control_cov = Eigen::Matrix2d::Identity();
+  double control_period_s = 0.1;
   Eigen::Matrix2d obs_cov = Eigen::Matrix2d::Identity();      // of [range, bearing]
+  Eigen::Matrix2d ControlCovFor(double dt) const { return control_cov * (control_period_s / dt); }
 };
 
 class LandmarkFilter {

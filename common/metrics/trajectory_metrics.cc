@@ -1,0 +1,63 @@
+#include "common/metrics/trajectory_metrics.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/geometry/rigid_fit.h"
+
+namespace mapmesh {
+
+TrajectoryError CompareTrajectory(const std::vector<TimedPosition>& estimate,
+                                  const std::vector<TimedPosition>& reference, bool align, double max_gap_s) {
+  TrajectoryError out;
+  std::vector<Eigen::Vector2d> est, ref;
+  std::vector<double> times;
+  for (const TimedPosition& r : reference) {
+    auto hi = std::lower_bound(estimate.begin(), estimate.end(), r.t,
+                               [](const TimedPosition& a, double v) { return a.t < v; });
+    if (hi == estimate.end() || hi == estimate.begin()) {
+      if (hi != estimate.end() && hi->t == r.t) {
+        est.push_back(hi->p);
+        ref.push_back(r.p);
+        times.push_back(r.t);
+      }
+      continue;
+    }
+    const auto lo = hi - 1;
+    if (hi->t - lo->t > max_gap_s) continue;
+    const double a = (r.t - lo->t) / (hi->t - lo->t);
+    est.push_back(lo->p + a * (hi->p - lo->p));
+    ref.push_back(r.p);
+    times.push_back(r.t);
+  }
+  if (align) {
+    const auto fit = FitRigid2D(est, ref);
+    if (!fit) return out;
+    for (auto& p : est) p = fit->Apply(p);
+    out.aligned = true;
+  }
+  double se = 0.0;
+  for (std::size_t i = 0; i < est.size(); ++i) {
+    const double e = (est[i] - ref[i]).norm();
+    out.errors_m.push_back(e);
+    se += e * e;
+  }
+  out.times = std::move(times);
+  out.samples = static_cast<int>(est.size());
+  if (out.samples > 0) out.rmse_m = std::sqrt(se / out.samples);
+  return out;
+}
+
+std::vector<TimedPosition> DropImplausibleFixes(const std::vector<TimedPosition>& fixes, double max_speed_mps) {
+  std::vector<TimedPosition> kept;
+  for (const TimedPosition& f : fixes) {
+    if (!kept.empty()) {
+      const double dt = f.t - kept.back().t;
+      if (dt <= 0.0 || (f.p - kept.back().p).norm() > max_speed_mps * dt) continue;
+    }
+    kept.push_back(f);
+  }
+  return kept;
+}
+
+}  // namespace mapmesh

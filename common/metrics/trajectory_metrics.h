@@ -1,0 +1,33 @@
+#pragma once
+// Trajectory error against a reference (ground truth or GPS), optionally after a
+// least-squares rigid alignment when the estimate's frame is unknown.
+
+#include <Eigen/Core>
+#include <vector>
+
+namespace mapmesh {
+
+struct TimedPosition {
+  double t = 0.0;
+  Eigen::Vector2d p = Eigen::Vector2d::Zero();
+};
+
+struct TrajectoryError {
+  int samples = 0;
+  double rmse_m = 0.0;
+  bool aligned = false;
+  std::vector<double> times, errors_m;  // per compared reference fix
+};
+
+// Compares at every reference time inside the estimate's span where the estimate has samples
+// at most max_gap_s apart around it (the estimate is interpolated linearly there). With
+// align, the estimate is first moved by the rigid transform that best fits it to the
+// reference (Umeyama); samples stays 0 if that fit is impossible.
+TrajectoryError CompareTrajectory(const std::vector<TimedPosition>& estimate,
+                                  const std::vector<TimedPosition>& reference, bool align, double max_gap_s = 1.0);
+
+// Drops reference fixes that imply a speed above max_speed_mps from the last kept fix
+// (GPS glitches).
+std::vector<TimedPosition> DropImplausibleFixes(const std::vector<TimedPosition>& fixes, double max_speed_mps);
+
+}  // namespace mapmesh
