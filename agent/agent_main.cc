@@ -88,6 +88,11 @@ void WriteOutputs(const AgentNode& node, const std::string& dir) {
   // Until map fusion exists the global map is the clone of the local map.
   io::WriteJsonAtomic(dir + "/global_map.json", io::MapToJson(local));
   io::WriteJsonAtomic(dir + "/stats.json", StatsJson(node));
+  json poses = json::array();
+  for (const auto& p : node.trajectory()) poses.push_back({p.t, p.pose.x, p.pose.y, p.pose.theta});
+  io::WriteJsonAtomic(dir + "/trajectory.json",
+                      {{"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
+                       {"poses", poses}});
 }
 
 int Run(int argc, char** argv) {

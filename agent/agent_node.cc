@@ -72,13 +72,14 @@ std::uint32_t AgentStats::MapsDropped() const {
 AgentNode::AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incarnation,
                      AgentOutput& out)
     : options_(scenario.agent),
-      sync_(*this),
       self_(self),
       incarnation_(incarnation),
       out_(out),
       gate_(self, RadioGateOptions{scenario.radio.loss_probability, scenario.radio.bandwidth_bytes_per_s},
             scenario.seed * 1000003ULL + self * 7919ULL + incarnation),
-      mapper_(MakeLocalMapper(scenario, self)) {
+      sync_(*this),
+      mapper_(MakeLocalMapper(scenario, self)),
+      trajectory_period_s_(scenario.feeder.truth_period_s) {
   for (const auto& r : scenario.robots) robot_ids_.push_back(r.id);
 }
 
@@ -93,6 +94,10 @@ void AgentNode::ApplyScan(const Scan& scan, double stamp) { mapper_->Observe(sca
 void AgentNode::IntervalDone(const Odometry& odom) { AfterInterval(odom); }
 
 void AgentNode::AfterInterval(const Odometry& odom) {
+  if (sync_.processed_until() + 1e-9 >= next_trajectory_s_) {
+    trajectory_.push_back({sync_.processed_until(), mapper_->pose()});
+    next_trajectory_s_ = sync_.processed_until() + trajectory_period_s_;
+  }
   if (sync_.processed_until() + 1e-9 >= next_map_publish_s_) {
     PublishLocalMap();
     next_map_publish_s_ =

@@ -72,6 +72,12 @@ class AgentNode : private SensorSync::Sink {
   std::optional<double> frame_origin_stamp() const { return sync_.frame_origin_stamp(); }
   const AgentStats& stats() const { return stats_; }
   const SyncStats& sync_stats() const { return sync_.stats(); }
+  // The estimated pose every trajectory period (feeder.truth_period_s) of the current session.
+  struct PoseStamp {
+    double t;
+    Pose2 pose;
+  };
+  const std::vector<PoseStamp>& trajectory() const { return trajectory_; }
   // The latest decoded map of each peer, by sender and kind.
   const std::map<std::pair<RobotId, MapKind>, LandmarkMap>& peer_maps() const { return peer_maps_; }
 
@@ -92,6 +98,9 @@ class AgentNode : private SensorSync::Sink {
   SensorSync sync_;
   std::unique_ptr<LocalMapper> mapper_;
   double next_map_publish_s_ = 0.0;
+  double trajectory_period_s_ = 0.5;
+  double next_trajectory_s_ = 0.0;
+  std::vector<PoseStamp> trajectory_;
   double next_status_s_ = 0.0;
   std::uint32_t local_version_ = 0;
   AgentStats stats_;

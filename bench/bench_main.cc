@@ -3,7 +3,13 @@
 
 #include <benchmark/benchmark.h>
 
+#include <memory>
+#include <type_traits>
+
 #include "common/map/map_codec.h"
+#include "common/slam/cekf_slam.h"
+#include "common/slam/ekf_slam.h"
+#include "common/slam/observation_model.h"
 #include "sim_feeder/simulator.h"
 
 namespace mapmesh {
@@ -59,6 +65,104 @@ void BM_SimulatorStream(benchmark::State& state) {
   state.counters["observations"] = benchmark::Counter(static_cast<double>(observations), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_SimulatorStream)->Args({32, 1000})->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// A filter holding n landmarks on a 7.5 m grid centred on the robot, so that about 20 are
+// within the compressed filter's active region (5 m region half-size, 12 m reach).
+template <typename Filter>
+std::unique_ptr<Filter> MakeFilledFilter(int n);
+
+FilterNoise BenchNoise() {
+  FilterNoise f;
+  f.control_cov = Eigen::Vector2d(0.03 * 0.03, 0.0524 * 0.0524).asDiagonal();
+  f.obs_cov = Eigen::Vector2d(0.05 * 0.05, std::pow(DegToRad(1.0), 2)).asDiagonal();
+  return f;
+}
+
+void Fill(LandmarkFilter& f, int n) {
+  const int side = static_cast<int>(std::ceil(std::sqrt(n)));
+  int k = 0;
+  for (int i = 0; i < side && k < n; ++i) {
+    for (int j = 0; j < side && k < n; ++j, ++k) {
+      const Eigen::Vector2d m((i - side / 2) * 7.5 + 1.3, (j - side / 2) * 7.5 + 0.7);
+      f.Add(static_cast<LandmarkId>(k), ObserveRangeBearing(f.robot(), m));
+    }
+  }
+}
+
+template <>
+std::unique_ptr<EkfSlam> MakeFilledFilter<EkfSlam>(int n) {
+  auto f = std::make_unique<EkfSlam>(BenchNoise());
+  Fill(*f, n);
+  return f;
+}
+
+template <>
+std::unique_ptr<CekfSlam> MakeFilledFilter<CekfSlam>(int n) {
+  auto f = std::make_unique<CekfSlam>(BenchNoise(), CekfOptions{5.0, 12.0});
+  Fill(*f, n);
+  f->Switch();  // settle, and make only the landmarks around the robot active
+  return f;
+}
+
+// One scan's worth of work: 0.5 s of odometry (5 predictions) and a batch update with the
+// landmarks within 8 m, as the agent does every scan. The robot circles in place, so the
+// compressed filter never switches here (BM_CekfSwitch times that).
+template <typename Filter>
+void BM_ScanUpdate(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  auto f = MakeFilledFilter<Filter>(n);
+  std::vector<std::pair<LandmarkId, Eigen::Vector2d>> obs;
+  for (auto _ : state) {
+    for (int k = 0; k < 5; ++k) f->Predict({0.3, 0.3, 0.0}, 0.1);
+    obs.clear();
+    for (LandmarkId id : f->Candidates()) {
+      const Eigen::Vector2d z = ObserveRangeBearing(f->robot(), f->Mean(id));
+      if (z(0) < 8.0) obs.push_back({id, z + Eigen::Vector2d(0.01, 0.002)});
+    }
+    f->Update(obs);
+  }
+  state.counters["landmarks"] = n;
+  state.counters["observed"] = static_cast<double>(obs.size());
+  if constexpr (std::is_same_v<Filter, CekfSlam>) state.counters["active"] = static_cast<double>(f->active_landmarks());
+}
+BENCHMARK_TEMPLATE(BM_ScanUpdate, EkfSlam)->Arg(250)->Arg(1000)->Arg(2000)->Unit(benchmark::kMicrosecond);
+BENCHMARK_TEMPLATE(BM_ScanUpdate, CekfSlam)->Arg(250)->Arg(1000)->Arg(2000)->Unit(benchmark::kMicrosecond);
+
+// A drive: 100 scans (50 s at 0.3 m/s, 15 m) straight through the grid, each with 5
+// predictions and the landmarks within 8 m ahead; the compressed filter switches regions
+// three times on the way. Time per iteration / 100 is the average time per scan, batch
+// updates included.
+template <typename Filter>
+void BM_Drive100Scans(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  for (auto _ : state) {
+    state.PauseTiming();
+    auto f = MakeFilledFilter<Filter>(n);
+    state.ResumeTiming();
+    for (int scan = 0; scan < 100; ++scan) {
+      for (int k = 0; k < 5; ++k) f->Predict({0.3, 0.0, 0.0}, 0.1);
+      std::vector<std::pair<LandmarkId, Eigen::Vector2d>> obs;
+      for (LandmarkId id : f->Candidates()) {
+        const Eigen::Vector2d z = ObserveRangeBearing(f->robot(), f->Mean(id));
+        if (z(0) < 8.0 && std::abs(z(1)) < M_PI / 2) obs.push_back({id, z + Eigen::Vector2d(0.01, 0.002)});
+      }
+      f->Update(obs);
+    }
+    if constexpr (std::is_same_v<Filter, CekfSlam>) state.counters["switches"] = f->switches();
+  }
+  state.counters["landmarks"] = n;
+}
+BENCHMARK_TEMPLATE(BM_Drive100Scans, EkfSlam)->Arg(250)->Arg(1000)->Arg(2000)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK_TEMPLATE(BM_Drive100Scans, CekfSlam)->Arg(250)->Arg(1000)->Arg(2000)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+// The compressed filter's batch update and re-partition when the robot leaves its region.
+void BM_CekfSwitch(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  auto f = MakeFilledFilter<CekfSlam>(n);
+  for (auto _ : state) f->Switch();
+  state.counters["landmarks"] = n;
+}
+BENCHMARK(BM_CekfSwitch)->Arg(250)->Arg(1000)->Arg(2000)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace mapmesh

@@ -7,6 +7,7 @@
 #include "common/app/process.h"
 #include "common/io/run_files.h"
 #include "common/metrics/landmark_metrics.h"
+#include "common/metrics/trajectory_metrics.h"
 
 namespace mapmesh {
 namespace {
@@ -44,12 +45,38 @@ int Run(int argc, char** argv) {
       const json stats = io::ReadJson(dir + "/stats.json");
       const json& t = stats.value("frame_origin_stamp", json());
       if (t.is_number() && truth.headings_known) origin = robot.PoseAt(t.get<double>());
+      if (t.is_number() && !truth.headings_known) origin.reset();
     }
     for (const char* kind : {"local", "global"}) {
       const std::string path = dir + "/" + kind + "_map.json";
       if (!std::filesystem::exists(path)) continue;
       const LandmarkMap map = io::MapFromJson(io::ReadJson(path));
       entry[kind] = QualityJson(EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, origin, gate_m));
+      // The same map after a least-squares rigid fit to the truth, whatever its origin: the
+      // error of its shape alone.
+      const MapQuality aligned = EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, std::nullopt, gate_m);
+      entry[kind]["rmse_aligned_m"] = aligned.evaluated ? json(aligned.rmse_m) : json();
+    }
+    // The estimated trajectory against the true one: in the true frame when the origin is
+    // known, else after a rigid fit (GPS glitches dropped).
+    if (entry.contains("local") && std::filesystem::exists(dir + "/trajectory.json") && !robot.trajectory.empty()) {
+      std::vector<TimedPosition> est, ref;
+      const json traj = io::ReadJson(dir + "/trajectory.json");
+      for (const auto& p : traj.at("poses")) {
+        est.push_back({p.at(0).get<double>(), {p.at(1).get<double>(), p.at(2).get<double>()}});
+      }
+      for (const io::TruthSample& s : robot.trajectory) {
+        if (origin) {
+          const Pose2 rel = origin->Inverse() * s.pose;
+          ref.push_back({s.t, {rel.x, rel.y}});
+        } else {
+          ref.push_back({s.t, {s.pose.x, s.pose.y}});
+        }
+      }
+      const TrajectoryError e =
+          origin ? CompareTrajectory(est, ref, false) : CompareTrajectory(est, DropImplausibleFixes(ref, 20.0), true);
+      entry["local"]["trajectory_rmse_m"] = e.samples > 0 ? json(e.rmse_m) : json();
+      entry["local"]["trajectory_frame"] = origin ? "true_origin" : "aligned";
     }
     agents[std::to_string(robot.id)] = entry;
   }

@@ -9,7 +9,7 @@
 namespace mapmesh {
 
 CekfSlam::CekfSlam(const FilterNoise& noise, const CekfOptions& options)
-    : noise_(noise), options_(options), gx_(Eigen::VectorXd::Zero(3)), gp_(Eigen::MatrixXd::Zero(3, 3)) {
+    : noise_(noise), options_(options), gx_(Eigen::VectorXd::Zero(3)), gp_(Eigen::MatrixXd::Zero(3, 3)), gn_(3) {
   StartPeriod();
 }
 
@@ -29,9 +29,11 @@ void CekfSlam::StartPeriod() {
     if ((m - c).cwiseAbs().maxCoeff() <= reach) {
       active_slot_[global_ids_[g]] = static_cast<int>(active_ids_.size());
       active_ids_.push_back(global_ids_[g]);
-      idx_a_.insert(idx_a_.end(), {s, s + 1});
+      idx_a_.push_back(s);
+      idx_a_.push_back(s + 1);
     } else {
-      idx_b_.insert(idx_b_.end(), {s, s + 1});
+      idx_b_.push_back(s);
+      idx_b_.push_back(s + 1);
     }
   }
   period_active_ = active_ids_.size();
@@ -86,41 +88,71 @@ void CekfSlam::Add(LandmarkId id, const Eigen::Vector2d& z) {
   phi_.bottomRows<2>() = rows;
 }
 
-void CekfSlam::Settled(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<LandmarkId>* ids) const {
-  const int n_old = static_cast<int>(gx_.size());
-  const int n_new = 2 * static_cast<int>(active_ids_.size() - period_active_);
-  const int n = n_old + n_new;
-  *ids = global_ids_;
+void CekfSlam::BatchUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& p, int n_old, std::vector<LandmarkId>* new_ids) const {
+  // (x, p) hold the state settled at the period start over [0, n_old), with room after it
+  // for this period's new landmarks.
   std::vector<int> idx_a = idx_a_;
   for (std::size_t s = period_active_; s < active_ids_.size(); ++s) {
     const int g = n_old + 2 * static_cast<int>(s - period_active_);
-    idx_a.insert(idx_a.end(), {g, g + 1});
-    ids->push_back(active_ids_[s]);
+    idx_a.push_back(g);
+    idx_a.push_back(g + 1);
+    new_ids->push_back(active_ids_[s]);
   }
-  x->resize(n);
-  p->resize(n, n);
-  x->head(n_old) = gx_;
-  p->topLeftCorner(n_old, n_old) = gp_;
-  // The batch update.
+  // ALGORITHMS.md section 3: x_b += P_ab(k1)^T theta; P_bb -= P_ab(k1)^T psi P_ab(k1);
+  // P_ab = Phi P_ab(k1). The O(Nb^2 Na) term is computed on one triangle only.
+  const int nb = static_cast<int>(idx_b_.size());
+  const Eigen::VectorXd dxb = pab1_.transpose() * theta_;
+  for (int i = 0; i < nb; ++i) x(idx_b_[i]) += dxb(i);
+  if (nb > 0) {
+    const Eigen::MatrixXd m = psi_ * pab1_;
+    Eigen::MatrixXd owed(nb, nb);
+    owed.triangularView<Eigen::Lower>() = pab1_.transpose() * m;
+    for (int j = 0; j < nb; ++j) {
+      const int gj = idx_b_[j];
+      p(gj, gj) -= owed(j, j);
+      for (int i = j + 1; i < nb; ++i) {
+        const double v = owed(i, j);
+        p(idx_b_[i], gj) -= v;
+        p(gj, idx_b_[i]) -= v;
+      }
+    }
+  }
   const Eigen::MatrixXd pab = phi_ * pab1_;
-  (*x)(idx_b_) += pab1_.transpose() * theta_;
-  Eigen::MatrixXd owed = pab1_.transpose() * (psi_ * pab1_);
-  (*p)(idx_b_, idx_b_) -= 0.5 * (owed + owed.transpose());
-  (*x)(idx_a) = active_.x();
-  (*p)(idx_a, idx_a) = active_.P();
-  (*p)(idx_a, idx_b_) = pab;
-  (*p)(idx_b_, idx_a) = pab.transpose();
+  for (std::size_t i = 0; i < idx_a.size(); ++i) x(idx_a[i]) = active_.x()(static_cast<Eigen::Index>(i));
+  p(idx_a, idx_a) = active_.P();
+  p(idx_a, idx_b_) = pab;
+  p(idx_b_, idx_a) = pab.transpose();
+}
+
+void CekfSlam::Settled(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<LandmarkId>* ids) const {
+  const int n = gn_ + 2 * static_cast<int>(active_ids_.size() - period_active_);
+  *x = Eigen::VectorXd::Zero(n);
+  *p = Eigen::MatrixXd::Zero(n, n);
+  x->head(gn_) = gx_.head(gn_);
+  p->topLeftCorner(gn_, gn_) = gp_.topLeftCorner(gn_, gn_);
+  *ids = global_ids_;
+  BatchUpdate(*x, *p, gn_, ids);
 }
 
 void CekfSlam::Switch() {
+  const int n = gn_ + 2 * static_cast<int>(active_ids_.size() - period_active_);
+  if (n > gx_.size()) {
+    // Grow the settled storage geometrically (the copy is the only O(N^2) move).
+    const int cap = std::max<int>(n, 2 * static_cast<int>(gx_.size()));
+    Eigen::VectorXd gx = Eigen::VectorXd::Zero(cap);
+    Eigen::MatrixXd gp = Eigen::MatrixXd::Zero(cap, cap);
+    gx.head(gn_) = gx_.head(gn_);
+    gp.topLeftCorner(gn_, gn_) = gp_.topLeftCorner(gn_, gn_);
+    gx_.swap(gx);
+    gp_.swap(gp);
+  }
   std::vector<LandmarkId> ids;
-  Eigen::VectorXd gx;
-  Eigen::MatrixXd gp;
-  Settled(&gx, &gp, &ids);  // reads gx_ and gp_: not in place
-  gx_.swap(gx);
-  gp_.swap(gp);
-  for (std::size_t s = global_ids_.size(); s < ids.size(); ++s) global_index_[ids[s]] = static_cast<int>(s);
-  global_ids_ = std::move(ids);
+  BatchUpdate(gx_, gp_, gn_, &ids);  // in place
+  for (LandmarkId id : ids) {
+    global_index_[id] = static_cast<int>(global_ids_.size());
+    global_ids_.push_back(id);
+  }
+  gn_ = n;
   ++switches_;
   StartPeriod();
 }
@@ -133,7 +165,8 @@ Eigen::MatrixXd CekfSlam::JointCov(const std::vector<LandmarkId>& ids) const {
   std::vector<int> idx{0, 1, 2};
   for (LandmarkId id : ids) {
     const int s = 3 + 2 * active_slot_.at(id);
-    idx.insert(idx.end(), {s, s + 1});
+    idx.push_back(s);
+    idx.push_back(s + 1);
   }
   return active_.P()(idx, idx);
 }
@@ -173,7 +206,8 @@ void CekfSlam::FullState(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<Lan
   std::vector<int> idx{0, 1, 2};
   ids->clear();
   for (int o : order) {
-    idx.insert(idx.end(), {3 + 2 * o, 4 + 2 * o});
+    idx.push_back(3 + 2 * o);
+    idx.push_back(4 + 2 * o);
     ids->push_back(gids[o]);
   }
   GatherState(gx, gp, idx, x, p);

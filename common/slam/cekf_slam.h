@@ -44,8 +44,10 @@ class CekfSlam : public LandmarkFilter {
   std::size_t active_landmarks() const { return active_ids_.size(); }
 
  private:
-  // Batch update: the full state at the current time, over global indices (new landmarks of
-  // this period appended at the end).
+  // The batch update, applied in place to (x, p) holding the settled state of the period
+  // start over [0, n_old); this period's new landmarks go after it, their ids to new_ids.
+  void BatchUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& p, int n_old, std::vector<LandmarkId>* new_ids) const;
+  // A copy of the full state at the current time, over global indices.
   void Settled(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<LandmarkId>* ids) const;
   void StartPeriod();
 
@@ -53,8 +55,9 @@ class CekfSlam : public LandmarkFilter {
   CekfOptions options_;
   // The settled state at the start of the period, over global indices: [robot, landmarks in
   // the order they were added]. Its active rows are stale during the period.
-  Eigen::VectorXd gx_;
+  Eigen::VectorXd gx_;  // storage with spare capacity: the state is its first gn_ entries
   Eigen::MatrixXd gp_;
+  int gn_ = 3;
   std::vector<LandmarkId> global_ids_;
   std::unordered_map<LandmarkId, int> global_index_;
   // The period.

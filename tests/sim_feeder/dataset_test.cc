@@ -133,7 +133,9 @@ TEST(Mrclam, Dataset7StreamsMatchTheFiles) {
       announced += r.odom[k].scans_in_interval;
       ASSERT_EQ(r.odom[k].seq, k);
       ASSERT_GT(r.odom[k].dt, 0.0);
-      if (k > 0) ASSERT_NEAR(r.odom[k].stamp - r.odom[k].dt, r.odom[k - 1].stamp, 1e-9);
+      if (k > 0) {
+        ASSERT_NEAR(r.odom[k].stamp - r.odom[k].dt, r.odom[k - 1].stamp, 1e-9);
+      }
     }
     EXPECT_EQ(announced, r.scans.size());  // every scan falls in exactly one interval
     EXPECT_GE(r.odom.front().stamp - r.odom.front().dt, -1e-9);
@@ -161,7 +163,9 @@ TEST(Mrclam, SignaturesOnlyWhenShared) {
   EXPECT_FALSE(d.robots[0].start.has_value());  // dataset 1 ships no robot ground truth
   for (const Scan& s : d.robots[0].scans) {
     for (const Observation& o : s.obs) {
-      if (o.kind == ObservationKind::kLandmark) ASSERT_EQ(o.signature, -1);
+      if (o.kind == ObservationKind::kLandmark) {
+        ASSERT_EQ(o.signature, -1);
+      }
     }
   }
 }

@@ -54,7 +54,9 @@ radio: {range_m: 15}
     }
     ASSERT_EQ(a.truth.size(), b.truth.size());
     ASSERT_EQ(a.links.has_value(), b.links.has_value());
-    if (a.links) EXPECT_EQ(a.links->links, b.links->links);
+    if (a.links) {
+      EXPECT_EQ(a.links->links, b.links->links);
+    }
   }
   EXPECT_GT(obs, 0u);
   // A truncated file is an error naming it, not a crash.
