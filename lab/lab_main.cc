@@ -7,9 +7,11 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <algorithm>
 #include <map>
 
 #include "common/app/process.h"
+#include "lab/alignment_experiment.h"
 #include "lab/slam_experiment.h"
 #include "sim_feeder/sources.h"
 
@@ -69,6 +71,35 @@ int RunSlamCommand(const app::ProcessOptions& po, int seeds, std::uint64_t first
   return 0;
 }
 
+int RunAlignCommand(const lab::MapPairOptions& maps, const AlignmentOptions& align, int trials, std::uint64_t seed,
+                    const std::string& csv_path) {
+  std::ofstream csv_file;
+  if (!csv_path.empty()) {
+    csv_file.open(csv_path);
+    if (!csv_file) throw std::runtime_error(csv_path + ": cannot open for writing");
+  }
+  std::ostream& csv = csv_path.empty() ? std::cout : csv_file;
+  csv << lab::AlignCsvHeader() << '\n';
+  const auto results = lab::RunAlignTrials(maps, align, trials, seed);
+  int accepted = 0, correct = 0;
+  std::vector<double> ms;
+  double precision = 0.0;
+  for (const auto& t : results) {
+    csv << lab::AlignCsvRow(t) << '\n';
+    accepted += t.verdict == AlignmentVerdict::kAccepted;
+    correct += t.correct;
+    ms.push_back(t.match_ms + t.ransac_ms);
+    precision += t.candidate_precision;
+  }
+  std::sort(ms.begin(), ms.end());
+  std::fprintf(stderr,
+               "%d trials: accepted %d, correct (<= 0.2 m, 1 deg) %d (%.1f %%), candidate precision %.3f, "
+               "median time %.2f ms\n",
+               trials, accepted, correct, 100.0 * correct / std::max(1, trials), precision / std::max(1, trials),
+               ms.empty() ? 0.0 : ms[ms.size() / 2]);
+  return 0;
+}
+
 int Run(int argc, char** argv) {
   CLI::App cli{"mapmesh-lab: in-process experiments and Monte Carlo studies (CSV out)"};
   cli.require_subcommand(1);
@@ -85,7 +116,31 @@ int Run(int argc, char** argv) {
   slam->add_option("--datasets", datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
   slam->add_option("--csv", csv, "write the CSV here (default: stdout)");
   slam->add_option("--trace", trace, "also write each robot's per-scan pose errors to CSVs in this directory");
+  lab::MapPairOptions maps;
+  AlignmentOptions align;
+  std::string matcher = "sorted", distance = "mahalanobis";
+  int trials = 100;
+  std::uint64_t align_seed = 1;
+  std::string align_csv;
+  CLI::App* al = cli.add_subcommand("align", "align synthetic map pairs (thesis 5.1.1): success, accuracy, time");
+  al->add_option("--landmarks", maps.landmarks, "landmarks per map")->check(CLI::PositiveNumber);
+  al->add_option("--overlap", maps.overlap, "share of each map the other also holds (0: disjoint)")->check(CLI::Range(0.0, 1.0));
+  al->add_option("--sigma", maps.sigma_m, "landmark noise (m)")->check(CLI::NonNegativeNumber);
+  al->add_option("--density", maps.density_per_m2, "landmarks per square metre")->check(CLI::PositiveNumber);
+  al->add_option("--spacing", maps.min_spacing_m, "minimum distance between landmarks (m)")->check(CLI::NonNegativeNumber);
+  al->add_option("--trials", trials, "map pairs")->check(CLI::PositiveNumber);
+  al->add_option("--seed", align_seed, "seed of the first pair");
+  al->add_option("--matcher", matcher, "sorted | thesis")->check(CLI::IsMember({"sorted", "thesis"}));
+  al->add_option("--distance", distance, "mahalanobis | euclidean")->check(CLI::IsMember({"mahalanobis", "euclidean"}));
+  al->add_option("--gate", align.euclidean_gate_m, "Euclidean consensus gate (m)");
+  al->add_option("--min-inliers", align.min_inliers, "fewer inliers: rejected");
+  al->add_option("--csv", align_csv, "write the CSV here (default: stdout)");
   if (auto code = app::ParseArgs(cli, "mapmesh-lab", argc, argv)) return *code;
+  if (al->parsed()) {
+    align.matcher = matcher == "thesis" ? TriangleMatcher::kThesisSimilarity : TriangleMatcher::kSortedSides;
+    align.distance = distance == "euclidean" ? ConsensusDistance::kEuclidean : ConsensusDistance::kMahalanobis;
+    return RunAlignCommand(maps, align, trials, align_seed, align_csv);
+  }
   if (slam->parsed()) return RunSlamCommand(po, seeds, first_seed, hide, datasets, csv, trace);
   return 2;
 }

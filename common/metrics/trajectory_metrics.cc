@@ -61,3 +61,13 @@ std::vector<TimedPosition> DropImplausibleFixes(const std::vector<TimedPosition>
 }
 
 }  // namespace mapmesh
+
+#include "common/geometry/pose2.h"
+
+namespace mapmesh {
+
+TransformError CompareTransforms(const Pose2& estimate, const Pose2& truth, const Eigen::Vector2d& at) {
+  return {(estimate.Apply(at) - truth.Apply(at)).norm(), std::abs(WrapAngle(estimate.theta - truth.theta))};
+}
+
+}  // namespace mapmesh

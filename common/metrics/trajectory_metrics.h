@@ -31,3 +31,18 @@ TrajectoryError CompareTrajectory(const std::vector<TimedPosition>& estimate,
 std::vector<TimedPosition> DropImplausibleFixes(const std::vector<TimedPosition>& fixes, double max_speed_mps);
 
 }  // namespace mapmesh
+
+namespace mapmesh {
+
+struct Pose2;
+
+// How far an estimated frame transform is from the true one: the distance between where
+// the two put a reference point (for example the centroid of the mapped landmarks), and the
+// rotation difference.
+struct TransformError {
+  double translation_m = 0.0;
+  double rotation_rad = 0.0;
+};
+TransformError CompareTransforms(const Pose2& estimate, const Pose2& truth, const Eigen::Vector2d& at);
+
+}  // namespace mapmesh

@@ -1,0 +1,110 @@
+#pragma once
+// Aligning two landmark maps whose frames are unknown to each other (thesis 3.3.2, after
+// Cunningham's DDF-SAM): Delaunay triangles of each map, triangle matching to propose
+// landmark pairs, RANSAC over those pairs with the closed-form two-point transform
+// (eq. 57-59) and the adaptive iteration bound (eq. 63-66), least-squares refinement with a
+// covariance for the transform, and acceptance rules meant to reject a wrong alignment rather
+// than merge it: a minimum inlier count, a chi-square test on the inliers' residuals, and an
+// ambiguity test (the best hypothesis must clearly beat any different one).
+
+#include <Eigen/Core>
+#include <optional>
+#include <random>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "common/geometry/pose2.h"
+#include "common/map/landmark_map.h"
+
+namespace mapmesh {
+
+enum class TriangleMatcher {
+  kSortedSides,       // sorted side lengths in a k-d tree, tolerances from the covariances; a match
+                      // counts only inside a grown patch of adjacent consistent matches: O(T log T)
+  kThesisSimilarity,  // thesis eq. 51-53: perimeter and area, s = exp(sum of squared differences) < tau: O(T1 T2)
+};
+
+enum class ConsensusDistance { kEuclidean, kMahalanobis };
+
+struct AlignmentOptions {
+  TriangleMatcher matcher = TriangleMatcher::kSortedSides;
+  double side_tolerance_sigmas = 3.0;   // sorted sides: sides may differ by this many sigmas
+  double min_side_m = 0.3;              // triangles with a shorter side are not used
+  int min_consistent_triangles = 3;     // sorted sides: a match counts only in a patch of this many adjacent, consistent matches
+  int patch_stop_triangles = 12;        // sorted sides: once a patch this large is found ...
+  int seeds_after_patch = 100;          // ... this many more seed triangles look for a competitor, then the search stops
+  double patch_keep_ratio = 0.25;       // patches smaller than this share of the largest are dropped
+  double thesis_tau = 1.6487;           // thesis similarity threshold (exp(0.5))
+  ConsensusDistance distance = ConsensusDistance::kMahalanobis;
+  double euclidean_gate_m = 2.0;        // Euclidean consensus gate (thesis default)
+  double gate_probability = 0.99;       // Mahalanobis consensus: chi-square 2 dof quantile
+  double success_probability = 0.999;   // RANSAC stops when an all-inlier sample was drawn with this probability (eq. 63)
+  int max_iterations = 5000;
+  int min_inliers = 6;                  // fewer inliers: rejected
+  double residual_probability = 0.999;  // chi-square test on the inliers' residuals
+  double ambiguity_ratio = 0.7;         // a different hypothesis with this share of the best's inliers: ambiguous
+  double distinct_translation_m = 2.0;  // hypotheses further apart than this (or the angle) are different
+  double distinct_rotation_deg = 10.0;
+  bool guided_matching = true;          // after RANSAC, look for inliers among all landmarks, not only candidates
+};
+
+// A proposed correspondence: landmark a of map A and landmark b of map B, with the number
+// of matched triangles that proposed it.
+struct CandidatePair {
+  int a = 0;
+  int b = 0;
+  int votes = 1;
+};
+
+enum class AlignmentVerdict {
+  kAccepted = 0,
+  kTooFewLandmarks,    // fewer than 3 usable landmarks in a map
+  kNoTriangles,        // a map's landmarks are collinear (or too close together)
+  kNoCandidates,       // no triangle of one map looks like a triangle of the other
+  kTooFewInliers,
+  kResidualsTooLarge,  // the inliers do not fit the transform as their covariances say
+  kAmbiguous,          // another, different transform is nearly as well supported
+  kDegenerate,         // the inliers do not determine the transform (collinear, or singular covariances)
+};
+std::string_view ToString(AlignmentVerdict v);
+
+struct AlignmentResult {
+  AlignmentVerdict verdict = AlignmentVerdict::kTooFewLandmarks;
+  bool accepted() const { return verdict == AlignmentVerdict::kAccepted; }
+  Pose2 transform;                                  // maps B's frame into A's: p_A = transform.Apply(p_B)
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();    // of (x, y, theta) of the transform
+  std::vector<std::pair<int, int>> inliers;         // (index in A, index in B)
+  int usable_a = 0, usable_b = 0;                   // landmarks with finite means and valid covariances
+  int triangles_a = 0, triangles_b = 0;
+  int candidates = 0;
+  int best_patch = 0, patches = 0;                  // sorted sides: largest patch of consistent triangle matches, patches kept
+  int iterations = 0;
+  int best_support = 0;                             // RANSAC consensus of the best hypothesis (candidates)
+  int runner_up_support = 0;                        // ... of the best hypothesis different from it
+  double residual_chi2 = 0.0;                       // sum of the inliers' squared Mahalanobis residuals
+  double residual_bound = 0.0;                      // the chi-square bound it was tested against
+};
+
+// Closed-form rigid transform taking b1, b2 onto a1, a2 (thesis eq. 57-59: solved for
+// [cos, sin], then projected onto a rotation, the translation fitting both pairs' midpoint).
+// nullopt when b1 and b2 coincide.
+std::optional<Pose2> TwoPointTransform(const Eigen::Vector2d& a1, const Eigen::Vector2d& a2,
+                                       const Eigen::Vector2d& b1, const Eigen::Vector2d& b2);
+
+// Candidate landmark pairs from matched Delaunay triangles. Indices refer to the maps'
+// landmark vectors; unusable landmarks (non-finite, invalid covariance) never appear. rng
+// orders the seed triangles (sorted sides).
+std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a, const LandmarkMap& b,
+                                          const AlignmentOptions& options, std::mt19937_64& rng,
+                                          AlignmentResult* stats = nullptr);
+
+// RANSAC over candidate pairs, refinement and the acceptance tests.
+AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const std::vector<CandidatePair>& candidates,
+                            const AlignmentOptions& options, std::mt19937_64& rng);
+
+// The whole pipeline: triangles, matching, RANSAC.
+AlignmentResult AlignMaps(const LandmarkMap& a, const LandmarkMap& b, const AlignmentOptions& options,
+                          std::mt19937_64& rng);
+
+}  // namespace mapmesh
