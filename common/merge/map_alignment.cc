@@ -218,6 +218,7 @@ std::string_view ToString(AlignmentVerdict v) {
     case AlignmentVerdict::kTooFewInliers: return "too_few_inliers";
     case AlignmentVerdict::kResidualsTooLarge: return "residuals_too_large";
     case AlignmentVerdict::kAmbiguous: return "ambiguous";
+    case AlignmentVerdict::kInconsistentOverlap: return "inconsistent_overlap";
     case AlignmentVerdict::kDegenerate: return "degenerate";
   }
   return "unknown";
@@ -451,6 +452,16 @@ AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const st
     info = Refine(a, b, inliers, &t);
   }
 
+  // Where the transform lays B over ground A has mapped, B's landmarks should find partners.
+  {
+    const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
+    if (!ua.points.empty()) {
+      const KdTree2 tree(ua.points);
+      for (const Eigen::Vector2d& p : ub.points) {
+        if (!tree.InRadius(t.Apply(p), o.coverage_radius_m).empty()) ++r.covered;
+      }
+    }
+  }
   r.transform = t;
   r.inliers = inliers;
   for (const auto& [ia, ib] : inliers) r.residual_chi2 += PairD2(a.landmarks[ia], b.landmarks[ib], t);
@@ -471,6 +482,10 @@ AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const st
   r.residual_bound = Chi2Quantile(o.residual_probability, std::max(2, 2 * ni - 4));
   if (!std::isfinite(r.residual_chi2) || r.residual_chi2 > r.residual_bound) {
     r.verdict = AlignmentVerdict::kResidualsTooLarge;
+    return r;
+  }
+  if (ni < o.min_overlap_ratio * r.covered) {
+    r.verdict = AlignmentVerdict::kInconsistentOverlap;
     return r;
   }
   if (r.runner_up_support >= o.ambiguity_ratio * r.best_support) {

@@ -47,6 +47,8 @@ struct AlignmentOptions {
   double distinct_translation_m = 2.0;  // hypotheses further apart than this (or the angle) are different
   double distinct_rotation_deg = 10.0;
   bool guided_matching = true;          // after RANSAC, look for inliers among all landmarks, not only candidates
+  double coverage_radius_m = 2.5;       // a moved landmark of B within this of one of A's lies where A has mapped ...
+  double min_overlap_ratio = 0.3;       // ... and at least this share of those must be inliers
 };
 
 // A proposed correspondence: landmark a of map A and landmark b of map B, with the number
@@ -65,6 +67,7 @@ enum class AlignmentVerdict {
   kTooFewInliers,
   kResidualsTooLarge,  // the inliers do not fit the transform as their covariances say
   kAmbiguous,          // another, different transform is nearly as well supported
+  kInconsistentOverlap,  // where the transform lays B over A's mapped area, most of B's landmarks find no partner
   kDegenerate,         // the inliers do not determine the transform (collinear, or singular covariances)
 };
 std::string_view ToString(AlignmentVerdict v);
@@ -82,6 +85,7 @@ struct AlignmentResult {
   int iterations = 0;
   int best_support = 0;                             // RANSAC consensus of the best hypothesis (candidates)
   int runner_up_support = 0;                        // ... of the best hypothesis different from it
+  int covered = 0;                                  // B's landmarks that the transform lays where A has mapped
   double residual_chi2 = 0.0;                       // sum of the inliers' squared Mahalanobis residuals
   double residual_bound = 0.0;                      // the chi-square bound it was tested against
 };
