@@ -12,6 +12,7 @@
 
 #include "common/app/process.h"
 #include "lab/alignment_experiment.h"
+#include "lab/pairs_experiment.h"
 #include "lab/slam_experiment.h"
 #include "sim_feeder/sources.h"
 
@@ -68,6 +69,24 @@ int RunSlamCommand(const app::ProcessOptions& po, int seeds, std::uint64_t first
     }
     std::fprintf(stderr, "\n");
   }
+  return 0;
+}
+
+int RunPairsCommand(const app::ProcessOptions& po, const std::string& datasets, const std::string& csv_path) {
+  const std::optional<Scenario> sc = app::LoadScenarioOrReport("mapmesh-lab", po);
+  if (!sc) return 2;
+  lab::SlamRunOptions options;
+  options.datasets_root = ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot());
+  const auto robots = lab::RunSlam(*sc, options);
+  std::mt19937_64 rng(sc->seed);
+  std::ofstream csv_file;
+  if (!csv_path.empty()) {
+    csv_file.open(csv_path);
+    if (!csv_file) throw std::runtime_error(csv_path + ": cannot open for writing");
+  }
+  std::ostream& csv = csv_path.empty() ? std::cout : csv_file;
+  csv << lab::PairsCsvHeader() << '\n';
+  for (const auto& p : lab::AlignPairs(robots, *sc, AlignmentOptions{}, rng)) csv << lab::PairsCsvRow(p) << '\n';
   return 0;
 }
 
@@ -135,7 +154,14 @@ int Run(int argc, char** argv) {
   al->add_option("--gate", align.euclidean_gate_m, "Euclidean consensus gate (m)");
   al->add_option("--min-inliers", align.min_inliers, "fewer inliers: rejected");
   al->add_option("--csv", align_csv, "write the CSV here (default: stdout)");
+  app::ProcessOptions pairs_po;
+  std::string pairs_csv, pairs_datasets;
+  CLI::App* pairs = cli.add_subcommand("pairs", "run every robot's SLAM, then align every pair of robots by map overlap and by rendezvous");
+  app::AddScenarioOptions(*pairs, pairs_po);
+  pairs->add_option("--datasets", pairs_datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
+  pairs->add_option("--csv", pairs_csv, "write the CSV here (default: stdout)");
   if (auto code = app::ParseArgs(cli, "mapmesh-lab", argc, argv)) return *code;
+  if (pairs->parsed()) return RunPairsCommand(pairs_po, pairs_datasets, pairs_csv);
   if (al->parsed()) {
     align.matcher = matcher == "thesis" ? TriangleMatcher::kThesisSimilarity : TriangleMatcher::kSortedSides;
     align.distance = distance == "euclidean" ? ConsensusDistance::kEuclidean : ConsensusDistance::kMahalanobis;

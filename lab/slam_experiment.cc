@@ -17,11 +17,7 @@
 namespace mapmesh::lab {
 namespace {
 
-struct PoseSample {
-  double t;
-  Pose2 pose;
-  Eigen::Matrix3d cov;
-};
+using PoseSample = SlamRunResult::PoseSample;
 
 // A robot's estimator fed in time order, recording what the scoring needs.
 class RobotRun : public SensorSync::Sink {
@@ -41,6 +37,9 @@ class RobotRun : public SensorSync::Sink {
       ScoreAssociations(scan.obs);
     }
     samples_.push_back({stamp, mapper_->pose(), mapper_->pose_cov()});
+    for (const Observation& o : scan.obs) {
+      if (o.kind == ObservationKind::kRobot) sightings_.push_back({stamp, static_cast<RobotId>(o.signature), o.range, o.bearing});
+    }
   }
   void IntervalDone(const Odometry&) override {}
 
@@ -53,6 +52,7 @@ class RobotRun : public SensorSync::Sink {
   }
   const LocalMapper& mapper() const { return *mapper_; }
   const std::vector<PoseSample>& samples() const { return samples_; }
+  const std::vector<SlamRunResult::Sighting>& sightings() const { return sightings_; }
   long associations = 0, wrong = 0, fresh = 0, dropped = 0;
 
  private:
@@ -80,6 +80,7 @@ class RobotRun : public SensorSync::Sink {
   SensorSync sync_;
   bool hide_;
   std::vector<PoseSample> samples_;
+  std::vector<SlamRunResult::Sighting> sightings_;
   std::unordered_map<std::int64_t, std::int32_t> identity_;
 };
 
@@ -178,6 +179,11 @@ std::vector<SlamRunResult> RunSlam(const Scenario& scenario_in, const SlamRunOpt
         r.trace.push_back({e.times[i], e.errors_m[i], std::nan(""), std::nan("")});
       }
     }
+    r.map = map;
+    r.poses = run->samples();
+    r.sightings = run->sightings();
+    r.origin_truth = origin;
+    r.landmark_truth = world.landmarks;
     r.associations = run->associations;
     r.wrong_associations = run->wrong;
     r.new_landmarks = run->fresh;

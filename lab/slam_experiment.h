@@ -3,10 +3,12 @@
 // each robot's local estimator, with no DDS, and the result is scored against the truth.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "common/config/scenario.h"
+#include "common/map/landmark_map.h"
 
 namespace mapmesh::lab {
 
@@ -41,6 +43,22 @@ struct SlamRunResult {
     double t, position_error_m, heading_error_rad, nees;
   };
   std::vector<TracePoint> trace;
+  // What the run produced, for later experiments (alignment between robots).
+  LandmarkMap map;                              // the final local map, in the robot's frame
+  struct PoseSample {
+    double t;
+    Pose2 pose;
+    Eigen::Matrix3d cov;
+  };
+  std::vector<PoseSample> poses;                // at every scan
+  struct Sighting {
+    double t;
+    RobotId seen;
+    double range, bearing;
+  };
+  std::vector<Sighting> sightings;              // of other robots
+  std::optional<Pose2> origin_truth;            // true pose of the robot's frame, when known
+  std::vector<Eigen::Vector2d> landmark_truth;  // of the world (index = signature)
 };
 
 // Runs the scenario once (its seed as given) and scores every robot.

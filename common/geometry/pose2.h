@@ -49,4 +49,31 @@ struct Pose2 {
   Eigen::Vector3d Vector() const { return {x, y, theta}; }
 };
 
+// a * b with the Jacobians of the result with respect to a and to b.
+inline Pose2 Compose(const Pose2& a, const Pose2& b, Eigen::Matrix3d* j_a, Eigen::Matrix3d* j_b) {
+  const double c = std::cos(a.theta), s = std::sin(a.theta);
+  if (j_a) {
+    *j_a << 1, 0, -s * b.x - c * b.y,  //
+        0, 1, c * b.x - s * b.y,       //
+        0, 0, 1;
+  }
+  if (j_b) {
+    *j_b << c, -s, 0,  //
+        s, c, 0,       //
+        0, 0, 1;
+  }
+  return a * b;
+}
+
+// a^-1 with its Jacobian with respect to a.
+inline Pose2 Invert(const Pose2& a, Eigen::Matrix3d* j_a) {
+  const double c = std::cos(a.theta), s = std::sin(a.theta);
+  if (j_a) {
+    *j_a << -c, -s, s * a.x - c * a.y,  //
+        s, -c, c * a.x + s * a.y,       //
+        0, 0, -1;
+  }
+  return a.Inverse();
+}
+
 }  // namespace mapmesh

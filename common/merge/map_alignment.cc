@@ -110,7 +110,7 @@ int BestShift(const Triangle& x, const Triangle& y, double limit) {
 // correspondence the shared side fixes, if their sides agree. A true overlap is a connected
 // patch of such matches; a coincidental match rarely has even one consistent neighbour.
 void GrowPatch(const TriangleMatch& seed, const std::vector<Triangle>& ta, const std::vector<Triangle>& tb, double k,
-               std::unordered_set<std::int64_t>& visited, std::vector<TriangleMatch>& patch) {
+               double floor, std::unordered_set<std::int64_t>& visited, std::vector<TriangleMatch>& patch) {
   auto key = [](int x, int y) { return (static_cast<std::int64_t>(x) << 32) | y; };
   patch.clear();
   patch.push_back(seed);
@@ -131,7 +131,7 @@ void GrowPatch(const TriangleMatch& seed, const std::vector<Triangle>& ta, const
       if (ja < 0 || jb < 0) continue;
       const int shift = (jb - ja + 3) % 3;
       const Triangle &xx = ta[xn], &yy = tb[yn];
-      const double limit = k * std::sqrt(2.0 * (xx.sigma * xx.sigma + yy.sigma * yy.sigma));
+      const double limit = std::max(floor, k * std::sqrt(2.0 * (xx.sigma * xx.sigma + yy.sigma * yy.sigma)));
       bool agree = true;
       for (int j = 0; j < 3 && agree; ++j) agree = std::abs(xx.opposite(j) - yy.opposite((j + shift) % 3)) <= limit;
       if (!agree) continue;
@@ -272,13 +272,15 @@ std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a, const LandmarkMa
       for (int j : order) {
         const Triangle& y = tb[j];
         // Each side depends on two points of each map: sigma_side^2 ~ 2 (sa^2 + sb^2).
-        const double box = k * std::sqrt(2.0 * (ua.max_sigma * ua.max_sigma + y.sigma * y.sigma));
+        const double floor = o.min_side_tolerance_m;
+        const double box = std::max(floor, k * std::sqrt(2.0 * (ua.max_sigma * ua.max_sigma + y.sigma * y.sigma)));
         const Eigen::Vector3d tol = Eigen::Vector3d::Constant(box);
         for (int i : tree.InBox(y.sorted - tol, y.sorted + tol)) {
           if (visited.count((static_cast<std::int64_t>(i) << 32) | j)) continue;
-          const int shift = BestShift(ta[i], y, k * std::sqrt(2.0 * (ta[i].sigma * ta[i].sigma + y.sigma * y.sigma)));
+          const int shift =
+              BestShift(ta[i], y, std::max(floor, k * std::sqrt(2.0 * (ta[i].sigma * ta[i].sigma + y.sigma * y.sigma))));
           if (shift < 0) continue;
-          GrowPatch({i, j, shift}, ta, tb, k, visited, patch);
+          GrowPatch({i, j, shift}, ta, tb, k, floor, visited, patch);
           if (static_cast<int>(patch.size()) < o.min_consistent_triangles) continue;
           if (patch.size() > best) {
             best = patch.size();

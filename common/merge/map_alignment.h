@@ -29,9 +29,10 @@ enum class ConsensusDistance { kEuclidean, kMahalanobis };
 
 struct AlignmentOptions {
   TriangleMatcher matcher = TriangleMatcher::kSortedSides;
-  double side_tolerance_sigmas = 3.0;   // sorted sides: sides may differ by this many sigmas
+  double side_tolerance_sigmas = 3.0;   // sorted sides: sides may differ by this many sigmas ...
+  double min_side_tolerance_m = 0.1;    // ... and at least this much (SLAM covariances are often optimistic)
   double min_side_m = 0.3;              // triangles with a shorter side are not used
-  int min_consistent_triangles = 3;     // sorted sides: a match counts only in a patch of this many adjacent, consistent matches
+  int min_consistent_triangles = 2;     // sorted sides: a match counts only in a patch of this many adjacent, consistent matches
   int patch_stop_triangles = 12;        // sorted sides: once a patch this large is found ...
   int seeds_after_patch = 100;          // ... this many more seed triangles look for a competitor, then the search stops
   double patch_keep_ratio = 0.25;       // patches smaller than this share of the largest are dropped
