@@ -7,6 +7,8 @@
 #include <type_traits>
 
 #include "common/map/map_codec.h"
+#include "common/merge/map_alignment.h"
+#include "lab/synthetic_maps.h"
 #include "common/slam/cekf_slam.h"
 #include "common/slam/ekf_slam.h"
 #include "common/slam/observation_model.h"
@@ -163,6 +165,71 @@ void BM_CekfSwitch(benchmark::State& state) {
   state.counters["landmarks"] = n;
 }
 BENCHMARK(BM_CekfSwitch)->Arg(250)->Arg(1000)->Arg(2000)->Unit(benchmark::kMillisecond);
+
+// Map alignment (M4): two maps of n landmarks at the thesis's density (0.08 per square
+// metre) sharing a patch of `overlap`, sigma 0.1 m, random frames. Counters: share of
+// correct alignments (within 0.2 m and 1 deg) over the pairs benchmarked.
+lab::MapPair AlignmentCase(int n, double overlap, std::uint64_t seed) {
+  lab::MapPairOptions o;
+  o.landmarks = n;
+  o.overlap = overlap;
+  o.sigma_m = 0.1;
+  o.density_per_m2 = 0.08;
+  std::mt19937_64 rng(seed);
+  return lab::MakeMapPair(o, rng);
+}
+
+bool Correct(const AlignmentResult& r, const lab::MapPair& p) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const Landmark& l : p.b.landmarks) c += l.mean;
+  c /= static_cast<double>(p.b.size());
+  return r.accepted() && (r.transform.Apply(c) - p.truth.Apply(c)).norm() <= 0.2 &&
+         std::abs(WrapAngle(r.transform.theta - p.truth.theta)) <= DegToRad(1.0);
+}
+
+// The whole pipeline: triangles, matching, RANSAC, refinement, tests.
+void BM_AlignMaps(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  const double overlap = static_cast<double>(state.range(1)) / 100.0;
+  std::vector<lab::MapPair> cases;
+  for (int k = 0; k < 20; ++k) cases.push_back(AlignmentCase(n, overlap, 1000 + k));
+  std::mt19937_64 rng(1);
+  std::size_t k = 0;
+  int correct = 0, runs = 0;
+  for (auto _ : state) {
+    const lab::MapPair& p = cases[k++ % cases.size()];
+    const AlignmentResult r = AlignMaps(p.a, p.b, {}, rng);
+    correct += Correct(r, p);
+    ++runs;
+  }
+  state.counters["success"] = static_cast<double>(correct) / runs;
+}
+BENCHMARK(BM_AlignMaps)->Args({1000, 10})->Args({60, 50})->Unit(benchmark::kMillisecond)->Repetitions(5)->ReportAggregatesOnly(true);
+
+// The baseline: RANSAC over every landmark pair (no triangle pre-filter), same tests.
+void BM_AllPairsRansac(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  const double overlap = static_cast<double>(state.range(1)) / 100.0;
+  std::vector<lab::MapPair> cases;
+  for (int k = 0; k < 5; ++k) cases.push_back(AlignmentCase(n, overlap, 1000 + k));
+  AlignmentOptions o;
+  o.max_iterations = 2000000;
+  std::mt19937_64 rng(1);
+  std::size_t k = 0;
+  int correct = 0, runs = 0;
+  for (auto _ : state) {
+    const lab::MapPair& p = cases[k++ % cases.size()];
+    std::vector<CandidatePair> all;
+    for (int i = 0; i < static_cast<int>(p.a.size()); ++i) {
+      for (int j = 0; j < static_cast<int>(p.b.size()); ++j) all.push_back({i, j, 1});
+    }
+    const AlignmentResult r = RansacAlign(p.a, p.b, all, o, rng);
+    correct += Correct(r, p);
+    ++runs;
+  }
+  state.counters["success"] = static_cast<double>(correct) / runs;
+}
+BENCHMARK(BM_AllPairsRansac)->Args({60, 50})->Unit(benchmark::kMillisecond)->Iterations(5);
 
 }  // namespace
 }  // namespace mapmesh

@@ -42,6 +42,8 @@ std::vector<AlignTrial> RunAlignTrials(const MapPairOptions& maps, const Alignme
     for (const CandidatePair& c : cand) true_cand += truth.count({c.a, c.b});
     t.candidate_precision = cand.empty() ? 0.0 : static_cast<double>(true_cand) / cand.size();
     t.inliers = static_cast<int>(r.inliers.size());
+    t.best_support = r.best_support;
+    t.runner_up_support = r.runner_up_support;
     int true_inl = 0;
     for (const auto& p : r.inliers) true_inl += truth.count(p);
     t.inlier_precision = r.inliers.empty() ? 0.0 : static_cast<double>(true_inl) / r.inliers.size();
@@ -59,14 +61,15 @@ std::vector<AlignTrial> RunAlignTrials(const MapPairOptions& maps, const Alignme
 
 std::string AlignCsvHeader() {
   return "trial,landmarks_a,landmarks_b,shared,verdict,correct,translation_error_m,rotation_error_deg,candidates,"
-         "candidate_precision,inliers,inlier_precision,match_ms,ransac_ms";
+         "candidate_precision,inliers,inlier_precision,best_support,runner_up_support,match_ms,ransac_ms";
 }
 
 std::string AlignCsvRow(const AlignTrial& t) {
   std::ostringstream s;
   s << t.trial << ',' << t.landmarks_a << ',' << t.landmarks_b << ',' << t.shared << ',' << ToString(t.verdict) << ','
     << (t.correct ? 1 : 0) << ',' << t.translation_error_m << ',' << t.rotation_error_deg << ',' << t.candidates << ','
-    << t.candidate_precision << ',' << t.inliers << ',' << t.inlier_precision << ',' << t.match_ms << ','
+    << t.candidate_precision << ',' << t.inliers << ',' << t.inlier_precision << ',' << t.best_support << ','
+    << t.runner_up_support << ',' << t.match_ms << ','
     << t.ransac_ms;
   return s.str();
 }

@@ -21,6 +21,7 @@ struct AlignTrial {
   double candidate_precision = 0.0;  // thesis "similarity success": share of candidate pairs that are true
   int inliers = 0;
   double inlier_precision = 0.0;     // share of the accepted inliers that are true pairs
+  int best_support = 0, runner_up_support = 0;  // RANSAC consensus of the best and of the best different hypothesis
   double match_ms = 0.0, ransac_ms = 0.0;
 };
 

@@ -13,6 +13,7 @@
 #include "common/app/process.h"
 #include "lab/alignment_experiment.h"
 #include "lab/pairs_experiment.h"
+#include "lab/thesis_alignment.h"
 #include "lab/slam_experiment.h"
 #include "sim_feeder/sources.h"
 
@@ -160,7 +161,20 @@ int Run(int argc, char** argv) {
   app::AddScenarioOptions(*pairs, pairs_po);
   pairs->add_option("--datasets", pairs_datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
   pairs->add_option("--csv", pairs_csv, "write the CSV here (default: stdout)");
+  lab::ThesisAlignmentOptions ta;
+  std::string ta_dir = "lab-out/alignment";
+  CLI::App* thesis_align =
+      cli.add_subcommand("thesis-align", "the thesis's alignment experiments (Figs. 46, 48-53): CSVs for scripts/plots/alignment.py");
+  thesis_align->add_option("--out", ta_dir, "directory for the CSVs");
+  thesis_align->add_option("--trials", ta.trials, "runs per point of each curve")->check(CLI::PositiveNumber);
+  thesis_align->add_option("--seed", ta.seed, "first seed");
   if (auto code = app::ParseArgs(cli, "mapmesh-lab", argc, argv)) return *code;
+  if (thesis_align->parsed()) {
+    lab::RunThesisAlignment(ta_dir, ta);
+    std::fprintf(stderr, "mapmesh-lab: CSVs in %s (plot: /usr/bin/python3 scripts/plots/alignment.py %s)\n", ta_dir.c_str(),
+                 ta_dir.c_str());
+    return 0;
+  }
   if (pairs->parsed()) return RunPairsCommand(pairs_po, pairs_datasets, pairs_csv);
   if (al->parsed()) {
     align.matcher = matcher == "thesis" ? TriangleMatcher::kThesisSimilarity : TriangleMatcher::kSortedSides;

@@ -368,8 +368,19 @@ AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const st
   Eigen::Vector2d centroid_b = Eigen::Vector2d::Zero();
   for (const CandidatePair& c : cand) centroid_b += b.landmarks[c.b].mean;
   centroid_b /= static_cast<double>(cand.size());
+  // Hypotheses closer than the consensus gate's radius share their inliers: they are one
+  // hypothesis, however noisy the maps (the median pair's radius sets the scale).
+  std::vector<double> pair_sigma;
+  pair_sigma.reserve(cand.size());
+  for (const CandidatePair& c : cand) {
+    pair_sigma.push_back(std::hypot(LargestSigma(a.landmarks[c.a].cov), LargestSigma(b.landmarks[c.b].cov)));
+  }
+  std::nth_element(pair_sigma.begin(), pair_sigma.begin() + pair_sigma.size() / 2, pair_sigma.end());
+  const double gate_radius =
+      o.distance == ConsensusDistance::kEuclidean ? o.euclidean_gate_m : std::sqrt(gate) * pair_sigma[pair_sigma.size() / 2];
+  const double distinct_m = std::max(o.distinct_translation_m, gate_radius);
   auto distinct = [&](const Pose2& x, const Pose2& y) {
-    return (x.Apply(centroid_b) - y.Apply(centroid_b)).norm() > o.distinct_translation_m ||
+    return (x.Apply(centroid_b) - y.Apply(centroid_b)).norm() > distinct_m ||
            std::abs(WrapAngle(x.theta - y.theta)) > DegToRad(o.distinct_rotation_deg);
   };
 

@@ -45,7 +45,8 @@ struct AlignmentOptions {
   int min_inliers = 6;                  // fewer inliers: rejected
   double residual_probability = 0.999;  // chi-square test on the inliers' residuals
   double ambiguity_ratio = 0.7;         // a different hypothesis with this share of the best's inliers: ambiguous
-  double distinct_translation_m = 2.0;  // hypotheses further apart than this (or the angle) are different
+  double distinct_translation_m = 2.0;  // hypotheses further apart than this (and than the consensus gate's
+                                        // radius) or than the angle are different
   double distinct_rotation_deg = 10.0;
   bool guided_matching = true;          // after RANSAC, look for inliers among all landmarks, not only candidates
   double coverage_radius_m = 2.5;       // a moved landmark of B within this of one of A's lies where A has mapped ...

@@ -9,14 +9,19 @@ namespace mapmesh {
 double Chi2Cdf(double x, int dof) {
   MAPMESH_CHECK(dof > 0 && dof % 2 == 0, "even degrees of freedom only");
   if (x <= 0.0) return 0.0;
+  if (!std::isfinite(x)) return 1.0;
+  // 1 - P(Poisson(h) < k). The terms exp(-h) h^i / i! are summed relative to the largest
+  // one, walking down and up from it by the ratio h / i, so that neither exp(-h) nor h^i
+  // under- or overflows for large dof; terms too small to matter end the walk.
   const double h = 0.5 * x;
-  // Sum the Poisson terms in log space to stay finite for large dof.
-  double term = std::exp(-h), sum = term;
-  for (int i = 1; i < dof / 2; ++i) {
-    term *= h / i;
-    sum += term;
-  }
-  return 1.0 - std::min(1.0, sum);
+  const int k = dof / 2;
+  const int peak = std::min(k - 1, static_cast<int>(h));
+  double sum = 1.0, term = 1.0;
+  for (int i = peak; i > 0 && term > 1e-18 * sum; --i) sum += (term *= i / h);
+  term = 1.0;
+  for (int i = peak + 1; i < k && term > 1e-18 * sum; ++i) sum += (term *= h / i);
+  const double log_peak = -h + peak * std::log(h) - std::lgamma(peak + 1.0);
+  return 1.0 - std::min(1.0, sum * std::exp(log_peak));
 }
 
 double Chi2Quantile(double p, int dof) {

@@ -19,5 +19,15 @@ TEST(Chi2, KnownQuantiles) {
   EXPECT_DOUBLE_EQ(Chi2Cdf(-1.0, 2), 0.0);
 }
 
+TEST(Chi2, LargeDegreesOfFreedom) {
+  // exp(-x/2) underflows beyond x ~ 1490: alignment tests sums over a thousand inliers.
+  // Reference values from scipy.stats.chi2.
+  EXPECT_NEAR(Chi2Quantile(0.999, 1000), 1143.9171, 1e-3);
+  EXPECT_NEAR(Chi2Quantile(0.999, 1756), 1944.8473, 1e-3);
+  EXPECT_NEAR(Chi2Cdf(2000.0, 1900), 0.945793, 1e-5);
+  EXPECT_NEAR(Chi2Cdf(1e5, 2), 1.0, 1e-15);
+  EXPECT_LT(Chi2Cdf(100.0, 1000), 1e-100);
+}
+
 }  // namespace
 }  // namespace mapmesh
