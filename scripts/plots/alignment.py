@@ -40,6 +40,9 @@ def panel(ax, series, title, xlabel, ylabel, label_fmt="{}"):
 
 
 def main(argv):
+    if len(argv) == 2 and argv[1] in ("-h", "--help"):
+        print(__doc__.strip())
+        return 0
     if len(argv) != 2:
         print(__doc__.strip(), file=sys.stderr)
         return 2

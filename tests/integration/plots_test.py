@@ -1,0 +1,44 @@
+"""The lab's experiment CSVs through their plot scripts: every figure is written and is a PNG
+of non-trivial size. Plots run with Debian's /usr/bin/python3 (matplotlib, numpy)."""
+
+import os
+import subprocess
+import tempfile
+import unittest
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+BIN = Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+class AlignmentPlotsTest(unittest.TestCase):
+    def test_thesis_alignment_figures(self):
+        with tempfile.TemporaryDirectory(prefix="mapmesh_plots_") as tmp:
+            out = Path(tmp) / "alignment"
+            subprocess.run([str(BIN / "mapmesh-lab"), "thesis-align", "--out", str(out), "--trials", "1"],
+                           check=True, capture_output=True, timeout=120)
+            r = subprocess.run(["/usr/bin/python3", str(REPO / "scripts" / "plots" / "alignment.py"), str(out)],
+                               capture_output=True, text=True, timeout=120)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            pngs = sorted(out.glob("*.png"))
+            self.assertEqual([p.name for p in pngs], ["fig46_similarity.png", "fig48_50_noise.png",
+                                                      "fig49_51_match_ratio.png", "fig52_53_distance.png"])
+            for p in pngs:
+                data = p.read_bytes()
+                self.assertTrue(data.startswith(PNG_SIGNATURE), p.name)
+                self.assertGreater(len(data), 10_000, p.name)
+
+    def test_help_and_missing_directory(self):
+        script = str(REPO / "scripts" / "plots" / "alignment.py")
+        h = subprocess.run(["/usr/bin/python3", script, "--help"], capture_output=True, text=True, timeout=60)
+        self.assertEqual(h.returncode, 0)
+        self.assertIn("Usage", h.stdout)
+        r = subprocess.run(["/usr/bin/python3", script, "/nonexistent/dir"],
+                           capture_output=True, text=True, timeout=60)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+
+
+if __name__ == "__main__":
+    unittest.main()
