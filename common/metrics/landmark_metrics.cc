@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <tuple>
 
 #include "common/geometry/rigid_fit.h"
@@ -15,6 +16,20 @@ double Nees(const Eigen::Vector2d& estimate, const Eigen::Matrix2d& cov, const E
   if (!(det > 0.0) || !std::isfinite(det)) return std::numeric_limits<double>::infinity();
   const Eigen::Vector2d e = estimate - truth;
   return e.dot(cov.inverse() * e);
+}
+
+double EllipseArea(const Eigen::Matrix2d& cov) {
+  return std::numbers::pi * std::sqrt(std::max(0.0, cov.determinant()));
+}
+
+AssociationScore ScoreAssociations(const std::vector<std::pair<int, int>>& predicted, int possible) {
+  AssociationScore s;
+  s.predicted = static_cast<int>(predicted.size());
+  s.possible = possible;
+  for (const auto& [a, b] : predicted) s.correct += a >= 0 && a == b;
+  if (s.predicted > 0) s.precision = static_cast<double>(s.correct) / s.predicted;
+  if (s.possible > 0) s.recall = static_cast<double>(s.correct) / s.possible;
+  return s;
 }
 
 std::vector<int> MatchToTruth(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "common/geometry/pose2.h"
@@ -17,6 +18,20 @@ inline constexpr double kChi2Dof2P95 = 5.991464547107979;
 
 // NEES of one 2D estimate: e^T cov^-1 e (thesis eq. 94). Infinite when cov is singular.
 double Nees(const Eigen::Vector2d& estimate, const Eigen::Matrix2d& cov, const Eigen::Vector2d& truth);
+
+// Area of the covariance's one-sigma ellipse, pi sqrt(det) (thesis eq. 97); the 95 % ellipse
+// drawn in plots (2.448 sigma) is 5.99 times larger.
+double EllipseArea(const Eigen::Matrix2d& cov);
+
+// Association quality against the truth: `predicted` holds, for each pairing an associator
+// made, the true identities of its two sides (-1: no true counterpart); `possible` is the
+// number of pairings the truth allows (landmarks both sides hold).
+struct AssociationScore {
+  int predicted = 0, correct = 0, possible = 0;
+  double precision = 1.0;  // correct / predicted (1 when nothing was predicted)
+  double recall = 1.0;     // correct / possible (1 when nothing was possible)
+};
+AssociationScore ScoreAssociations(const std::vector<std::pair<int, int>>& predicted, int possible);
 
 // Each estimated landmark's true counterpart (index into truth), or -1.
 // A landmark with a signature is matched to that true landmark; one without is matched to

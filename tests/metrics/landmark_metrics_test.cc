@@ -67,5 +67,30 @@ TEST(TransformMap, MovesMeansAndRotatesCovariances) {
   EXPECT_NEAR(t.landmarks[0].cov(1, 1), 4, 1e-12);
 }
 
+TEST(LandmarkMetrics, EllipseAreaIsPiSqrtDet) {
+  EXPECT_NEAR(EllipseArea(Eigen::Matrix2d::Identity()), M_PI, 1e-12);
+  Eigen::Matrix2d c;
+  c << 4.0, 0.0, 0.0, 0.25;  // semi-axes 2 and 0.5
+  EXPECT_NEAR(EllipseArea(c), M_PI * 2.0 * 0.5, 1e-12);
+  // Rotation does not change the area.
+  const double a = 0.7;
+  Eigen::Matrix2d r;
+  r << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
+  EXPECT_NEAR(EllipseArea(r * c * r.transpose()), M_PI, 1e-12);
+}
+
+TEST(LandmarkMetrics, AssociationPrecisionAndRecall) {
+  // Four pairings made: two right, one wrong, one with a side that has no true counterpart;
+  // five were possible.
+  const AssociationScore s = ScoreAssociations({{3, 3}, {5, 5}, {1, 2}, {-1, -1}}, 5);
+  EXPECT_EQ(s.predicted, 4);
+  EXPECT_EQ(s.correct, 2);
+  EXPECT_DOUBLE_EQ(s.precision, 0.5);
+  EXPECT_DOUBLE_EQ(s.recall, 0.4);
+  const AssociationScore none = ScoreAssociations({}, 0);
+  EXPECT_DOUBLE_EQ(none.precision, 1.0);
+  EXPECT_DOUBLE_EQ(none.recall, 1.0);
+}
+
 }  // namespace
 }  // namespace mapmesh

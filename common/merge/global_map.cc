@@ -1,0 +1,290 @@
+#include "common/merge/global_map.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <tuple>
+
+#include "common/merge/spatial.h"
+#include "common/metrics/chi2.h"
+
+namespace mapmesh {
+namespace {
+
+double LargestEigen(const Eigen::Matrix2d& c) {
+  const double tr = c.trace(), det = c.determinant();
+  return 0.5 * tr + std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
+}
+
+// d(T(m))/d(x, y, theta).
+Eigen::Matrix<double, 2, 3> TransformJacobian(const Eigen::Vector2d& m, const Pose2& t) {
+  const double c = std::cos(t.theta), s = std::sin(t.theta);
+  Eigen::Matrix<double, 2, 3> j;
+  j << 1.0, 0.0, -s * m.x() - c * m.y(),  //
+      0.0, 1.0, c * m.x() - s * m.y();
+  return j;
+}
+
+struct Cluster {
+  Gaussian2 anchor;                  // the estimate candidates are gated against
+  std::vector<Gaussian2> inputs;     // everything fused into it, anchor first
+  std::vector<LandmarkOrigin> origins;
+  std::int32_t signature = -1;
+};
+
+// One gated candidate pairing of a source landmark with a cluster.
+struct Edge {
+  int s = 0;        // source landmark (index into the moved landmarks)
+  int c = 0;        // cluster
+  double d2 = 0.0;  // individual squared Mahalanobis distance
+};
+
+// Joint compatibility branch and bound over one connected group of candidate edges.
+class Jcbb {
+ public:
+  Jcbb(const std::vector<Landmark>& moved, const std::vector<Eigen::Matrix<double, 2, 3>>& jac,
+       const Eigen::Matrix3d& t_cov, const std::vector<Cluster>& clusters, double gate_probability, long max_nodes)
+      : moved_(moved), jac_(jac), t_cov_(t_cov), clusters_(clusters), p_(gate_probability), max_nodes_(max_nodes) {}
+
+  // The best assignment (per source landmark of the group: a cluster or -1): most pairings,
+  // then the lowest joint distance.
+  std::vector<int> Solve(const std::vector<int>& group, const std::vector<std::vector<Edge>>& edges_of) {
+    group_ = &group;
+    edges_of_ = &edges_of;
+    current_.assign(group.size(), -1);
+    best_ = current_;
+    best_pairs_ = 0;
+    best_d2_ = std::numeric_limits<double>::infinity();
+    nodes_ = 0;
+    Search(0, 0);
+    return best_;
+  }
+
+ private:
+  // Joint squared distance of the pairings in current_ (first k of the group), or infinity
+  // when they fail the joint gate.
+  double JointD2(std::size_t k, int pairs) const {
+    if (pairs == 0) return 0.0;
+    Eigen::VectorXd nu(2 * pairs);
+    Eigen::MatrixXd s = Eigen::MatrixXd::Zero(2 * pairs, 2 * pairs);
+    std::vector<int> idx;
+    for (std::size_t i = 0; i < k; ++i) {
+      if (current_[i] >= 0) idx.push_back(static_cast<int>(i));
+    }
+    for (int a = 0; a < pairs; ++a) {
+      const int si = (*group_)[idx[a]];
+      const Cluster& ca = clusters_[current_[idx[a]]];
+      nu.segment<2>(2 * a) = ca.anchor.mean - moved_[si].mean;
+      s.block<2, 2>(2 * a, 2 * a) = ca.anchor.cov + moved_[si].cov;
+      for (int b = a + 1; b < pairs; ++b) {
+        const int sj = (*group_)[idx[b]];
+        // The shared alignment error correlates the two source landmarks.
+        const Eigen::Matrix2d cross = jac_[si] * t_cov_ * jac_[sj].transpose();
+        s.block<2, 2>(2 * a, 2 * b) = cross;
+        s.block<2, 2>(2 * b, 2 * a) = cross.transpose();
+      }
+    }
+    const Eigen::LLT<Eigen::MatrixXd> llt(s);
+    if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+    const double d2 = nu.dot(llt.solve(nu));
+    return d2 < Chi2Quantile(p_, 2 * pairs) ? d2 : std::numeric_limits<double>::infinity();
+  }
+
+  void Search(std::size_t k, int pairs) {
+    if (++nodes_ > max_nodes_) return;
+    const std::size_t n = group_->size();
+    if (pairs + static_cast<int>(n - k) < best_pairs_) return;
+    if (k == n) {
+      const double d2 = JointD2(n, pairs);
+      if (pairs > best_pairs_ || (pairs == best_pairs_ && d2 < best_d2_)) {
+        best_pairs_ = pairs;
+        best_d2_ = d2;
+        best_ = current_;
+      }
+      return;
+    }
+    for (const Edge& e : (*edges_of_)[(*group_)[k]]) {
+      if (std::find(current_.begin(), current_.begin() + static_cast<long>(k), e.c) != current_.begin() + static_cast<long>(k)) {
+        continue;  // one source landmark per cluster
+      }
+      current_[k] = e.c;
+      if (std::isfinite(JointD2(k + 1, pairs + 1))) Search(k + 1, pairs + 1);
+      current_[k] = -1;
+    }
+    Search(k + 1, pairs);
+  }
+
+  const std::vector<Landmark>& moved_;
+  const std::vector<Eigen::Matrix<double, 2, 3>>& jac_;
+  const Eigen::Matrix3d& t_cov_;
+  const std::vector<Cluster>& clusters_;
+  double p_;
+  long max_nodes_;
+  const std::vector<int>* group_ = nullptr;
+  const std::vector<std::vector<Edge>>* edges_of_ = nullptr;
+  std::vector<int> current_, best_;
+  int best_pairs_ = 0;
+  double best_d2_ = 0.0;
+  long nodes_ = 0;
+};
+
+bool Usable(const Landmark& l, GlobalMapStats& stats) {
+  switch (CheckEstimate({l.mean, l.cov})) {
+    case FusionVerdict::kFused: return true;
+    case FusionVerdict::kNonFiniteMean: ++stats.non_finite_mean; break;
+    case FusionVerdict::kInvalidCovariance: ++stats.invalid_covariance; break;
+    default: ++stats.singular_covariance; break;
+  }
+  ++stats.rejected_landmarks;
+  return false;
+}
+
+bool ValidTransform(const MapSource& s) {
+  if (!std::isfinite(s.to_own.x) || !std::isfinite(s.to_own.y) || !std::isfinite(s.to_own.theta)) return false;
+  const Eigen::Matrix3d& c = s.to_own_cov;
+  if (!c.allFinite() || (c - c.transpose()).norm() > 1e-9 * std::max(1e-300, c.norm())) return false;
+  const double scale = std::max(1e-300, c.norm());
+  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(c).eigenvalues().minCoeff() >= -1e-12 * scale;
+}
+
+}  // namespace
+
+Landmark TransformLandmark(const Landmark& l, const Pose2& t, const Eigen::Matrix3d& t_cov) {
+  Landmark out = l;
+  const Eigen::Matrix2d r = t.Rotation();
+  const Eigen::Matrix<double, 2, 3> j = TransformJacobian(l.mean, t);
+  out.mean = t.Apply(l.mean);
+  out.cov = r * l.cov * r.transpose() + j * t_cov * j.transpose();
+  out.cov = 0.5 * (out.cov + out.cov.transpose()).eval();
+  return out;
+}
+
+GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const MapSource> sources,
+                         const GlobalMapOptions& o) {
+  GlobalMap g;
+  std::vector<Cluster> clusters;
+  clusters.reserve(local.size());
+  for (const Landmark& l : local.landmarks) {
+    if (!Usable(l, g.stats)) continue;
+    const Gaussian2 e{l.mean, l.cov};
+    clusters.push_back({e, {e}, {{self, l.id}}, l.signature});
+    ++g.stats.local;
+  }
+  const double gate = Chi2Quantile(o.gate_probability, 2);
+
+  for (const MapSource& src : sources) {
+    if (!ValidTransform(src)) {
+      ++g.stats.rejected_sources;
+      continue;
+    }
+    ++g.stats.sources;
+    // The source's usable landmarks, in the own frame.
+    std::vector<Landmark> moved;
+    std::vector<Eigen::Matrix<double, 2, 3>> jac;
+    for (const Landmark& l : src.map.landmarks) {
+      if (!Usable(l, g.stats)) continue;
+      moved.push_back(TransformLandmark(l, src.to_own, src.to_own_cov));
+      jac.push_back(TransformJacobian(l.mean, src.to_own));
+    }
+    // Gated candidates: a radius search on the anchors, then the Mahalanobis test.
+    std::vector<std::vector<Edge>> edges_of(moved.size());
+    std::vector<std::vector<int>> sources_of(clusters.size());
+    if (!clusters.empty() && !moved.empty()) {
+      std::vector<Eigen::Vector2d> anchors;
+      anchors.reserve(clusters.size());
+      double max_anchor = 0.0;
+      for (const Cluster& c : clusters) {
+        anchors.push_back(c.anchor.mean);
+        max_anchor = std::max(max_anchor, LargestEigen(c.anchor.cov));
+      }
+      const KdTree2 tree(anchors);
+      for (std::size_t s = 0; s < moved.size(); ++s) {
+        const double radius = std::sqrt(gate * (max_anchor + LargestEigen(moved[s].cov)));
+        for (int c : tree.InRadius(moved[s].mean, radius)) {
+          const Eigen::Vector2d nu = clusters[c].anchor.mean - moved[s].mean;
+          const Eigen::Matrix2d cov = clusters[c].anchor.cov + moved[s].cov;
+          const double d2 = nu.dot(cov.inverse() * nu);
+          if (d2 < gate) {
+            edges_of[s].push_back({static_cast<int>(s), c, d2});
+            sources_of[c].push_back(static_cast<int>(s));
+          }
+        }
+        std::sort(edges_of[s].begin(), edges_of[s].end(), [](const Edge& a, const Edge& b) { return a.d2 < b.d2; });
+      }
+    }
+    // Connected groups of source landmarks through shared candidate clusters.
+    std::vector<int> assign(moved.size(), -1), group_of(moved.size(), -1);
+    Jcbb jcbb(moved, jac, src.to_own_cov, clusters, o.gate_probability, o.max_jcbb_nodes);
+    for (std::size_t s0 = 0; s0 < moved.size(); ++s0) {
+      if (group_of[s0] >= 0 || edges_of[s0].empty()) continue;
+      std::vector<int> group{static_cast<int>(s0)};
+      group_of[s0] = static_cast<int>(s0);
+      for (std::size_t h = 0; h < group.size(); ++h) {
+        for (const Edge& e : edges_of[group[h]]) {
+          for (int s : sources_of[e.c]) {
+            if (group_of[s] < 0) {
+              group_of[s] = static_cast<int>(s0);
+              group.push_back(s);
+            }
+          }
+        }
+      }
+      if (group.size() == 1 && edges_of[s0].size() == 1) {
+        assign[s0] = edges_of[s0][0].c;
+        continue;
+      }
+      std::sort(group.begin(), group.end());
+      if (static_cast<int>(group.size()) <= o.max_jcbb_landmarks) {
+        ++g.stats.ambiguous_groups;
+        const std::vector<int> best = jcbb.Solve(group, edges_of);
+        for (std::size_t i = 0; i < group.size(); ++i) assign[group[i]] = best[i];
+      } else {
+        ++g.stats.greedy_groups;
+        std::vector<Edge> all;
+        for (int s : group) all.insert(all.end(), edges_of[s].begin(), edges_of[s].end());
+        std::sort(all.begin(), all.end(), [](const Edge& a, const Edge& b) { return a.d2 < b.d2; });
+        std::vector<bool> taken(clusters.size(), false);
+        for (const Edge& e : all) {
+          if (assign[e.s] >= 0 || taken[e.c]) continue;
+          assign[e.s] = e.c;
+          taken[e.c] = true;
+        }
+      }
+    }
+    // Fuse into the matched clusters; start new ones for the rest.
+    for (std::size_t s = 0; s < moved.size(); ++s) {
+      const Gaussian2 e{moved[s].mean, moved[s].cov};
+      const LandmarkOrigin origin{src.robot, moved[s].id};
+      if (assign[s] >= 0) {
+        Cluster& c = clusters[assign[s]];
+        c.inputs.push_back(e);
+        c.origins.push_back(origin);
+        if (c.signature != moved[s].signature) c.signature = -1;
+        ++g.stats.associated;
+      } else {
+        clusters.push_back({e, {e}, {origin}, moved[s].signature});
+        ++g.stats.appended;
+      }
+    }
+  }
+
+  g.map.landmarks.reserve(clusters.size());
+  g.origins.reserve(clusters.size());
+  for (Cluster& c : clusters) {
+    const FusionResult f = Fuse(c.inputs, o.method);
+    Landmark l;
+    l.id = static_cast<std::uint32_t>(g.map.size());
+    l.signature = c.signature;
+    l.mean = f.ok() ? f.fused.mean : c.anchor.mean;
+    l.cov = f.ok() ? f.fused.cov : c.anchor.cov;
+    g.map.landmarks.push_back(l);
+    g.origins.push_back(std::move(c.origins));
+  }
+  return g;
+}
+
+}  // namespace mapmesh
