@@ -12,6 +12,8 @@
 
 #include "common/app/process.h"
 #include "lab/alignment_experiment.h"
+#include "lab/fusion_experiment.h"
+#include "lab/thesis_fusion.h"
 #include "lab/pairs_experiment.h"
 #include "lab/thesis_alignment.h"
 #include "lab/slam_experiment.h"
@@ -20,14 +22,24 @@
 namespace mapmesh {
 namespace {
 
+// The CSV output: the file given, or stdout when none is.
+class CsvOut {
+ public:
+  explicit CsvOut(const std::string& path) {
+    if (path.empty()) return;
+    file_.open(path);
+    if (!file_) throw std::runtime_error(path + ": cannot open for writing");
+  }
+  std::ostream& stream() { return file_.is_open() ? file_ : std::cout; }
+
+ private:
+  std::ofstream file_;
+};
+
 int RunSlamCommand(const app::ProcessOptions& po, int seeds, std::uint64_t first_seed, bool hide,
                    const std::string& datasets, const std::string& csv_path, const std::string& trace_dir) {
-  std::ofstream csv_file;
-  if (!csv_path.empty()) {
-    csv_file.open(csv_path);
-    if (!csv_file) throw std::runtime_error(csv_path + ": cannot open for writing");
-  }
-  std::ostream& csv = csv_path.empty() ? std::cout : csv_file;
+  CsvOut out(csv_path);
+  std::ostream& csv = out.stream();
   csv << lab::SlamCsvHeader() << '\n';
   lab::SlamRunOptions options;
   options.datasets_root = ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot());
@@ -80,12 +92,8 @@ int RunPairsCommand(const app::ProcessOptions& po, const std::string& datasets, 
   options.datasets_root = ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot());
   const auto robots = lab::RunSlam(*sc, options);
   std::mt19937_64 rng(sc->seed);
-  std::ofstream csv_file;
-  if (!csv_path.empty()) {
-    csv_file.open(csv_path);
-    if (!csv_file) throw std::runtime_error(csv_path + ": cannot open for writing");
-  }
-  std::ostream& csv = csv_path.empty() ? std::cout : csv_file;
+  CsvOut out(csv_path);
+  std::ostream& csv = out.stream();
   csv << lab::PairsCsvHeader() << '\n';
   for (const auto& p : lab::AlignPairs(robots, *sc, AlignmentOptions{}, rng)) csv << lab::PairsCsvRow(p) << '\n';
   return 0;
@@ -93,12 +101,8 @@ int RunPairsCommand(const app::ProcessOptions& po, const std::string& datasets, 
 
 int RunAlignCommand(const lab::MapPairOptions& maps, const AlignmentOptions& align, int trials, std::uint64_t seed,
                     const std::string& csv_path) {
-  std::ofstream csv_file;
-  if (!csv_path.empty()) {
-    csv_file.open(csv_path);
-    if (!csv_file) throw std::runtime_error(csv_path + ": cannot open for writing");
-  }
-  std::ostream& csv = csv_path.empty() ? std::cout : csv_file;
+  CsvOut out(csv_path);
+  std::ostream& csv = out.stream();
   csv << lab::AlignCsvHeader() << '\n';
   const auto results = lab::RunAlignTrials(maps, align, trials, seed);
   int accepted = 0, correct = 0;
@@ -117,6 +121,29 @@ int RunAlignCommand(const lab::MapPairOptions& maps, const AlignmentOptions& ali
                "median time %.2f ms\n",
                trials, accepted, correct, 100.0 * correct / std::max(1, trials), precision / std::max(1, trials),
                ms.empty() ? 0.0 : ms[ms.size() / 2]);
+  return 0;
+}
+
+int RunFusionCommand(const app::ProcessOptions& po, const std::string& param, const std::vector<double>& values,
+                     lab::FusionSweepOptions so, const std::string& datasets, const std::string& csv_path) {
+  so.values = values;
+  so.slam.datasets_root = ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot());
+  so.progress = [](int done, int total) {
+    if (isatty(STDERR_FILENO)) std::fprintf(stderr, "\rmapmesh-lab: run %d/%d%s", done, total, done == total ? "\n" : "");
+  };
+  // Validate the scenario and the key once, with a one-line error, before the sweep.
+  app::ProcessOptions first = po;
+  first.sets.push_back(param + "=" + std::to_string(values.front()));
+  if (!app::LoadScenarioOrReport("mapmesh-lab", first)) return 2;
+  const auto make = [&](double value, std::uint64_t seed) {
+    std::vector<ConfigOverride> overrides;
+    for (const auto& s : po.sets) overrides.push_back(ParseOverride(s));
+    overrides.push_back(ParseOverride(param + "=" + std::to_string(value)));
+    overrides.push_back(ParseOverride("seed=" + std::to_string(seed)));
+    return LoadScenario(po.scenario_path, overrides, po.agents);
+  };
+  CsvOut out(csv_path);
+  out.stream() << lab::FusionSweepCsv(param, lab::RunFusionSweep(make, so));
   return 0;
 }
 
@@ -168,7 +195,44 @@ int Run(int argc, char** argv) {
   thesis_align->add_option("--out", ta_dir, "directory for the CSVs");
   thesis_align->add_option("--trials", ta.trials, "runs per point of each curve")->check(CLI::PositiveNumber);
   thesis_align->add_option("--seed", ta.seed, "first seed");
+  app::ProcessOptions fusion_po;
+  std::string fusion_param, fusion_csv, fusion_datasets;
+  std::vector<double> fusion_values;
+  lab::FusionSweepOptions fusion_so;
+  CLI::App* fusion = cli.add_subcommand(
+      "fusion", "sweep a scenario key; fuse robot 2's map into robot 1's global map with every estimator (thesis 5.2)");
+  app::AddScenarioOptions(*fusion, fusion_po);
+  fusion->add_option("--param", fusion_param, "the scenario key to sweep, e.g. robots.list[1].sensor.sigma_bearing_deg")->required();
+  fusion->add_option("--values", fusion_values, "its values (comma-separated)")->required()->delimiter(',');
+  fusion->add_option("--seeds", fusion_so.seeds, "Monte Carlo runs per value")->check(CLI::PositiveNumber);
+  fusion->add_option("--first-seed", fusion_so.first_seed, "seed of the first run");
+  fusion->add_option("--threads", fusion_so.threads, "worker threads (default: the machine's cores)")->check(CLI::NonNegativeNumber);
+  fusion->add_flag("--oracle-alignment", fusion_so.trial.oracle_alignment, "use the true transform instead of aligning the maps");
+  fusion->add_option("--datasets", fusion_datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
+  fusion->add_option("--csv", fusion_csv, "write the CSV here (default: stdout)");
+  lab::ThesisFusionOptions tf;
+  std::string tf_dir = "lab-out/fusion", tf_datasets;
+  CLI::App* thesis_fusion = cli.add_subcommand(
+      "thesis-fusion", "the thesis's fusion experiments (Figs. 61-62, 64-65, 72-73, Table 7): CSVs for scripts/plots/fusion.py");
+  thesis_fusion->add_option("--out", tf_dir, "directory for the CSVs");
+  thesis_fusion->add_option("--seeds", tf.seeds, "Monte Carlo runs per point")->check(CLI::PositiveNumber);
+  thesis_fusion->add_option("--first-seed", tf.first_seed, "seed of the first run");
+  thesis_fusion->add_option("--threads", tf.threads, "worker threads (default: the machine's cores)")->check(CLI::NonNegativeNumber);
+  thesis_fusion->add_option("--only", tf.only, "run only these: bearing, velocity, range, victoria")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"bearing", "velocity", "range", "victoria"}));
+  thesis_fusion->add_flag("--oracle-alignment", tf.oracle_alignment, "use the true transforms instead of aligning the maps");
+  thesis_fusion->add_option("--datasets", tf_datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
   if (auto code = app::ParseArgs(cli, "mapmesh-lab", argc, argv)) return *code;
+  if (thesis_fusion->parsed()) {
+    tf.scenarios_dir = MAPMESH_SOURCE_DIR "/scenarios";
+    tf.datasets_root = ResolveDatasetsRoot(tf_datasets, app::DefaultDatasetsRoot());
+    lab::RunThesisFusion(tf_dir, tf);
+    std::fprintf(stderr, "mapmesh-lab: CSVs in %s (plot: /usr/bin/python3 scripts/plots/fusion.py %s)\n", tf_dir.c_str(),
+                 tf_dir.c_str());
+    return 0;
+  }
+  if (fusion->parsed()) return RunFusionCommand(fusion_po, fusion_param, fusion_values, fusion_so, fusion_datasets, fusion_csv);
   if (thesis_align->parsed()) {
     lab::RunThesisAlignment(ta_dir, ta);
     std::fprintf(stderr, "mapmesh-lab: CSVs in %s (plot: /usr/bin/python3 scripts/plots/alignment.py %s)\n", ta_dir.c_str(),

@@ -65,6 +65,11 @@ std::vector<PairResult> AlignPairs(const std::vector<SlamRunResult>& robots, con
       const AlignmentResult al = AlignMaps(ma, mb, options, rng);
       p.verdict = al.verdict;
       p.inliers = static_cast<int>(al.inliers.size());
+      p.best_support = al.best_support;
+      p.runner_up_support = al.runner_up_support;
+      p.residual_chi2 = al.residual_chi2;
+      p.residual_bound = al.residual_bound;
+      p.covered = al.covered;
       if (p.truth_known) {
         const TransformError e = CompareTransforms(al.transform, truth, centroid);
         p.map_translation_error_m = e.translation_m;
@@ -120,13 +125,15 @@ std::vector<PairResult> AlignPairs(const std::vector<SlamRunResult>& robots, con
 }
 
 std::string PairsCsvHeader() {
-  return "a,b,truth_known,map_verdict,map_inliers,map_translation_error_m,map_rotation_error_deg,mutual_sightings,"
+  return "a,b,truth_known,map_verdict,map_inliers,best_support,runner_up_support,residual_chi2,residual_bound,covered,"
+         "map_translation_error_m,map_rotation_error_deg,mutual_sightings,"
          "rendezvous_median_translation_m,rendezvous_median_rotation_deg,rendezvous_within_tolerance";
 }
 
 std::string PairsCsvRow(const PairResult& p) {
   std::ostringstream s;
-  s << p.a << ',' << p.b << ',' << p.truth_known << ',' << ToString(p.verdict) << ',' << p.inliers << ','
+  s << p.a << ',' << p.b << ',' << p.truth_known << ',' << ToString(p.verdict) << ',' << p.inliers << ',' << p.best_support
+    << ',' << p.runner_up_support << ',' << p.residual_chi2 << ',' << p.residual_bound << ',' << p.covered << ','
     << p.map_translation_error_m << ',' << p.map_rotation_error_deg << ',' << p.mutual_sightings << ','
     << p.rendezvous_median_translation_m << ',' << p.rendezvous_median_rotation_deg << ','
     << p.rendezvous_within_tolerance;

@@ -17,6 +17,9 @@ struct PairResult {
   // Map overlap.
   AlignmentVerdict verdict = AlignmentVerdict::kTooFewLandmarks;
   int inliers = 0;
+  int best_support = 0, runner_up_support = 0;   // RANSAC consensus of the best and the best different hypothesis
+  double residual_chi2 = 0.0, residual_bound = 0.0;
+  int covered = 0;                               // b's landmarks laid over a's mapped ground
   double map_translation_error_m = 0.0, map_rotation_error_deg = 0.0;
   // Rendezvous.
   int mutual_sightings = 0;                      // pairs of sightings less than 0.5 s apart

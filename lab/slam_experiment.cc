@@ -1,5 +1,7 @@
 #include "lab/slam_experiment.h"
 
+#include <Eigen/Eigenvalues>
+
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <chrono>
@@ -131,6 +133,13 @@ std::vector<SlamRunResult> RunSlam(const Scenario& scenario_in, const SlamRunOpt
       for (Landmark& l : map.landmarks) l.signature = run->Identity(l.id);
     }
     r.landmarks = static_cast<int>(map.size());
+    r.shape_sigma_m = map.shape_sigma_m;
+    std::vector<double> sig;
+    for (const Landmark& l : map.landmarks) sig.push_back(std::sqrt(std::max(0.0, l.cov.eigenvalues().real().maxCoeff())));
+    if (!sig.empty()) {
+      std::nth_element(sig.begin(), sig.begin() + static_cast<long>(sig.size() / 2), sig.end());
+      r.median_sigma_m = sig[sig.size() / 2];
+    }
     // The estimator's frame is the true pose when its stream began.
     std::optional<Pose2> origin;
     if (world.headings_known && run->sync().frame_origin_stamp()) {
@@ -194,7 +203,7 @@ std::vector<SlamRunResult> RunSlam(const Scenario& scenario_in, const SlamRunOpt
 }
 
 std::string SlamCsvHeader() {
-  return "seed,robot,landmarks,map_frame,landmark_rmse_m,landmark_rmse_aligned_m,landmark_nees,consistent_ratio,coverage,pose_samples,"
+  return "seed,robot,landmarks,map_frame,landmark_rmse_m,landmark_rmse_aligned_m,landmark_nees,consistent_ratio,coverage,shape_sigma_m,median_sigma_m,pose_samples,"
          "pose_nees,trajectory_rmse_m,trajectory_frame,associations,wrong_associations,new_landmarks,dropped,wall_s";
 }
 
@@ -203,7 +212,7 @@ std::string SlamCsvRow(const SlamRunResult& r) {
   s << r.seed << ',' << r.robot << ',' << r.landmarks << ','
     << (!r.map_evaluated ? "none" : r.map_aligned ? "aligned" : "true_origin") << ',' << r.landmark_rmse_m << ','
     << r.landmark_rmse_aligned_m << ','
-    << r.landmark_nees << ',' << r.consistent_ratio << ',' << r.coverage << ',' << r.pose_samples << ','
+    << r.landmark_nees << ',' << r.consistent_ratio << ',' << r.coverage << ',' << r.shape_sigma_m << ',' << r.median_sigma_m << ',' << r.pose_samples << ','
     << r.pose_nees << ',' << r.trajectory_rmse_m << ',' << (r.trajectory_aligned ? "aligned" : "true_origin") << ','
     << r.associations << ',' << r.wrong_associations << ',' << r.new_landmarks << ',' << r.dropped << ','
     << r.wall_s;

@@ -29,6 +29,8 @@ struct SlamRunResult {
   double landmark_nees = 0.0;         // mean over landmarks (2 dof)
   double consistent_ratio = 0.0;
   double coverage = 0.0;
+  double shape_sigma_m = 0.0;         // the map's shape precision (LandmarkMap::shape_sigma_m)
+  double median_sigma_m = 0.0;        // median over landmarks of the marginal's largest standard deviation
   int pose_samples = 0;               // scans at which the pose was scored
   double pose_nees = 0.0;             // mean over scans (3 dof); needs true headings
   double trajectory_rmse_m = 0.0;     // position error at each scan (after a rigid fit when the start is unknown)

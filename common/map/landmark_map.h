@@ -21,6 +21,13 @@ struct Landmark {
 // A set of landmarks in one frame.
 struct LandmarkMap {
   std::vector<Landmark> landmarks;
+  // How precisely the map knows its own local shape, when its maker could tell (0: unknown):
+  // the standard deviation, per axis, of a landmark relative to its nearest neighbour over
+  // the square root of 2, at the 90th percentile over the map. In a SLAM map the marginal
+  // covariances are dominated by the robot's accumulated pose error, which all nearby
+  // landmarks share; this is the part that does not cancel between neighbours, and what map
+  // alignment needs to compare shapes.
+  double shape_sigma_m = 0.0;
 
   std::size_t size() const { return landmarks.size(); }
   bool empty() const { return landmarks.empty(); }

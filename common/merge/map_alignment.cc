@@ -159,30 +159,40 @@ struct Hypothesis {
   bool BetterThan(const Hypothesis& o) const { return support > o.support || (support == o.support && cost < o.cost); }
 };
 
+// The information matrix of (x, y, theta) from the pairs at t, and the gradient of the
+// weighted squared residuals.
+Eigen::Matrix3d Information(const LandmarkMap& a, const LandmarkMap& b, const std::vector<std::pair<int, int>>& pairs,
+                            const Pose2& t, Eigen::Vector3d* gradient) {
+  Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d g = Eigen::Vector3d::Zero();
+  const Eigen::Matrix2d rot = t.Rotation();
+  Eigen::Matrix2d drot;
+  drot << -std::sin(t.theta), -std::cos(t.theta), std::cos(t.theta), -std::sin(t.theta);
+  for (const auto& [ia, ib] : pairs) {
+    const Landmark &la = a.landmarks[ia], &lb = b.landmarks[ib];
+    const Eigen::Vector2d r = la.mean - t.Apply(lb.mean);
+    const Eigen::Matrix2d c = la.cov + rot * lb.cov * rot.transpose();
+    const Eigen::LDLT<Eigen::Matrix2d> ldlt(c);
+    if (ldlt.info() != Eigen::Success || !(c.determinant() > 0)) continue;
+    Eigen::Matrix<double, 2, 3> j;
+    j.leftCols<2>() = -Eigen::Matrix2d::Identity();
+    j.col(2) = -drot * lb.mean;
+    const Eigen::Matrix<double, 3, 2> jt_cinv = ldlt.solve(j).transpose();
+    info += jt_cinv * j;
+    g += jt_cinv * r;
+  }
+  if (gradient) *gradient = g;
+  return info;
+}
+
 // Weighted least squares (Gauss-Newton) of the transform over pairs; returns the
 // information matrix of (x, y, theta) at the solution.
 Eigen::Matrix3d Refine(const LandmarkMap& a, const LandmarkMap& b, const std::vector<std::pair<int, int>>& pairs,
                        Pose2* t) {
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
   for (int it = 0; it < 6; ++it) {
-    info.setZero();
-    Eigen::Vector3d g = Eigen::Vector3d::Zero();
-    const Eigen::Matrix2d rot = t->Rotation();
-    Eigen::Matrix2d drot;
-    drot << -std::sin(t->theta), -std::cos(t->theta), std::cos(t->theta), -std::sin(t->theta);
-    for (const auto& [ia, ib] : pairs) {
-      const Landmark &la = a.landmarks[ia], &lb = b.landmarks[ib];
-      const Eigen::Vector2d r = la.mean - t->Apply(lb.mean);
-      const Eigen::Matrix2d c = la.cov + rot * lb.cov * rot.transpose();
-      const Eigen::LDLT<Eigen::Matrix2d> ldlt(c);
-      if (ldlt.info() != Eigen::Success || !(c.determinant() > 0)) continue;
-      Eigen::Matrix<double, 2, 3> j;
-      j.leftCols<2>() = -Eigen::Matrix2d::Identity();
-      j.col(2) = -drot * lb.mean;
-      const Eigen::Matrix<double, 3, 2> jt_cinv = ldlt.solve(j).transpose();
-      info += jt_cinv * j;
-      g += jt_cinv * r;
-    }
+    Eigen::Vector3d g;
+    info = Information(a, b, pairs, *t, &g);
     const Eigen::FullPivLU<Eigen::Matrix3d> lu(info);
     if (!lu.isInvertible()) break;
     const Eigen::Vector3d step = -lu.solve(g);
@@ -192,6 +202,23 @@ Eigen::Matrix3d Refine(const LandmarkMap& a, const LandmarkMap& b, const std::ve
     if (step.head<2>().norm() < 1e-9 && std::abs(step(2)) < 1e-12) break;
   }
   return info;
+}
+
+// The map as alignment compares it: where the map's shape precision is known and tighter
+// than a landmark's marginal, the landmark counts with that precision (isotropic), since a
+// rigid transform absorbs the pose error that the marginals mostly hold. Shape precision
+// never counts below the floor: landmarks are not points, and real maps' shapes are rarely
+// as good as their filters believe (MRCLAM: 2-4 cm claimed, 4-11 cm found).
+LandmarkMap ForAlignment(const LandmarkMap& m, double floor_m) {
+  if (!(m.shape_sigma_m > 0.0) || !std::isfinite(m.shape_sigma_m)) return m;
+  LandmarkMap out = m;
+  const double s = std::max(m.shape_sigma_m, floor_m), v = s * s;
+  for (Landmark& l : out.landmarks) {
+    if (l.mean.allFinite() && IsValidCovariance(l.cov) && LargestSigma(l.cov) * LargestSigma(l.cov) > v) {
+      l.cov = v * Eigen::Matrix2d::Identity();
+    }
+  }
+  return out;
 }
 
 // One-to-one pairs, closest first.
@@ -239,9 +266,9 @@ std::optional<Pose2> TwoPointTransform(const Eigen::Vector2d& a1, const Eigen::V
   return Pose2{t.x(), t.y(), theta};
 }
 
-std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a, const LandmarkMap& b, const AlignmentOptions& o,
+std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a_in, const LandmarkMap& b_in, const AlignmentOptions& o,
                                           std::mt19937_64& rng, AlignmentResult* stats) {
-  const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
+  const Usable ua = UsableLandmarks(ForAlignment(a_in, o.min_shape_sigma_m)), ub = UsableLandmarks(ForAlignment(b_in, o.min_shape_sigma_m));
   const std::vector<Triangle> ta = ua.points.size() >= 3 ? MakeTriangles(ua, o) : std::vector<Triangle>{};
   const std::vector<Triangle> tb = ub.points.size() >= 3 ? MakeTriangles(ub, o) : std::vector<Triangle>{};
   if (stats) {
@@ -337,8 +364,11 @@ std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a, const LandmarkMa
   return out;
 }
 
-AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const std::vector<CandidatePair>& cand,
+AlignmentResult RansacAlign(const LandmarkMap& a_in, const LandmarkMap& b_in, const std::vector<CandidatePair>& cand,
                             const AlignmentOptions& o, std::mt19937_64& rng) {
+  // Consensus, matching and the tests compare shapes; the transform's covariance comes from
+  // the marginals (below).
+  const LandmarkMap a = ForAlignment(a_in, o.min_shape_sigma_m), b = ForAlignment(b_in, o.min_shape_sigma_m);
   AlignmentResult r;
   r.candidates = static_cast<int>(cand.size());
   if (cand.size() < 2) {
@@ -354,37 +384,53 @@ AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const st
     const double d2 = PairD2(a.landmarks[c.a], b.landmarks[c.b], t);
     return d2 < gate ? d2 : std::numeric_limits<double>::infinity();
   };
+  // Support: the landmarks the hypothesis pairs, each counted once on each side (where
+  // candidates are dense, one landmark can sit in many compatible pairs). Each hypothesis
+  // also marks its inlier candidates, and counts those it shares with the best and the
+  // runner-up so far: two hypotheses that share most of their inliers are one alignment,
+  // however far apart their parameters (a long map turns a small rotation difference into
+  // metres); two that share few are different alignments, however close.
+  struct Marked : Hypothesis {
+    std::vector<char> in;
+    int pairs = 0;
+  };
+  std::vector<int> stamp_a(a.landmarks.size(), -1), stamp_b(b.landmarks.size(), -1);
+  std::vector<char> scratch(cand.size(), 0);
+  int evaluation = 0;
+  Marked best, runner;
+  best.in.assign(cand.size(), 0);
+  runner.in.assign(cand.size(), 0);
+  int shared_best = 0, shared_runner = 0;
   auto evaluate = [&](const Pose2& t) {
     Hypothesis h{t, 0, 0.0};
-    for (const CandidatePair& c : cand) {
+    int na = 0, nb = 0, pairs = 0;
+    shared_best = shared_runner = 0;
+    ++evaluation;
+    for (std::size_t i = 0; i < cand.size(); ++i) {
+      const CandidatePair& c = cand[i];
       const double d2 = inlier_d2(c, t);
-      if (std::isfinite(d2)) {
-        ++h.support;
-        h.cost += d2;
+      scratch[i] = std::isfinite(d2);
+      if (!scratch[i]) continue;
+      ++pairs;
+      shared_best += best.in[i];
+      shared_runner += runner.in[i];
+      if (stamp_a[c.a] != evaluation) {
+        stamp_a[c.a] = evaluation;
+        ++na;
       }
+      if (stamp_b[c.b] != evaluation) {
+        stamp_b[c.b] = evaluation;
+        ++nb;
+      }
+      h.cost += d2;
     }
-    return h;
+    h.support = std::min(na, nb);
+    return std::pair<Hypothesis, int>(h, pairs);
   };
-  Eigen::Vector2d centroid_b = Eigen::Vector2d::Zero();
-  for (const CandidatePair& c : cand) centroid_b += b.landmarks[c.b].mean;
-  centroid_b /= static_cast<double>(cand.size());
-  // Hypotheses closer than the consensus gate's radius share their inliers: they are one
-  // hypothesis, however noisy the maps (the median pair's radius sets the scale).
-  std::vector<double> pair_sigma;
-  pair_sigma.reserve(cand.size());
-  for (const CandidatePair& c : cand) {
-    pair_sigma.push_back(std::hypot(LargestSigma(a.landmarks[c.a].cov), LargestSigma(b.landmarks[c.b].cov)));
-  }
-  std::nth_element(pair_sigma.begin(), pair_sigma.begin() + pair_sigma.size() / 2, pair_sigma.end());
-  const double gate_radius =
-      o.distance == ConsensusDistance::kEuclidean ? o.euclidean_gate_m : std::sqrt(gate) * pair_sigma[pair_sigma.size() / 2];
-  const double distinct_m = std::max(o.distinct_translation_m, gate_radius);
-  auto distinct = [&](const Pose2& x, const Pose2& y) {
-    return (x.Apply(centroid_b) - y.Apply(centroid_b)).norm() > distinct_m ||
-           std::abs(WrapAngle(x.theta - y.theta)) > DegToRad(o.distinct_rotation_deg);
+  auto same = [&](int shared, int pairs_x, int pairs_y) {
+    return shared >= o.same_alignment_overlap * std::min(pairs_x, pairs_y);
   };
 
-  Hypothesis best, runner;
   std::uniform_int_distribution<std::size_t> pick(0, cand.size() - 1);
   const double n = static_cast<double>(cand.size());
   long bound = o.max_iterations;
@@ -403,10 +449,20 @@ AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const st
     if (dist_gap > tol) continue;
     const std::optional<Pose2> t = TwoPointTransform(a1.mean, a2.mean, b1.mean, b2.mean);
     if (!t) continue;
-    const Hypothesis h = evaluate(*t);
+    const auto [h, pairs] = evaluate(*t);
+    const bool same_as_best = best.support >= 0 && same(shared_best, pairs, best.pairs);
     if (h.BetterThan(best)) {
-      if (best.support >= 0 && distinct(h.t, best.t) && best.BetterThan(runner)) runner = best;
-      best = h;
+      const bool runner_same_as_h = runner.support >= 0 && same(shared_runner, pairs, runner.pairs);
+      if (best.support >= 0 && !same_as_best && (runner_same_as_h || best.BetterThan(runner))) {
+        std::swap(runner, best);  // the old best becomes the runner-up
+      } else if (runner_same_as_h) {
+        runner.support = -1;
+        runner.pairs = 0;
+        std::fill(runner.in.begin(), runner.in.end(), 0);
+      }
+      static_cast<Hypothesis&>(best) = h;
+      best.in = scratch;
+      best.pairs = pairs;
       // Adaptive bound (eq. 63-66) with the inlier share found so far.
       const double q = std::pow(best.support / n, 2);
       if (q >= 1.0) {
@@ -414,8 +470,10 @@ AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const st
       } else if (q > 0.0) {
         bound = std::max<long>(50, static_cast<long>(std::ceil(std::log(1.0 - o.success_probability) / std::log(1.0 - q))));
       }
-    } else if (distinct(h.t, best.t) && h.BetterThan(runner)) {
-      runner = h;
+    } else if (!same_as_best && h.BetterThan(runner)) {
+      static_cast<Hypothesis&>(runner) = h;
+      runner.in = scratch;
+      runner.pairs = pairs;
     }
   }
   r.iterations = it;
@@ -483,16 +541,20 @@ AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const st
     r.verdict = AlignmentVerdict::kTooFewInliers;
     return r;
   }
+  info = Information(a_in, b_in, inliers, t, nullptr);
   const Eigen::FullPivLU<Eigen::Matrix3d> lu(info);
   if (!lu.isInvertible() || lu.rcond() < 1e-12) {
     r.verdict = AlignmentVerdict::kDegenerate;
     return r;
   }
-  r.cov = info.inverse();
+  // Refine sums the inliers' information as if their errors were independent; with unknown
+  // correlation, CI with equal weights keeps the average instead.
+  const double scale = o.landmark_errors == LandmarkErrors::kIndependent ? 1.0 : static_cast<double>(ni);
+  r.cov = scale * info.inverse();
   r.cov = 0.5 * (r.cov + r.cov.transpose()).eval();
   // 2 residual dimensions per inlier, 3 parameters fitted: chi-square with 2n - 4 dof (the
   // even number just below) bounds the sum.
-  r.residual_bound = Chi2Quantile(o.residual_probability, std::max(2, 2 * ni - 4));
+  r.residual_bound = o.residual_tolerance * Chi2Quantile(o.residual_probability, std::max(2, 2 * ni - 4));
   if (!std::isfinite(r.residual_chi2) || r.residual_chi2 > r.residual_bound) {
     r.verdict = AlignmentVerdict::kResidualsTooLarge;
     return r;

@@ -27,6 +27,14 @@ enum class TriangleMatcher {
 
 enum class ConsensusDistance { kEuclidean, kMahalanobis };
 
+// How the landmarks' errors within a map relate, for the transform's covariance.
+enum class LandmarkErrors {
+  kIndependent,         // each landmark's error on its own: n inliers give n times the information
+  kUnknownCorrelation,  // as in a SLAM map, where every landmark shares the robot's pose error: the
+                        // inlier constraints are combined by Covariance Intersection (equal weights),
+                        // which is consistent for any correlation: n inliers give the information of one
+};
+
 struct AlignmentOptions {
   TriangleMatcher matcher = TriangleMatcher::kSortedSides;
   double side_tolerance_sigmas = 3.0;   // sorted sides: sides may differ by this many sigmas ...
@@ -43,14 +51,18 @@ struct AlignmentOptions {
   double success_probability = 0.999;   // RANSAC stops when an all-inlier sample was drawn with this probability (eq. 63)
   int max_iterations = 5000;
   int min_inliers = 6;                  // fewer inliers: rejected
-  double residual_probability = 0.999;  // chi-square test on the inliers' residuals
-  double ambiguity_ratio = 0.7;         // a different hypothesis with this share of the best's inliers: ambiguous
-  double distinct_translation_m = 2.0;  // hypotheses further apart than this (and than the consensus gate's
-                                        // radius) or than the angle are different
-  double distinct_rotation_deg = 10.0;
+  double residual_probability = 0.999;  // chi-square test on the inliers' residuals ...
+  double residual_tolerance = 1.5;      // ... with its bound scaled by this: real SLAM maps' covariances are
+                                        // often optimistic (map NEES up to 3, Victoria Park), while a wrong
+                                        // alignment's inliers spread over the whole gate (4.6 per pair at 99 %)
+  double ambiguity_ratio = 0.7;         // a different hypothesis with this share of the best's support: ambiguous
+  double same_alignment_overlap = 0.5;  // hypotheses sharing this share of the smaller one's inlier pairs are one
   bool guided_matching = true;          // after RANSAC, look for inliers among all landmarks, not only candidates
   double coverage_radius_m = 2.5;       // a moved landmark of B within this of one of A's lies where A has mapped ...
   double min_overlap_ratio = 0.3;       // ... and at least this share of those must be inliers
+  LandmarkErrors landmark_errors = LandmarkErrors::kUnknownCorrelation;  // for the transform's covariance
+  double min_shape_sigma_m = 0.1;       // maps that report their shape precision (LandmarkMap::shape_sigma_m)
+                                        // are compared with it, but never below this
 };
 
 // A proposed correspondence: landmark a of map A and landmark b of map B, with the number

@@ -23,6 +23,7 @@ void CekfSlam::StartPeriod() {
   idx_b_.clear();
   active_ids_.clear();
   active_slot_.clear();
+  passive_col_.clear();
   for (std::size_t g = 0; g < global_ids_.size(); ++g) {
     const int s = 3 + 2 * static_cast<int>(g);
     const Eigen::Vector2d m = gx_.segment<2>(s);
@@ -32,6 +33,7 @@ void CekfSlam::StartPeriod() {
       idx_a_.push_back(s);
       idx_a_.push_back(s + 1);
     } else {
+      passive_col_[global_ids_[g]] = static_cast<int>(idx_b_.size());
       idx_b_.push_back(s);
       idx_b_.push_back(s + 1);
     }
@@ -169,6 +171,22 @@ Eigen::MatrixXd CekfSlam::JointCov(const std::vector<LandmarkId>& ids) const {
     idx.push_back(s + 1);
   }
   return active_.P()(idx, idx);
+}
+
+Eigen::Matrix2d CekfSlam::CrossCov(LandmarkId a, LandmarkId b) const {
+  // Active-active: the active covariance. Active-passive: P_ab(k) = Phi P_ab(k1). Passive-
+  // passive: P_bb(k) = P_bb(k1) - P_ab(k1)^T psi P_ab(k1).
+  const auto sa = active_slot_.find(a), sb = active_slot_.find(b);
+  if (sa != active_slot_.end() && sb != active_slot_.end()) {
+    return active_.P().block<2, 2>(3 + 2 * sa->second, 3 + 2 * sb->second);
+  }
+  if (sa != active_slot_.end()) {
+    return phi_.middleRows<2>(3 + 2 * sa->second) * pab1_.middleCols<2>(passive_col_.at(b));
+  }
+  if (sb != active_slot_.end()) return CrossCov(b, a).transpose();
+  const int ca = passive_col_.at(a), cb = passive_col_.at(b);
+  return gp_.block<2, 2>(idx_b_[ca], idx_b_[cb]) -
+         pab1_.middleCols<2>(ca).transpose() * (psi_ * pab1_.middleCols<2>(cb));
 }
 
 LandmarkMap CekfSlam::Map() const {

@@ -35,6 +35,7 @@ class CekfSlam : public LandmarkFilter {
   Eigen::Matrix3d robot_cov() const override { return active_.P().topLeftCorner<3, 3>(); }
   Eigen::Vector2d Mean(LandmarkId id) const override;
   Eigen::MatrixXd JointCov(const std::vector<LandmarkId>& ids) const override;
+  Eigen::Matrix2d CrossCov(LandmarkId a, LandmarkId b) const override;
   LandmarkMap Map() const override;
   void FullState(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<LandmarkId>* ids) const override;
 
@@ -67,6 +68,7 @@ class CekfSlam : public LandmarkFilter {
   std::unordered_map<LandmarkId, int> active_slot_;
   std::size_t period_active_ = 0;                 // active landmarks that existed at the period start
   std::vector<int> idx_a_, idx_b_;                // state indices (global) of the period-start active and passive parts
+  std::unordered_map<LandmarkId, int> passive_col_;  // a passive landmark's first column in P_ab
   Eigen::MatrixXd pab1_;                          // P_ab at the period start
   Eigen::MatrixXd phi_;                           // Phi: P_ab(k) = Phi P_ab(k1)
   Eigen::MatrixXd psi_;                           // psi: P_bb(k) = P_bb(k1) - P_ab(k1)^T psi P_ab(k1)

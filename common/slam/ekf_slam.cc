@@ -47,6 +47,10 @@ Eigen::MatrixXd EkfSlam::JointCov(const std::vector<LandmarkId>& ids) const {
   return p;
 }
 
+Eigen::Matrix2d EkfSlam::CrossCov(LandmarkId a, LandmarkId b) const {
+  return state_.P().block<2, 2>(3 + 2 * slot_.at(a), 3 + 2 * slot_.at(b));
+}
+
 LandmarkMap EkfSlam::Map() const {
   std::vector<LandmarkId> sorted = ids_;
   std::sort(sorted.begin(), sorted.end());

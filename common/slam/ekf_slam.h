@@ -23,6 +23,7 @@ class EkfSlam : public LandmarkFilter {
   Eigen::Matrix3d robot_cov() const override { return state_.P().topLeftCorner<3, 3>(); }
   Eigen::Vector2d Mean(LandmarkId id) const override { return state_.landmark(slot_.at(id)); }
   Eigen::MatrixXd JointCov(const std::vector<LandmarkId>& ids) const override;
+  Eigen::Matrix2d CrossCov(LandmarkId a, LandmarkId b) const override;
   LandmarkMap Map() const override;
   void FullState(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<LandmarkId>* ids) const override;
 

@@ -50,6 +50,9 @@ class LandmarkFilter {
   virtual Eigen::Vector2d Mean(LandmarkId id) const = 0;
   // Covariance of [robot pose; candidate landmarks ids...], (3 + 2k) square.
   virtual Eigen::MatrixXd JointCov(const std::vector<LandmarkId>& ids) const = 0;
+  // Cross-covariance E[(m_a - mean_a)(m_b - mean_b)^T] of two landmarks (any two, not only
+  // candidates).
+  virtual Eigen::Matrix2d CrossCov(LandmarkId a, LandmarkId b) const = 0;
   // Every landmark with its mean and marginal covariance, by increasing id.
   virtual LandmarkMap Map() const = 0;
   // The whole state with landmarks by increasing id: x = [robot, landmarks], P.

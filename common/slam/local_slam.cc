@@ -1,8 +1,11 @@
 #include "common/slam/local_slam.h"
 
+#include <Eigen/LU>
 #include <algorithm>
+#include <limits>
 #include <unordered_set>
 
+#include "common/merge/spatial.h"
 #include "common/slam/ekf_slam.h"
 #include "common/slam/observation_model.h"
 
@@ -130,8 +133,56 @@ void LocalSlam::Observe(const std::vector<Observation>& obs, double stamp) {
   }
 }
 
+double ShapeSigma(const LandmarkMap& map, const LandmarkFilter& filter) {
+  const std::size_t n = map.size();
+  if (n < 2) return 0.0;
+  std::vector<Eigen::Vector2d> points;
+  points.reserve(n);
+  for (const Landmark& l : map.landmarks) points.push_back(l.mean);
+  // Nearest neighbours: the nearest-neighbour graph is a subgraph of the Delaunay graph.
+  std::vector<int> nearest(n, -1);
+  std::vector<double> dist(n, std::numeric_limits<double>::infinity());
+  auto consider = [&](int i, int j) {
+    const double d = (points[i] - points[j]).squaredNorm();
+    if (d < dist[i]) {
+      dist[i] = d;
+      nearest[i] = j;
+    }
+  };
+  const auto triangles = DelaunayTriangles(points);
+  for (const auto& t : triangles) {
+    for (int k = 0; k < 3; ++k) {
+      consider(t[k], t[(k + 1) % 3]);
+      consider(t[(k + 1) % 3], t[k]);
+    }
+  }
+  if (triangles.empty()) {  // collinear or two points: every pair
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t j = 0; j < n; ++j) {
+        if (i != j) consider(static_cast<int>(i), static_cast<int>(j));
+      }
+    }
+  }
+  std::vector<double> s;
+  s.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (nearest[i] < 0) continue;
+    const Landmark &a = map.landmarks[i], &b = map.landmarks[nearest[i]];
+    const Eigen::Matrix2d c = filter.CrossCov(a.id, b.id);
+    const Eigen::Matrix2d d = a.cov + b.cov - c - c.transpose();
+    const double tr = d.trace(), det = d.determinant();
+    const double largest = 0.5 * tr + std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
+    s.push_back(std::sqrt(std::max(0.0, largest) / 2.0));
+  }
+  if (s.empty()) return 0.0;
+  const std::size_t k = std::min(s.size() - 1, static_cast<std::size_t>(0.9 * static_cast<double>(s.size())));
+  std::nth_element(s.begin(), s.begin() + static_cast<long>(k), s.end());
+  return s[k];
+}
+
 LandmarkMap LocalSlam::Map() const {
   LandmarkMap m = filter_->Map();
+  m.shape_sigma_m = ShapeSigma(m, *filter_);
   if (options_.association.method == AssociationMethod::kKnown) {
     for (Landmark& l : m.landmarks) l.signature = static_cast<std::int32_t>(l.id);
   }

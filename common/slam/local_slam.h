@@ -25,6 +25,10 @@ struct LocalSlamOptions {
   double new_landmark_separation_m = 0.5;  // unknown association: new landmarks of one scan closer than this are one
 };
 
+// The map's shape precision (LandmarkMap::shape_sigma_m) from the filter's cross-covariances
+// between each landmark and its nearest neighbour (found through the Delaunay triangulation).
+double ShapeSigma(const LandmarkMap& map, const LandmarkFilter& filter);
+
 class LocalSlam : public LocalMapper {
  public:
   LocalSlam(const FilterNoise& noise, const LocalSlamOptions& options);

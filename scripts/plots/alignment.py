@@ -4,52 +4,17 @@
 Usage: /usr/bin/python3 scripts/plots/alignment.py DIR      (writes DIR/*.png)
 Needs Debian's python3-matplotlib (scripts/install-deps installs it)."""
 
-import csv
 import sys
-from collections import defaultdict
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-
-def rows(path):
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
-
-
-def curves(data, group, x, y, where=None):
-    out = defaultdict(list)
-    for r in data:
-        if where and not where(r):
-            continue
-        out[r[group]].append((float(r[x]), float(r[y])))
-    return {k: sorted(v) for k, v in out.items()}
-
-
-def panel(ax, series, title, xlabel, ylabel, label_fmt="{}"):
-    for name, pts in series.items():
-        ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", ms=3, label=label_fmt.format(name))
-    ax.set_title(title, fontsize=10)
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from plotlib import curves, directory_argument, panel, plt, rows  # noqa: E402
 
 
 def main(argv):
-    if len(argv) == 2 and argv[1] in ("-h", "--help"):
-        print(__doc__.strip())
-        return 0
-    if len(argv) != 2:
-        print(__doc__.strip(), file=sys.stderr)
-        return 2
-    d = Path(argv[1])
-    if not (d / "fig46_similarity.csv").exists():
-        print(f"alignment.py: {d}: no fig46_similarity.csv (run mapmesh-lab thesis-align --out {d})", file=sys.stderr)
-        return 1
+    d, code = directory_argument(argv, __doc__, "alignment.py", "fig46_similarity.csv", "mapmesh-lab thesis-align --out")
+    if d is None:
+        return code
     sim = rows(d / "fig46_similarity.csv")
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     panel(axes[0], curves(sim, "landmarks", "overlap", "candidate_precision", lambda r: r["matcher"] == "sorted_sides"),

@@ -80,6 +80,18 @@ TEST_P(CekfEqualsEkfTest, FinalMeanAndCovarianceEqualTheFullEkf) {
     EXPECT_LT((me.landmarks[i].mean - mc.landmarks[i].mean).norm(), 1e-9 * std::max(1.0, xe.cwiseAbs().maxCoeff()));
     EXPECT_LT((me.landmarks[i].cov - mc.landmarks[i].cov).cwiseAbs().maxCoeff(), 1e-9 * pe.cwiseAbs().maxCoeff());
   }
+  // Cross-covariances of any two landmarks (active or passive, mid-period) agree too.
+  int pairs = 0;
+  for (std::size_t i = 0; i < me.size(); ++i) {
+    for (std::size_t j = 0; j < me.size(); ++j) {
+      const LandmarkId a = me.landmarks[i].id, b = me.landmarks[j].id;
+      EXPECT_LT((ekf.CrossCov(a, b) - cekf.CrossCov(a, b)).cwiseAbs().maxCoeff(), 1e-9 * pe.cwiseAbs().maxCoeff());
+      ++pairs;
+    }
+  }
+  EXPECT_GT(pairs, 100);
+  EXPECT_GT(cekf.active_landmarks(), 0u);
+  EXPECT_LT(cekf.active_landmarks(), me.size());  // both kinds were compared
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, CekfEqualsEkfTest, ::testing::Range(1, 21));

@@ -1,0 +1,356 @@
+#include "lab/fusion_experiment.h"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+#include "common/merge/global_map.h"
+#include "common/metrics/landmark_metrics.h"
+#include "common/metrics/trajectory_metrics.h"
+
+namespace mapmesh::lab {
+namespace {
+
+// Running sums behind an OverlapScore.
+struct OverlapSum {
+  int n = 0, consistent = 0;
+  double nees = 0.0, det = 0.0, se = 0.0;
+  void Add(const Eigen::Vector2d& est, const Eigen::Matrix2d& cov, const Eigen::Vector2d& truth) {
+    const double e = Nees(est, cov, truth);
+    ++n;
+    nees += e;
+    consistent += e < kChi2Dof2P95;
+    det += cov.determinant();
+    se += (est - truth).squaredNorm();
+  }
+  OverlapScore Score() const {
+    OverlapScore s;
+    s.landmarks = n;
+    if (n == 0) return s;
+    s.nees = nees / n;
+    s.consistent_ratio = static_cast<double>(consistent) / n;
+    s.det = det / n;
+    s.rmse_m = std::sqrt(se / n);
+    return s;
+  }
+};
+
+const SlamRunResult& Robot(const std::vector<SlamRunResult>& robots, RobotId id) {
+  for (const SlamRunResult& r : robots) {
+    if (r.robot == id) return r;
+  }
+  throw std::runtime_error("fusion experiment: no robot " + std::to_string(id) + " in the run");
+}
+
+std::vector<Eigen::Vector2d> InFrame(const std::vector<Eigen::Vector2d>& world, const Pose2& frame) {
+  const Pose2 inv = frame.Inverse();
+  std::vector<Eigen::Vector2d> out;
+  out.reserve(world.size());
+  for (const Eigen::Vector2d& p : world) out.push_back(inv.Apply(p));
+  return out;
+}
+
+Eigen::Vector2d Centroid(const LandmarkMap& m) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const Landmark& l : m.landmarks) c += l.mean;
+  return m.empty() ? c : Eigen::Vector2d(c / static_cast<double>(m.size()));
+}
+
+LandmarkMap WithoutSignatures(LandmarkMap m) {
+  for (Landmark& l : m.landmarks) l.signature = -1;
+  return m;
+}
+
+}  // namespace
+
+FusionTrialResult RunFusionTrial(const std::vector<SlamRunResult>& robots, const FusionTrialOptions& o,
+                                 std::mt19937_64& rng) {
+  const SlamRunResult &ra = Robot(robots, o.a), &rb = Robot(robots, o.b);
+  if (!ra.origin_truth || !rb.origin_truth || ra.landmark_truth.empty()) {
+    throw std::runtime_error("fusion experiment: needs the robots' true frame origins and the landmark truth");
+  }
+  FusionTrialResult r;
+  r.seed = ra.seed;
+  const std::vector<Eigen::Vector2d> truth_a = InFrame(ra.landmark_truth, *ra.origin_truth);
+  const std::vector<Eigen::Vector2d> truth_b = InFrame(rb.landmark_truth, *rb.origin_truth);
+  const Pose2 truth = ra.origin_truth->Inverse() * *rb.origin_truth;  // b's frame into a's
+
+  MapSource src;
+  src.robot = o.b;
+  src.map = rb.map;
+  if (o.oracle_alignment) {
+    r.verdict = AlignmentVerdict::kAccepted;
+    src.to_own = truth;
+  } else {
+    const AlignmentResult al = AlignMaps(WithoutSignatures(ra.map), WithoutSignatures(rb.map), o.align, rng);
+    r.verdict = al.verdict;
+    const TransformError e = CompareTransforms(al.transform, truth, Centroid(rb.map));
+    r.translation_error_m = e.translation_m;
+    r.rotation_error_deg = RadToDeg(e.rotation_rad);
+    if (!al.accepted()) return r;
+    src.to_own = al.transform;
+    src.to_own_cov = al.cov;
+  }
+  r.fused = true;
+
+  std::set<int> sig_a, sig_b;
+  for (const Landmark& l : ra.map.landmarks) sig_a.insert(l.signature);
+  for (const Landmark& l : rb.map.landmarks) sig_b.insert(l.signature);
+  int possible = 0;
+  for (int s : sig_a) possible += s >= 0 && sig_b.count(s);
+
+  const std::vector<MapSource> sources{src};
+  for (std::size_t k = 0; k < o.methods.size(); ++k) {
+    GlobalMapOptions go;
+    go.method = o.methods[k];
+    const GlobalMap g = BuildGlobalMap(ra.map, o.a, sources, go);
+    OverlapSum merged;
+    std::vector<std::pair<int, int>> predicted;
+    OverlapSum own_a, own_b;
+    for (std::size_t i = 0; i < g.map.size(); ++i) {
+      const auto& org = g.origins[i];
+      if (org.size() != 2 || org[0].robot != o.a || org[1].robot != o.b) continue;
+      const Landmark* la = ra.map.Find(org[0].id);
+      const Landmark* lb = rb.map.Find(org[1].id);
+      if (!la || !lb || la->signature < 0) continue;
+      predicted.emplace_back(la->signature, lb->signature);
+      merged.Add(g.map.landmarks[i].mean, g.map.landmarks[i].cov, truth_a[la->signature]);
+      own_a.Add(la->mean, la->cov, truth_a[la->signature]);
+      if (lb->signature >= 0) own_b.Add(lb->mean, lb->cov, truth_b[lb->signature]);
+    }
+    MethodScore m;
+    m.method = o.methods[k];
+    m.merged = merged.Score();
+    const MapQuality q = EvaluateMap(g.map, truth_a, {});
+    m.global_nees = q.nees_mean;
+    m.global_consistent_ratio = q.consistent_ratio;
+    m.global_rmse_m = q.rmse_m;
+    m.global_landmarks = q.landmarks;
+    r.methods.push_back(m);
+    if (k == 0) {  // association and the single maps do not depend on the estimator
+      r.association = ScoreAssociations(predicted, possible);
+      r.a = own_a.Score();
+      r.b = own_b.Score();
+    }
+  }
+  return r;
+}
+
+namespace {
+
+std::string Num(double v) {
+  if (!std::isfinite(v)) return v > 0 ? "inf" : "nan";
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+std::vector<FusionTrialResult> RunFusionSweep(const ScenarioMaker& make, const FusionSweepOptions& o) {
+  struct Job {
+    double value;
+    std::uint64_t seed;
+  };
+  std::vector<Job> jobs;
+  for (double v : o.values) {
+    for (int k = 0; k < o.seeds; ++k) jobs.push_back({v, o.first_seed + static_cast<std::uint64_t>(k)});
+  }
+  std::vector<FusionTrialResult> out(jobs.size());
+  std::atomic<std::size_t> next{0};
+  std::mutex mu;
+  int done = 0;
+  std::exception_ptr failure;
+  auto worker = [&] {
+    for (std::size_t i = next++; i < jobs.size(); i = next++) {
+      try {
+        const Scenario sc = make(jobs[i].value, jobs[i].seed);
+        const std::vector<SlamRunResult> robots = RunSlam(sc, o.slam);
+        std::mt19937_64 rng(jobs[i].seed * 7919 + 17);
+        out[i] = RunFusionTrial(robots, o.trial, rng);
+        out[i].value = jobs[i].value;
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(mu);
+        if (!failure) failure = std::current_exception();
+        next = jobs.size();
+      }
+      const std::lock_guard<std::mutex> lock(mu);
+      ++done;
+      if (o.progress) o.progress(done, static_cast<int>(jobs.size()));
+    }
+  };
+  const int threads = o.threads > 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
+  for (std::thread& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
+  return out;
+}
+
+std::string FusionSweepCsv(const std::string& parameter, const std::vector<FusionTrialResult>& trials) {
+  std::ostringstream s;
+  s << "parameter,value,method,runs,fused_runs,translation_error_m,rotation_error_deg,association_precision,"
+       "association_recall,overlap_landmarks,nees_a,nees_b,consistent_a,consistent_b,det_a,det_b,nees_merged,"
+       "consistent_merged,det_merged,rmse_merged_m,nees_global,consistent_global\n";
+  std::map<double, std::vector<const FusionTrialResult*>> by_value;
+  for (const FusionTrialResult& t : trials) by_value[t.value].push_back(&t);
+  for (const auto& [value, runs] : by_value) {
+    std::vector<const FusionTrialResult*> fused;
+    for (const auto* t : runs) {
+      if (t->fused) fused.push_back(t);
+    }
+    const std::size_t methods = fused.empty() ? 0 : fused.front()->methods.size();
+    // Means over the runs; NEES, ratios and determinants weighted by overlap landmarks.
+    double te = 0.0, re = 0.0, prec = 0.0, rec = 0.0, overlap = 0.0;
+    double na = 0.0, nb = 0.0, ca = 0.0, cb = 0.0, da = 0.0, db = 0.0, la = 0.0, lb = 0.0;
+    for (const auto* t : fused) {
+      te += t->translation_error_m;
+      re += t->rotation_error_deg;
+      prec += t->association.precision;
+      rec += t->association.recall;
+      overlap += t->a.landmarks;
+      na += t->a.nees * t->a.landmarks;
+      ca += t->a.consistent_ratio * t->a.landmarks;
+      da += t->a.det * t->a.landmarks;
+      la += t->a.landmarks;
+      nb += t->b.nees * t->b.landmarks;
+      cb += t->b.consistent_ratio * t->b.landmarks;
+      db += t->b.det * t->b.landmarks;
+      lb += t->b.landmarks;
+    }
+    const double nf = std::max<double>(1.0, static_cast<double>(fused.size()));
+    for (std::size_t k = 0; k < methods; ++k) {
+      double nm = 0.0, cm = 0.0, dm = 0.0, sem = 0.0, lm = 0.0, ng = 0.0, cg = 0.0;
+      for (const auto* t : fused) {
+        const MethodScore& m = t->methods[k];
+        nm += m.merged.nees * m.merged.landmarks;
+        cm += m.merged.consistent_ratio * m.merged.landmarks;
+        dm += m.merged.det * m.merged.landmarks;
+        sem += m.merged.rmse_m * m.merged.rmse_m * m.merged.landmarks;
+        lm += m.merged.landmarks;
+        ng += m.global_nees;
+        cg += m.global_consistent_ratio;
+      }
+      const double l = std::max(1.0, lm);
+      s << parameter << ',' << value << ',' << ToString(fused.front()->methods[k].method) << ',' << runs.size() << ','
+        << fused.size() << ',' << Num(te / nf) << ',' << Num(re / nf) << ',' << Num(prec / nf) << ',' << Num(rec / nf)
+        << ',' << Num(overlap / nf) << ',' << Num(na / std::max(1.0, la)) << ',' << Num(nb / std::max(1.0, lb)) << ','
+        << Num(ca / std::max(1.0, la)) << ',' << Num(cb / std::max(1.0, lb)) << ',' << Num(da / std::max(1.0, la))
+        << ',' << Num(db / std::max(1.0, lb)) << ',' << Num(nm / l) << ',' << Num(cm / l) << ',' << Num(dm / l) << ','
+        << Num(std::sqrt(sem / l)) << ',' << Num(ng / nf) << ',' << Num(cg / nf) << '\n';
+    }
+  }
+  return s.str();
+}
+
+std::vector<VictoriaPairResult> RunVictoriaPairs(const std::vector<SlamRunResult>& robots, const LandmarkMap& reference,
+                                                 const FusionTrialOptions& o, std::mt19937_64& rng) {
+  std::vector<VictoriaPairResult> out;
+  const LandmarkMap ref = WithoutSignatures(reference);
+  std::vector<Eigen::Vector2d> ref_points;
+  for (const Landmark& l : ref.landmarks) ref_points.push_back(l.mean);
+  // Each robot's frame in the reference's.
+  std::map<RobotId, std::optional<AlignmentResult>> to_ref;
+  for (const SlamRunResult& r : robots) {
+    const AlignmentResult al = AlignMaps(ref, WithoutSignatures(r.map), o.align, rng);
+    to_ref[r.robot] = al.accepted() ? std::optional<AlignmentResult>(al) : std::nullopt;
+  }
+  // NEES of an estimate in a robot's frame against the nearest reference landmark (within
+  // 2 m after moving it into the reference frame), the reference's covariance added.
+  auto ref_nees = [&](const Eigen::Vector2d& m, const Eigen::Matrix2d& c, const Pose2& t, double* out_nees) {
+    const Eigen::Vector2d p = t.Apply(m);
+    int best = -1;
+    double best_d = 2.0;
+    for (std::size_t i = 0; i < ref_points.size(); ++i) {
+      const double d = (ref_points[i] - p).norm();
+      if (d < best_d) {
+        best_d = d;
+        best = static_cast<int>(i);
+      }
+    }
+    if (best < 0) return false;
+    const Eigen::Matrix2d rot = t.Rotation();
+    *out_nees = Nees(p, rot * c * rot.transpose() + ref.landmarks[best].cov, ref_points[best]);
+    return true;
+  };
+  for (std::size_t i = 0; i < robots.size(); ++i) {
+    for (std::size_t j = 0; j < robots.size(); ++j) {
+      if (i == j) continue;
+      const SlamRunResult &ra = robots[i], &rb = robots[j];
+      if (ra.robot > rb.robot) continue;  // each unordered pair once, the lower id as a
+      VictoriaPairResult p;
+      p.a = ra.robot;
+      p.b = rb.robot;
+      const AlignmentResult al = AlignMaps(WithoutSignatures(ra.map), WithoutSignatures(rb.map), o.align, rng);
+      p.verdict = al.verdict;
+      if (!al.accepted() || !to_ref[ra.robot] || !to_ref[rb.robot]) {
+        out.push_back(p);
+        continue;
+      }
+      const Pose2 ta = to_ref[ra.robot]->transform, tb = to_ref[rb.robot]->transform;
+      const std::vector<MapSource> sources{{rb.robot, rb.map, al.transform, al.cov}};
+      for (std::size_t k = 0; k < o.methods.size(); ++k) {
+        GlobalMapOptions go;
+        go.method = o.methods[k];
+        const GlobalMap g = BuildGlobalMap(ra.map, ra.robot, sources, go);
+        double sa = 0.0, sb = 0.0, sm = 0.0;
+        int n = 0;
+        for (std::size_t q = 0; q < g.map.size(); ++q) {
+          const auto& org = g.origins[q];
+          if (org.size() != 2) continue;
+          const Landmark* la = ra.map.Find(org[0].id);
+          const Landmark* lb = rb.map.Find(org[1].id);
+          double ea = 0.0, eb = 0.0, em = 0.0;
+          if (!la || !lb || !ref_nees(la->mean, la->cov, ta, &ea) || !ref_nees(lb->mean, lb->cov, tb, &eb) ||
+              !ref_nees(g.map.landmarks[q].mean, g.map.landmarks[q].cov, ta, &em)) {
+            continue;
+          }
+          sa += ea;
+          sb += eb;
+          sm += em;
+          ++n;
+        }
+        if (k == 0) {
+          p.overlap = n;
+          p.nees_a = n ? sa / n : 0.0;
+          p.nees_b = n ? sb / n : 0.0;
+        }
+        p.merged_nees.emplace_back(o.methods[k], n ? sm / n : 0.0);
+      }
+      out.push_back(p);
+    }
+  }
+  return out;
+}
+
+std::string VictoriaPairsCsv(const std::vector<VictoriaPairResult>& pairs) {
+  std::ostringstream s;
+  s << "robot_a,robot_b,verdict,overlap_landmarks,nees_a,nees_b";
+  if (!pairs.empty()) {
+    for (const auto& pair : pairs) {
+      if (pair.merged_nees.empty()) continue;
+      for (const auto& [m, v] : pair.merged_nees) s << ",nees_merged_" << ToString(m);
+      break;
+    }
+  }
+  s << '\n';
+  std::size_t columns = 0;
+  for (const auto& p : pairs) columns = std::max(columns, p.merged_nees.size());
+  for (const auto& p : pairs) {
+    s << p.a << ',' << p.b << ',' << ToString(p.verdict) << ',' << p.overlap << ',' << Num(p.nees_a) << ','
+      << Num(p.nees_b);
+    for (std::size_t k = 0; k < columns; ++k) s << ',' << (k < p.merged_nees.size() ? Num(p.merged_nees[k].second) : "");
+    s << '\n';
+  }
+  return s.str();
+}
+
+}  // namespace mapmesh::lab

@@ -1,0 +1,95 @@
+#pragma once
+// Fusion experiments (thesis 5.2-5.4): two robots' local maps from one SLAM run are aligned
+// (map overlap, unknown start poses), robot 2's map is fused into robot 1's cloned global
+// map by each estimator, and everything is scored on the overlap (the global landmarks both
+// robots contributed to) against the truth: the merged estimate in robot 1's frame, and each
+// robot's own estimate of the same landmarks in its own frame.
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "common/merge/fusion.h"
+#include "common/merge/map_alignment.h"
+#include "common/metrics/landmark_metrics.h"
+#include "lab/slam_experiment.h"
+
+namespace mapmesh::lab {
+
+struct FusionTrialOptions {
+  RobotId a = 1, b = 2;               // b's map is fused into a's global map
+  bool oracle_alignment = false;      // use the true transform (zero covariance) instead of aligning
+  AlignmentOptions align;
+  std::vector<FusionMethod> methods{FusionMethod::kMaximumLikelihood, FusionMethod::kInformation,
+                                    FusionMethod::kCiConstant, FusionMethod::kCiDeterminant, FusionMethod::kCiTrace};
+};
+
+// Means over the overlap landmarks of one map.
+struct OverlapScore {
+  int landmarks = 0;
+  double nees = 0.0;              // mean NEES (infinite when a covariance is singular)
+  double consistent_ratio = 0.0;  // NEES below 5.99
+  double det = 0.0;               // mean determinant of the covariances (m^4)
+  double rmse_m = 0.0;
+};
+
+struct MethodScore {
+  FusionMethod method = FusionMethod::kCiConstant;
+  OverlapScore merged;
+  double global_nees = 0.0, global_consistent_ratio = 0.0, global_rmse_m = 0.0;  // whole global map
+  int global_landmarks = 0;
+};
+
+struct FusionTrialResult {
+  std::uint64_t seed = 0;
+  double value = 0.0;                     // the swept parameter
+  AlignmentVerdict verdict = AlignmentVerdict::kTooFewLandmarks;
+  bool fused = false;                     // aligned (or oracle) and scored
+  double translation_error_m = 0.0, rotation_error_deg = 0.0;
+  AssociationScore association;           // of the overlap, against the truth
+  OverlapScore a, b;                      // each robot's own estimates of the overlap landmarks
+  std::vector<MethodScore> methods;
+};
+
+// Scores one run (needs the true frame origins and landmark truth, as simulations give).
+FusionTrialResult RunFusionTrial(const std::vector<SlamRunResult>& robots, const FusionTrialOptions& options,
+                                 std::mt19937_64& rng);
+
+// A scenario for (swept value, seed).
+using ScenarioMaker = std::function<Scenario(double value, std::uint64_t seed)>;
+
+struct FusionSweepOptions {
+  std::vector<double> values;
+  int seeds = 100;
+  std::uint64_t first_seed = 1;
+  int threads = 0;                    // 0: the machine's cores
+  FusionTrialOptions trial;
+  SlamRunOptions slam;
+  std::function<void(int done, int total)> progress;
+};
+
+// Every (value, seed) run, in order of value then seed.
+std::vector<FusionTrialResult> RunFusionSweep(const ScenarioMaker& make, const FusionSweepOptions& options);
+
+// One CSV row per (value, method), averaged over the runs that fused.
+std::string FusionSweepCsv(const std::string& parameter, const std::vector<FusionTrialResult>& trials);
+
+// Thesis Table 7 on real data: the Victoria Park replay split into K robots, every pair of
+// robots aligned and fused (b into a), scored against a reference map (the whole run as one
+// robot, aligned to each map), with the reference's covariance added to each NEES: there is
+// no landmark ground truth in Victoria Park.
+struct VictoriaPairResult {
+  RobotId a = 0, b = 0;
+  AlignmentVerdict verdict = AlignmentVerdict::kTooFewLandmarks;
+  int overlap = 0;
+  double nees_a = 0.0, nees_b = 0.0;
+  std::vector<std::pair<FusionMethod, double>> merged_nees;
+};
+std::vector<VictoriaPairResult> RunVictoriaPairs(const std::vector<SlamRunResult>& robots, const LandmarkMap& reference,
+                                                 const FusionTrialOptions& options, std::mt19937_64& rng);
+std::string VictoriaPairsCsv(const std::vector<VictoriaPairResult>& pairs);
+
+}  // namespace mapmesh::lab
