@@ -1,12 +1,15 @@
 // mapmesh-bench: speed figures. Each is reported as a ratio against a baseline measured in
 // the same run (see docs/BENCHMARKS.md for the recorded figures and the command).
 
+#include <Eigen/LU>
 #include <benchmark/benchmark.h>
 
 #include <memory>
 #include <type_traits>
 
 #include "common/map/map_codec.h"
+#include "common/merge/fusion.h"
+#include "common/merge/global_map.h"
 #include "common/merge/map_alignment.h"
 #include "lab/synthetic_maps.h"
 #include "common/slam/cekf_slam.h"
@@ -230,6 +233,89 @@ void BM_AllPairsRansac(benchmark::State& state) {
   state.counters["success"] = static_cast<double>(correct) / runs;
 }
 BENCHMARK(BM_AllPairsRansac)->Args({60, 50})->Unit(benchmark::kMillisecond)->Iterations(5);
+
+// Fusion (M5): CI of 1000 landmark pairs with the determinant-minimising weight, in closed
+// form against the thesis's approach, a numerical search (golden section to 1e-6, forming
+// the fused covariance at every step). Random covariances, eigenvalues 0.01-1 m^2.
+std::vector<std::pair<Gaussian2, Gaussian2>> FusionPairs(int n) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(0.01, 1.0), ang(0.0, 3.14159), pos(-50.0, 50.0);
+  auto estimate = [&] {
+    const double a = ang(rng);
+    Eigen::Matrix2d r;
+    r << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
+    const Eigen::Matrix2d cov = r * Eigen::Vector2d(u(rng), u(rng)).asDiagonal() * r.transpose();
+    return Gaussian2{{pos(rng), pos(rng)}, 0.5 * (cov + cov.transpose())};
+  };
+  std::vector<std::pair<Gaussian2, Gaussian2>> out;
+  for (int i = 0; i < n; ++i) out.emplace_back(estimate(), estimate());
+  return out;
+}
+
+void BM_CiClosedForm(benchmark::State& state) {
+  const auto pairs = FusionPairs(static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    for (const auto& [a, b] : pairs) benchmark::DoNotOptimize(FusePair(a, b, FusionMethod::kCiDeterminant));
+  }
+  state.SetItemsProcessed(state.iterations() * state.range(0));
+}
+BENCHMARK(BM_CiClosedForm)->Arg(1000)->Unit(benchmark::kMicrosecond);
+
+void BM_CiGoldenSection(benchmark::State& state) {
+  const auto pairs = FusionPairs(static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    for (const auto& [a, b] : pairs) {
+      const double w = CiWeightBySearch(a.cov.inverse(), b.cov.inverse(), CiCriterion::kDeterminant, 1e-6);
+      benchmark::DoNotOptimize(CiFuseWithWeight(a, b, w));
+    }
+  }
+  state.SetItemsProcessed(state.iterations() * state.range(0));
+}
+BENCHMARK(BM_CiGoldenSection)->Arg(1000)->Unit(benchmark::kMicrosecond);
+
+// A full global-map rebuild: a 500-landmark local map and 4 peers' 500-landmark maps of the
+// same area (each with its own noise and frame), every peer aligned with a small transform
+// covariance; CI with the determinant-minimising weight.
+void BM_GlobalMapRebuild(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(1)), peers = static_cast<int>(state.range(0));
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 80.0), ua(-3.1, 3.1), ut(-50.0, 50.0);
+  std::normal_distribution<double> g(0.0, 0.1);
+  std::vector<Eigen::Vector2d> world;
+  while (static_cast<int>(world.size()) < n) {
+    const Eigen::Vector2d p(u(rng), u(rng));
+    bool far = true;
+    for (const auto& q : world) far = far && (p - q).norm() > 1.5;
+    if (far) world.push_back(p);
+  }
+  auto map_in = [&](const Pose2& frame) {
+    LandmarkMap m;
+    const Pose2 inv = frame.Inverse();
+    for (std::size_t i = 0; i < world.size(); ++i) {
+      m.landmarks.push_back({static_cast<std::uint32_t>(i), -1, inv.Apply(world[i] + Eigen::Vector2d(g(rng), g(rng))),
+                             0.01 * Eigen::Matrix2d::Identity()});
+    }
+    return m;
+  };
+  const LandmarkMap local = map_in({});
+  std::vector<MapSource> sources;
+  Eigen::Matrix3d tc = Eigen::Matrix3d::Zero();
+  tc.diagonal() << 1e-4, 1e-4, 1e-7;
+  for (int k = 0; k < peers; ++k) {
+    const Pose2 frame{ut(rng), ut(rng), ua(rng)};
+    sources.push_back({static_cast<RobotId>(k + 2), map_in(frame), frame, tc});
+  }
+  GlobalMapOptions o;
+  o.method = FusionMethod::kCiDeterminant;
+  std::size_t size = 0;
+  for (auto _ : state) {
+    const GlobalMap gm = BuildGlobalMap(local, 1, sources, o);
+    size = gm.map.size();
+    benchmark::DoNotOptimize(size);
+  }
+  state.counters["landmarks"] = static_cast<double>(size);
+}
+BENCHMARK(BM_GlobalMapRebuild)->Args({4, 500})->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace mapmesh

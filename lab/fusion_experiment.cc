@@ -195,58 +195,99 @@ std::vector<FusionTrialResult> RunFusionSweep(const ScenarioMaker& make, const F
   return out;
 }
 
-std::string FusionSweepCsv(const std::string& parameter, const std::vector<FusionTrialResult>& trials) {
-  std::ostringstream s;
-  s << "parameter,value,method,runs,fused_runs,translation_error_m,rotation_error_deg,association_precision,"
-       "association_recall,overlap_landmarks,nees_a,nees_b,consistent_a,consistent_b,det_a,det_b,nees_merged,"
-       "consistent_merged,det_merged,rmse_merged_m,nees_global,consistent_global\n";
+namespace {
+
+// Landmark-weighted pooling of overlap scores.
+struct Pool {
+  double n = 0.0, nees = 0.0, consistent = 0.0, det = 0.0, se = 0.0;
+  void Add(const OverlapScore& s) {
+    n += s.landmarks;
+    nees += s.nees * s.landmarks;
+    consistent += s.consistent_ratio * s.landmarks;
+    det += s.det * s.landmarks;
+    se += s.rmse_m * s.rmse_m * s.landmarks;
+  }
+  OverlapScore Score() const {
+    OverlapScore s;
+    s.landmarks = static_cast<int>(n);
+    if (n <= 0) {
+      const double nan = std::numeric_limits<double>::quiet_NaN();
+      s.nees = s.consistent_ratio = s.det = s.rmse_m = nan;
+      return s;
+    }
+    s.nees = nees / n;
+    s.consistent_ratio = consistent / n;
+    s.det = det / n;
+    s.rmse_m = std::sqrt(se / n);
+    return s;
+  }
+};
+
+}  // namespace
+
+std::vector<FusionSweepRow> SummariseFusionSweep(const std::vector<FusionTrialResult>& trials,
+                                                 const std::vector<FusionMethod>& methods) {
   std::map<double, std::vector<const FusionTrialResult*>> by_value;
   for (const FusionTrialResult& t : trials) by_value[t.value].push_back(&t);
+  std::vector<FusionSweepRow> out;
   for (const auto& [value, runs] : by_value) {
     std::vector<const FusionTrialResult*> fused;
     for (const auto* t : runs) {
       if (t->fused) fused.push_back(t);
     }
-    const std::size_t methods = fused.empty() ? 0 : fused.front()->methods.size();
-    // Means over the runs; NEES, ratios and determinants weighted by overlap landmarks.
-    double te = 0.0, re = 0.0, prec = 0.0, rec = 0.0, overlap = 0.0;
-    double na = 0.0, nb = 0.0, ca = 0.0, cb = 0.0, da = 0.0, db = 0.0, la = 0.0, lb = 0.0;
-    for (const auto* t : fused) {
-      te += t->translation_error_m;
-      re += t->rotation_error_deg;
-      prec += t->association.precision;
-      rec += t->association.recall;
-      overlap += t->a.landmarks;
-      na += t->a.nees * t->a.landmarks;
-      ca += t->a.consistent_ratio * t->a.landmarks;
-      da += t->a.det * t->a.landmarks;
-      la += t->a.landmarks;
-      nb += t->b.nees * t->b.landmarks;
-      cb += t->b.consistent_ratio * t->b.landmarks;
-      db += t->b.det * t->b.landmarks;
-      lb += t->b.landmarks;
-    }
-    const double nf = std::max<double>(1.0, static_cast<double>(fused.size()));
-    for (std::size_t k = 0; k < methods; ++k) {
-      double nm = 0.0, cm = 0.0, dm = 0.0, sem = 0.0, lm = 0.0, ng = 0.0, cg = 0.0;
+    const double nf = static_cast<double>(fused.size());
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    for (std::size_t k = 0; k < methods.size(); ++k) {
+      FusionSweepRow row;
+      row.value = value;
+      row.method = methods[k];
+      row.runs = static_cast<int>(runs.size());
+      row.fused_runs = static_cast<int>(fused.size());
+      Pool a, b, merged;
+      double te = 0.0, re = 0.0, prec = 0.0, rec = 0.0, overlap = 0.0, gn = 0.0, gc = 0.0;
       for (const auto* t : fused) {
-        const MethodScore& m = t->methods[k];
-        nm += m.merged.nees * m.merged.landmarks;
-        cm += m.merged.consistent_ratio * m.merged.landmarks;
-        dm += m.merged.det * m.merged.landmarks;
-        sem += m.merged.rmse_m * m.merged.rmse_m * m.merged.landmarks;
-        lm += m.merged.landmarks;
-        ng += m.global_nees;
-        cg += m.global_consistent_ratio;
+        te += t->translation_error_m;
+        re += t->rotation_error_deg;
+        prec += t->association.precision;
+        rec += t->association.recall;
+        overlap += t->a.landmarks;
+        a.Add(t->a);
+        b.Add(t->b);
+        if (k < t->methods.size()) {
+          merged.Add(t->methods[k].merged);
+          gn += t->methods[k].global_nees;
+          gc += t->methods[k].global_consistent_ratio;
+        }
       }
-      const double l = std::max(1.0, lm);
-      s << parameter << ',' << value << ',' << ToString(fused.front()->methods[k].method) << ',' << runs.size() << ','
-        << fused.size() << ',' << Num(te / nf) << ',' << Num(re / nf) << ',' << Num(prec / nf) << ',' << Num(rec / nf)
-        << ',' << Num(overlap / nf) << ',' << Num(na / std::max(1.0, la)) << ',' << Num(nb / std::max(1.0, lb)) << ','
-        << Num(ca / std::max(1.0, la)) << ',' << Num(cb / std::max(1.0, lb)) << ',' << Num(da / std::max(1.0, la))
-        << ',' << Num(db / std::max(1.0, lb)) << ',' << Num(nm / l) << ',' << Num(cm / l) << ',' << Num(dm / l) << ','
-        << Num(std::sqrt(sem / l)) << ',' << Num(ng / nf) << ',' << Num(cg / nf) << '\n';
+      const auto mean = [&](double sum) { return nf > 0 ? sum / nf : nan; };
+      row.translation_error_m = mean(te);
+      row.rotation_error_deg = mean(re);
+      row.association_precision = mean(prec);
+      row.association_recall = mean(rec);
+      row.overlap_landmarks = mean(overlap);
+      row.a = a.Score();
+      row.b = b.Score();
+      row.merged = merged.Score();
+      row.global_nees = mean(gn);
+      row.global_consistent_ratio = mean(gc);
+      out.push_back(row);
     }
+  }
+  return out;
+}
+
+std::string FusionSweepCsv(const std::string& parameter, const std::vector<FusionSweepRow>& rows) {
+  std::ostringstream s;
+  s << "parameter,value,method,runs,fused_runs,translation_error_m,rotation_error_deg,association_precision,"
+       "association_recall,overlap_landmarks,nees_a,nees_b,consistent_a,consistent_b,det_a,det_b,nees_merged,"
+       "consistent_merged,det_merged,rmse_merged_m,nees_global,consistent_global\n";
+  for (const FusionSweepRow& r : rows) {
+    s << parameter << ',' << r.value << ',' << ToString(r.method) << ',' << r.runs << ',' << r.fused_runs << ','
+      << Num(r.translation_error_m) << ',' << Num(r.rotation_error_deg) << ',' << Num(r.association_precision) << ','
+      << Num(r.association_recall) << ',' << Num(r.overlap_landmarks) << ',' << Num(r.a.nees) << ',' << Num(r.b.nees)
+      << ',' << Num(r.a.consistent_ratio) << ',' << Num(r.b.consistent_ratio) << ',' << Num(r.a.det) << ','
+      << Num(r.b.det) << ',' << Num(r.merged.nees) << ',' << Num(r.merged.consistent_ratio) << ',' << Num(r.merged.det)
+      << ',' << Num(r.merged.rmse_m) << ',' << Num(r.global_nees) << ',' << Num(r.global_consistent_ratio) << '\n';
   }
   return s.str();
 }

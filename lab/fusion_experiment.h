@@ -74,8 +74,21 @@ struct FusionSweepOptions {
 // Every (value, seed) run, in order of value then seed.
 std::vector<FusionTrialResult> RunFusionSweep(const ScenarioMaker& make, const FusionSweepOptions& options);
 
-// One CSV row per (value, method), averaged over the runs that fused.
-std::string FusionSweepCsv(const std::string& parameter, const std::vector<FusionTrialResult>& trials);
+// One row per (value, method), averaged over the runs that fused: run figures (alignment,
+// association) by run, landmark figures over the overlap landmarks of all runs.
+struct FusionSweepRow {
+  double value = 0.0;
+  FusionMethod method = FusionMethod::kCiConstant;
+  int runs = 0, fused_runs = 0;
+  double translation_error_m = 0.0, rotation_error_deg = 0.0;
+  double association_precision = 0.0, association_recall = 0.0;
+  double overlap_landmarks = 0.0;   // per fused run
+  OverlapScore a, b, merged;        // landmarks: the total over the runs
+  double global_nees = 0.0, global_consistent_ratio = 0.0;
+};
+std::vector<FusionSweepRow> SummariseFusionSweep(const std::vector<FusionTrialResult>& trials,
+                                                 const std::vector<FusionMethod>& methods);
+std::string FusionSweepCsv(const std::string& parameter, const std::vector<FusionSweepRow>& rows);
 
 // Thesis Table 7 on real data: the Victoria Park replay split into K robots, every pair of
 // robots aligned and fused (b into a), scored against a reference map (the whole run as one

@@ -143,7 +143,7 @@ int RunFusionCommand(const app::ProcessOptions& po, const std::string& param, co
     return LoadScenario(po.scenario_path, overrides, po.agents);
   };
   CsvOut out(csv_path);
-  out.stream() << lab::FusionSweepCsv(param, lab::RunFusionSweep(make, so));
+  out.stream() << lab::FusionSweepCsv(param, lab::SummariseFusionSweep(lab::RunFusionSweep(make, so), so.trial.methods));
   return 0;
 }
 

@@ -56,7 +56,7 @@ void Sweep(const std::string& dir, const std::string& name, const std::string& s
   const auto make = [&](double value, std::uint64_t seed) {
     return LoadScenario(file, {ParseOverride(key + "=" + FormatValue(value)), ParseOverride("seed=" + std::to_string(seed))});
   };
-  Write(dir + "/" + name + ".csv", FusionSweepCsv(parameter, RunFusionSweep(make, so)));
+  Write(dir + "/" + name + ".csv", FusionSweepCsv(parameter, SummariseFusionSweep(RunFusionSweep(make, so), so.trial.methods)));
 }
 
 }  // namespace

@@ -176,6 +176,40 @@ FusionResult Fuse(std::span<const Gaussian2> in, FusionMethod method) {
   return r;
 }
 
+namespace {
+
+Gaussian2 FuseInformation(const Gaussian2& a, const Gaussian2& b, const Eigen::Matrix2d& ia, const Eigen::Matrix2d& ib,
+                          double w) {
+  const Eigen::Matrix2d cov = Symmetric((w * ia + (1.0 - w) * ib).inverse());
+  return {cov * (w * (ia * a.mean) + (1.0 - w) * (ib * b.mean)), cov};
+}
+
+}  // namespace
+
+Gaussian2 CiFuseWithWeight(const Gaussian2& a, const Gaussian2& b, double w) {
+  return FuseInformation(a, b, a.cov.inverse(), b.cov.inverse(), w);
+}
+
+std::optional<Gaussian2> FusePair(const Gaussian2& a, const Gaussian2& b, FusionMethod method, double* weight) {
+  if (CheckEstimate(a) != FusionVerdict::kFused || CheckEstimate(b) != FusionVerdict::kFused) return std::nullopt;
+  if (method == FusionMethod::kMaximumLikelihood) {
+    const Eigen::Vector2d mu = 0.5 * (a.mean + b.mean), d = 0.5 * (a.mean - b.mean);
+    return Gaussian2{mu, d * d.transpose()};
+  }
+  const Eigen::Matrix2d ia = a.cov.inverse(), ib = b.cov.inverse();
+  if (method == FusionMethod::kInformation) {
+    const Eigen::Matrix2d cov = Symmetric((ia + ib).inverse());
+    return Gaussian2{cov * (ia * a.mean + ib * b.mean), cov};
+  }
+  double w = 0.5;
+  if (method != FusionMethod::kCiConstant) {
+    const CiCriterion c = method == FusionMethod::kCiDeterminant ? CiCriterion::kDeterminant : CiCriterion::kTrace;
+    w = 0.5 + LineOptimum(0.5 * (ia + ib), ia - ib, -0.5, 0.5, c);
+  }
+  if (weight) *weight = w;
+  return FuseInformation(a, b, ia, ib, w);
+}
+
 double CiWeight(const Eigen::Matrix2d& a, const Eigen::Matrix2d& b, CiCriterion criterion) {
   // From equal weights, move t in [-1/2, 1/2] of weight onto a.
   return 0.5 + LineOptimum(0.5 * (a + b), a - b, -0.5, 0.5, criterion);

@@ -68,6 +68,13 @@ FusionResult Fuse(std::span<const Gaussian2> inputs, FusionMethod method);
 
 enum class CiCriterion { kDeterminant, kTrace };
 
+// Two inputs, without allocating: the common case of the global map. nullopt when either
+// input is invalid (CheckEstimate); *weight, when given, receives a's CI weight.
+std::optional<Gaussian2> FusePair(const Gaussian2& a, const Gaussian2& b, FusionMethod method, double* weight = nullptr);
+
+// CI of two valid inputs with a's weight w given.
+Gaussian2 CiFuseWithWeight(const Gaussian2& a, const Gaussian2& b, double w);
+
 // Two inputs with information matrices a and b: the weight w in [0, 1] of a in
 // w a + (1 - w) b that minimises det (or trace) of its inverse, in closed form.
 double CiWeight(const Eigen::Matrix2d& info_a, const Eigen::Matrix2d& info_b, CiCriterion criterion);

@@ -18,7 +18,7 @@
 // robot's that another source also brings. Covariance Intersection stays consistent under
 // any such correlation; information fusion counts the shared information twice and becomes
 // overconfident, more so the more often maps have been exchanged; Maximum Likelihood ignores
-// covariances altogether. docs/FUSION.md gives the figures.
+// covariances altogether. docs/EXPERIMENTS.md (fusion) gives the figures.
 
 #include <Eigen/Core>
 #include <cstdint>

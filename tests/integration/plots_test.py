@@ -40,5 +40,34 @@ class AlignmentPlotsTest(unittest.TestCase):
         self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
 
 
+class FusionPlotsTest(unittest.TestCase):
+    def test_thesis_fusion_figures(self):
+        with tempfile.TemporaryDirectory(prefix="mapmesh_plots_") as tmp:
+            out = Path(tmp) / "fusion"
+            subprocess.run([str(BIN / "mapmesh-lab"), "thesis-fusion", "--out", str(out), "--seeds", "1",
+                            "--threads", "1"], check=True, capture_output=True, timeout=240)
+            csvs = sorted(p.name for p in out.glob("*.csv"))
+            self.assertEqual(csvs, ["fig61_62_bearing.csv", "fig64_65_velocity.csv", "fig72_73_range.csv",
+                                    "table7_victoria.csv"])
+            r = subprocess.run(["/usr/bin/python3", str(REPO / "scripts" / "plots" / "fusion.py"), str(out)],
+                               capture_output=True, text=True, timeout=120)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            pngs = sorted(p.name for p in out.glob("*.png"))
+            self.assertEqual(pngs, [c.replace(".csv", ".png") for c in csvs])
+            for name in pngs:
+                data = (out / name).read_bytes()
+                self.assertTrue(data.startswith(PNG_SIGNATURE), name)
+                self.assertGreater(len(data), 10_000, name)
+
+    def test_help_and_missing_directory(self):
+        script = str(REPO / "scripts" / "plots" / "fusion.py")
+        h = subprocess.run(["/usr/bin/python3", script, "--help"], capture_output=True, text=True, timeout=60)
+        self.assertEqual(h.returncode, 0)
+        self.assertIn("Usage", h.stdout)
+        r = subprocess.run(["/usr/bin/python3", script, "/nonexistent/dir"], capture_output=True, text=True, timeout=60)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -225,5 +225,23 @@ TEST(Fusion, MethodNamesRoundTrip) {
   EXPECT_FALSE(ParseFusionMethod("kalman").has_value());
 }
 
+TEST(Fusion, PairFusionEqualsTheGeneralOne) {
+  std::mt19937_64 rng(12);
+  for (int trial = 0; trial < 200; ++trial) {
+    const std::vector<Gaussian2> in{RandomEstimate(rng), RandomEstimate(rng)};
+    for (FusionMethod m : {FusionMethod::kMaximumLikelihood, FusionMethod::kInformation, FusionMethod::kCiConstant,
+                           FusionMethod::kCiDeterminant, FusionMethod::kCiTrace}) {
+      const FusionResult ref = Fuse(in, m);
+      const std::optional<Gaussian2> pair = FusePair(in[0], in[1], m);
+      ASSERT_TRUE(pair.has_value());
+      EXPECT_LT((pair->mean - ref.fused.mean).norm(), 1e-9 * (1 + ref.fused.mean.norm())) << ToString(m);
+      EXPECT_LT((pair->cov - ref.fused.cov).norm(), 1e-9 * (1 + ref.fused.cov.norm())) << ToString(m);
+    }
+  }
+  Gaussian2 bad = RandomEstimate(rng);
+  bad.cov << 1.0, 1.0, 1.0, 1.0;
+  EXPECT_FALSE(FusePair(RandomEstimate(rng), bad, FusionMethod::kCiConstant).has_value());
+}
+
 }  // namespace
 }  // namespace mapmesh
