@@ -79,46 +79,25 @@ TEST_P(DisjointMapsTest, AreRejected) {
 
 INSTANTIATE_TEST_SUITE_P(Seeds, DisjointMapsTest, ::testing::Range(1, 11));
 
-TEST(MapAlignment, TransformCovarianceIsConsistentForIndependentLandmarks) {
-  // NEES of the recovered transform (3 dof) over seeded pairs averages about 3.
-  double nees = 0.0;
-  int n = 0;
-  AlignmentOptions o;
-  o.landmark_errors = LandmarkErrors::kIndependent;
-  for (int seed = 1; seed <= 40; ++seed) {
-    std::mt19937_64 rng(500 + seed);
-    const lab::MapPair p = lab::MakeMapPair(Pair(200, 0.4, 0.1), rng);
-    const AlignmentResult r = AlignMaps(p.a, p.b, o, rng);
-    if (!r.accepted()) continue;
-    const Eigen::Vector3d e(r.transform.x - p.truth.x, r.transform.y - p.truth.y, WrapAngle(r.transform.theta - p.truth.theta));
-    nees += e.dot(r.cov.ldlt().solve(e));
-    ++n;
-  }
-  ASSERT_GE(n, 38);
-  EXPECT_GT(nees / n, 1.5);
-  EXPECT_LT(nees / n, 5.0);
-}
-
-// Maps whose landmarks share an error, as SLAM maps share their robot's pose error: B is
-// shifted as a whole by sigma_common per axis, and every landmark's covariance says so (its
-// marginal includes the common part). Treating the inliers as independent claims n times the
-// information the maps hold; the default (unknown correlation) stays consistent.
-double CommonModeNees(LandmarkErrors errors) {
+// Mean NEES (3 dof) of the recovered transform over 40 seeded 200-landmark pairs. With
+// sigma_common > 0, B's landmarks share an error, as SLAM maps share their robot's pose error:
+// B is shifted as a whole by sigma_common per axis, and every landmark's covariance says so
+// (its marginal includes the common part). B's frame stays where it was; its estimates are
+// off, and the fit inherits their common error.
+double TransformNees(LandmarkErrors errors, double sigma_common, std::uint64_t first_seed) {
   double nees = 0.0;
   int n = 0;
   AlignmentOptions o;
   o.landmark_errors = errors;
-  const double sigma_common = 0.3;
   for (int seed = 1; seed <= 40; ++seed) {
-    std::mt19937_64 rng(700 + seed);
+    std::mt19937_64 rng(first_seed + seed);
     lab::MapPair p = lab::MakeMapPair(Pair(200, 0.4, 0.1), rng);
     std::normal_distribution<double> g(0.0, sigma_common);
-    const Eigen::Vector2d shift(g(rng), g(rng));
+    const Eigen::Vector2d shift = sigma_common > 0 ? Eigen::Vector2d(g(rng), g(rng)) : Eigen::Vector2d::Zero();
     for (Landmark& l : p.b.landmarks) {
       l.mean += shift;
       l.cov += sigma_common * sigma_common * Eigen::Matrix2d::Identity();
     }
-    // B's frame is where it was; its estimates are off: the fit inherits their common error.
     const AlignmentResult r = AlignMaps(p.a, p.b, o, rng);
     if (!r.accepted()) continue;
     const Eigen::Vector3d e(r.transform.x - p.truth.x, r.transform.y - p.truth.y, WrapAngle(r.transform.theta - p.truth.theta));
@@ -129,9 +108,17 @@ double CommonModeNees(LandmarkErrors errors) {
   return nees / std::max(1, n);
 }
 
+TEST(MapAlignment, TransformCovarianceIsConsistentForIndependentLandmarks) {
+  const double nees = TransformNees(LandmarkErrors::kIndependent, 0.0, 500);
+  EXPECT_GT(nees, 1.5);
+  EXPECT_LT(nees, 5.0);
+}
+
+// Treating correlated inliers as independent claims n times the information the maps hold;
+// the default (unknown correlation) stays consistent.
 TEST(MapAlignment, TransformCovarianceIsConsistentForCorrelatedLandmarks) {
-  const double unknown = CommonModeNees(LandmarkErrors::kUnknownCorrelation);
-  const double independent = CommonModeNees(LandmarkErrors::kIndependent);
+  const double unknown = TransformNees(LandmarkErrors::kUnknownCorrelation, 0.3, 700);
+  const double independent = TransformNees(LandmarkErrors::kIndependent, 0.3, 700);
   std::printf("common-mode maps: transform NEES %.2f (unknown correlation), %.1f (independent)\n", unknown, independent);
   EXPECT_LT(unknown, 3.0 * 1.5);
   EXPECT_GT(independent, 3.0 * 10);  // the check can fail: the independent assumption is caught
