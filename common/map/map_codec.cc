@@ -1,5 +1,6 @@
 #include "common/map/map_codec.h"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -24,7 +25,32 @@ T Get(const std::uint8_t* p) {
   return v;
 }
 
-constexpr double kMaxAbsMm = 2.1e9;
+void PutI24(std::vector<std::uint8_t>& out, std::int32_t v) {
+  const auto u = static_cast<std::uint32_t>(v);
+  out.push_back(static_cast<std::uint8_t>(u & 0xff));
+  out.push_back(static_cast<std::uint8_t>((u >> 8) & 0xff));
+  out.push_back(static_cast<std::uint8_t>((u >> 16) & 0xff));
+}
+
+std::int32_t GetI24(const std::uint8_t* p) {
+  std::uint32_t u = p[0] | (std::uint32_t{p[1]} << 8) | (std::uint32_t{p[2]} << 16);
+  if (u & 0x800000u) u |= 0xff000000u;  // sign-extend
+  return static_cast<std::int32_t>(u);
+}
+
+constexpr std::int32_t kI24Max = (1 << 23) - 1, kI24Min = -(1 << 23);
+constexpr double kSigmaMin = 1e-5;         // m
+constexpr double kLogStep = 3e-4;
+constexpr std::uint16_t kSigmaCodeMax = 65534;  // 65535 is invalid
+constexpr std::int16_t kRhoCodeMax = 32766;
+constexpr double kRhoScale = 32767.0;
+
+std::uint16_t SigmaCode(double sigma) {
+  const double c = std::round(std::log(std::max(sigma, kSigmaMin) / kSigmaMin) / kLogStep);
+  return static_cast<std::uint16_t>(std::clamp(c, 0.0, static_cast<double>(kSigmaCodeMax)));
+}
+
+double SigmaOf(std::uint16_t code) { return kSigmaMin * std::exp(code * kLogStep); }
 
 }  // namespace
 
@@ -38,12 +64,26 @@ std::string_view ToString(MapDecodeError e) {
     case MapDecodeError::kNonFinite: return "non_finite";
     case MapDecodeError::kBadCovariance: return "bad_covariance";
     case MapDecodeError::kDuplicateId: return "duplicate_id";
-    case MapDecodeError::kOutOfRange: return "out_of_range";
+    case MapDecodeError::kBadHeader: return "bad_header";
   }
   return "unknown";
 }
 
 std::vector<std::uint8_t> EncodeMap(const LandmarkMap& map) {
+  // The origin: the middle of the map's bounding box, to the millimetre.
+  double lo_x = 0.0, hi_x = 0.0, lo_y = 0.0, hi_y = 0.0;
+  for (std::size_t i = 0; i < map.size(); ++i) {
+    const Landmark& l = map.landmarks[i];
+    if (!l.mean.allFinite() || !IsValidCovariance(l.cov)) return {};
+    lo_x = i == 0 ? l.mean.x() : std::min(lo_x, l.mean.x());
+    hi_x = i == 0 ? l.mean.x() : std::max(hi_x, l.mean.x());
+    lo_y = i == 0 ? l.mean.y() : std::min(lo_y, l.mean.y());
+    hi_y = i == 0 ? l.mean.y() : std::max(hi_y, l.mean.y());
+  }
+  const double ox = std::round(500.0 * (lo_x + hi_x)), oy = std::round(500.0 * (lo_y + hi_y));
+  if (!(std::abs(ox) < 2e9 && std::abs(oy) < 2e9)) return {};
+  const double shape = std::isfinite(map.shape_sigma_m) && map.shape_sigma_m > 0 ? map.shape_sigma_m : 0.0;
+
   std::vector<std::uint8_t> out;
   out.reserve(kMapCodecHeaderBytes + kMapCodecLandmarkBytes * map.size());
   out.push_back('M');
@@ -51,18 +91,22 @@ std::vector<std::uint8_t> EncodeMap(const LandmarkMap& map) {
   out.push_back(kMapCodecVersion);
   out.push_back(0);
   Put<std::uint32_t>(out, static_cast<std::uint32_t>(map.size()));
+  Put<std::int32_t>(out, static_cast<std::int32_t>(ox));
+  Put<std::int32_t>(out, static_cast<std::int32_t>(oy));
+  Put<float>(out, static_cast<float>(shape));
   for (const Landmark& l : map.landmarks) {
-    const double x_mm = std::round(l.mean.x() * 1000.0), y_mm = std::round(l.mean.y() * 1000.0);
-    if (!(std::abs(x_mm) < kMaxAbsMm && std::abs(y_mm) < kMaxAbsMm) || !l.cov.allFinite()) {
-      return {};
-    }
+    const double dx = std::round(l.mean.x() * 1000.0) - ox, dy = std::round(l.mean.y() * 1000.0) - oy;
+    if (dx < kI24Min || dx > kI24Max || dy < kI24Min || dy > kI24Max) return {};
+    const double sx = std::sqrt(std::max(0.0, l.cov(0, 0))), sy = std::sqrt(std::max(0.0, l.cov(1, 1)));
+    const double cxy = 0.5 * (l.cov(0, 1) + l.cov(1, 0));
+    const double rho = sx > 0 && sy > 0 ? cxy / (sx * sy) : 0.0;
     Put<std::uint32_t>(out, l.id);
-    Put<std::int32_t>(out, l.signature);
-    Put<std::int32_t>(out, static_cast<std::int32_t>(x_mm));
-    Put<std::int32_t>(out, static_cast<std::int32_t>(y_mm));
-    Put<float>(out, static_cast<float>(l.cov(0, 0)));
-    Put<float>(out, static_cast<float>(0.5 * (l.cov(0, 1) + l.cov(1, 0))));
-    Put<float>(out, static_cast<float>(l.cov(1, 1)));
+    PutI24(out, static_cast<std::int32_t>(dx));
+    PutI24(out, static_cast<std::int32_t>(dy));
+    Put<std::uint16_t>(out, SigmaCode(sx));
+    Put<std::uint16_t>(out, SigmaCode(sy));
+    Put<std::int16_t>(out, static_cast<std::int16_t>(std::clamp(std::round(rho * kRhoScale), -double{kRhoCodeMax},
+                                                                double{kRhoCodeMax})));
   }
   return out;
 }
@@ -71,18 +115,25 @@ MapDecodeResult DecodeMap(std::span<const std::uint8_t> payload) {
   MapDecodeResult r;
   auto fail = [&r](MapDecodeError e) {
     r.error = e;
-    r.map.landmarks.clear();
+    r.map = LandmarkMap{};
     return r;
   };
-  if (payload.size() < kMapCodecHeaderBytes) return fail(MapDecodeError::kTruncated);
+  if (payload.size() < 4) return fail(MapDecodeError::kTruncated);
   const std::uint8_t* p = payload.data();
   if (p[0] != 'M' || p[1] != 'M') return fail(MapDecodeError::kBadMagic);
   if (p[2] != kMapCodecVersion) return fail(MapDecodeError::kUnknownVersion);
+  if (payload.size() < kMapCodecHeaderBytes) return fail(MapDecodeError::kTruncated);
+  if (p[3] != 0) return fail(MapDecodeError::kBadHeader);
   const auto count = Get<std::uint32_t>(p + 4);
   if (count > kMapCodecMaxLandmarks) return fail(MapDecodeError::kOversized);
   const std::size_t expected = kMapCodecHeaderBytes + std::size_t{count} * kMapCodecLandmarkBytes;
   if (payload.size() < expected) return fail(MapDecodeError::kTruncated);
   if (payload.size() > expected) return fail(MapDecodeError::kOversized);
+  const double ox = Get<std::int32_t>(p + 8), oy = Get<std::int32_t>(p + 12);
+  const double shape = Get<float>(p + 16);
+  if (!std::isfinite(shape)) return fail(MapDecodeError::kNonFinite);
+  if (shape < 0) return fail(MapDecodeError::kBadHeader);
+  r.map.shape_sigma_m = shape;
 
   r.map.landmarks.reserve(count);
   std::unordered_set<std::uint32_t> ids;
@@ -91,12 +142,13 @@ MapDecodeResult DecodeMap(std::span<const std::uint8_t> payload) {
   for (std::uint32_t i = 0; i < count; ++i, p += kMapCodecLandmarkBytes) {
     Landmark l;
     l.id = Get<std::uint32_t>(p);
-    l.signature = Get<std::int32_t>(p + 4);
-    l.mean = {Get<std::int32_t>(p + 8) / 1000.0, Get<std::int32_t>(p + 12) / 1000.0};
-    const double cxx = Get<float>(p + 16), cxy = Get<float>(p + 20), cyy = Get<float>(p + 24);
-    l.cov << cxx, cxy, cxy, cyy;
-    if (!l.cov.allFinite()) return fail(MapDecodeError::kNonFinite);
-    if (!IsValidCovariance(l.cov)) return fail(MapDecodeError::kBadCovariance);
+    l.mean = {(ox + GetI24(p + 4)) / 1000.0, (oy + GetI24(p + 7)) / 1000.0};
+    const auto cx = Get<std::uint16_t>(p + 10), cy = Get<std::uint16_t>(p + 12);
+    const auto cr = Get<std::int16_t>(p + 14);
+    if (cx > kSigmaCodeMax || cy > kSigmaCodeMax) return fail(MapDecodeError::kNonFinite);
+    if (cr > kRhoCodeMax || cr < -kRhoCodeMax) return fail(MapDecodeError::kBadCovariance);
+    const double sx = SigmaOf(cx), sy = SigmaOf(cy), rho = cr / kRhoScale;
+    l.cov << sx * sx, rho * sx * sy, rho * sx * sy, sy * sy;
     if (!ids.insert(l.id).second) return fail(MapDecodeError::kDuplicateId);
     r.map.landmarks.push_back(l);
   }

@@ -81,8 +81,10 @@ mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch&) {
   mapmesh_msg_MapMessage m{};
   m.robot_id = v.robot_id;
   m.kind = static_cast<std::uint8_t>(v.kind);
+  m.incarnation = v.incarnation;
   m.version = v.version;
   m.stamp = v.stamp;
+  m.origin_stamp = v.origin_stamp;
   m.payload._maximum = static_cast<std::uint32_t>(v.payload.size());
   m.payload._length = static_cast<std::uint32_t>(v.payload.size());
   m.payload._buffer = const_cast<std::uint8_t*>(v.payload.data());
@@ -94,14 +96,17 @@ MapMessage FromMsg(const mapmesh_msg_MapMessage& m) {
   MapMessage v;
   v.robot_id = m.robot_id;
   v.kind = m.kind == 1 ? MapKind::kGlobal : MapKind::kLocal;
+  v.incarnation = m.incarnation;
   v.version = m.version;
   v.stamp = m.stamp;
+  v.origin_stamp = m.origin_stamp;
   if (m.payload._length > 0) v.payload.assign(m.payload._buffer, m.payload._buffer + m.payload._length);
   return v;
 }
 
 mapmesh_msg_AgentStatus ToMsg(const AgentStatus& v, MsgScratch& scratch) {
   scratch.ids.assign(v.peers_aligned.begin(), v.peers_aligned.end());
+  scratch.ids2.assign(v.peers_stale.begin(), v.peers_stale.end());
   mapmesh_msg_AgentStatus m{};
   m.robot_id = v.robot_id;
   m.incarnation = v.incarnation;
@@ -115,6 +120,7 @@ mapmesh_msg_AgentStatus ToMsg(const AgentStatus& v, MsgScratch& scratch) {
   m.bytes_sent = v.bytes_sent;
   m.bytes_received = v.bytes_received;
   m.peers_aligned = Borrow<dds_sequence_uint32>(scratch.ids);
+  m.peers_stale = Borrow<dds_sequence_uint32>(scratch.ids2);
   return m;
 }
 
@@ -132,6 +138,7 @@ AgentStatus FromMsg(const mapmesh_msg_AgentStatus& m) {
   s.bytes_sent = m.bytes_sent;
   s.bytes_received = m.bytes_received;
   s.peers_aligned.assign(m.peers_aligned._buffer, m.peers_aligned._buffer + m.peers_aligned._length);
+  s.peers_stale.assign(m.peers_stale._buffer, m.peers_stale._buffer + m.peers_stale._length);
   return s;
 }
 

@@ -30,7 +30,7 @@ MAPMESH_WIRE(AgentStatus, mapmesh_msg_AgentStatus);
 struct MsgScratch {
   std::vector<mapmesh_msg_Observation> obs;
   std::vector<mapmesh_msg_Link> links;
-  std::vector<std::uint32_t> ids;
+  std::vector<std::uint32_t> ids, ids2;
 };
 
 mapmesh_msg_Odometry ToMsg(const Odometry& v, MsgScratch& scratch);

@@ -65,8 +65,10 @@ enum class MapKind : std::uint8_t { kLocal = 0, kGlobal = 1 };
 struct MapMessage {
   RobotId robot_id = 0;
   MapKind kind = MapKind::kLocal;
-  std::uint32_t version = 0;
-  double stamp = 0.0;
+  std::uint32_t incarnation = 0;   // the sender's process start: each has its own map frame
+  std::uint32_t version = 0;       // publications of this kind within the incarnation
+  double stamp = 0.0;              // s, the sender's processed_until when it published
+  double origin_stamp = 0.0;       // s, when the sender's map frame was fixed
   std::vector<std::uint8_t> payload;
 };
 
@@ -84,6 +86,7 @@ struct AgentStatus {
   std::uint64_t bytes_sent = 0;
   std::uint64_t bytes_received = 0;
   std::vector<RobotId> peers_aligned;
+  std::vector<RobotId> peers_stale;  // liveliness lost; their last maps stay in the global map
 };
 
 }  // namespace mapmesh

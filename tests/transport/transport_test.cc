@@ -93,6 +93,7 @@ TEST_F(TransportTest, LinksTruthStatusRoundTrip) {
   st.processed_until = 12.5;
   st.bytes_sent = 1ULL << 40;
   st.peers_aligned = {1, 2, 3};
+  st.peers_stale = {5};
   wst.Write(st);
   wt.Write({2, 1.0, 3.0, 4.0, 0.5});
   const auto links = TakeN(rl, 1);
@@ -103,6 +104,7 @@ TEST_F(TransportTest, LinksTruthStatusRoundTrip) {
   EXPECT_EQ(sts[0].incarnation, 9u);
   EXPECT_EQ(sts[0].bytes_sent, 1ULL << 40);
   EXPECT_EQ(sts[0].peers_aligned, (std::vector<RobotId>{1, 2, 3}));
+  EXPECT_EQ(sts[0].peers_stale, (std::vector<RobotId>{5}));
   const auto truths = TakeN(rt, 1);
   ASSERT_EQ(truths.size(), 1u);
   EXPECT_DOUBLE_EQ(truths[0].y, 4.0);
@@ -112,6 +114,8 @@ TEST_F(TransportTest, LateJoinerGetsTheLatestMapPerSenderAndKind) {
   Writer<MapMessage> w(p(), kMapTopic, MapQos());
   MapMessage m;
   m.robot_id = 2;
+  m.incarnation = 4;
+  m.origin_stamp = 1.5;
   m.payload = {1, 2, 3, 4, 5};
   for (std::uint32_t v = 1; v <= 3; ++v) {
     m.version = v;
@@ -136,6 +140,8 @@ TEST_F(TransportTest, LateJoinerGetsTheLatestMapPerSenderAndKind) {
   ASSERT_EQ(got.size(), 2u);  // keep-last 1 per (robot, kind)
   std::sort(got.begin(), got.end(), [](auto& a, auto& b) { return a.kind < b.kind; });
   EXPECT_EQ(got[0].version, 3u);
+  EXPECT_EQ(got[0].incarnation, 4u);
+  EXPECT_DOUBLE_EQ(got[0].origin_stamp, 1.5);
   EXPECT_EQ(got[0].payload, (std::vector<std::uint8_t>{1, 2, 3, 4, 5}));
   EXPECT_EQ(got[1].kind, MapKind::kGlobal);
   EXPECT_EQ(got[1].version, 7u);
