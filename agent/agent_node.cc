@@ -57,6 +57,18 @@ std::unique_ptr<LocalMapper> MakeLocalMapper(const Scenario& sc, RobotId self) {
   return std::make_unique<LocalSlam>(noise, o);
 }
 
+ExchangeOptions ExchangeOptionsFor(const Scenario& sc) {
+  const AgentOptions& a = sc.agent;
+  ExchangeOptions o;
+  o.align_period_s = a.align_period_s;
+  o.drop_after_failures = a.drop_after_failures;
+  o.relay_global_maps = a.relay_global_maps;
+  const std::optional<FusionMethod> m = ParseFusionMethod(a.fusion);
+  MAPMESH_CHECK(m.has_value(), "agent.fusion was validated when the scenario was read");
+  o.global.method = *m;
+  return o;
+}
+
 std::size_t WireBytes(const MapMessage& msg) { return kMapMessageFixedBytes + msg.payload.size(); }
 
 std::uint32_t AgentStats::MapsRejected() const {
@@ -65,8 +77,12 @@ std::uint32_t AgentStats::MapsRejected() const {
   return n;
 }
 
+double AgentStats::BytesPerLandmark() const {
+  return landmarks_sent > 0 ? static_cast<double>(payload_bytes_sent) / static_cast<double>(landmarks_sent) : 0.0;
+}
+
 std::uint32_t AgentStats::MapsDropped() const {
-  return maps_out_of_range + maps_lost + maps_over_bandwidth + maps_unknown_sender + MapsRejected();
+  return maps_out_of_range + maps_lost + maps_over_bandwidth + maps_unknown_sender + maps_stale_version + MapsRejected();
 }
 
 AgentNode::AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incarnation,
@@ -79,7 +95,9 @@ AgentNode::AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incar
             scenario.seed * 1000003ULL + self * 7919ULL + incarnation),
       sync_(*this),
       mapper_(MakeLocalMapper(scenario, self)),
-      trajectory_period_s_(scenario.feeder.truth_period_s) {
+      trajectory_period_s_(scenario.feeder.truth_period_s),
+      exchange_(self, incarnation, ExchangeOptionsFor(scenario),
+                scenario.seed * 2654435761ULL + self * 40503ULL + incarnation) {
   for (const auto& r : scenario.robots) robot_ids_.push_back(r.id);
 }
 
@@ -99,7 +117,7 @@ void AgentNode::AfterInterval(const Odometry& odom) {
     next_trajectory_s_ = sync_.processed_until() + trajectory_period_s_;
   }
   if (sync_.processed_until() + 1e-9 >= next_map_publish_s_) {
-    PublishLocalMap();
+    PublishMaps();
     next_map_publish_s_ =
         (std::floor(sync_.processed_until() / options_.map_publish_period_s + 1e-9) + 1.0) *
         options_.map_publish_period_s;
@@ -113,22 +131,38 @@ void AgentNode::AfterInterval(const Odometry& odom) {
   if (status_due) out_.PublishStatus(Status());
 }
 
-void AgentNode::PublishLocalMap() {
+void AgentNode::PublishMaps() {
+  const LandmarkMap local = mapper_->Map();
+  exchange_.Update(local, sync_.processed_until());
+  Publish(MapKind::kLocal, local, ++local_version_);
+  Publish(MapKind::kGlobal, exchange_.global().map, ++global_version_);
+}
+
+void AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version) {
   MapMessage msg;
   msg.robot_id = self_;
-  msg.kind = MapKind::kLocal;
-  msg.version = ++local_version_;
+  msg.kind = kind;
+  msg.incarnation = incarnation_;
+  msg.version = version;
   msg.stamp = sync_.processed_until();
-  msg.payload = EncodeMap(mapper_->Map());
+  msg.origin_stamp = sync_.frame_origin_stamp().value_or(0.0);
+  msg.payload = EncodeMap(map);
+  if (msg.payload.empty()) {
+    ++stats_.maps_encode_failed;
+    return;
+  }
   ++stats_.maps_sent;
   stats_.bytes_sent += WireBytes(msg);
+  stats_.landmarks_sent += map.size();
+  stats_.payload_bytes_sent += msg.payload.size();
   out_.PublishMap(msg);
 }
 
 void AgentNode::OnLinks(const RadioLinks& links) { gate_.UpdateLinks(links); }
 
 void AgentNode::OnMap(const MapMessage& msg) {
-  if (msg.robot_id == self_) return;  // our own publication, echoed back
+  // Our own publications echo back; an earlier incarnation of ours comes from the checkpoint.
+  if (msg.robot_id == self_) return;
   if (std::find(robot_ids_.begin(), robot_ids_.end(), msg.robot_id) == robot_ids_.end()) {
     ++stats_.maps_unknown_sender;
     return;
@@ -145,9 +179,33 @@ void AgentNode::OnMap(const MapMessage& msg) {
     ++stats_.maps_rejected[static_cast<int>(decoded.error)];
     return;
   }
+  if (exchange_.OnPeerMap(msg.robot_id, msg.incarnation, msg.kind, msg.version, msg.origin_stamp,
+                          std::move(decoded.map), sync_.processed_until()) == MapExchange::Receipt::kStaleVersion) {
+    ++stats_.maps_stale_version;
+    return;
+  }
   ++stats_.maps_received;
   ++stats_.maps_received_from[msg.robot_id];
-  peer_maps_[{msg.robot_id, msg.kind}] = std::move(decoded.map);
+}
+
+void AgentNode::OnPeerLiveliness(RobotId robot, bool alive) {
+  if (robot != self_) exchange_.OnPeerLiveliness(robot, alive, sync_.processed_until());
+}
+
+void AgentNode::Resume(const AgentCheckpoint& c) {
+  MAPMESH_CHECK(c.robot == self_, "a checkpoint of another robot");
+  exchange_.AddOwnCheckpoint(c.incarnation, c.origin_stamp, c.local, c.global);
+}
+
+AgentCheckpoint AgentNode::Checkpoint() const {
+  AgentCheckpoint c;
+  c.robot = self_;
+  c.incarnation = incarnation_;
+  c.origin_stamp = sync_.frame_origin_stamp().value_or(0.0);
+  c.processed_until = sync_.processed_until();
+  c.local = mapper_->Map();
+  c.global = exchange_.global().map;
+  return c;
 }
 
 AgentStatus AgentNode::Status() const {
@@ -158,7 +216,9 @@ AgentStatus AgentNode::Status() const {
   s.odom_processed = sync_.stats().odom_processed;
   s.scans_processed = sync_.stats().scans_processed;
   s.local_landmarks = static_cast<std::uint32_t>(mapper_->size());
-  s.global_landmarks = s.local_landmarks;
+  s.global_landmarks = static_cast<std::uint32_t>(std::max(exchange_.global().map.size(), mapper_->size()));
+  s.peers_aligned = exchange_.AlignedRobots();
+  s.peers_stale = exchange_.StaleRobots();
   s.maps_received = stats_.maps_received;
   s.maps_dropped = stats_.MapsDropped();
   s.bytes_sent = stats_.bytes_sent;

@@ -10,6 +10,7 @@
 #include <optional>
 #include <vector>
 
+#include "agent/map_exchange.h"
 #include "agent/radio_gate.h"
 #include "agent/sensor_sync.h"
 #include "common/config/scenario.h"
@@ -34,6 +35,19 @@ std::unique_ptr<LocalMapper> MakeLocalMapper(const Scenario& scenario, RobotId s
 // Bytes a map message occupies on the wire: its payload plus the fixed fields.
 std::size_t WireBytes(const MapMessage& msg);
 
+// The map-exchange options a scenario gives its agents.
+ExchangeOptions ExchangeOptionsFor(const Scenario& scenario);
+
+// What an agent saves to survive a kill: enough to re-merge everything it knew, through the
+// same alignment path, after a restart (the restarted process starts a new map frame).
+struct AgentCheckpoint {
+  RobotId robot = 0;
+  std::uint32_t incarnation = 0;
+  double origin_stamp = 0.0;      // when that incarnation's frame was fixed
+  double processed_until = 0.0;
+  LandmarkMap local, global;      // in that incarnation's frame
+};
+
 // Counters of the maps the agent sent, received, dropped or rejected, and why.
 struct AgentStats {
   std::uint32_t maps_sent = 0;
@@ -45,8 +59,14 @@ struct AgentStats {
   std::uint32_t maps_over_bandwidth = 0; // arrived while the link was still busy
   std::uint32_t maps_unknown_sender = 0;
   std::array<std::uint32_t, kMapDecodeErrorCount> maps_rejected{};  // by MapDecodeError
+  std::uint32_t maps_stale_version = 0; // not newer than one already received from that sender
+  std::uint32_t maps_encode_failed = 0; // own maps that could not be encoded (never sent)
+  std::uint64_t landmarks_sent = 0;     // over all maps sent
+  std::uint64_t payload_bytes_sent = 0; // their encoded payloads
   std::map<RobotId, std::uint32_t> maps_received_from;
   std::uint32_t MapsRejected() const;
+  // Encoded bytes per landmark sent (header included), 0 before anything was sent.
+  double BytesPerLandmark() const;
   // Everything that did not make it into peer_maps(), whatever the reason.
   std::uint32_t MapsDropped() const;
 };
@@ -60,6 +80,11 @@ class AgentNode : private SensorSync::Sink {
   void OnScan(const Scan& scan);
   void OnLinks(const RadioLinks& links);
   void OnMap(const MapMessage& msg);
+  // A peer's map writer came back (alive) or went away (liveliness lost or disposed).
+  void OnPeerLiveliness(RobotId robot, bool alive);
+  // Re-merges what an earlier incarnation of this agent knew (from its checkpoint).
+  void Resume(const AgentCheckpoint& checkpoint);
+  AgentCheckpoint Checkpoint() const;
 
   RobotId id() const { return self_; }
   AgentStatus Status() const;
@@ -78,8 +103,9 @@ class AgentNode : private SensorSync::Sink {
     Pose2 pose;
   };
   const std::vector<PoseStamp>& trajectory() const { return trajectory_; }
-  // The latest decoded map of each peer, by sender and kind.
-  const std::map<std::pair<RobotId, MapKind>, LandmarkMap>& peer_maps() const { return peer_maps_; }
+  const MapExchange& exchange() const { return exchange_; }
+  const GlobalMap& global() const { return exchange_.global(); }
+  std::uint32_t incarnation() const { return incarnation_; }
 
  private:
   // SensorSync::Sink: the robot's data in time order.
@@ -87,7 +113,8 @@ class AgentNode : private SensorSync::Sink {
   void ApplyScan(const Scan& scan, double stamp) override;
   void IntervalDone(const Odometry& odom) override;
   void AfterInterval(const Odometry& odom);
-  void PublishLocalMap();
+  void PublishMaps();
+  void Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version);
 
   AgentOptions options_;
   std::vector<RobotId> robot_ids_;  // the robots of this run; maps from others are rejected
@@ -102,9 +129,9 @@ class AgentNode : private SensorSync::Sink {
   double next_trajectory_s_ = 0.0;
   std::vector<PoseStamp> trajectory_;
   double next_status_s_ = 0.0;
-  std::uint32_t local_version_ = 0;
+  std::uint32_t local_version_ = 0, global_version_ = 0;
   AgentStats stats_;
-  std::map<std::pair<RobotId, MapKind>, LandmarkMap> peer_maps_;
+  MapExchange exchange_;
 };
 
 }  // namespace mapmesh

@@ -303,7 +303,7 @@ void BM_GlobalMapRebuild(benchmark::State& state) {
   tc.diagonal() << 1e-4, 1e-4, 1e-7;
   for (int k = 0; k < peers; ++k) {
     const Pose2 frame{ut(rng), ut(rng), ua(rng)};
-    sources.push_back({static_cast<RobotId>(k + 2), map_in(frame), frame, tc});
+    sources.push_back({static_cast<RobotId>(k + 2), 0, map_in(frame), frame, tc});
   }
   GlobalMapOptions o;
   o.method = FusionMethod::kCiDeterminant;

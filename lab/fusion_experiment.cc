@@ -337,7 +337,7 @@ std::vector<VictoriaPairResult> RunVictoriaPairs(const std::vector<SlamRunResult
         continue;
       }
       const Pose2 ta = to_ref[ra.robot]->transform, tb = to_ref[rb.robot]->transform;
-      const std::vector<MapSource> sources{{rb.robot, rb.map, al.transform, al.cov}};
+      const std::vector<MapSource> sources{{rb.robot, 0, rb.map, al.transform, al.cov}};
       for (std::size_t k = 0; k < o.methods.size(); ++k) {
         GlobalMapOptions go;
         go.method = o.methods[k];

@@ -12,6 +12,7 @@
 
 #include "common/app/process.h"
 #include "lab/alignment_experiment.h"
+#include "lab/bus_swarm.h"
 #include "lab/fusion_experiment.h"
 #include "lab/thesis_fusion.h"
 #include "lab/pairs_experiment.h"
@@ -147,6 +148,48 @@ int RunFusionCommand(const app::ProcessOptions& po, const std::string& param, co
   return 0;
 }
 
+std::vector<std::pair<double, RobotId>> ParseEvents(const std::vector<std::string>& items, const char* what) {
+  std::vector<std::pair<double, RobotId>> out;
+  for (const std::string& item : items) {
+    const auto at = item.find('@');
+    try {
+      if (at == std::string::npos) throw std::invalid_argument(item);
+      out.emplace_back(std::stod(item.substr(at + 1)), static_cast<RobotId>(std::stoul(item.substr(0, at))));
+    } catch (const std::exception&) {
+      throw std::runtime_error(std::string("--") + what + " " + item + ": expected ID@T (robot id @ scenario seconds)");
+    }
+  }
+  return out;
+}
+
+int RunBusCommand(const app::ProcessOptions& po, const std::vector<std::string>& kills,
+                  const std::vector<std::string>& restarts, const std::string& datasets) {
+  const std::optional<Scenario> sc = app::LoadScenarioOrReport("mapmesh-lab", po);
+  if (!sc) return 2;
+  lab::BusSwarmOptions o;
+  o.datasets_root = ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot());
+  o.kills = ParseEvents(kills, "kill");
+  o.restarts = ParseEvents(restarts, "restart");
+  const lab::BusSwarmResult r = lab::RunBusSwarm(*sc, o);
+  std::printf("%s: %zu agents, %.1f s wall (in-memory bus)\n", sc->name.c_str(), r.agents.size(), r.wall_s);
+  std::printf("%3s %5s %4s %8s %8s %8s %8s %8s %8s %8s  %s\n", "id", "alive", "inc", "lm_loc", "rmse_loc", "lm_glob",
+              "rmse_glb", "nees_glb", "cons_glb", "cov_glb", "aligned peers (error m/deg)");
+  for (const auto& a : r.agents) {
+    std::string peers;
+    for (const auto& e : a.alignment_errors) {
+      char buf[96];
+      std::snprintf(buf, sizeof buf, " %u.%u(%.2f/%.2f fit %.2f/%.2f)", e.peer.robot, e.peer.incarnation,
+                    e.translation_m, RadToDeg(e.rotation_rad), e.fit_translation_m, RadToDeg(e.fit_rotation_rad));
+      peers += buf;
+    }
+    std::printf("%3u %5s %4u %8d %8.3f %8d %8.3f %8.2f %8.2f %8.2f %s\n", a.robot, a.alive_at_end ? "yes" : "no",
+                a.incarnation, a.local_quality.landmarks, a.local_quality.rmse_m, a.global_quality.landmarks,
+                a.global_quality.rmse_m, a.global_quality.nees_mean, a.global_quality.consistent_ratio,
+                a.global_quality.coverage, peers.c_str());
+  }
+  return 0;
+}
+
 int Run(int argc, char** argv) {
   CLI::App cli{"mapmesh-lab: in-process experiments and Monte Carlo studies (CSV out)"};
   cli.require_subcommand(1);
@@ -223,7 +266,16 @@ int Run(int argc, char** argv) {
       ->check(CLI::IsMember({"bearing", "velocity", "range", "victoria"}));
   thesis_fusion->add_flag("--oracle-alignment", tf.oracle_alignment, "use the true transforms instead of aligning the maps");
   thesis_fusion->add_option("--datasets", tf_datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
+  app::ProcessOptions bus_po;
+  std::vector<std::string> bus_kills, bus_restarts;
+  std::string bus_datasets;
+  CLI::App* bus = cli.add_subcommand("bus", "run a scenario's agents in one process over an in-memory bus: maps, alignments, fusion");
+  app::AddScenarioOptions(*bus, bus_po);
+  bus->add_option("--kill", bus_kills, "kill agent ID at scenario time T (ID@T, repeatable)");
+  bus->add_option("--restart", bus_restarts, "restart agent ID at T from its last checkpoint (ID@T, repeatable)");
+  bus->add_option("--datasets", bus_datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
   if (auto code = app::ParseArgs(cli, "mapmesh-lab", argc, argv)) return *code;
+  if (bus->parsed()) return RunBusCommand(bus_po, bus_kills, bus_restarts, bus_datasets);
   if (thesis_fusion->parsed()) {
     tf.scenarios_dir = MAPMESH_SOURCE_DIR "/scenarios";
     tf.datasets_root = ResolveDatasetsRoot(tf_datasets, app::DefaultDatasetsRoot());

@@ -86,16 +86,6 @@ class RobotRun : public SensorSync::Sink {
   std::unordered_map<std::int64_t, std::int32_t> identity_;
 };
 
-std::optional<Pose2> TruthAt(const std::vector<GroundTruth>& g, double t) {
-  if (g.empty()) return std::nullopt;
-  auto hi = std::lower_bound(g.begin(), g.end(), t, [](const GroundTruth& a, double v) { return a.stamp < v; });
-  if (hi == g.begin()) return Pose2{hi->x, hi->y, hi->theta};
-  if (hi == g.end()) return Pose2{g.back().x, g.back().y, g.back().theta};
-  const auto lo = hi - 1;
-  const double a = (t - lo->stamp) / (hi->stamp - lo->stamp);
-  return Pose2{lo->x + a * (hi->x - lo->x), lo->y + a * (hi->y - lo->y),
-               WrapAngle(lo->theta + a * WrapAngle(hi->theta - lo->theta))};
-}
 
 // GPS fixes implying a faster jump than this are glitches.
 constexpr double kMaxVehicleSpeedMps = 20.0;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <limits>
 
+#include "common/metrics/trajectory_metrics.h"
 #include "sim_feeder/radio_model.h"
 
 namespace mapmesh {
@@ -58,14 +59,9 @@ double ReplaySource::NextStamp() const {
 bool ReplaySource::Done() const { return !std::isfinite(NextStamp()); }
 
 std::optional<Eigen::Vector2d> ReplaySource::PositionAt(const RobotStreams& r, double t) const {
-  if (r.truth.empty()) return std::nullopt;
-  auto hi = std::lower_bound(r.truth.begin(), r.truth.end(), t,
-                             [](const GroundTruth& g, double v) { return g.stamp < v; });
-  if (hi == r.truth.begin()) return Eigen::Vector2d(hi->x, hi->y);
-  if (hi == r.truth.end()) return Eigen::Vector2d(r.truth.back().x, r.truth.back().y);
-  const auto lo = hi - 1;
-  const double a = (t - lo->stamp) / (hi->stamp - lo->stamp);
-  return Eigen::Vector2d(lo->x + a * (hi->x - lo->x), lo->y + a * (hi->y - lo->y));
+  const std::optional<Pose2> p = TruthAt(r.truth, t);
+  if (!p) return std::nullopt;
+  return Eigen::Vector2d(p->x, p->y);
 }
 
 FeedBatch ReplaySource::Next() {

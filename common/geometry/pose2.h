@@ -49,6 +49,12 @@ struct Pose2 {
   Eigen::Vector3d Vector() const { return {x, y, theta}; }
 };
 
+// The pose a of the way from p to q (a in [0, 1]): positions linearly, the heading along the
+// shorter arc.
+inline Pose2 Interpolate(const Pose2& p, const Pose2& q, double a) {
+  return {p.x + a * (q.x - p.x), p.y + a * (q.y - p.y), WrapAngle(p.theta + a * WrapAngle(q.theta - p.theta))};
+}
+
 // a * b with the Jacobians of the result with respect to a and to b.
 inline Pose2 Compose(const Pose2& a, const Pose2& b, Eigen::Matrix3d* j_a, Eigen::Matrix3d* j_b) {
   const double c = std::cos(a.theta), s = std::sin(a.theta);

@@ -45,11 +45,7 @@ std::optional<Pose2> RobotTruth::PoseAt(double t) const {
   auto hi = std::lower_bound(trajectory.begin(), trajectory.end(), t,
                              [](const TruthSample& s, double v) { return s.t < v; });
   auto lo = hi - 1;
-  const double a = (t - lo->t) / (hi->t - lo->t);
-  const Pose2& p = lo->pose;
-  const Pose2& q = hi->pose;
-  return Pose2{p.x + a * (q.x - p.x), p.y + a * (q.y - p.y),
-               WrapAngle(p.theta + a * WrapAngle(q.theta - p.theta))};
+  return Interpolate(lo->pose, hi->pose, (t - lo->t) / (hi->t - lo->t));
 }
 
 const RobotTruth* RunTruth::Find(RobotId id) const {

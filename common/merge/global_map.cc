@@ -164,14 +164,14 @@ Landmark TransformLandmark(const Landmark& l, const Pose2& t, const Eigen::Matri
 }
 
 GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const MapSource> sources,
-                         const GlobalMapOptions& o) {
+                         const GlobalMapOptions& o, std::uint32_t self_incarnation) {
   GlobalMap g;
   std::vector<Cluster> clusters;
   clusters.reserve(local.size());
   for (const Landmark& l : local.landmarks) {
     if (!Usable(l, g.stats)) continue;
     const Gaussian2 e{l.mean, l.cov};
-    clusters.push_back({e, {e}, {{self, l.id}}, l.signature});
+    clusters.push_back({e, {e}, {{self, self_incarnation, l.id}}, l.signature});
     ++g.stats.local;
   }
   const double gate = Chi2Quantile(o.gate_probability, 2);
@@ -258,7 +258,7 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
     // Fuse into the matched clusters; start new ones for the rest.
     for (std::size_t s = 0; s < moved.size(); ++s) {
       const Gaussian2 e{moved[s].mean, moved[s].cov};
-      const LandmarkOrigin origin{src.robot, moved[s].id};
+      const LandmarkOrigin origin{src.robot, src.incarnation, moved[s].id};
       if (assign[s] >= 0) {
         Cluster& c = clusters[assign[s]];
         c.inputs.push_back(e);

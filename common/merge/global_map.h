@@ -36,6 +36,7 @@ namespace mapmesh {
 // One contributor to the global map.
 struct MapSource {
   RobotId robot = 0;
+  std::uint32_t incarnation = 0;                      // which start of the robot's process (its frame)
   LandmarkMap map;                                    // in the source's own frame
   Pose2 to_own;                                       // maps the source's frame into the own frame
   Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();  // of (x, y, theta) of to_own
@@ -53,6 +54,7 @@ struct GlobalMapOptions {
 // A source landmark that went into a global landmark.
 struct LandmarkOrigin {
   RobotId robot = 0;
+  std::uint32_t incarnation = 0;
   std::uint32_t id = 0;  // the landmark's id in its source map
 };
 
@@ -77,7 +79,7 @@ struct GlobalMap {
 // Builds the global map of robot `self` from its local map and the sources (taken in the
 // order given; pass them sorted for reproducible results).
 GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const MapSource> sources,
-                         const GlobalMapOptions& options);
+                         const GlobalMapOptions& options, std::uint32_t self_incarnation = 0);
 
 // The source's landmark moved into the own frame: mean T(m), covariance R C R^T + J P J^T,
 // with J the Jacobian of T(m) with respect to the transform (x, y, theta).

@@ -364,6 +364,97 @@ std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a_in, const Landmar
   return out;
 }
 
+namespace {
+
+// Squared Mahalanobis (or Euclidean) distance of a pair under t, or infinity outside the gate.
+double GatedD2(const Landmark& la, const Landmark& lb, const Pose2& t, const AlignmentOptions& o, double gate) {
+  if (o.distance == ConsensusDistance::kEuclidean) {
+    const double e = (la.mean - t.Apply(lb.mean)).norm();
+    return e < o.euclidean_gate_m ? e * e : std::numeric_limits<double>::infinity();
+  }
+  const double d2 = PairD2(la, lb, t);
+  return d2 < gate ? d2 : std::numeric_limits<double>::infinity();
+}
+
+// From a transform and its first inliers: guided matching (optional), refinement, the
+// transform's covariance and the acceptance tests. a and b are the maps as alignment compares
+// them, a_in and b_in as given (for the covariance).
+void Conclude(const LandmarkMap& a_in, const LandmarkMap& b_in, const LandmarkMap& a, const LandmarkMap& b, Pose2 t,
+              std::vector<std::pair<int, int>> inliers, const AlignmentOptions& o, bool guided, AlignmentResult& r) {
+  const double gate = Chi2Quantile(o.gate_probability, 2);
+  if (!inliers.empty()) Refine(a, b, inliers, &t);
+  if (guided) {
+    const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
+    if (!ua.points.empty() && !ub.points.empty()) {
+      const KdTree2 tree(ua.points);
+      for (int round = 0; round < 2; ++round) {
+        std::vector<std::tuple<double, int, int>> scored;
+        const double radius_scale = o.distance == ConsensusDistance::kEuclidean ? 0.0 : std::sqrt(gate);
+        for (std::size_t j = 0; j < ub.points.size(); ++j) {
+          const Eigen::Vector2d p = t.Apply(ub.points[j]);
+          const double radius = o.distance == ConsensusDistance::kEuclidean
+                                    ? o.euclidean_gate_m
+                                    : radius_scale * std::sqrt(ua.max_sigma * ua.max_sigma + ub.sigma[j] * ub.sigma[j]);
+          for (int i : tree.InRadius(p, radius)) {
+            const double d2 = GatedD2(a.landmarks[ua.index[i]], b.landmarks[ub.index[j]], t, o, gate);
+            if (std::isfinite(d2)) scored.emplace_back(d2, ua.index[i], ub.index[j]);
+          }
+        }
+        inliers = OneToOne(std::move(scored));
+        Refine(a, b, inliers, &t);
+      }
+    }
+  }
+
+  // Where the transform lays B over ground A has mapped, B's landmarks should find partners.
+  {
+    const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
+    if (!ua.points.empty()) {
+      const KdTree2 tree(ua.points);
+      for (const Eigen::Vector2d& p : ub.points) {
+        if (!tree.InRadius(t.Apply(p), o.coverage_radius_m).empty()) ++r.covered;
+      }
+    }
+  }
+  r.transform = t;
+  r.inliers = inliers;
+  for (const auto& [ia, ib] : inliers) r.residual_chi2 += PairD2(a.landmarks[ia], b.landmarks[ib], t);
+  const int ni = static_cast<int>(inliers.size());
+  if (ni < o.min_inliers) {
+    r.verdict = AlignmentVerdict::kTooFewInliers;
+    return;
+  }
+  const Eigen::Matrix3d info = Information(a_in, b_in, inliers, t, nullptr);
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(info);
+  if (!lu.isInvertible() || lu.rcond() < 1e-12) {
+    r.verdict = AlignmentVerdict::kDegenerate;
+    return;
+  }
+  // Refine sums the inliers' information as if their errors were independent; with unknown
+  // correlation, CI with equal weights keeps the average instead.
+  const double scale = o.landmark_errors == LandmarkErrors::kIndependent ? 1.0 : static_cast<double>(ni);
+  r.cov = scale * info.inverse();
+  r.cov = 0.5 * (r.cov + r.cov.transpose()).eval();
+  // 2 residual dimensions per inlier, 3 parameters fitted: chi-square with 2n - 4 dof (the
+  // even number just below) bounds the sum.
+  r.residual_bound = o.residual_tolerance * Chi2Quantile(o.residual_probability, std::max(2, 2 * ni - 4));
+  if (!std::isfinite(r.residual_chi2) || r.residual_chi2 > r.residual_bound) {
+    r.verdict = AlignmentVerdict::kResidualsTooLarge;
+    return;
+  }
+  if (ni < o.min_overlap_ratio * r.covered) {
+    r.verdict = AlignmentVerdict::kInconsistentOverlap;
+    return;
+  }
+  if (r.runner_up_support >= o.ambiguity_ratio * r.best_support && r.best_support > 0) {
+    r.verdict = AlignmentVerdict::kAmbiguous;
+    return;
+  }
+  r.verdict = AlignmentVerdict::kAccepted;
+}
+
+}  // namespace
+
 AlignmentResult RansacAlign(const LandmarkMap& a_in, const LandmarkMap& b_in, const std::vector<CandidatePair>& cand,
                             const AlignmentOptions& o, std::mt19937_64& rng) {
   // Consensus, matching and the tests compare shapes; the transform's covariance comes from
@@ -377,12 +468,7 @@ AlignmentResult RansacAlign(const LandmarkMap& a_in, const LandmarkMap& b_in, co
   }
   const double gate = Chi2Quantile(o.gate_probability, 2);
   auto inlier_d2 = [&](const CandidatePair& c, const Pose2& t) {
-    if (o.distance == ConsensusDistance::kEuclidean) {
-      const double e = (a.landmarks[c.a].mean - t.Apply(b.landmarks[c.b].mean)).norm();
-      return e < o.euclidean_gate_m ? e * e : std::numeric_limits<double>::infinity();
-    }
-    const double d2 = PairD2(a.landmarks[c.a], b.landmarks[c.b], t);
-    return d2 < gate ? d2 : std::numeric_limits<double>::infinity();
+    return GatedD2(a.landmarks[c.a], b.landmarks[c.b], t, o, gate);
   };
   // Support: the landmarks the hypothesis pairs, each counted once on each side (where
   // candidates are dense, one landmark can sit in many compatible pairs). Each hypothesis
@@ -485,89 +571,27 @@ AlignmentResult RansacAlign(const LandmarkMap& a_in, const LandmarkMap& b_in, co
   }
 
   // Refine on the consensus, then (optionally) gather inliers among all landmarks.
-  Pose2 t = best.t;
-  auto consensus = [&](const Pose2& tt) {
-    std::vector<std::tuple<double, int, int>> scored;
-    for (const CandidatePair& c : cand) {
-      const double d2 = inlier_d2(c, tt);
-      if (std::isfinite(d2)) scored.emplace_back(d2, c.a, c.b);
-    }
-    return OneToOne(std::move(scored));
-  };
-  std::vector<std::pair<int, int>> inliers = consensus(t);
-  Eigen::Matrix3d info = Refine(a, b, inliers, &t);
-  if (o.guided_matching) {
-    const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
-    if (!ua.points.empty() && !ub.points.empty()) {
-      const KdTree2 tree(ua.points);
-      for (int round = 0; round < 2; ++round) {
-        std::vector<std::tuple<double, int, int>> scored;
-        const double radius_scale = o.distance == ConsensusDistance::kEuclidean ? 0.0 : std::sqrt(gate);
-        for (std::size_t j = 0; j < ub.points.size(); ++j) {
-          const Eigen::Vector2d p = t.Apply(ub.points[j]);
-          const double radius = o.distance == ConsensusDistance::kEuclidean
-                                    ? o.euclidean_gate_m
-                                    : radius_scale * std::sqrt(ua.max_sigma * ua.max_sigma + ub.sigma[j] * ub.sigma[j]);
-          for (int i : tree.InRadius(p, radius)) {
-            const CandidatePair c{ua.index[i], ub.index[j], 0};
-            const double d2 = inlier_d2(c, t);
-            if (std::isfinite(d2)) scored.emplace_back(d2, c.a, c.b);
-          }
-        }
-        inliers = OneToOne(std::move(scored));
-        info = Refine(a, b, inliers, &t);
-      }
-    }
-  } else {
-    inliers = consensus(t);
-    info = Refine(a, b, inliers, &t);
+  std::vector<std::tuple<double, int, int>> scored;
+  for (const CandidatePair& c : cand) {
+    const double d2 = inlier_d2(c, best.t);
+    if (std::isfinite(d2)) scored.emplace_back(d2, c.a, c.b);
   }
+  Conclude(a_in, b_in, a, b, best.t, OneToOne(std::move(scored)), o, o.guided_matching, r);
+  return r;
+}
 
-  // Where the transform lays B over ground A has mapped, B's landmarks should find partners.
-  {
-    const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
-    if (!ua.points.empty()) {
-      const KdTree2 tree(ua.points);
-      for (const Eigen::Vector2d& p : ub.points) {
-        if (!tree.InRadius(t.Apply(p), o.coverage_radius_m).empty()) ++r.covered;
-      }
-    }
-  }
-  r.transform = t;
-  r.inliers = inliers;
-  for (const auto& [ia, ib] : inliers) r.residual_chi2 += PairD2(a.landmarks[ia], b.landmarks[ib], t);
-  const int ni = static_cast<int>(inliers.size());
-  if (ni < o.min_inliers) {
-    r.verdict = AlignmentVerdict::kTooFewInliers;
+AlignmentResult VerifyAlignment(const LandmarkMap& a_in, const LandmarkMap& b_in, const Pose2& guess,
+                                const AlignmentOptions& o) {
+  const LandmarkMap a = ForAlignment(a_in, o.min_shape_sigma_m), b = ForAlignment(b_in, o.min_shape_sigma_m);
+  AlignmentResult r;
+  const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
+  r.usable_a = static_cast<int>(ua.points.size());
+  r.usable_b = static_cast<int>(ub.points.size());
+  if (r.usable_a < 3 || r.usable_b < 3) {
+    r.verdict = AlignmentVerdict::kTooFewLandmarks;
     return r;
   }
-  info = Information(a_in, b_in, inliers, t, nullptr);
-  const Eigen::FullPivLU<Eigen::Matrix3d> lu(info);
-  if (!lu.isInvertible() || lu.rcond() < 1e-12) {
-    r.verdict = AlignmentVerdict::kDegenerate;
-    return r;
-  }
-  // Refine sums the inliers' information as if their errors were independent; with unknown
-  // correlation, CI with equal weights keeps the average instead.
-  const double scale = o.landmark_errors == LandmarkErrors::kIndependent ? 1.0 : static_cast<double>(ni);
-  r.cov = scale * info.inverse();
-  r.cov = 0.5 * (r.cov + r.cov.transpose()).eval();
-  // 2 residual dimensions per inlier, 3 parameters fitted: chi-square with 2n - 4 dof (the
-  // even number just below) bounds the sum.
-  r.residual_bound = o.residual_tolerance * Chi2Quantile(o.residual_probability, std::max(2, 2 * ni - 4));
-  if (!std::isfinite(r.residual_chi2) || r.residual_chi2 > r.residual_bound) {
-    r.verdict = AlignmentVerdict::kResidualsTooLarge;
-    return r;
-  }
-  if (ni < o.min_overlap_ratio * r.covered) {
-    r.verdict = AlignmentVerdict::kInconsistentOverlap;
-    return r;
-  }
-  if (r.runner_up_support >= o.ambiguity_ratio * r.best_support) {
-    r.verdict = AlignmentVerdict::kAmbiguous;
-    return r;
-  }
-  r.verdict = AlignmentVerdict::kAccepted;
+  Conclude(a_in, b_in, a, b, guess, {}, o, /*guided=*/true, r);
   return r;
 }
 

@@ -121,6 +121,12 @@ std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a, const LandmarkMa
 AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const std::vector<CandidatePair>& candidates,
                             const AlignmentOptions& options, std::mt19937_64& rng);
 
+// Checks a known transform against newer maps (cheap: no triangles, no RANSAC): guided matching
+// from guess, refinement and the acceptance tests other than ambiguity. A wrong or
+// corrupted map fails it.
+AlignmentResult VerifyAlignment(const LandmarkMap& a, const LandmarkMap& b, const Pose2& guess,
+                                const AlignmentOptions& options);
+
 // The whole pipeline: triangles, matching, RANSAC.
 AlignmentResult AlignMaps(const LandmarkMap& a, const LandmarkMap& b, const AlignmentOptions& options,
                           std::mt19937_64& rng);

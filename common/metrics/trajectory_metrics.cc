@@ -70,4 +70,13 @@ TransformError CompareTransforms(const Pose2& estimate, const Pose2& truth, cons
   return {(estimate.Apply(at) - truth.Apply(at)).norm(), std::abs(WrapAngle(estimate.theta - truth.theta))};
 }
 
+std::optional<Pose2> TruthAt(const std::vector<GroundTruth>& g, double t) {
+  if (g.empty()) return std::nullopt;
+  auto hi = std::lower_bound(g.begin(), g.end(), t, [](const GroundTruth& a, double v) { return a.stamp < v; });
+  if (hi == g.begin()) return Pose2{hi->x, hi->y, hi->theta};
+  if (hi == g.end()) return Pose2{g.back().x, g.back().y, g.back().theta};
+  const auto lo = hi - 1;
+  return Interpolate({lo->x, lo->y, lo->theta}, {hi->x, hi->y, hi->theta}, (t - lo->stamp) / (hi->stamp - lo->stamp));
+}
+
 }  // namespace mapmesh

@@ -3,7 +3,11 @@
 // least-squares rigid alignment when the estimate's frame is unknown.
 
 #include <Eigen/Core>
+#include <optional>
 #include <vector>
+
+#include "common/geometry/pose2.h"
+#include "common/types/messages.h"
 
 namespace mapmesh {
 
@@ -43,6 +47,10 @@ struct TransformError {
   double translation_m = 0.0;
   double rotation_rad = 0.0;
 };
+// The true pose at time t from stamped samples in time order, interpolated between them
+// (clamped to the ends); nullopt when there are none.
+std::optional<Pose2> TruthAt(const std::vector<GroundTruth>& track, double t);
+
 TransformError CompareTransforms(const Pose2& estimate, const Pose2& truth, const Eigen::Vector2d& at);
 
 }  // namespace mapmesh

@@ -131,19 +131,22 @@ TEST_F(AgentNodeTest, GivesUpOnAScanThatNeverComes) {
 
 TEST_F(AgentNodeTest, PublishesMapsAndStatusOnItsPeriodsAndBarriers) {
   for (int k = 1; k <= 30; ++k) node_.OnOdometry(Odom(0.1 * k, 0, k == 7));
-  // Maps at t = 0.1 (first), 1.0, 2.0, 3.0; statuses at 0.1, 0.5, 0.7 (sync), 1.0, ..., 3.0.
-  ASSERT_EQ(out_.maps.size(), 4u);
-  EXPECT_EQ(out_.maps[0].version, 1u);
-  EXPECT_EQ(out_.maps[3].version, 4u);
-  EXPECT_EQ(out_.maps[0].kind, MapKind::kLocal);
-  EXPECT_EQ(out_.maps[0].robot_id, 1u);
-  EXPECT_TRUE(DecodeMap(out_.maps[3].payload).ok());
+  // Maps (local and global) at t = 0.1 (first), 1.0, 2.0, 3.0; statuses at 0.1, 0.5, 0.7
+  // (sync), 1.0, ..., 3.0.
+  ASSERT_EQ(out_.maps.size(), 8u);
+  for (std::size_t i = 0; i < out_.maps.size(); ++i) {
+    EXPECT_EQ(out_.maps[i].kind, i % 2 == 0 ? MapKind::kLocal : MapKind::kGlobal);
+    EXPECT_EQ(out_.maps[i].version, i / 2 + 1);
+    EXPECT_EQ(out_.maps[i].robot_id, 1u);
+    EXPECT_EQ(out_.maps[i].incarnation, 1u);
+    EXPECT_TRUE(DecodeMap(out_.maps[i].payload).ok());
+  }
   std::vector<double> stamps;
   for (const auto& s : out_.statuses) stamps.push_back(s.processed_until);
   ASSERT_EQ(stamps.size(), 8u);
   EXPECT_NEAR(stamps[2], 0.7, 1e-12);
   EXPECT_NEAR(stamps.back(), 3.0, 1e-9);
-  EXPECT_EQ(node_.stats().maps_sent, 4u);
+  EXPECT_EQ(node_.stats().maps_sent, 8u);
   std::uint64_t bytes = 0;
   for (const auto& m : out_.maps) bytes += WireBytes(m);
   EXPECT_EQ(node_.stats().bytes_sent, bytes);
@@ -167,7 +170,9 @@ TEST_F(AgentNodeTest, PeerMapsPassTheRadioGateOnly) {
   node_.OnMap(PeerMap(2, payload));
   EXPECT_EQ(node_.stats().maps_received, 1u);
   EXPECT_EQ(node_.stats().bytes_received, WireBytes(PeerMap(2, payload)));
-  ASSERT_EQ(node_.peer_maps().count({2, MapKind::kLocal}), 1u);
+  ASSERT_EQ(node_.exchange().Peers().size(), 1u);
+  EXPECT_EQ(node_.exchange().Peers()[0].key.robot, 2u);
+  EXPECT_EQ(node_.exchange().Peers()[0].local_landmarks, 1);
   node_.OnLinks({1.0, {}});
   node_.OnMap(PeerMap(2, payload));
   EXPECT_EQ(node_.stats().maps_out_of_range, 2u);
@@ -182,9 +187,38 @@ TEST_F(AgentNodeTest, RejectsUnknownSendersMalformedMapsAndIgnoresItself) {
   EXPECT_EQ(node_.stats().maps_rejected[static_cast<int>(MapDecodeError::kTruncated)], 1u);
   node_.OnMap(PeerMap(1, EncodeMap({})));  // our own echo
   EXPECT_EQ(node_.stats().maps_received, 0u);
-  EXPECT_TRUE(node_.peer_maps().empty());
+  EXPECT_TRUE(node_.exchange().Peers().empty());
   const AgentStatus s = node_.Status();
   EXPECT_EQ(s.maps_dropped, 2u);
+}
+
+TEST_F(AgentNodeTest, StaleVersionsAreCountedAndIgnoredPerIncarnation) {
+  node_.OnLinks({0.0, {{1, 2}}});
+  MapMessage m = PeerMap(2, EncodeMap({}));
+  m.version = 5;
+  node_.OnMap(m);
+  node_.OnMap(m);  // the same version again
+  m.version = 4;
+  node_.OnMap(m);  // older
+  EXPECT_EQ(node_.stats().maps_received, 1u);
+  EXPECT_EQ(node_.stats().maps_stale_version, 2u);
+  m.incarnation = 2;  // the peer restarted: a new frame, versions count afresh
+  m.version = 1;
+  node_.OnMap(m);
+  EXPECT_EQ(node_.stats().maps_received, 2u);
+  EXPECT_EQ(node_.exchange().Peers().size(), 2u);
+}
+
+TEST_F(AgentNodeTest, LivelinessMarksEveryIncarnationOfAPeerStale) {
+  node_.OnLinks({0.0, {{1, 2}}});
+  MapMessage m = PeerMap(2, EncodeMap({}));
+  node_.OnMap(m);
+  m.incarnation = 3;
+  node_.OnMap(m);
+  node_.OnPeerLiveliness(2, false);
+  EXPECT_EQ(node_.Status().peers_stale, (std::vector<RobotId>{2}));
+  node_.OnPeerLiveliness(2, true);
+  EXPECT_TRUE(node_.Status().peers_stale.empty());
 }
 
 }  // namespace

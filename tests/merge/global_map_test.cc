@@ -118,7 +118,7 @@ TEST(GlobalMap, OverlappingPeerIsAssociatedByGateAndTheRestAppended) {
     const LandmarkMap peer = NoisyMap(world, Range(20, 60), peer_frame, 0.1, rng);
     Eigen::Matrix3d tc = Eigen::Matrix3d::Zero();
     tc.diagonal() << 0.01, 0.01, 1e-5;
-    const std::vector<MapSource> src{{2, peer, peer_frame, tc}};
+    const std::vector<MapSource> src{{2, 0, peer, peer_frame, tc}};
     const GlobalMap g = BuildGlobalMap(local, 1, src, {});
     EXPECT_EQ(g.stats.associated + g.stats.appended, 40);
     EXPECT_EQ(g.map.size(), 40u + g.stats.appended);
@@ -145,7 +145,7 @@ TEST(GlobalMap, JointCompatibilityResolvesWhatNearestNeighbourGetsWrong) {
   for (double x : {0.6, 1.6, 10.6}) peer.landmarks.push_back({static_cast<std::uint32_t>(x * 10), -1, {x, 0.0}, c});
   Eigen::Matrix3d tc = Eigen::Matrix3d::Zero();
   tc.diagonal() << 0.25, 1e-4, 1e-8;
-  const std::vector<MapSource> src{{2, peer, Pose2{}, tc}};
+  const std::vector<MapSource> src{{2, 0, peer, Pose2{}, tc}};
   const GlobalMap g = BuildGlobalMap(local, 1, src, {});
   EXPECT_EQ(g.stats.ambiguous_groups, 1);
   EXPECT_EQ(g.stats.associated, 3);
@@ -174,7 +174,7 @@ TEST(GlobalMap, EstimatorDecidesHowSharedLandmarksShrink) {
   const auto world = GridWorld(20, 3.0);
   const LandmarkMap local = NoisyMap(world, Range(0, 20), {}, 0.1, rng);
   const LandmarkMap peer = NoisyMap(world, Range(0, 20), {}, 0.1, rng);
-  const std::vector<MapSource> src{{2, peer, Pose2{}, Eigen::Matrix3d::Zero()}};
+  const std::vector<MapSource> src{{2, 0, peer, Pose2{}, Eigen::Matrix3d::Zero()}};
   GlobalMapOptions o;
   o.method = FusionMethod::kCiConstant;
   const GlobalMap ci = BuildGlobalMap(local, 1, src, o);
@@ -199,7 +199,7 @@ TEST(GlobalMap, InvalidInputIsCountedAndNeverFused) {
   peer.landmarks[2].cov << 1.0, 1.0, 1.0, 1.0;                  // singular
   peer.landmarks[3].cov(0, 0) = std::numeric_limits<double>::infinity();
   peer.landmarks[4].mean.y() = std::numeric_limits<double>::infinity();
-  std::vector<MapSource> src{{2, peer, Pose2{}, Eigen::Matrix3d::Zero()}};
+  std::vector<MapSource> src{{2, 0, peer, Pose2{}, Eigen::Matrix3d::Zero()}};
   const GlobalMap g = BuildGlobalMap(local, 1, src, {});
   EXPECT_EQ(g.stats.rejected_landmarks, 5);
   EXPECT_EQ(g.stats.non_finite_mean, 2);
@@ -221,7 +221,7 @@ TEST(GlobalMap, InvalidInputIsCountedAndNeverFused) {
   EXPECT_EQ(BuildGlobalMap(local, 1, src, {}).stats.rejected_sources, 1);
   // Empty maps are fine.
   EXPECT_TRUE(BuildGlobalMap({}, 1, {}, {}).map.empty());
-  const std::vector<MapSource> empty_src{{2, {}, Pose2{}, Eigen::Matrix3d::Zero()}};
+  const std::vector<MapSource> empty_src{{2, 0, {}, Pose2{}, Eigen::Matrix3d::Zero()}};
   EXPECT_EQ(BuildGlobalMap({}, 1, empty_src, {}).stats.sources, 1);
 }
 
@@ -239,8 +239,8 @@ std::vector<double> RelayNees(FusionMethod method, int rounds) {
     o.method = method;
     GlobalMap ga = BuildGlobalMap(la, 1, {}, o), gb = BuildGlobalMap(lb, 2, {}, o);
     for (int r = 0; r < rounds; ++r) {
-      const std::vector<MapSource> to_a{{2, gb.map, Pose2{}, Eigen::Matrix3d::Zero()}};
-      const std::vector<MapSource> to_b{{1, ga.map, Pose2{}, Eigen::Matrix3d::Zero()}};
+      const std::vector<MapSource> to_a{{2, 0, gb.map, Pose2{}, Eigen::Matrix3d::Zero()}};
+      const std::vector<MapSource> to_b{{1, 0, ga.map, Pose2{}, Eigen::Matrix3d::Zero()}};
       GlobalMap na = BuildGlobalMap(la, 1, to_a, o), nb = BuildGlobalMap(lb, 2, to_b, o);
       ga = std::move(na);
       gb = std::move(nb);

@@ -1,0 +1,192 @@
+#include "agent/map_exchange.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+namespace mapmesh {
+namespace {
+
+Eigen::Vector2d Centroid(const LandmarkMap& m) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const Landmark& l : m.landmarks) c += l.mean;
+  return m.empty() ? c : Eigen::Vector2d(c / static_cast<double>(m.size()));
+}
+
+}  // namespace
+
+MapExchange::MapExchange(RobotId self, std::uint32_t incarnation, const ExchangeOptions& options, std::uint64_t seed)
+    : self_(self), incarnation_(incarnation), options_(options), rng_(seed) {}
+
+MapExchange::Receipt MapExchange::OnPeerMap(RobotId robot, std::uint32_t incarnation, MapKind kind,
+                                            std::uint32_t version, double origin_stamp, LandmarkMap map, double now) {
+  Peer& p = peers_[{robot, incarnation}];
+  p.report.key = {robot, incarnation};
+  std::uint32_t& last = kind == MapKind::kLocal ? p.local_version : p.global_version;
+  if ((kind == MapKind::kLocal ? p.has_local : p.has_global) && version <= last) return Receipt::kStaleVersion;
+  last = version;
+  p.report.origin_stamp = origin_stamp;
+  if (kind == MapKind::kLocal) {
+    p.local = std::move(map);
+    p.has_local = true;
+    p.report.local_landmarks = static_cast<int>(p.local.size());
+  } else {
+    p.global = std::move(map);
+    p.has_global = true;
+    p.report.global_landmarks = static_cast<int>(p.global.size());
+  }
+  p.changed = true;
+  if (p.report.stale) {  // heard again
+    p.report.stale = false;
+  }
+  (void)now;
+  return Receipt::kAccepted;
+}
+
+void MapExchange::OnPeerLiveliness(RobotId robot, bool alive, double now) {
+  for (auto& [key, p] : peers_) {
+    if (key.robot != robot || p.report.own_checkpoint) continue;
+    if (!alive && !p.report.stale) {
+      p.report.stale = true;
+      p.report.stale_since = now;
+    } else if (alive) {
+      p.report.stale = false;
+    }
+  }
+}
+
+void MapExchange::AddOwnCheckpoint(std::uint32_t incarnation, double origin_stamp, LandmarkMap local,
+                                   LandmarkMap global) {
+  Peer& p = peers_[{self_, incarnation}];
+  p.report.key = {self_, incarnation};
+  p.report.own_checkpoint = true;
+  p.report.stale = true;  // that process is gone; its maps stay
+  p.report.origin_stamp = origin_stamp;
+  p.local = std::move(local);
+  p.global = std::move(global);
+  p.has_local = true;
+  p.has_global = !p.global.empty();
+  p.report.local_landmarks = static_cast<int>(p.local.size());
+  p.report.global_landmarks = static_cast<int>(p.global.size());
+  p.changed = true;
+}
+
+bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now) {
+  const LandmarkMap& theirs = PeerMap(p);
+  const AlignmentResult r = AlignMaps(own_local, theirs, options_.align, rng_);
+  p.report.last_verdict = r.verdict;
+  p.last_attempt = now;
+  p.own_size_at_attempt = own_local.size();
+  p.changed = false;
+  if (!r.accepted()) return false;
+  p.report.to_own = r.transform;
+  p.report.to_own_cov = r.cov;
+  p.report.centroid = Centroid(theirs);
+  ChooseSource(p, own_local);
+  return true;
+}
+
+bool MapExchange::Verify(Peer& p, const LandmarkMap& own_local) {
+  const AlignmentResult r = VerifyAlignment(own_local, PeerMap(p), p.report.to_own, options_.align);
+  p.report.last_verdict = r.verdict;
+  p.changed = false;
+  if (!r.accepted()) return false;
+  p.report.to_own = r.transform;
+  p.report.to_own_cov = r.cov;
+  p.report.centroid = Centroid(PeerMap(p));
+  ChooseSource(p, own_local);
+  return true;
+}
+
+const LandmarkMap& MapExchange::PeerMap(const Peer& p) { return p.has_local && !p.local.empty() ? p.local : p.global; }
+
+void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local) {
+  MapSource s;
+  s.robot = p.report.key.robot;
+  s.incarnation = p.report.key.incarnation;
+  s.to_own = p.report.to_own;
+  s.to_own_cov = p.report.to_own_cov;
+  s.map = PeerMap(p);
+  p.report.relayed = false;
+  // The peer's global map is in the peer's frame too: use it if it verifies where the peer's
+  // local map aligned.
+  if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
+    const AlignmentResult g = VerifyAlignment(own_local, p.global, s.to_own, options_.align);
+    if (g.accepted()) {
+      const Eigen::Vector2d c = Centroid(p.global);
+      const double dt = (g.transform.Apply(c) - s.to_own.Apply(c)).norm();
+      const double dth = std::abs(WrapAngle(g.transform.theta - s.to_own.theta));
+      if (dt <= options_.relay_tolerance_m && dth <= DegToRad(options_.relay_tolerance_deg)) {
+        s.map = p.global;
+        p.report.relayed = true;
+      }
+    }
+  }
+  p.source = std::move(s);
+}
+
+bool MapExchange::Update(const LandmarkMap& own_local, double now) {
+  bool changed = false;
+  for (auto& [key, p] : peers_) {
+    if (!p.has_local && !p.has_global) continue;
+    if (!p.report.aligned) {
+      // Try again when due and when either map changed since the last try.
+      const bool own_grew = own_local.size() >= (1.0 + options_.retry_growth) *
+                                                     static_cast<double>(std::max<std::size_t>(1, p.own_size_at_attempt));
+      if (now - p.last_attempt < options_.align_period_s || !(p.changed || own_grew)) continue;
+      ++p.report.attempts;
+      if (Align(p, own_local, now)) {
+        p.report.aligned = true;
+        p.report.dropped = false;
+        p.report.failures = 0;
+        if (!p.report.ever_aligned) p.report.aligned_since = now;
+        p.report.ever_aligned = true;
+        changed = true;
+      }
+      continue;
+    }
+    // Aligned: every newer map is verified at the known transform before it is used. A
+    // stale peer's maps no longer change: its verified state stays as it is.
+    if (!p.changed || p.report.stale) continue;
+    ++p.report.verifications;
+    if (Verify(p, own_local)) {
+      p.report.failures = 0;
+    } else if (++p.report.failures >= options_.drop_after_failures) {
+      p.report.aligned = false;
+      p.report.dropped = true;
+      p.source.reset();
+      p.last_attempt = now;
+      changed = true;
+    }
+  }
+  std::vector<MapSource> sources;
+  for (const auto& [key, p] : peers_) {
+    if (p.source) sources.push_back(*p.source);
+  }
+  global_ = BuildGlobalMap(own_local, self_, sources, options_.global, incarnation_);
+  return changed;
+}
+
+std::vector<PeerReport> MapExchange::Peers() const {
+  std::vector<PeerReport> out;
+  for (const auto& [key, p] : peers_) out.push_back(p.report);
+  return out;
+}
+
+std::vector<RobotId> MapExchange::AlignedRobots() const {
+  std::set<RobotId> ids;
+  for (const auto& [key, p] : peers_) {
+    if (p.report.aligned && !p.report.own_checkpoint) ids.insert(key.robot);
+  }
+  return {ids.begin(), ids.end()};
+}
+
+std::vector<RobotId> MapExchange::StaleRobots() const {
+  std::set<RobotId> ids;
+  for (const auto& [key, p] : peers_) {
+    if (p.report.stale && !p.report.own_checkpoint) ids.insert(key.robot);
+  }
+  return {ids.begin(), ids.end()};
+}
+
+}  // namespace mapmesh

@@ -1,0 +1,121 @@
+#pragma once
+// MapExchange: what an agent does with its peers' maps (pure; time is the scenario time the
+// agent has processed up to). For every peer, and every incarnation of a peer (each process
+// start has its own map frame), it keeps the latest local and global map received, aligns the
+// peer's map to its own local map (map_alignment.h), verifies every newer map of an aligned
+// peer at the known transform before using it (so a corrupted or wrong map is refused, and the
+// transform is refined as both maps grow), drops the alignment when verification keeps failing,
+// and rebuilds the cloned global map (global_map.h) from its local map and every aligned peer's
+// latest verified map.
+//
+// - Relay: when a peer's global map agrees with the peer's alignment, it is fused instead of
+//   the peer's local map, which brings in what the peer learned from robots out of our range.
+// - Liveliness: a peer whose writer is gone is stale; its last verified map stays in the global
+//   map (nothing already learned is lost), and it is no longer re-verified.
+// - Resume: an earlier incarnation of this agent (from its checkpoint) is one more peer.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <random>
+#include <vector>
+
+#include "common/geometry/pose2.h"
+#include "common/map/landmark_map.h"
+#include "common/merge/global_map.h"
+#include "common/merge/map_alignment.h"
+#include "common/types/messages.h"
+
+namespace mapmesh {
+
+struct ExchangeOptions {
+  double align_period_s = 5.0;     // an unaligned peer is tried again this often, when its map changed ...
+  double retry_growth = 0.2;       // ... or ours grew by this share
+  int drop_after_failures = 2;     // consecutive failed verifications drop the alignment
+  bool relay_global_maps = true;   // fuse a peer's global map when it agrees with the peer's alignment
+  double relay_tolerance_m = 1.0;  // ... within this (at the map's centroid) ...
+  double relay_tolerance_deg = 2.0;  // ... and this
+  AlignmentOptions align;
+  GlobalMapOptions global;
+};
+
+// A peer's map frame: one incarnation of one robot.
+struct PeerKey {
+  RobotId robot = 0;
+  std::uint32_t incarnation = 0;
+  auto operator<=>(const PeerKey&) const = default;
+};
+
+// What the agent knows about one peer incarnation (for status, stats and tests).
+struct PeerReport {
+  PeerKey key;
+  bool own_checkpoint = false;     // an earlier incarnation of this agent
+  double origin_stamp = 0.0;       // when the peer's frame was fixed
+  int local_landmarks = 0, global_landmarks = 0;
+  bool aligned = false;            // currently contributes with a verified alignment
+  bool ever_aligned = false;
+  bool dropped = false;            // was aligned, stopped verifying
+  bool stale = false;              // its writer is gone (liveliness)
+  double stale_since = 0.0;
+  double aligned_since = 0.0;      // scenario time of the first acceptance
+  Pose2 to_own;                    // the peer's frame in ours
+  Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();
+  bool relayed = false;            // its global map is fused (not its local map)
+  Eigen::Vector2d centroid = Eigen::Vector2d::Zero();  // of the peer map aligned last, in its frame
+  int attempts = 0, verifications = 0, failures = 0;
+  AlignmentVerdict last_verdict = AlignmentVerdict::kTooFewLandmarks;
+};
+
+class MapExchange {
+ public:
+  MapExchange(RobotId self, std::uint32_t incarnation, const ExchangeOptions& options, std::uint64_t seed);
+
+  enum class Receipt { kAccepted, kStaleVersion };
+  // A decoded map from a peer. Versions must grow within an incarnation and kind.
+  Receipt OnPeerMap(RobotId robot, std::uint32_t incarnation, MapKind kind, std::uint32_t version, double origin_stamp,
+                    LandmarkMap map, double now);
+  // The peer's writer came back (true) or went away (false): every incarnation of the robot.
+  void OnPeerLiveliness(RobotId robot, bool alive, double now);
+  // An earlier incarnation of this agent, from its checkpoint: aligned like any peer.
+  void AddOwnCheckpoint(std::uint32_t incarnation, double origin_stamp, LandmarkMap local, LandmarkMap global);
+
+  // Runs the alignments and verifications that are due against the own local map, then
+  // rebuilds the global map. Returns true if any alignment changed.
+  bool Update(const LandmarkMap& own_local, double now);
+
+  const GlobalMap& global() const { return global_; }
+  std::vector<PeerReport> Peers() const;
+  // Robots with at least one aligned incarnation, and robots whose writer is gone.
+  std::vector<RobotId> AlignedRobots() const;
+  std::vector<RobotId> StaleRobots() const;
+
+ private:
+  struct Peer {
+    PeerReport report;
+    LandmarkMap local, global;
+    bool has_local = false, has_global = false;
+    std::uint32_t local_version = 0, global_version = 0;
+    bool changed = false;            // a map arrived since the last attempt or verification
+    double last_attempt = -1e300;
+    std::size_t own_size_at_attempt = 0;
+    // What the global map takes from this peer.
+    std::optional<MapSource> source;
+  };
+  // Aligns the peer's map to the own local map; on success stores the transform and source.
+  bool Align(Peer& p, const LandmarkMap& own_local, double now);
+  // Checks the peer's newest map at the known transform; on success refines it and the source.
+  bool Verify(Peer& p, const LandmarkMap& own_local);
+  // Which map of the peer the global map fuses: its global map when it verifies, else its local map.
+  void ChooseSource(Peer& p, const LandmarkMap& own_local);
+  static const LandmarkMap& PeerMap(const Peer& p);
+
+  RobotId self_;
+  std::uint32_t incarnation_;
+  ExchangeOptions options_;
+  std::mt19937_64 rng_;
+  std::map<PeerKey, Peer> peers_;
+  GlobalMap global_;
+};
+
+}  // namespace mapmesh

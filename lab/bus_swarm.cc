@@ -1,0 +1,186 @@
+#include "lab/bus_swarm.h"
+
+#include <algorithm>
+#include <chrono>
+#include <memory>
+#include <set>
+
+#include "common/geometry/rigid_fit.h"
+#include "common/metrics/trajectory_metrics.h"
+#include "sim_feeder/sources.h"
+
+namespace mapmesh::lab {
+namespace {
+
+// Keeps what an agent publishes until the bus delivers it.
+class Outbox : public AgentOutput {
+ public:
+  void PublishMap(const MapMessage& m) override { maps.push_back(m); }
+  void PublishStatus(const AgentStatus&) override {}
+  std::vector<MapMessage> maps;
+};
+
+struct Slot {
+  RobotId id = 0;
+  std::uint32_t incarnation = 0;
+  std::unique_ptr<Outbox> out;
+  std::unique_ptr<AgentNode> node;
+  bool alive = false;
+  std::optional<AgentCheckpoint> checkpoint;
+  double next_checkpoint_s = 0.0;
+};
+
+}  // namespace
+
+std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth) {
+  std::vector<Eigen::Vector2d> src, dst;
+  for (const Landmark& l : map.landmarks) {
+    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < truth.size()) {
+      src.push_back(l.mean);
+      dst.push_back(truth[l.signature]);
+    }
+  }
+  return FitRigid2D(src, dst);
+}
+
+BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o) {
+  const auto start = std::chrono::steady_clock::now();
+  Scenario sc = scenario_in;
+  Feed feed = MakeFeed(sc, o.datasets_root);
+  const double checkpoint_period = sc.agent.checkpoint_period_s;
+
+  std::map<RobotId, Slot> slots;
+  auto launch = [&](Slot& s) {
+    ++s.incarnation;
+    s.out = std::make_unique<Outbox>();
+    s.node = std::make_unique<AgentNode>(sc, s.id, s.incarnation, *s.out);
+    if (s.checkpoint) s.node->Resume(*s.checkpoint);
+    s.alive = true;
+    s.next_checkpoint_s = 0.0;
+  };
+  for (const RobotSpec& r : sc.robots) {
+    Slot& s = slots[r.id];
+    s.id = r.id;
+    launch(s);
+  }
+  auto kills = o.kills, restarts = o.restarts;
+  std::sort(kills.begin(), kills.end());
+  std::sort(restarts.begin(), restarts.end());
+  std::size_t next_kill = 0, next_restart = 0;
+  std::map<RobotId, std::vector<GroundTruth>> truth;
+  std::optional<RadioLinks> links;
+  std::map<std::pair<RobotId, MapKind>, MapMessage> latest;  // what a late joiner gets (transient-local)
+  BusSwarmResult result;
+
+  while (!feed.source->Done()) {
+    FeedBatch b = feed.source->Next();
+    const double t = b.stamp;
+    for (; next_kill < kills.size() && kills[next_kill].first <= t; ++next_kill) {
+      Slot& s = slots.at(kills[next_kill].second);
+      if (!s.alive) continue;
+      BusSwarmResult::Snapshot snap{t, s.id, {}};
+      for (const auto& [id, other] : slots) {
+        if (other.alive && id != s.id) snap.globals[id] = other.node->global();
+      }
+      result.before_kills.push_back(std::move(snap));
+      s.alive = false;
+      latest.erase({s.id, MapKind::kLocal});  // a dead writer's data goes with it
+      latest.erase({s.id, MapKind::kGlobal});
+      for (auto& [id, other] : slots) {
+        if (other.alive) other.node->OnPeerLiveliness(s.id, false);
+      }
+    }
+    for (; next_restart < restarts.size() && restarts[next_restart].first <= t; ++next_restart) {
+      Slot& s = slots.at(restarts[next_restart].second);
+      if (s.alive) continue;
+      launch(s);
+      if (links) s.node->OnLinks(*links);
+      for (const auto& [key, msg] : latest) s.node->OnMap(msg);
+    }
+    if (b.links) {
+      links = b.links;
+      for (auto& [id, s] : slots) {
+        if (s.alive) s.node->OnLinks(*b.links);
+      }
+    }
+    for (const Scan& scan : b.scans) {
+      Slot& s = slots.at(scan.robot_id);
+      if (s.alive) s.node->OnScan(scan);
+    }
+    for (const Odometry& od : b.odom) {
+      Slot& s = slots.at(od.robot_id);
+      if (s.alive) s.node->OnOdometry(od);
+    }
+    for (const GroundTruth& g : b.truth) truth[g.robot_id].push_back(g);
+    for (auto& [id, s] : slots) {
+      if (!s.alive || checkpoint_period <= 0 || s.node->processed_until() + 1e-9 < s.next_checkpoint_s) continue;
+      s.checkpoint = s.node->Checkpoint();
+      s.next_checkpoint_s = s.node->processed_until() + checkpoint_period;
+    }
+    // Deliver, in robot order, everything published in this step.
+    std::vector<MapMessage> bus;
+    for (auto& [id, s] : slots) {
+      if (!s.out) continue;
+      bus.insert(bus.end(), s.out->maps.begin(), s.out->maps.end());
+      s.out->maps.clear();
+    }
+    for (const MapMessage& m : bus) {
+      latest[{m.robot_id, m.kind}] = m;
+      for (auto& [id, s] : slots) {
+        if (s.alive && id != m.robot_id) s.node->OnMap(m);
+      }
+    }
+  }
+
+  const WorldTruth& world = feed.source->Truth();
+  result.landmarks = world.landmarks;
+  for (std::size_t i = 0; i < world.seen.size(); ++i) {
+    if (world.seen[i]) result.seen.push_back(static_cast<int>(i));
+  }
+  for (auto& [id, s] : slots) {
+    BusAgentResult r;
+    r.robot = id;
+    r.incarnation = s.incarnation;
+    r.alive_at_end = s.alive;
+    double origin_stamp = 0.0;
+    if (s.alive) {
+      r.local = s.node->LocalMap();
+      r.global = s.node->global();
+      r.peers = s.node->exchange().Peers();
+      r.stats = s.node->stats();
+      origin_stamp = s.node->frame_origin_stamp().value_or(0.0);
+    } else if (s.checkpoint) {  // a dead agent leaves its last checkpoint
+      r.local = s.checkpoint->local;
+      r.global.map = s.checkpoint->global;
+      origin_stamp = s.checkpoint->origin_stamp;
+    }
+    if (world.headings_known) r.origin_truth = TruthAt(truth[id], origin_stamp);
+    if (!world.landmarks.empty()) {
+      r.local_quality = EvaluateOwnFrameMap(r.local, world.landmarks, result.seen, r.origin_truth);
+      r.global_quality = EvaluateOwnFrameMap(r.global.map, world.landmarks, result.seen, r.origin_truth);
+    }
+    for (const PeerReport& p : r.peers) {
+      if (!p.aligned || !r.origin_truth || !world.headings_known) continue;
+      const std::optional<Pose2> peer_origin = TruthAt(truth[p.key.robot], p.origin_stamp);
+      if (!peer_origin) continue;
+      const Pose2 true_transform = r.origin_truth->Inverse() * *peer_origin;
+      const TransformError e = CompareTransforms(p.to_own, true_transform, p.centroid);
+      BusAgentResult::AlignmentError err{p.key, e.translation_m, e.rotation_rad};
+      const Slot& peer = slots.at(p.key.robot);
+      if (peer.alive && peer.incarnation == p.key.incarnation) {
+        const auto fa = MapFrameInWorld(r.local, world.landmarks), fb = MapFrameInWorld(peer.node->LocalMap(), world.landmarks);
+        if (fa && fb) {
+          const TransformError f = CompareTransforms(p.to_own, fa->Inverse() * *fb, p.centroid);
+          err.fit_translation_m = f.translation_m;
+          err.fit_rotation_rad = f.rotation_rad;
+        }
+      }
+      r.alignment_errors.push_back(err);
+    }
+    result.agents.push_back(std::move(r));
+  }
+  result.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace mapmesh::lab

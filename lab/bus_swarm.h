@@ -1,0 +1,69 @@
+#pragma once
+// A whole swarm in one process: a scenario's streams go to one AgentNode per robot, and the
+// maps they publish are delivered to the others over an in-memory bus (each agent's radio gate
+// still decides what it hears). Deterministic and fast: the agents' exchange logic (alignment,
+// relay, liveliness, kills and restarts from checkpoints) without DDS.
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "agent/agent_node.h"
+#include "common/config/scenario.h"
+#include "common/metrics/landmark_metrics.h"
+
+namespace mapmesh::lab {
+
+struct BusSwarmOptions {
+  std::string datasets_root;
+  std::vector<std::pair<double, RobotId>> kills;     // (scenario time, robot)
+  std::vector<std::pair<double, RobotId>> restarts;  // from the robot's last checkpoint
+};
+
+// One agent at the end of the run (its last incarnation).
+struct BusAgentResult {
+  RobotId robot = 0;
+  std::uint32_t incarnation = 0;
+  bool alive_at_end = true;
+  std::optional<Pose2> origin_truth;        // true pose of its map frame
+  LandmarkMap local;
+  GlobalMap global;
+  std::vector<PeerReport> peers;
+  AgentStats stats;
+  MapQuality local_quality, global_quality;  // in its own frame (when the origin is known)
+  // Errors of its alignments against the truth, per aligned peer incarnation.
+  // Against the true start poses of both frames (at the peer map's centroid), and against
+  // the frames the two maps are really in (each map's rigid fit to the landmark truth): the
+  // first includes both maps' own frame errors, the second is the alignment's own error.
+  struct AlignmentError {
+    PeerKey peer;
+    double translation_m = 0.0, rotation_rad = 0.0;
+    double fit_translation_m = -1.0, fit_rotation_rad = -1.0;  // -1: maps without signatures
+  };
+  std::vector<AlignmentError> alignment_errors;
+};
+
+struct BusSwarmResult {
+  std::vector<BusAgentResult> agents;
+  std::vector<Eigen::Vector2d> landmarks;  // truth
+  std::vector<int> seen;                   // true landmarks some robot observed
+  // Every live agent's global map just before each kill (time, robot killed).
+  struct Snapshot {
+    double t = 0.0;
+    RobotId killed = 0;
+    std::map<RobotId, GlobalMap> globals;
+  };
+  std::vector<Snapshot> before_kills;
+  double wall_s = 0.0;
+};
+
+BusSwarmResult RunBusSwarm(const Scenario& scenario, const BusSwarmOptions& options);
+
+// Where a map's frame really lies in the world: the rigid fit of its landmarks to the truth
+// by signature (needs two); nullopt without signatures.
+std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth);
+
+}  // namespace mapmesh::lab
