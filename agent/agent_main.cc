@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <map>
 
 #include "agent/agent_node.h"
 #include "common/app/process.h"
@@ -35,7 +36,37 @@ class DdsOutput : public AgentOutput {
   tp::Writer<AgentStatus> status_;
 };
 
-json StatsJson(const AgentNode& node) {
+json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall) {
+  json peers = json::array();
+  for (const PeerReport& p : node.exchange().Peers()) {
+    const Eigen::Matrix3d& c = p.to_own_cov;
+    peers.push_back({{"robot", p.key.robot},
+                     {"incarnation", p.key.incarnation},
+                     {"own_checkpoint", p.own_checkpoint},
+                     {"origin_stamp", p.origin_stamp},
+                     {"local_landmarks", p.local_landmarks},
+                     {"global_landmarks", p.global_landmarks},
+                     {"aligned", p.aligned},
+                     {"ever_aligned", p.ever_aligned},
+                     {"aligned_since", p.aligned_since},
+                     {"dropped", p.dropped},
+                     {"stale", p.stale},
+                     {"stale_since", p.stale_since},
+                     {"relayed", p.relayed},
+                     {"transform", {p.to_own.x, p.to_own.y, p.to_own.theta}},
+                     {"transform_cov", {c(0, 0), c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2)}},
+                     {"centroid", {p.centroid.x(), p.centroid.y()}},
+                     {"attempts", p.attempts},
+                     {"verifications", p.verifications},
+                     {"failures", p.failures},
+                     {"last_verdict", std::string(ToString(p.last_verdict))}});
+  }
+  json lost = json::object();
+  for (const auto& [id, t] : lost_wall) lost[std::to_string(id)] = t;
+  return {{"peers", peers}, {"peers_lost_wall", lost}};
+}
+
+json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall) {
   const AgentStats& s = node.stats();
   const SyncStats& sync = node.sync_stats();
   const MapperStats& m = node.mapper().stats();
@@ -46,53 +77,98 @@ json StatsJson(const AgentNode& node) {
   json from = json::object();
   for (const auto& [id, n] : s.maps_received_from) from[std::to_string(id)] = n;
   const Pose2 pose = node.Pose();
-  return {{"id", node.id()},
-          {"processed_until", node.processed_until()},
-          {"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
-          {"pose", {pose.x, pose.y, pose.theta}},
-          {"local_landmarks", node.LocalMap().size()},
-          {"odom_processed", sync.odom_processed},
-          {"odom_rejected", sync.odom_rejected},
-          {"scans_processed", sync.scans_processed},
-          {"scans_empty", sync.scans_empty},
-          {"scans_rejected", sync.scans_rejected},
-          {"scans_before_start", sync.scans_before_start},
-          {"scans_late", sync.scans_late},
-          {"scans_missing", sync.scans_missing},
-          {"observations", {{"offered", m.observations},
-                            {"associated", m.associated},
-                            {"initialised", m.initialised},
-                            {"tentative", m.tentative},
-                            {"rejected_gate", m.rejected_gate},
-                            {"ambiguous", m.ambiguous},
-                            {"unidentified", m.unidentified},
-                            {"out_of_range", m.out_of_range},
-                            {"invalid", m.invalid},
-                            {"failed_updates", m.failed_updates}}},
-          {"maps_sent", s.maps_sent},
-          {"bytes_sent", s.bytes_sent},
-          {"maps_received", s.maps_received},
-          {"bytes_received", s.bytes_received},
-          {"maps_out_of_range", s.maps_out_of_range},
-          {"maps_lost", s.maps_lost},
-          {"maps_over_bandwidth", s.maps_over_bandwidth},
-          {"maps_unknown_sender", s.maps_unknown_sender},
-          {"maps_rejected", rejected},
-          {"maps_received_from", from}};
+  const AgentStatus status = node.Status();
+  json j = {{"id", node.id()},
+            {"incarnation", node.incarnation()},
+            {"processed_until", node.processed_until()},
+            {"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
+            {"pose", {pose.x, pose.y, pose.theta}},
+            {"local_landmarks", node.LocalMap().size()},
+            {"global_landmarks", node.global().map.size()},
+            {"odom_processed", sync.odom_processed},
+            {"odom_rejected", sync.odom_rejected},
+            {"scans_processed", sync.scans_processed},
+            {"scans_empty", sync.scans_empty},
+            {"scans_rejected", sync.scans_rejected},
+            {"scans_before_start", sync.scans_before_start},
+            {"scans_late", sync.scans_late},
+            {"scans_missing", sync.scans_missing},
+            {"observations", {{"offered", m.observations},
+                              {"associated", m.associated},
+                              {"initialised", m.initialised},
+                              {"tentative", m.tentative},
+                              {"rejected_gate", m.rejected_gate},
+                              {"ambiguous", m.ambiguous},
+                              {"unidentified", m.unidentified},
+                              {"out_of_range", m.out_of_range},
+                              {"invalid", m.invalid},
+                              {"failed_updates", m.failed_updates}}},
+            {"maps_sent", s.maps_sent},
+            {"bytes_sent", s.bytes_sent},
+            {"bytes_per_landmark", s.BytesPerLandmark()},
+            {"maps_received", s.maps_received},
+            {"bytes_received", s.bytes_received},
+            {"maps_out_of_range", s.maps_out_of_range},
+            {"maps_lost", s.maps_lost},
+            {"maps_over_bandwidth", s.maps_over_bandwidth},
+            {"maps_unknown_sender", s.maps_unknown_sender},
+            {"maps_stale_version", s.maps_stale_version},
+            {"maps_encode_failed", s.maps_encode_failed},
+            {"maps_rejected", rejected},
+            {"maps_received_from", from},
+            {"peers_aligned", status.peers_aligned},
+            {"peers_stale", status.peers_stale}};
+  j.update(PeersJson(node, lost_wall));
+  return j;
 }
 
-void WriteOutputs(const AgentNode& node, const std::string& dir) {
+json CheckpointToJson(const AgentCheckpoint& c) {
+  json earlier = json::array();
+  for (const AgentCheckpoint& e : c.earlier) earlier.push_back(CheckpointToJson(e));
+  return {{"robot", c.robot},
+          {"incarnation", c.incarnation},
+          {"origin_stamp", c.origin_stamp},
+          {"processed_until", c.processed_until},
+          {"local", io::MapToJson(c.local)},
+          {"global", io::MapToJson(c.global)},
+          {"earlier", earlier}};
+}
+
+AgentCheckpoint CheckpointFromJson(const json& j) {
+  AgentCheckpoint c;
+  try {
+    c.robot = j.at("robot").get<RobotId>();
+    c.incarnation = j.at("incarnation").get<std::uint32_t>();
+    c.origin_stamp = j.at("origin_stamp").get<double>();
+    c.processed_until = j.at("processed_until").get<double>();
+  } catch (const json::exception& e) {
+    throw std::runtime_error(std::string("malformed checkpoint: ") + e.what());
+  }
+  c.local = io::MapFromJson(j.at("local"));
+  c.global = io::MapFromJson(j.at("global"));
+  for (const json& e : j.value("earlier", json::array())) c.earlier.push_back(CheckpointFromJson(e));
+  return c;
+}
+
+// The agent's maps, statistics and trajectory. Written at every checkpoint too (final false),
+// so that an agent killed without warning leaves its last state behind.
+void WriteOutputs(const AgentNode& node, const std::string& dir, const std::map<RobotId, double>& lost_wall,
+                  bool final) {
   std::filesystem::create_directories(dir);
-  const LandmarkMap local = node.LocalMap();
-  io::WriteJsonAtomic(dir + "/local_map.json", io::MapToJson(local));
-  // Until map fusion exists the global map is the clone of the local map.
-  io::WriteJsonAtomic(dir + "/global_map.json", io::MapToJson(local));
-  io::WriteJsonAtomic(dir + "/stats.json", StatsJson(node));
+  io::WriteJsonAtomic(dir + "/local_map.json", io::MapToJson(node.LocalMap()));
+  io::WriteJsonAtomic(dir + "/global_map.json", io::GlobalMapToJson(node.global()));
+  json stats = StatsJson(node, lost_wall);
+  stats["final"] = final;
+  io::WriteJsonAtomic(dir + "/stats.json", stats);
   json poses = json::array();
   for (const auto& p : node.trajectory()) poses.push_back({p.t, p.pose.x, p.pose.y, p.pose.theta});
   io::WriteJsonAtomic(dir + "/trajectory.json",
                       {{"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
                        {"poses", poses}});
+}
+
+double WallNow() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
 int Run(int argc, char** argv) {
@@ -108,6 +184,9 @@ int Run(int argc, char** argv) {
   app::AddDdsOptions(cli, po, /*domain_required=*/true);
   cli.add_option("--out", out_dir, "directory for the final maps and stats (default agent_<id>)");
   cli.add_option("--incarnation", incarnation, "number identifying this start of the agent");
+  bool resume = false;
+  cli.add_flag("--resume", resume,
+               "restart from OUT/checkpoint.json: re-merge what the earlier incarnation knew (it starts a new map frame)");
   if (auto code = app::ParseArgs(cli, "mapmesh-agent", argc, argv)) return *code;
   app::SetupLogging("agent " + std::to_string(id), po.log_level);
   if (out_dir.empty()) out_dir = "agent_" + std::to_string(id);
@@ -130,6 +209,21 @@ int Run(int argc, char** argv) {
   tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos());
   DdsOutput output(p);
   AgentNode node(scenario, self, incarnation, output);
+  const std::string checkpoint_path = out_dir + "/checkpoint.json";
+  if (resume) {
+    if (!std::filesystem::exists(checkpoint_path)) {
+      spdlog::warn("--resume: no checkpoint at {}; starting afresh", checkpoint_path);
+    } else {
+      const AgentCheckpoint c = CheckpointFromJson(io::ReadJson(checkpoint_path));
+      if (c.robot != self) throw std::runtime_error(checkpoint_path + ": a checkpoint of robot " + std::to_string(c.robot));
+      node.Resume(c);
+      spdlog::info("resumed incarnation {} (t={:.1f}s, {} local and {} global landmarks)", c.incarnation,
+                   c.processed_until, c.local.size(), c.global.size());
+    }
+  }
+  const double checkpoint_period = scenario.agent.checkpoint_period_s;
+  double next_checkpoint = checkpoint_period;
+  std::map<RobotId, double> lost_wall;  // when each peer's liveliness was lost (wall clock, for tests)
 
   tp::GuardCondition stop(p);
   tp::WaitSet waitset(p);
@@ -160,7 +254,21 @@ int Run(int argc, char** argv) {
       if (s.valid) node.OnOdometry(s.value);
     }
     for (const auto& s : maps.Take()) {
-      if (s.valid) node.OnMap(s.value);
+      if (s.valid) {
+        node.OnMap(s.value);
+      } else if (!s.alive && s.value.robot_id != self) {
+        // Its writer is gone (liveliness lost or the process ended): the peer is stale.
+        if (!lost_wall.count(s.value.robot_id)) {
+          spdlog::info("peer {} lost (liveliness)", s.value.robot_id);
+          lost_wall[s.value.robot_id] = WallNow();
+        }
+        node.OnPeerLiveliness(s.value.robot_id, false);
+      }
+    }
+    if (checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {
+      io::WriteJsonAtomic(checkpoint_path, CheckpointToJson(node.Checkpoint()));
+      WriteOutputs(node, out_dir, lost_wall, /*final=*/false);
+      next_checkpoint = node.processed_until() + checkpoint_period;
     }
     if (Clock::now() >= next_beat) {
       output.PublishStatus(node.Status());
@@ -168,11 +276,12 @@ int Run(int argc, char** argv) {
     }
   }
   spdlog::info("signal {}: writing outputs to {}", shutdown.signal(), out_dir);
-  WriteOutputs(node, out_dir);
+  WriteOutputs(node, out_dir, lost_wall, /*final=*/true);
+  if (checkpoint_period > 0) io::WriteJsonAtomic(checkpoint_path, CheckpointToJson(node.Checkpoint()));
   const AgentStats& st = node.stats();
-  spdlog::info("done: t={:.1f}s odom={} scans={} landmarks={} maps_received={} maps_dropped={}",
+  spdlog::info("done: t={:.1f}s odom={} scans={} landmarks={} global={} maps_received={} maps_dropped={}",
                node.processed_until(), node.sync_stats().odom_processed, node.sync_stats().scans_processed,
-               node.LocalMap().size(), st.maps_received, st.MapsDropped());
+               node.LocalMap().size(), node.global().map.size(), st.maps_received, st.MapsDropped());
   return 0;
 }
 

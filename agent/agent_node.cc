@@ -195,6 +195,7 @@ void AgentNode::OnPeerLiveliness(RobotId robot, bool alive) {
 void AgentNode::Resume(const AgentCheckpoint& c) {
   MAPMESH_CHECK(c.robot == self_, "a checkpoint of another robot");
   exchange_.AddOwnCheckpoint(c.incarnation, c.origin_stamp, c.local, c.global);
+  for (const AgentCheckpoint& e : c.earlier) Resume(e);
 }
 
 AgentCheckpoint AgentNode::Checkpoint() const {
@@ -205,6 +206,15 @@ AgentCheckpoint AgentNode::Checkpoint() const {
   c.processed_until = sync_.processed_until();
   c.local = mapper_->Map();
   c.global = exchange_.global().map;
+  for (const auto& e : exchange_.UnalignedOwnCheckpoints()) {
+    AgentCheckpoint old;
+    old.robot = self_;
+    old.incarnation = e.incarnation;
+    old.origin_stamp = e.origin_stamp;
+    old.local = e.local;
+    old.global = e.global;
+    c.earlier.push_back(std::move(old));
+  }
   return c;
 }
 

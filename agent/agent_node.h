@@ -46,6 +46,8 @@ struct AgentCheckpoint {
   double origin_stamp = 0.0;      // when that incarnation's frame was fixed
   double processed_until = 0.0;
   LandmarkMap local, global;      // in that incarnation's frame
+  // Earlier incarnations that had not been re-merged yet when this one was saved.
+  std::vector<AgentCheckpoint> earlier;
 };
 
 // Counters of the maps the agent sent, received, dropped or rejected, and why.

@@ -173,6 +173,14 @@ std::vector<PeerReport> MapExchange::Peers() const {
   return out;
 }
 
+std::vector<MapExchange::OwnEarlier> MapExchange::UnalignedOwnCheckpoints() const {
+  std::vector<OwnEarlier> out;
+  for (const auto& [key, p] : peers_) {
+    if (p.report.own_checkpoint && !p.source) out.push_back({key.incarnation, p.report.origin_stamp, p.local, p.global});
+  }
+  return out;
+}
+
 std::vector<RobotId> MapExchange::AlignedRobots() const {
   std::set<RobotId> ids;
   for (const auto& [key, p] : peers_) {

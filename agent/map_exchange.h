@@ -85,6 +85,13 @@ class MapExchange {
   bool Update(const LandmarkMap& own_local, double now);
 
   const GlobalMap& global() const { return global_; }
+  // Earlier incarnations of this agent not aligned yet: a new checkpoint must carry them on.
+  struct OwnEarlier {
+    std::uint32_t incarnation = 0;
+    double origin_stamp = 0.0;
+    LandmarkMap local, global;
+  };
+  std::vector<OwnEarlier> UnalignedOwnCheckpoints() const;
   std::vector<PeerReport> Peers() const;
   // Robots with at least one aligned incarnation, and robots whose writer is gone.
   std::vector<RobotId> AlignedRobots() const;

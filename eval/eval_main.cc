@@ -4,7 +4,10 @@
 #include <cstdio>
 #include <filesystem>
 
+#include <map>
+
 #include "common/app/process.h"
+#include "common/geometry/rigid_fit.h"
 #include "common/io/run_files.h"
 #include "common/metrics/landmark_metrics.h"
 #include "common/metrics/trajectory_metrics.h"
@@ -25,6 +28,64 @@ json QualityJson(const MapQuality& q) {
           {"frame", q.aligned ? "aligned" : "true_origin"}};
 }
 
+// Where a map's frame really lies: its rigid fit to the truth by signature, if it has two.
+std::optional<Pose2> FittedFrame(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth) {
+  std::vector<Eigen::Vector2d> src, dst;
+  for (const Landmark& l : map.landmarks) {
+    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < truth.size()) {
+      src.push_back(l.mean);
+      dst.push_back(truth[l.signature]);
+    }
+  }
+  return FitRigid2D(src, dst);
+}
+
+// Errors of the agent's alignments against the truth, keyed by peer ("3"; an older
+// incarnation of a peer as "3@1"). trans_m is taken at the peer map's centroid, against the
+// true start poses of both frames; trans_fit_m and rot_fit_rad against the frames the two
+// maps are really in (their rigid fits to the truth), when both maps carry signatures.
+json AlignmentErrors(const json& stats, const io::RunTruth& truth, const std::optional<Pose2>& origin,
+                     const std::optional<Pose2>& own_fit, const std::string& run_dir) {
+  json out = json::object();
+  if (!stats.contains("peers") || !origin || !truth.headings_known) return out;
+  std::map<RobotId, std::uint32_t> latest;
+  for (const json& p : stats.at("peers")) {
+    if (p.value("aligned", false)) {
+      const RobotId r = p.at("robot").get<RobotId>();
+      latest[r] = std::max(latest[r], p.at("incarnation").get<std::uint32_t>());
+    }
+  }
+  for (const json& p : stats.at("peers")) {
+    if (!p.value("aligned", false)) continue;
+    const RobotId robot = p.at("robot").get<RobotId>();
+    const std::uint32_t inc = p.at("incarnation").get<std::uint32_t>();
+    const io::RobotTruth* rt = truth.Find(robot);
+    if (!rt) continue;
+    const std::optional<Pose2> peer_origin = rt->PoseAt(p.at("origin_stamp").get<double>());
+    if (!peer_origin) continue;
+    const Pose2 est{p.at("transform").at(0).get<double>(), p.at("transform").at(1).get<double>(),
+                    p.at("transform").at(2).get<double>()};
+    const Eigen::Vector2d at(p.at("centroid").at(0).get<double>(), p.at("centroid").at(1).get<double>());
+    const TransformError e = CompareTransforms(est, origin->Inverse() * *peer_origin, at);
+    json entry = {{"trans_m", e.translation_m}, {"rot_rad", e.rotation_rad}, {"incarnation", inc},
+                  {"own_checkpoint", p.value("own_checkpoint", false)}};
+    // The peer's map as the run ended, when it is this incarnation's.
+    const std::string peer_dir = run_dir + "/agent_" + std::to_string(robot);
+    if (own_fit && std::filesystem::exists(peer_dir + "/local_map.json") &&
+        std::filesystem::exists(peer_dir + "/stats.json") &&
+        io::ReadJson(peer_dir + "/stats.json").value("incarnation", 0u) == inc) {
+      if (const auto peer_fit = FittedFrame(io::MapFromJson(io::ReadJson(peer_dir + "/local_map.json")), truth.landmarks)) {
+        const TransformError f = CompareTransforms(est, own_fit->Inverse() * *peer_fit, at);
+        entry["trans_fit_m"] = f.translation_m;
+        entry["rot_fit_rad"] = f.rotation_rad;
+      }
+    }
+    const std::string key = inc == latest[robot] ? std::to_string(robot) : std::to_string(robot) + "@" + std::to_string(inc);
+    out[key] = entry;
+  }
+  return out;
+}
+
 int Run(int argc, char** argv) {
   CLI::App cli{"mapmesh-eval: scores a run's maps against its ground truth (JSON on stdout)"};
   std::string run_dir;
@@ -41,8 +102,9 @@ int Run(int argc, char** argv) {
     // or later for a restarted agent (its stats.json says when). Without a known pose the
     // map is rigidly aligned to the truth.
     std::optional<Pose2> origin = robot.start;
+    json stats = json::object();
     if (std::filesystem::exists(dir + "/stats.json")) {
-      const json stats = io::ReadJson(dir + "/stats.json");
+      stats = io::ReadJson(dir + "/stats.json");
       const json& t = stats.value("frame_origin_stamp", json());
       if (t.is_number() && truth.headings_known) origin = robot.PoseAt(t.get<double>());
       if (t.is_number() && !truth.headings_known) origin.reset();
@@ -56,6 +118,28 @@ int Run(int argc, char** argv) {
       // error of its shape alone.
       const MapQuality aligned = EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, std::nullopt, gate_m);
       entry[kind]["rmse_aligned_m"] = aligned.evaluated ? json(aligned.rmse_m) : json();
+    }
+    // The global map restricted to the landmarks this agent mapped itself (its local map is
+    // one of their inputs): fusion must not make them worse.
+    if (entry.contains("global") && stats.contains("incarnation")) {
+      const json g = io::ReadJson(dir + "/global_map.json");
+      const LandmarkMap map = io::MapFromJson(g);
+      LandmarkMap own;
+      const auto self_inc = stats.at("incarnation").get<std::uint32_t>();
+      for (std::size_t i = 0; i < map.size(); ++i) {
+        for (const json& o : g.at("landmarks").at(i).value("origins", json::array())) {
+          if (o.at(0).get<RobotId>() == robot.id && o.at(1).get<std::uint32_t>() == self_inc) {
+            own.landmarks.push_back(map.landmarks[i]);
+            break;
+          }
+        }
+      }
+      const MapQuality q = EvaluateOwnFrameMap(own, truth.landmarks, truth.seen, origin, gate_m);
+      entry["global"]["rmse_own_landmarks_m"] = q.evaluated && q.matched > 0 ? json(q.rmse_m) : json();
+      const std::optional<Pose2> own_fit = std::filesystem::exists(dir + "/local_map.json")
+                                               ? FittedFrame(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks)
+                                               : std::nullopt;
+      entry["alignment_errors"] = AlignmentErrors(stats, truth, origin, own_fit, run_dir);
     }
     // The estimated trajectory against the true one: in the true frame when the origin is
     // known, else after a rigid fit (GPS glitches dropped).

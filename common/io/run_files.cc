@@ -16,12 +16,32 @@ json MapToJson(const LandmarkMap& map) {
                    {"y", l.mean.y()},
                    {"cov", {l.cov(0, 0), l.cov(0, 1), l.cov(1, 1)}}});
   }
-  return {{"landmarks", lms}};
+  return {{"shape_sigma_m", map.shape_sigma_m}, {"landmarks", lms}};
+}
+
+json GlobalMapToJson(const GlobalMap& g) {
+  json j = MapToJson(g.map);
+  for (std::size_t i = 0; i < g.map.size() && i < g.origins.size(); ++i) {
+    json o = json::array();
+    for (const LandmarkOrigin& x : g.origins[i]) o.push_back({x.robot, x.incarnation, x.id});
+    j["landmarks"][i]["origins"] = o;
+  }
+  const GlobalMapStats& s = g.stats;
+  j["stats"] = {{"local", s.local},
+                {"sources", s.sources},
+                {"rejected_sources", s.rejected_sources},
+                {"associated", s.associated},
+                {"appended", s.appended},
+                {"rejected_landmarks", s.rejected_landmarks},
+                {"ambiguous_groups", s.ambiguous_groups},
+                {"greedy_groups", s.greedy_groups}};
+  return j;
 }
 
 LandmarkMap MapFromJson(const json& j) {
   LandmarkMap map;
   try {
+    map.shape_sigma_m = j.value("shape_sigma_m", 0.0);
     for (const auto& e : j.at("landmarks")) {
       Landmark l;
       l.id = e.at("id").get<std::uint32_t>();

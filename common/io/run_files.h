@@ -10,14 +10,18 @@
 
 #include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
+#include "common/merge/global_map.h"
 #include "common/types/messages.h"
 
 namespace mapmesh::io {
 
 using nlohmann::json;
 
-// {"landmarks": [{"id", "signature", "x", "y", "cov": [xx, xy, yy]}...]}
+// {"shape_sigma_m", "landmarks": [{"id", "signature", "x", "y", "cov": [xx, xy, yy]}...]}
 json MapToJson(const LandmarkMap& map);
+// MapToJson plus, per landmark, "origins": [[robot, incarnation, id]...] (the source-map
+// landmarks fused into it, the first one its anchor), and the rebuild's counters.
+json GlobalMapToJson(const GlobalMap& map);
 // Throws std::runtime_error on a malformed document.
 LandmarkMap MapFromJson(const json& j);
 

@@ -165,9 +165,10 @@ class SwarmRun:
                 raise RunError(f"--kill/--restart {rid}@{t}: after the end of the run ({self.info['duration']} s)", 2)
 
     def agent_cmd(self, rid, incarnation):
+        resume = ["--resume"] if incarnation > 1 else []
         cmd = [binary("mapmesh-agent"), "--scenario", self.scenario, "--id", str(rid),
                "--domain", str(self.lease.id), "--out", str(self.out / f"agent_{rid}"),
-               "--incarnation", str(incarnation)] + self.common
+               "--incarnation", str(incarnation)] + resume + self.common
         return cmd
 
     def spawn(self, cmd, log_path, append=False, **kw):
@@ -348,7 +349,7 @@ class SwarmRun:
         for rid, slot in self.agents.items():
             stats = {}
             spath = self.out / f"agent_{rid}" / "stats.json"
-            if spath.exists() and slot.current and slot.current.returncode == 0:
+            if spath.exists():  # final, or the last checkpoint of a killed agent
                 stats = json.loads(spath.read_text())
             score = scores.get(str(rid), {})
             sent = feeder_stats.get(rid, {})
@@ -359,14 +360,18 @@ class SwarmRun:
                 "restarts": len(slot.restarted_at),
                 "killed_at": slot.killed_at,
                 "restarted_at": slot.restarted_at,
+                "final_state": bool(stats.get("final", False)),
                 "local": score.get("local"),
                 "global": score.get("global"),
                 "peers_aligned": stats.get("peers_aligned", []),
-                "alignment_errors": {},
+                "peers_stale": stats.get("peers_stale", []),
+                "alignment_errors": score.get("alignment_errors", {}),
                 "maps_received": stats.get("maps_received"),
                 "maps_dropped": _maps_dropped(stats),
+                "maps_rejected": stats.get("maps_rejected", {}),
                 "bytes_sent": stats.get("bytes_sent"),
                 "bytes_received": stats.get("bytes_received"),
+                "bytes_per_landmark": stats.get("bytes_per_landmark"),
                 "odom_processed": stats.get("odom_processed"),
                 "scans_processed": stats.get("scans_processed"),
                 "odom_sent": sent.get("odom_sent"),
@@ -401,20 +406,21 @@ def _maps_dropped(stats):
         return None
     rejected = sum(stats.get("maps_rejected", {}).values())
     return (stats.get("maps_out_of_range", 0) + stats.get("maps_lost", 0) + stats.get("maps_over_bandwidth", 0)
-            + stats.get("maps_unknown_sender", 0) + rejected)
+            + stats.get("maps_unknown_sender", 0) + stats.get("maps_stale_version", 0) + rejected)
 
 
 def format_table(summary):
     def num(v, fmt):
         return "-" if v is None else format(v, fmt)
 
-    rows = [("id", "alive", "exit", "restarts", "lm_local", "rmse_local", "lm_global", "rmse_global",
-             "maps_rx", "kB_tx", "kB_rx", "cpu_s", "rss_MB")]
+    rows = [("id", "alive", "exit", "restarts", "lm_local", "rmse_local", "lm_global", "rmse_global", "cov_global",
+             "peers", "maps_rx", "kB_tx", "kB_rx", "cpu_s", "rss_MB")]
     for a in summary["agents"]:
         loc, glo = a["local"] or {}, a["global"] or {}
         rows.append((str(a["id"]), "yes" if a["alive_at_end"] else "no", num(a["exit_code"], "d"),
                      str(a["restarts"]), num(loc.get("landmarks"), "d"), num(loc.get("rmse_m"), ".3f"),
-                     num(glo.get("landmarks"), "d"), num(glo.get("rmse_m"), ".3f"), num(a["maps_received"], "d"),
+                     num(glo.get("landmarks"), "d"), num(glo.get("rmse_m"), ".3f"), num(glo.get("coverage"), ".2f"),
+                     str(len(a.get("peers_aligned", []))), num(a["maps_received"], "d"),
                      num(None if a["bytes_sent"] is None else a["bytes_sent"] / 1000, ".1f"),
                      num(None if a["bytes_received"] is None else a["bytes_received"] / 1000, ".1f"),
                      num(a["cpu_s"], ".2f"), num(a["max_rss_mb"], ".1f")))
