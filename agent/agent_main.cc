@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <map>
 
 #include "agent/agent_node.h"
@@ -154,12 +155,26 @@ AgentCheckpoint CheckpointFromJson(const json& j) {
 // so that an agent killed without warning leaves its last state behind.
 void WriteOutputs(const AgentNode& node, const std::string& dir, const std::map<RobotId, double>& lost_wall,
                   bool final) {
-  std::filesystem::create_directories(dir);
-  io::WriteJsonAtomic(dir + "/local_map.json", io::MapToJson(node.LocalMap()));
-  io::WriteJsonAtomic(dir + "/global_map.json", io::GlobalMapToJson(node.global()));
+  std::filesystem::create_directories(dir + "/snapshots");
+  const json local = io::MapToJson(node.LocalMap());
+  const json global = io::GlobalMapToJson(node.global());
+  io::WriteJsonAtomic(dir + "/local_map.json", local);
+  io::WriteJsonAtomic(dir + "/global_map.json", global);
   json stats = StatsJson(node, lost_wall);
   stats["final"] = final;
   io::WriteJsonAtomic(dir + "/stats.json", stats);
+  // The history of the run for plots over time: both maps as they were now, and one line of
+  // counters in history.jsonl (appended; a resumed agent continues it with its incarnation).
+  const std::string snapshot = fmt::format("snapshots/t{:010.3f}_i{}", node.processed_until(), node.incarnation());
+  io::WriteJsonAtomic(dir + "/" + snapshot + "_local.json", local);
+  io::WriteJsonAtomic(dir + "/" + snapshot + "_global.json", global);
+  json line = {{"t", node.processed_until()}, {"snapshot", snapshot}, {"final", final}};
+  for (const char* key : {"incarnation", "frame_origin_stamp", "local_landmarks", "global_landmarks", "bytes_sent",
+                          "bytes_received", "maps_received", "maps_received_from", "peers_aligned", "peers_stale"}) {
+    line[key] = stats.at(key);
+  }
+  std::ofstream history(dir + "/history.jsonl", std::ios::app);
+  history << line.dump() << '\n';
   json poses = json::array();
   for (const auto& p : node.trajectory()) poses.push_back({p.t, p.pose.x, p.pose.y, p.pose.theta});
   io::WriteJsonAtomic(dir + "/trajectory.json",

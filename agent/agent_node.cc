@@ -135,7 +135,7 @@ void AgentNode::PublishMaps() {
   const LandmarkMap local = mapper_->Map();
   exchange_.Update(local, sync_.processed_until());
   Publish(MapKind::kLocal, local, ++local_version_);
-  Publish(MapKind::kGlobal, exchange_.global().map, ++global_version_);
+  Publish(MapKind::kGlobal, exchange_.published().map, ++global_version_);
 }
 
 void AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version) {

@@ -108,6 +108,7 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local) {
   s.to_own_cov = p.report.to_own_cov;
   s.map = PeerMap(p);
   p.report.relayed = false;
+  p.direct = s;
   // The peer's global map is in the peer's frame too: use it if it verifies where the peer's
   // local map aligned.
   if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
@@ -122,6 +123,8 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local) {
       }
     }
   }
+  // An earlier own incarnation's global map is frozen (it cannot echo anything back).
+  if (p.report.own_checkpoint) p.direct = s;
   p.source = std::move(s);
 }
 
@@ -155,15 +158,18 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
       p.report.aligned = false;
       p.report.dropped = true;
       p.source.reset();
+      p.direct.reset();
       p.last_attempt = now;
       changed = true;
     }
   }
-  std::vector<MapSource> sources;
+  std::vector<MapSource> sources, direct;
   for (const auto& [key, p] : peers_) {
     if (p.source) sources.push_back(*p.source);
+    if (p.direct) direct.push_back(*p.direct);
   }
   global_ = BuildGlobalMap(own_local, self_, sources, options_.global, incarnation_);
+  published_ = BuildGlobalMap(own_local, self_, direct, options_.global, incarnation_);
   return changed;
 }
 

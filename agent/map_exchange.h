@@ -10,6 +10,10 @@
 //
 // - Relay: when a peer's global map agrees with the peer's alignment, it is fused instead of
 //   the peer's local map, which brings in what the peer learned from robots out of our range.
+//   What an agent publishes as its global map is its one-hop map (published()): its local map
+//   fused with its aligned peers' local maps only. A relayed map therefore never carries back
+//   what the receiver itself sent, nor anything of a source once that source is dropped, so
+//   no loop can keep a wrong landmark alive; the price is that relays reach two hops.
 // - Liveliness: a peer whose writer is gone is stale; its last verified map stays in the global
 //   map (nothing already learned is lost), and it is no longer re-verified.
 // - Resume: an earlier incarnation of this agent (from its checkpoint) is one more peer.
@@ -85,6 +89,9 @@ class MapExchange {
   bool Update(const LandmarkMap& own_local, double now);
 
   const GlobalMap& global() const { return global_; }
+  // The one-hop global map: the own local map fused with aligned peers' local maps (and an
+  // earlier own incarnation's maps). This is what the agent publishes as its GLOBAL map.
+  const GlobalMap& published() const { return published_; }
   // Earlier incarnations of this agent not aligned yet: a new checkpoint must carry them on.
   struct OwnEarlier {
     std::uint32_t incarnation = 0;
@@ -108,6 +115,7 @@ class MapExchange {
     std::size_t own_size_at_attempt = 0;
     // What the global map takes from this peer.
     std::optional<MapSource> source;
+    std::optional<MapSource> direct;  // ... and the one-hop map (never a relayed global map)
   };
   // Aligns the peer's map to the own local map; on success stores the transform and source.
   bool Align(Peer& p, const LandmarkMap& own_local, double now);
@@ -123,6 +131,7 @@ class MapExchange {
   std::mt19937_64 rng_;
   std::map<PeerKey, Peer> peers_;
   GlobalMap global_;
+  GlobalMap published_;
 };
 
 }  // namespace mapmesh

@@ -3,6 +3,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 
 #include <map>
 
@@ -86,6 +87,31 @@ json AlignmentErrors(const json& stats, const io::RunTruth& truth, const std::op
   return out;
 }
 
+// The agent's history.jsonl with each snapshot's maps scored as the run went on.
+json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::RunTruth& truth, double gate_m) {
+  json out = json::array();
+  std::ifstream in(dir + "/history.jsonl");
+  std::string text;
+  while (std::getline(in, text)) {
+    json line = json::parse(text, nullptr, /*allow_exceptions=*/false);
+    if (line.is_discarded() || !line.is_object()) continue;  // a line cut short by a kill
+    std::optional<Pose2> origin = truth.headings_known ? robot.start : std::nullopt;
+    const json& t = line.value("frame_origin_stamp", json());
+    if (t.is_number() && truth.headings_known) origin = robot.PoseAt(t.get<double>());
+    const std::string snapshot = line.value("snapshot", "");
+    for (const char* kind : {"local", "global"}) {
+      const std::string path = dir + "/" + snapshot + "_" + kind + ".json";
+      if (snapshot.empty() || !std::filesystem::exists(path)) continue;
+      const MapQuality q =
+          EvaluateOwnFrameMap(io::MapFromJson(io::ReadJson(path)), truth.landmarks, truth.seen, origin, gate_m);
+      line[kind] = QualityJson(q);
+    }
+    line.erase("snapshot");
+    out.push_back(line);
+  }
+  return out;
+}
+
 int Run(int argc, char** argv) {
   CLI::App cli{"mapmesh-eval: scores a run's maps against its ground truth (JSON on stdout)"};
   std::string run_dir;
@@ -162,6 +188,14 @@ int Run(int argc, char** argv) {
       entry["local"]["trajectory_rmse_m"] = e.samples > 0 ? json(e.rmse_m) : json();
       entry["local"]["trajectory_frame"] = origin ? "true_origin" : "aligned";
     }
+    // Where the final map frame lies in the world (for drawing): the true pose at its origin,
+    // else its rigid fit by signatures, else unknown.
+    std::optional<Pose2> frame = origin;
+    if (!frame && std::filesystem::exists(dir + "/local_map.json")) {
+      frame = FittedFrame(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks);
+    }
+    entry["frame_in_world"] = frame ? json{frame->x, frame->y, frame->theta} : json();
+    entry["history"] = HistoryJson(dir, robot, truth, gate_m);
     agents[std::to_string(robot.id)] = entry;
   }
   std::printf("%s\n", json{{"agents", agents}, {"seen_landmarks", truth.seen.size()}}.dump(1).c_str());

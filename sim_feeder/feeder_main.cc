@@ -213,15 +213,17 @@ class Feeder {
 
   json Progress(double stamp) const {
     std::uint64_t maps = 0;
+    std::size_t aligned = 0;  // ordered pairs: agent A holds an alignment to B
     json alive = json::array();
     for (const AgentStatus& s : tracker_.Statuses()) {
       if (tracker_.IsUp(s.robot_id)) {
         alive.push_back(s.robot_id);
         maps += s.maps_received;
+        aligned += s.peers_aligned.size();
       }
     }
     return {{"event", "progress"}, {"t", stamp}, {"duration", sc_.duration_s}, {"alive", alive},
-            {"maps_received", maps}};
+            {"maps_received", maps}, {"aligned_pairs", aligned}};
   }
 
  private:

@@ -6,6 +6,7 @@ import ctypes
 import json
 import os
 import selectors
+import shutil
 import signal
 import subprocess
 import sys
@@ -16,6 +17,9 @@ from .domain import DomainLease
 from .progress import Progress
 
 REPO = Path(__file__).resolve().parents[2]
+# Plots need matplotlib and numpy from Debian, which /usr/bin/python3 has (another python3 may
+# come first on PATH).
+PLOT_PYTHON = os.environ.get("MAPMESH_PLOT_PYTHON", "/usr/bin/python3")
 PR_SET_PDEATHSIG = 1
 
 
@@ -182,8 +186,10 @@ class SwarmRun:
 
     def start_agent(self, rid):
         slot = self.agents[rid]
-        (self.out / f"agent_{rid}").mkdir(parents=True, exist_ok=True)
         incarnation = len(slot.procs) + 1
+        if incarnation == 1:  # an earlier run's files in DIR must not leak into this one
+            shutil.rmtree(self.out / f"agent_{rid}", ignore_errors=True)
+        (self.out / f"agent_{rid}").mkdir(parents=True, exist_ok=True)
         slot.procs.append(self.spawn(self.agent_cmd(rid, incarnation), self.out / f"agent_{rid}" / "agent.log",
                                      append=incarnation > 1))
 
@@ -191,7 +197,7 @@ class SwarmRun:
     def execute(self):
         self.check_scenario()
         self.out.mkdir(parents=True, exist_ok=True)
-        for stale in ["summary.json", "truth.json", "feeder.json"]:
+        for stale in ["summary.json", "truth.json", "feeder.json", "timeline.json", "report.html"]:
             (self.out / stale).unlink(missing_ok=True)
         self.lease = DomainLease()
         wall_start = time.monotonic()
@@ -376,6 +382,7 @@ class SwarmRun:
                 "scans_processed": stats.get("scans_processed"),
                 "odom_sent": sent.get("odom_sent"),
                 "scans_sent": sent.get("scans_sent"),
+                "frame_in_world": score.get("frame_in_world"),
                 "cpu_s": round(sum(p.cpu_s for p in slot.procs), 3),
                 "max_rss_mb": round(max((p.max_rss_mb for p in slot.procs), default=0.0), 1),
             })
@@ -395,10 +402,30 @@ class SwarmRun:
                        "max_rss_mb": round(self.feeder.max_rss_mb, 1) if self.feeder else None},
             "agents": agents,
         }
-        tmp = self.out / "summary.json.tmp"
-        tmp.write_text(json.dumps(summary, indent=1) + "\n")
-        tmp.replace(self.out / "summary.json")
+        write_json(self.out / "summary.json", summary)
+        # Each agent's counters and scored maps over time, for the report's time plots.
+        timeline = {"kills": summary["kills"], "restarts": summary["restarts"],
+                    "agents": {str(rid): scores.get(str(rid), {}).get("history", []) for rid in self.agents}}
+        write_json(self.out / "timeline.json", timeline)
         return summary
+
+
+def write_json(path, value):
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(value, indent=1) + "\n")
+    tmp.replace(path)
+
+
+def write_report(run_dir, quiet=False):
+    """RUN_DIR/report.html by scripts/plots/report.py (Debian's python3 with matplotlib).
+    Returns its path, or None with the reason on stderr."""
+    r = subprocess.run([PLOT_PYTHON, str(REPO / "scripts" / "plots" / "report.py"), str(run_dir)],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        reason = (r.stderr.strip().splitlines() or [f"exit code {r.returncode}"])[-1]
+        print(f"swarm: report not written: {reason}", file=sys.stderr)
+        return None
+    return Path(run_dir) / "report.html"
 
 
 def _maps_dropped(stats):
@@ -436,6 +463,10 @@ def cmd_run(args):
     summary = run.execute()
     print(format_table(summary))
     print(f"summary: {Path(args.out) / 'summary.json'}")
+    if not args.no_report and not summary["interrupted"]:
+        report = write_report(args.out)
+        if report:
+            print(f"report:  {report}")
     if summary["interrupted"]:
         return 130
     killed = {k["id"] for k in summary["kills"]}
@@ -444,4 +475,14 @@ def cmd_run(args):
     if bad:
         print(f"swarm: agents {bad} did not end cleanly (see their agent.log)", file=sys.stderr)
         return 1
+    return 0
+
+
+def cmd_report(args):
+    if not (Path(args.dir) / "summary.json").exists():
+        raise RunError(f"{args.dir}: no summary.json (run scripts/swarm run SCENARIO --out {args.dir})", 1)
+    report = write_report(args.dir)
+    if report is None:
+        return 1
+    print(f"report: {report}")
     return 0

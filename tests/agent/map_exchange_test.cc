@@ -1,0 +1,164 @@
+#include "agent/map_exchange.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+#include <vector>
+
+namespace mapmesh {
+namespace {
+
+// A random world (no symmetry to fool the alignment) and the maps robots hold of parts of it,
+// each in its own frame with independent noise of the stated covariance.
+struct World {
+  std::vector<Eigen::Vector2d> points;
+  explicit World(int n, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 40.0);
+    while (static_cast<int>(points.size()) < n) {
+      const Eigen::Vector2d p(u(rng), u(rng));
+      if (std::all_of(points.begin(), points.end(), [&](const auto& q) { return (q - p).norm() > 1.5; })) {
+        points.push_back(p);
+      }
+    }
+  }
+  // Landmarks with x in [x0, x1), seen from `frame` (the map frame's pose in the world).
+  LandmarkMap Map(double x0, double x1, const Pose2& frame, double sigma, std::mt19937_64& rng) const {
+    std::normal_distribution<double> n(0.0, sigma);
+    LandmarkMap m;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (points[i].x() < x0 || points[i].x() >= x1) continue;
+      Landmark l;
+      l.id = static_cast<std::uint32_t>(i);
+      l.mean = frame.Inverse().Apply(points[i] + Eigen::Vector2d(n(rng), n(rng)));
+      l.cov = sigma * sigma * Eigen::Matrix2d::Identity();
+      m.landmarks.push_back(l);
+    }
+    m.shape_sigma_m = sigma;
+    return m;
+  }
+  // Distance from a point of the world to the nearest true landmark.
+  double Nearest(const Eigen::Vector2d& p) const {
+    double best = 1e300;
+    for (const auto& q : points) best = std::min(best, (q - p).norm());
+    return best;
+  }
+  // Landmarks of `m` (in `frame`) that lie within tol of a true one with x in [x0, x1).
+  int PlacedIn(const LandmarkMap& m, const Pose2& frame, double x0, double x1, double tol) const {
+    int n = 0;
+    for (const Landmark& l : m.landmarks) {
+      const Eigen::Vector2d w = frame.Apply(l.mean);
+      if (w.x() >= x0 - tol && w.x() < x1 + tol && Nearest(w) < tol) ++n;
+    }
+    return n;
+  }
+};
+
+constexpr double kSigma = 0.03;
+const Pose2 kFrameA{0.0, 0.0, 0.0}, kFrameB{20.0, 5.0, 1.2}, kFrameC{35.0, 30.0, -2.0};
+
+TEST(MapExchange, AlignsAPeerAndFusesItsLandmarksInPlace) {
+  World w(160, 1);
+  std::mt19937_64 rng(2);
+  MapExchange a(1, 1, {}, 3);
+  const LandmarkMap la = w.Map(0, 26, kFrameA, kSigma, rng);
+  const LandmarkMap lb = w.Map(14, 40, kFrameB, kSigma, rng);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
+  EXPECT_TRUE(a.Update(la, 10.0));
+  ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
+  const GlobalMap& g = a.global();
+  // Every global landmark lies on a true one, and the union of both maps is there.
+  EXPECT_EQ(w.PlacedIn(g.map, kFrameA, 0, 40, 0.2), static_cast<int>(g.map.size()));
+  EXPECT_GE(g.map.size(), static_cast<std::size_t>(w.PlacedIn(la, kFrameA, 0, 26, 0.2)));
+  EXPECT_GE(w.PlacedIn(g.map, kFrameA, 26, 40, 0.2), 1);
+  int union_size = 0;
+  for (const auto& p : w.points) union_size += p.x() < 40 ? 1 : 0;
+  EXPECT_EQ(static_cast<int>(g.map.size()), union_size);
+}
+
+TEST(MapExchange, PublishesItsOneHopMapAndUsesAPeersOneHopMapForRobotsOutOfRange) {
+  World w(200, 4);
+  std::mt19937_64 rng(5);
+  const LandmarkMap la = w.Map(0, 18, kFrameA, kSigma, rng);
+  const LandmarkMap lb = w.Map(10, 30, kFrameB, kSigma, rng);
+  const LandmarkMap lc = w.Map(22, 40, kFrameC, kSigma, rng);
+  // B hears A and C; A never hears C.
+  MapExchange b(2, 1, {}, 6);
+  b.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
+  b.OnPeerMap(1, 1, MapKind::kLocal, 1, 0.0, la, 0.0);
+  b.Update(lb, 10.0);
+  ASSERT_EQ(b.AlignedRobots(), (std::vector<RobotId>{1, 3}));
+  MapExchange a(1, 1, {}, 7);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
+  a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b.published().map, 0.0);
+  a.Update(la, 10.0);
+  ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
+  EXPECT_TRUE(a.Peers().front().relayed);
+  // A's global map reaches C's landmarks, correctly placed ...
+  const int c_only = w.PlacedIn(lc, kFrameC, 30, 40, 0.2);
+  ASSERT_GT(c_only, 5);
+  EXPECT_EQ(w.PlacedIn(a.global().map, kFrameA, 30, 40, 0.2), c_only);
+  EXPECT_EQ(w.PlacedIn(a.global().map, kFrameA, 0, 40, 0.3), static_cast<int>(a.global().map.size()));
+  // ... but what A publishes is its one-hop map: nothing beyond B's own landmarks, so nothing
+  // A relays can come back to B, nor outlive C's contribution at B.
+  EXPECT_EQ(w.PlacedIn(a.published().map, kFrameA, 30.5, 40, 0.2), 0);
+  EXPECT_LT(a.published().map.size(), a.global().map.size());
+}
+
+TEST(MapExchange, AWrongButWellFormedMapFailsVerificationAndNeverEntersTheGlobalMap) {
+  World w(160, 8);
+  std::mt19937_64 rng(9);
+  MapExchange a(1, 1, {}, 10);
+  const LandmarkMap la = w.Map(0, 26, kFrameA, kSigma, rng);
+  const LandmarkMap lb = w.Map(14, 40, kFrameB, kSigma, rng);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
+  a.Update(la, 10.0);
+  ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
+  const LandmarkMap before = a.global().map;
+  // The peer's next map: same ids and covariances, coordinates shuffled between landmarks
+  // (each x and each y taken from a different landmark).
+  LandmarkMap shuffled = lb;
+  std::vector<double> xs, ys;
+  for (const Landmark& l : lb.landmarks) {
+    xs.push_back(l.mean.x());
+    ys.push_back(l.mean.y());
+  }
+  std::shuffle(xs.begin(), xs.end(), rng);
+  std::shuffle(ys.begin(), ys.end(), rng);
+  for (std::size_t i = 0; i < shuffled.size(); ++i) shuffled.landmarks[i].mean = {xs[i], ys[i]};
+  a.OnPeerMap(2, 1, MapKind::kLocal, 2, 0.0, shuffled, 11.0);
+  a.Update(la, 11.0);
+  const PeerReport r = a.Peers().front();
+  EXPECT_NE(r.last_verdict, AlignmentVerdict::kAccepted);
+  EXPECT_EQ(r.failures, 1);
+  // The global map still holds the last verified map, untouched.
+  ASSERT_EQ(a.global().map.size(), before.size());
+  for (std::size_t i = 0; i < before.size(); ++i) {
+    EXPECT_EQ(a.global().map.landmarks[i].mean, before.landmarks[i].mean);
+  }
+  // Repeated: the alignment is dropped, and still no wrong landmark enters.
+  a.OnPeerMap(2, 1, MapKind::kLocal, 3, 0.0, shuffled, 12.0);
+  a.Update(la, 12.0);
+  EXPECT_TRUE(a.Peers().front().dropped);
+  EXPECT_TRUE(a.AlignedRobots().empty());
+  EXPECT_EQ(w.PlacedIn(a.global().map, kFrameA, 0, 40, 0.2), static_cast<int>(a.global().map.size()));
+}
+
+TEST(MapExchange, AStalePeerKeepsItsLastVerifiedContribution) {
+  World w(160, 11);
+  std::mt19937_64 rng(12);
+  MapExchange a(1, 1, {}, 13);
+  const LandmarkMap la = w.Map(0, 26, kFrameA, kSigma, rng);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, w.Map(14, 40, kFrameB, kSigma, rng), 0.0);
+  a.Update(la, 10.0);
+  const std::size_t n = a.global().map.size();
+  a.OnPeerLiveliness(2, false, 15.0);
+  a.Update(la, 20.0);
+  EXPECT_EQ(a.StaleRobots(), std::vector<RobotId>{2});
+  EXPECT_EQ(a.global().map.size(), n);
+  EXPECT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
+}
+
+}  // namespace
+}  // namespace mapmesh
