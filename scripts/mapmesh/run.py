@@ -238,6 +238,7 @@ class SwarmRun:
                 self.done_kills.setdefault(when, set()).add(rid)
                 slot = self.agents[rid]
                 if slot.current and slot.current.poll() is None:
+                    self.kill_wall[(when, rid)] = time.time()  # for liveliness timing
                     slot.current.signal(signal.SIGKILL)
                     slot.current.wait(5.0)
                     slot.killed_at.append(t)
@@ -259,6 +260,7 @@ class SwarmRun:
 
     def loop(self, wall_start):
         self.done_kills, self.done_restarts = {}, {}
+        self.kill_wall = {}
         self.reported_dead = set()  # pids whose end the feeder has been told about
         self.progress = Progress(self.info["duration"], quiet=self.args.quiet)
         deadline = wall_start + self.args.timeout
@@ -395,7 +397,7 @@ class SwarmRun:
             "real_time_factor": round(duration / wall_s, 3) if wall_s > 0 else None,
             "pace": self.args.pace or self.info["pace"],
             "interrupted": interrupted,
-            "kills": [{"id": r, "t": t} for t, r in self.kills],
+            "kills": [{"id": r, "t": t, "wall": getattr(self, "kill_wall", {}).get((t, r))} for t, r in self.kills],
             "restarts": [{"id": r, "t": t} for t, r in self.restarts],
             "feeder": {"exit_code": self.feeder.returncode if self.feeder else None,
                        "cpu_s": round(self.feeder.cpu_s, 3) if self.feeder else None,

@@ -1,0 +1,93 @@
+"""`swarm sweep`: one scenario run over a list of values of one scenario key and a list of
+seeds, several runs at a time, each in DIR/runs/; one CSV row per agent and run in
+DIR/sweep.csv, and DIR/sweep.png drawn by scripts/plots/sweep.py."""
+
+import csv
+import json
+import os
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from .run import PLOT_PYTHON, REPO, RunError
+
+COLUMNS = ["seed", "agent", "alive", "lm_local", "lm_global", "coverage_global", "nees_global", "rmse_global_m",
+           "rmse_local_m", "nees_local", "peers_aligned", "bytes_sent", "wall_s"]
+
+
+def _run_one(args, value, seed, run_dir):
+    """One `swarm run` with KEY=value (and seed=seed unless None); its summary and exit code."""
+    cmd = [sys.executable, str(REPO / "scripts" / "swarm"), "run", args.scenario, "--out", str(run_dir),
+           "--set", f"{args.param}={value}", "--quiet", "--no-report", "--timeout", str(args.timeout)]
+    if seed is not None:
+        cmd += ["--set", f"seed={seed}"]
+    if args.agents:
+        cmd += ["--agents", str(args.agents)]
+    for s in args.set or []:
+        cmd += ["--set", s]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if not (run_dir / "summary.json").exists():
+        reason = (r.stderr.strip().splitlines() or [f"exit code {r.returncode}"])[-1]
+        raise RunError(f"{args.param}={value}" + (f" seed {seed}" if seed is not None else "") + f": {reason}", 1)
+    return json.loads((run_dir / "summary.json").read_text()), r.returncode
+
+
+def _rows(value, seed, summary):
+    out = []
+    for a in summary["agents"]:
+        g, loc = a.get("global") or {}, a.get("local") or {}
+        out.append([value, seed, a["id"], int(bool(a["alive_at_end"])), loc.get("landmarks"), g.get("landmarks"),
+                    g.get("coverage"), g.get("nees_mean"), g.get("rmse_m"), loc.get("rmse_m"), loc.get("nees_mean"),
+                    len(a.get("peers_aligned", [])), a.get("bytes_sent"), summary["wall_s"]])
+    return out
+
+
+def cmd_sweep(args):
+    values = [v for v in args.values.split(",") if v.strip()]
+    try:
+        seeds = [int(s) for s in args.seeds.split(",") if s.strip()] if args.seeds else [None]
+    except ValueError:
+        raise RunError(f"--seeds {args.seeds}: expected comma-separated integers", 2)
+    if not values:
+        raise RunError("--values: give at least one value, e.g. --values 0,10,20", 2)
+    out = Path(args.out)
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    jobs = args.jobs or max(1, min(2, os.cpu_count() or 1))
+    plan = [(v, s) for v in values for s in seeds]
+    start = time.monotonic()
+    print(f"sweep: {args.param} over {values}, seeds {seeds if seeds != [None] else 'of the scenario'}: "
+          f"{len(plan)} runs, {jobs} at a time", flush=True)
+
+    def one(item):
+        v, seed = item
+        name = f"{args.param}={v}" + (f"_seed{seed}" if seed is not None else "")
+        return _run_one(args, v, seed, out / "runs" / name)
+
+    results = {}
+    failed = 0
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        for done, ((v, s), (summary, code)) in enumerate(zip(plan, pool.map(one, plan)), 1):
+            results[(v, s)] = summary
+            failed += code != 0
+            cov = [a["global"]["coverage"] for a in summary["agents"] if a.get("global") and
+                   a["global"].get("coverage") is not None]
+            mean_cov = sum(cov) / len(cov) if cov else float("nan")
+            print(f"[{done}/{len(plan)}] {args.param}={v}" + (f" seed {s}" if s is not None else "") + ": "
+                  f"mean global coverage {mean_cov:.2f}  ({time.monotonic() - start:.0f} s)", flush=True)
+    path = out / "sweep.csv"
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow([args.param] + COLUMNS)
+        for (v, s) in plan:
+            w.writerows(_rows(v, s if s is not None else "", results[(v, s)]))
+    print(f"csv:  {path}")
+    r = subprocess.run([PLOT_PYTHON, str(REPO / "scripts" / "plots" / "sweep.py"), str(out)],
+                       capture_output=True, text=True)
+    if r.returncode == 0:
+        print(f"plot: {out / 'sweep.png'}")
+    else:
+        print(f"swarm: sweep plot not written: {(r.stderr.strip().splitlines() or ['?'])[-1]}", file=sys.stderr)
+        return 1
+    return 1 if failed else 0

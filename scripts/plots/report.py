@@ -1,0 +1,719 @@
+#!/usr/bin/python3
+"""One HTML page on a swarm run written by `scripts/swarm run SCENARIO --out DIR`.
+
+Usage: /usr/bin/python3 scripts/plots/report.py DIR
+
+Writes DIR/report.html and its figures in DIR/report/*.png (the page refers to them by
+relative paths, so the run directory can be copied or served as it is; the page has no
+script and no external URL). Prints the page's path on stdout.
+
+The page shows:
+  - the run: scenario, simulated duration, wall time, real-time factor, kills and restarts;
+  - the summary table (table#summary: one row per agent, cells data-key="<summary path>" with
+    the exact JSON value in data-value) and a table of peers and events;
+  - per agent, its maps in the world frame: true landmarks (grey, darker when some robot saw
+    them), true trajectory, the estimated local and global maps with their 95 % ellipses and
+    the estimated trajectory, placed by the agent's frame_in_world from summary.json. When a
+    summary has no frame_in_world (older runs) the frame is taken from the truth, as
+    mapmesh-eval does: the robot's true pose at the map frame's origin stamp. A frame_in_world
+    of null means the pose is unknown: the maps are drawn in the agent's own frame;
+  - from timeline.json (when the run has one): which agent received maps from which and when,
+    mean NEES and coverage over time, bytes exchanged over time. Without it the page says so.
+
+Reads summary.json (required), truth.json, timeline.json and agent_<id>/{local_map,
+global_map,trajectory,stats}.json (each optional; whatever is missing is skipped with a note).
+Needs Debian's python3-matplotlib and python3-numpy (scripts/install-deps installs them)."""
+
+import html
+import json
+import math
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from plotlib import directory_argument, plt  # noqa: E402
+
+import numpy as np  # noqa: E402
+from matplotlib.collections import PatchCollection  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Ellipse  # noqa: E402
+
+DPI = 100
+# Half-axes of the 95 % ellipse of a 2-D Gaussian, in standard deviations: sqrt(chi2_2(0.95)).
+SIGMA_95 = 2.448
+# Expected NEES of a consistent 2-D estimate (its degrees of freedom).
+NEES_EXPECTED = 2.0
+DASH = "\u2013"  # what a cell shows for a null value
+
+# The summary table: (data-key = path in a summary.json agent, column header).
+SUMMARY_COLUMNS = [
+    ("id", "agent"),
+    ("alive_at_end", "alive"),
+    ("exit_code", "exit"),
+    ("restarts", "restarts"),
+    ("local.landmarks", "local landmarks"),
+    ("local.rmse_m", "local RMSE (m)"),
+    ("local.nees_mean", "local NEES"),
+    ("global.landmarks", "global landmarks"),
+    ("global.rmse_m", "global RMSE (m)"),
+    ("global.nees_mean", "global NEES"),
+    ("global.coverage", "global coverage"),
+    ("peers_aligned", "peers aligned"),
+    ("maps_received", "maps received"),
+    ("bytes_sent", "bytes sent"),
+    ("bytes_per_landmark", "bytes / landmark"),
+    ("cpu_s", "CPU (s)"),
+    ("max_rss_mb", "max RSS (MB)"),
+]
+# Columns whose cell shows the number of items of a list value.
+COUNT_COLUMNS = {"peers_aligned"}
+
+LOCAL_COLOUR = "tab:blue"
+GLOBAL_COLOUR = "tab:orange"
+
+
+# ----- values and text ----------------------------------------------------------------------
+def lookup(record, path):
+    """The value at a dotted path ("global.rmse_m") of a dict, or None where any step is missing."""
+    value = record
+    for part in path.split("."):
+        if not isinstance(value, dict):
+            return None
+        value = value.get(part)
+    return value
+
+
+def format_number(v):
+    """A number for a table cell: integers as they are, floats to 3 significant digits (never
+    dropping integer digits: 1234.5 shows as 1235)."""
+    if v is None:
+        return DASH
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int):
+        return str(v)
+    if not math.isfinite(v):
+        return str(v)
+    if v == 0:
+        return "0"
+    magnitude = math.floor(math.log10(abs(v)))
+    if magnitude < -4:
+        return f"{v:.2e}"
+    return f"{v:.{max(0, 2 - magnitude)}f}"
+
+
+def cell_text(key, value):
+    """The text of a summary-table cell (data-value keeps the exact value)."""
+    if value is None:
+        return DASH
+    if key in COUNT_COLUMNS and isinstance(value, list):
+        return str(len(value))
+    if isinstance(value, (int, float)):
+        return format_number(value)
+    if isinstance(value, list):
+        return ", ".join(str(x) for x in value) or DASH
+    return str(value)
+
+
+def seconds(v):
+    return DASH if v is None else f"{v:.1f} s"
+
+
+# ----- geometry -----------------------------------------------------------------------------
+def wrap_angle(a):
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def pose_at(trajectory, t):
+    """The pose [x, y, theta] of a [[t, x, y, theta], ...] trajectory at time t, linearly
+    interpolated (clamped to its ends), or None for an empty trajectory."""
+    if not trajectory:
+        return None
+    if t <= trajectory[0][0]:
+        return list(trajectory[0][1:4])
+    if t >= trajectory[-1][0]:
+        return list(trajectory[-1][1:4])
+    lo, hi = 0, len(trajectory) - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if trajectory[mid][0] <= t:
+            lo = mid
+        else:
+            hi = mid
+    a, b = trajectory[lo], trajectory[hi]
+    s = (t - a[0]) / (b[0] - a[0]) if b[0] > a[0] else 0.0
+    return [a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2]), wrap_angle(a[3] + s * wrap_angle(b[3] - a[3]))]
+
+
+def to_world(frame, xy):
+    """Points (N x 2, in a frame whose pose in the world is frame = [x0, y0, theta]) in the world."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    if frame is None:
+        return xy
+    c, s = math.cos(frame[2]), math.sin(frame[2])
+    return np.column_stack([frame[0] + c * xy[:, 0] - s * xy[:, 1], frame[1] + s * xy[:, 0] + c * xy[:, 1]])
+
+
+def ellipse_patches(xy, covs, theta):
+    """95 % ellipses (matplotlib Ellipse patches) of landmarks at world points xy with their
+    [sxx, sxy, syy] covariances, given in a frame rotated by theta from the world."""
+    c, s = math.cos(theta), math.sin(theta)
+    rot = np.array([[c, -s], [s, c]])
+    patches = []
+    for (x, y), cov in zip(xy, covs):
+        if cov is None or len(cov) != 3 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in cov):
+            continue
+        m = rot @ np.array([[cov[0], cov[1]], [cov[1], cov[2]]]) @ rot.T
+        values, vectors = np.linalg.eigh(m)
+        values = np.clip(values, 0.0, None)
+        major = vectors[:, 1]
+        patches.append(Ellipse((x, y), width=2 * SIGMA_95 * math.sqrt(values[1]),
+                               height=2 * SIGMA_95 * math.sqrt(values[0]),
+                               angle=math.degrees(math.atan2(major[1], major[0]))))
+    return patches
+
+
+# ----- loading ------------------------------------------------------------------------------
+class Run:
+    """The files of one run directory; `notes` collects what is missing or unreadable."""
+
+    def __init__(self, d):
+        self.dir = Path(d)
+        self.notes = []
+        self.summary = self.load("summary.json", required=True)
+        self.truth = self.load("truth.json")
+        self.timeline = self.load("timeline.json", quiet=True)
+        self.agents = [a for a in self.summary.get("agents", []) if isinstance(a, dict)]
+        self.ids = [a.get("id") for a in self.agents]
+        self.colours = {rid: plt.get_cmap("tab10")(i % 10) for i, rid in enumerate(self.ids)}
+        self.truth_robots = {r.get("id"): r for r in (self.truth or {}).get("robots", [])}
+        # Kills and restarts as the summary and the timeline list them (the same, normally).
+        self.kills = events(self.summary.get("kills"), (self.timeline or {}).get("kills"))
+        self.restarts = events(self.summary.get("restarts"), (self.timeline or {}).get("restarts"))
+        self.duration = self.summary.get("sim_duration_s") or (self.truth or {}).get("duration_s")
+
+    def load(self, name, required=False, quiet=False):
+        path = self.dir / name
+        if not path.exists():
+            if required:
+                raise FileNotFoundError(path)
+            if not quiet:
+                self.notes.append(f"{name}: missing")
+            return None
+        try:
+            return json.loads(path.read_text())
+        except (OSError, ValueError) as e:
+            if required:
+                raise
+            self.notes.append(f"{name}: unreadable ({e.__class__.__name__})")
+            return None
+
+    def agent_file(self, rid, name):
+        return self.load(f"agent_{rid}/{name}", quiet=True)
+
+    def dead_intervals(self, rid):
+        """[(killed at, restarted at or the end of the run)] of one agent."""
+        out = []
+        for kid, t in sorted(self.kills, key=lambda k: k[1]):
+            if kid != rid:
+                continue
+            back = [r for i, r in self.restarts if i == rid and r >= t]
+            out.append((t, min(back) if back else (self.duration or t)))
+        return out
+
+
+def events(*lists):
+    """[(agent id, t)] in time order of kill or restart lists ([{"id", "t"}, ...]), merged."""
+    out = {(e.get("id"), float(e["t"])) for items in lists for e in items or []
+           if isinstance(e, dict) and isinstance(e.get("t"), (int, float))}
+    return sorted(out, key=lambda e: (e[1], str(e[0])))
+
+
+def agent_frame(run, agent, trajectory, stats):
+    """(pose of the agent's map frame in the world or None, how it is known)."""
+    if "frame_in_world" in agent:
+        frame = agent["frame_in_world"]
+        if not (isinstance(frame, list) and len(frame) == 3
+                and all(isinstance(v, (int, float)) and math.isfinite(v) for v in frame)):
+            return None, "own frame (pose unknown)"
+        return [float(v) for v in frame], "world frame"
+    # Older summaries: the robot's true pose at the frame's origin stamp, as mapmesh-eval takes it.
+    robot = run.truth_robots.get(agent.get("id"))
+    if robot is None or not (run.truth or {}).get("headings_known", False):
+        return None, "own frame (pose unknown)"
+    stamp = (trajectory or {}).get("frame_origin_stamp")
+    if stamp is None:
+        stamp = (stats or {}).get("frame_origin_stamp")
+    if stamp is None:
+        frame = robot.get("start")
+    else:
+        frame = pose_at(robot.get("trajectory") or [], stamp) or robot.get("start")
+    if frame is None:
+        return None, "own frame (pose unknown)"
+    return frame, "world frame (true pose at frame origin)"
+
+
+# ----- map figures --------------------------------------------------------------------------
+def landmark_arrays(m):
+    lms = [l for l in (m or {}).get("landmarks", []) if isinstance(l.get("x"), (int, float))
+           and isinstance(l.get("y"), (int, float))]
+    return np.array([[l["x"], l["y"]] for l in lms], dtype=float).reshape(-1, 2), [l.get("cov") for l in lms]
+
+
+def map_figure(run, agent, path):
+    """The maps of one agent, in the world frame when its frame's pose is known. Returns the
+    frame description."""
+    rid = agent.get("id")
+    local = run.agent_file(rid, "local_map.json")
+    glob = run.agent_file(rid, "global_map.json")
+    traj = run.agent_file(rid, "trajectory.json")
+    stats = run.agent_file(rid, "stats.json")
+    for name, value in (("local_map.json", local), ("global_map.json", glob), ("trajectory.json", traj)):
+        if value is None:
+            run.notes.append(f"agent {rid}: no {name}")
+    frame, frame_text = agent_frame(run, agent, traj, stats)
+    in_world = frame is not None
+    theta = frame[2] if in_world else 0.0
+
+    fig, ax = plt.subplots(figsize=(11, 8.5))
+    fig.subplots_adjust(left=0.07, right=0.76, top=0.92, bottom=0.07)
+    handles = []
+    extent = []  # points the view must hold
+    if in_world and run.truth:
+        lms = run.truth.get("landmarks", [])
+        seen = set(run.truth.get("seen", []))
+        pts = np.array([[l["x"], l["y"]] for l in lms], dtype=float).reshape(-1, 2)
+        mask = np.array([l.get("id") in seen for l in lms], dtype=bool)
+        ax.scatter(pts[~mask, 0], pts[~mask, 1], s=6, c="#cfcfcf", zorder=1, linewidths=0)
+        ax.scatter(pts[mask, 0], pts[mask, 1], s=8, c="#8a8a8a", zorder=1, linewidths=0)
+        handles += [Line2D([], [], ls="", marker="o", ms=3, color="#cfcfcf", label="true landmark (unseen)"),
+                    Line2D([], [], ls="", marker="o", ms=3, color="#8a8a8a", label="true landmark (seen)")]
+        extent.append(pts)
+        robot = run.truth_robots.get(rid)
+        true_traj = np.array([p[1:3] for p in (robot or {}).get("trajectory", [])], dtype=float).reshape(-1, 2)
+        if len(true_traj):
+            ax.plot(true_traj[:, 0], true_traj[:, 1], color="black", lw=0.8, zorder=2)
+            ax.plot(true_traj[0, 0], true_traj[0, 1], "k>", ms=7, zorder=6)
+            handles.append(Line2D([], [], color="black", lw=0.8, marker=">", ms=5, label="true trajectory (start)"))
+            extent.append(true_traj)
+            full = robot.get("trajectory")
+            for kid, t in run.kills:
+                if kid == rid and (p := pose_at(full, t)):
+                    ax.plot(p[0], p[1], "x", color="red", ms=12, mew=2.5, zorder=7)
+            for kid, t in run.restarts:
+                if kid == rid and (p := pose_at(full, t)):
+                    ax.plot(p[0], p[1], "^", color="green", ms=10, zorder=7)
+            if any(k == rid for k, _ in run.kills):
+                handles.append(Line2D([], [], ls="", marker="x", color="red", ms=8, mew=2, label="killed"))
+            if any(k == rid for k, _ in run.restarts):
+                handles.append(Line2D([], [], ls="", marker="^", color="green", ms=7, label="restarted"))
+
+    for m, colour, marker, label, z in ((glob, GLOBAL_COLOUR, "+", "global map", 3),
+                                        (local, LOCAL_COLOUR, "o", "local map", 4)):
+        xy, covs = landmark_arrays(m)
+        if not len(xy):
+            continue
+        xy = to_world(frame, xy)
+        is_local = marker == "o"
+        ax.add_collection(PatchCollection(ellipse_patches(xy, covs, theta), facecolor="none", edgecolor=colour,
+                                          linewidth=1.0 if is_local else 0.8, alpha=1.0 if is_local else 0.75,
+                                          zorder=z))
+        ax.scatter(xy[:, 0], xy[:, 1], s=9 if is_local else 16, marker=marker, c=[colour], zorder=z,
+                   linewidths=0 if is_local else 0.9)
+        handles.append(Line2D([], [], ls="-", lw=0.8, marker=marker, ms=5, color=colour,
+                              label=f"{label} ({len(xy)}) + 95 % ellipse"))
+        extent.append(xy)
+
+    poses = np.array([p[1:3] for p in (traj or {}).get("poses", []) if len(p) >= 3], dtype=float).reshape(-1, 2)
+    if len(poses):
+        est = to_world(frame, poses)
+        ax.plot(est[:, 0], est[:, 1], color="tab:purple", lw=1.0, ls="--", zorder=5)
+        ax.plot(est[-1, 0], est[-1, 1], "o", color="tab:purple", ms=5, zorder=6)
+        handles.append(Line2D([], [], color="tab:purple", lw=1.0, ls="--", marker="o", ms=4,
+                              label="estimated trajectory (end)"))
+        extent.append(est)
+
+    if extent:
+        allpts = np.vstack(extent)
+        allpts = allpts[np.all(np.isfinite(allpts), axis=1)]
+        if len(allpts):
+            lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+            pad = max(1.0, 0.04 * float(np.max(hi - lo)))
+            ax.set_xlim(lo[0] - pad, hi[0] + pad)
+            ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    else:
+        ax.text(0.5, 0.5, "no map, trajectory or truth to draw", transform=ax.transAxes, ha="center", va="center")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.25)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    loc, glo = agent.get("local") or {}, agent.get("global") or {}
+    ax.set_title(f"agent {rid} \u2013 {frame_text}\nlandmarks local {cell_text('', loc.get('landmarks'))} / "
+                 f"global {cell_text('', glo.get('landmarks'))};  RMSE local {cell_text('', loc.get('rmse_m'))} m / "
+                 f"global {cell_text('', glo.get('rmse_m'))} m", fontsize=11)
+    if handles:
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9, frameon=False)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return frame_text
+
+
+# ----- timeline figures ---------------------------------------------------------------------
+def timeline_entries(run):
+    """{agent id: [checkpoint entries in time order]} of timeline.json (ids as in the summary)."""
+    by_key = (run.timeline or {}).get("agents") or {}
+    out = {}
+    for key, entries in by_key.items():
+        rid = next((i for i in run.ids if str(i) == str(key)), key)
+        out[rid] = sorted((e for e in entries or [] if isinstance(e, dict) and e.get("t") is not None),
+                          key=lambda e: e["t"])
+    return out
+
+
+def series(entries, value, cumulative=False):
+    """(t, v) arrays of one agent's timeline; NaN breaks the line where the incarnation changes.
+    cumulative: v counts from 0 in each incarnation; add the previous incarnations' totals."""
+    ts, vs = [], []
+    offset, last, inc = 0.0, None, None
+    for e in entries:
+        v = value(e)
+        v = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
+        if inc is not None and e.get("incarnation") != inc:
+            ts.append(math.nan)
+            vs.append(math.nan)
+            if cumulative and last is not None:
+                offset += last
+            last = None
+        inc = e.get("incarnation")
+        if cumulative and math.isfinite(v):
+            last = v
+        ts.append(e["t"])
+        vs.append(v + offset if cumulative else v)
+    return np.array(ts, dtype=float), np.array(vs, dtype=float)
+
+
+def mark_events(ax, run):
+    """Kills (red) and restarts (green) as vertical lines across a time axis."""
+    for rid, t in run.kills:
+        ax.axvline(t, color="red", lw=1.0, ls=":", alpha=0.8)
+        ax.text(t, 1.0, f" \u00d7{rid}", color="red", fontsize=8, transform=ax.get_xaxis_transform(), va="bottom")
+    for rid, t in run.restarts:
+        ax.axvline(t, color="green", lw=1.0, ls=":", alpha=0.8)
+        ax.text(t, 1.0, f" \u2191{rid}", color="green", fontsize=8, transform=ax.get_xaxis_transform(),
+                va="bottom")
+
+
+def time_axis(ax, run, ylabel, title):
+    ax.set_xlabel("scenario time (s)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10, pad=14)
+    ax.grid(alpha=0.3)
+    if run.duration:
+        ax.set_xlim(0, run.duration)
+    mark_events(ax, run)
+
+
+def agent_lines(ax, run, tl, value, cumulative=False, ls="-", labels=True):
+    drawn = False
+    for rid, entries in tl.items():
+        t, v = series(entries, value, cumulative)
+        if np.any(np.isfinite(v)):
+            ax.plot(t, v, ls=ls, marker=".", ms=3, lw=1.2, color=run.colours.get(rid, "grey"),
+                    label=f"agent {rid}" if labels else None)
+            drawn = True
+    return drawn
+
+
+def no_data(ax, what):
+    ax.text(0.5, 0.5, f"no {what} in timeline.json", transform=ax.transAxes, ha="center", va="center",
+            color="grey")
+
+
+def typical_period(tl):
+    """The median time between an agent's checkpoints (when timeline.json has no period_s)."""
+    steps = sorted(b["t"] - a["t"] for entries in tl.values() for a, b in zip(entries, entries[1:])
+                   if b["t"] > a["t"])
+    return steps[len(steps) // 2] if steps else 1.0
+
+
+def exchanges_figure(run, tl, path):
+    """A row per (receiver, sender): a bar over each period in which the receiver's count of
+    maps from the sender grew. Kills and restarts marked on the receiver's rows."""
+    period = (run.timeline or {}).get("period_s") or typical_period(tl)
+    receivers = list(tl)
+    senders = set(run.ids)
+    for entries in tl.values():
+        for e in entries:
+            senders.update(int(k) if str(k).lstrip("-").isdigit() else k for k in (e.get("maps_received_from") or {}))
+    senders = sorted(senders, key=lambda x: (not isinstance(x, int), x if isinstance(x, int) else 0, str(x)))
+    rows = [(r, s) for r in receivers for s in senders if str(s) != str(r)]
+    height = max(4.0, 0.28 * len(rows) + 1.6)
+    fig, ax = plt.subplots(figsize=(11, height))
+    fig.subplots_adjust(left=0.12, right=0.97, top=1 - 0.8 / height, bottom=0.6 / height)
+    restarts_at = {}
+    for rid, t in run.restarts:
+        restarts_at.setdefault(rid, []).append(t)
+    for y, (r, s) in enumerate(rows):
+        bars = []
+        prev_t, prev_n, inc = None, 0, None
+        for e in tl[r]:
+            n = (e.get("maps_received_from") or {}).get(str(s), 0) or 0
+            if e.get("incarnation") != inc:  # a new incarnation counts from 0 since it began
+                began = [t for t in restarts_at.get(r, []) if t <= e["t"]]
+                prev_t = max(began) if inc is not None and began else (e["t"] - period if inc is not None else 0.0)
+                prev_n = 0
+                inc = e.get("incarnation")
+            if n > prev_n:
+                bars.append((prev_t, e["t"] - prev_t))
+            prev_t, prev_n = e["t"], n
+        ax.broken_barh(bars, (y - 0.35, 0.7), facecolors=[run.colours.get(s, "grey")])
+    # Group the rows of each receiver, with its kills and dead time.
+    y = 0
+    for r in receivers:
+        n = sum(1 for row in rows if row[0] == r)
+        if n == 0:
+            continue
+        lo, hi = y - 0.5, y + n - 0.5
+        for start, end in run.dead_intervals(r):
+            ax.fill_between([start, end], lo, hi, color="red", alpha=0.08, lw=0)
+        for kid, t in run.kills:
+            if kid == r:
+                ax.vlines(t, lo, hi, color="red", lw=1.5)
+                ax.plot([t] * n, range(y, y + n), "x", color="red", ms=8, mew=2)
+        for kid, t in run.restarts:
+            if kid == r:
+                ax.vlines(t, lo, hi, color="green", lw=1.5)
+                ax.plot([t] * n, range(y, y + n), "^", color="green", ms=6)
+        ax.axhline(hi, color="grey", lw=0.6)
+        y += n
+    ax.set_yticks(range(len(rows)))
+    ax.set_yticklabels([f"{r} \u2190 {s}" for r, s in rows], fontsize=8)
+    ax.set_ylim(len(rows) - 0.5, -0.5)
+    ax.set_xlabel("scenario time (s)")
+    ax.set_ylabel("receiver \u2190 sender")
+    if run.duration:
+        ax.set_xlim(0, run.duration)
+    ax.grid(axis="x", alpha=0.3)
+    ax.set_title("maps received: a bar over each checkpoint period in which the receiver got maps from the sender"
+                 "\n(red \u00d7: killed, shaded until restarted; green \u25b2: restarted)", fontsize=10)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def nees_figure(run, tl, path):
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.8), sharey=True)
+    fig.subplots_adjust(left=0.06, right=0.98, top=0.86, bottom=0.12, wspace=0.06)
+    finite = []
+    for ax, kind in zip(axes, ("local", "global")):
+        drawn = agent_lines(ax, run, tl, lambda e, k=kind: lookup(e, f"{k}.nees_mean"))
+        ax.axhline(NEES_EXPECTED, color="black", ls="--", lw=1, label="expected (2 dof)")
+        time_axis(ax, run, "mean NEES", f"{kind} map: mean NEES of matched landmarks")
+        if drawn:
+            ax.legend(fontsize=8)
+        else:
+            no_data(ax, f"{kind} NEES")
+        for line in ax.get_lines():
+            y = np.asarray(line.get_ydata(), dtype=float)
+            finite.extend(y[np.isfinite(y) & (y > 0)])
+    if finite and max(finite) / max(min(finite), 1e-9) > 30:
+        axes[0].set_yscale("log")
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def coverage_figure(run, tl, path):
+    fig, ax = plt.subplots(figsize=(11, 4.8))
+    fig.subplots_adjust(left=0.07, right=0.98, top=0.86, bottom=0.12)
+    drawn = agent_lines(ax, run, tl, lambda e: lookup(e, "global.coverage"))
+    agent_lines(ax, run, tl, lambda e: lookup(e, "local.coverage"), ls=":", labels=False)
+    time_axis(ax, run, "coverage", "coverage: share of the seen true landmarks in the map "
+                                   "(solid: global map, dotted: local map)")
+    ax.set_ylim(0, 1.02)
+    if drawn:
+        ax.legend(fontsize=8, loc="lower right")
+    else:
+        no_data(ax, "coverage")
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def bytes_figure(run, tl, path):
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
+    fig.subplots_adjust(left=0.07, right=0.98, top=0.86, bottom=0.12, wspace=0.2)
+    for ax, key in zip(axes, ("bytes_sent", "bytes_received")):
+        drawn = agent_lines(ax, run, tl, lambda e, k=key: None if e.get(k) is None else e[k] / 1000.0,
+                            cumulative=True)
+        time_axis(ax, run, "kB (cumulative over incarnations)", key.replace("_", " "))
+        if drawn:
+            ax.legend(fontsize=8, loc="upper left")
+        else:
+            no_data(ax, key)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+# ----- page ---------------------------------------------------------------------------------
+CSS = """
+body { font-family: sans-serif; margin: 1.5em; color: #222; max-width: 1400px; }
+h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
+table { border-collapse: collapse; font-size: 0.85em; margin: 0.6em 0; }
+th, td { border: 1px solid #ccc; padding: 0.2em 0.5em; }
+th { background: #f0f0f0; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+tr.dead td { background: #fdecec; }
+img { max-width: 100%; height: auto; border: 1px solid #eee; margin: 0.4em 0; }
+.note { color: #7a4b00; }
+figure { margin: 0 0 1.2em 0; } figcaption { font-size: 0.85em; color: #555; }
+"""
+
+
+def esc(x):
+    return html.escape(str(x), quote=True)
+
+
+def events_text(events):
+    return ", ".join(f"agent {rid} at {t:.1f} s" for rid, t in events) or "none"
+
+
+def summary_table(run):
+    out = ['<table id="summary">', "<tr>" + "".join(f'<th data-key="{esc(k)}">{esc(h)}</th>'
+                                                    for k, h in SUMMARY_COLUMNS) + "</tr>"]
+    for a in run.agents:
+        cls = "" if a.get("alive_at_end", True) else ' class="dead"'
+        cells = []
+        for key, _ in SUMMARY_COLUMNS:
+            v = lookup(a, key)
+            num = isinstance(v, (int, float, list)) and not isinstance(v, bool)
+            cls_num = ' class="num"' if num else ""
+            cells.append(f'<td data-key="{esc(key)}" data-value="{esc(json.dumps(v))}"{cls_num}>'
+                         f"{esc(cell_text(key, v))}</td>")
+        out.append(f'<tr data-agent="{esc(a.get("id"))}"{cls}>' + "".join(cells) + "</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
+def peers_table(run, frames):
+    head = ["agent", "map frame", "killed at (s)", "restarted at (s)", "peers aligned", "peers stale",
+            "maps dropped", "bytes received", "local trajectory RMSE (m)", "global RMSE own landmarks (m)",
+            "worst alignment error (m)"]
+    out = ['<table id="peers">', "<tr>" + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr>"]
+    for a in run.agents:
+        errs = [e.get("trans_m") for e in (a.get("alignment_errors") or {}).values()
+                if isinstance(e, dict) and isinstance(e.get("trans_m"), (int, float))]
+        cells = [a.get("id"), frames.get(a.get("id"), DASH),
+                 ", ".join(format_number(t) for t in a.get("killed_at") or []) or DASH,
+                 ", ".join(format_number(t) for t in a.get("restarted_at") or []) or DASH,
+                 ", ".join(str(p) for p in a.get("peers_aligned") or []) or DASH,
+                 ", ".join(str(p) for p in a.get("peers_stale") or []) or DASH,
+                 format_number(a.get("maps_dropped")), format_number(a.get("bytes_received")),
+                 format_number(lookup(a, "local.trajectory_rmse_m")),
+                 format_number(lookup(a, "global.rmse_own_landmarks_m")),
+                 format_number(max(errs) if errs else None)]
+        out.append("<tr>" + "".join(f"<td>{esc(c)}</td>" for c in cells) + "</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
+def figure_html(src, alt, caption, agent=None):
+    data = f' data-agent="{esc(agent)}"' if agent is not None else ""
+    return (f'<figure><img src="{esc(src)}" alt="{esc(alt)}"{data}>'
+            f"<figcaption>{esc(caption)}</figcaption></figure>")
+
+
+def write_report(d):
+    run = Run(d)
+    out = run.dir / "report"
+    out.mkdir(exist_ok=True)
+    for old in out.glob("*.png"):  # figures of an earlier report of this run
+        old.unlink()
+    s = run.summary
+
+    frames, maps = {}, []
+    for a in run.agents:
+        rid = a.get("id")
+        name = f"map_agent_{rid}.png"
+        frames[rid] = map_figure(run, a, out / name)
+        maps.append(figure_html(f"report/{name}", f"maps of agent {rid}",
+                                f"Agent {rid} ({frames[rid]}): true landmarks (grey; darker: seen by some robot), "
+                                "true trajectory (black), local map (blue dots) and global map (orange +) with 95 % "
+                                "ellipses, estimated trajectory (purple, dashed).", agent=rid))
+
+    timeline = []
+    if run.timeline is not None:
+        tl = timeline_entries(run)
+        exchanges_figure(run, tl, out / "exchanges.png")
+        nees_figure(run, tl, out / "nees.png")
+        coverage_figure(run, tl, out / "coverage.png")
+        bytes_figure(run, tl, out / "bytes.png")
+        period = run.timeline.get("period_s")
+        timeline = [
+            figure_html("report/exchanges.png", "map exchanges over time",
+                        f"Maps received, per receiver \u2190 sender, per checkpoint period ({seconds(period)})."),
+            figure_html("report/nees.png", "NEES over time",
+                        "Mean NEES of the matched landmarks over time; 2 is the expected value of a consistent "
+                        "estimate."),
+            figure_html("report/coverage.png", "coverage over time", "Coverage of the seen true landmarks."),
+            figure_html("report/bytes.png", "bytes exchanged over time",
+                        "Bytes sent and received, cumulative over an agent's incarnations."),
+        ]
+    else:
+        timeline = ['<p class="note" id="no-timeline">This run has no timeline.json: the plots over time '
+                    "(exchanges, NEES, coverage, bytes) are skipped.</p>"]
+
+    rtf = s.get("real_time_factor")
+    intro = (f"Scenario <b>{esc(s.get('scenario', '?'))}</b>"
+             + (f" ({esc(s['scenario_file'])})" if s.get("scenario_file") else "")
+             + f": {esc(seconds(s.get('sim_duration_s')))} simulated in {esc(seconds(s.get('wall_s')))} wall time"
+             + (f", real-time factor {esc(format_number(rtf))}" if rtf is not None else "")
+             + (f", pace {esc(s['pace'])}" if s.get("pace") else "")
+             + f"; {len(run.agents)} agents."
+             + f" Kills: {esc(events_text(run.kills))}. Restarts: {esc(events_text(run.restarts))}."
+             + (" <b>The run was interrupted.</b>" if s.get("interrupted") else ""))
+    notes = "".join(f"<li>{esc(n)}</li>" for n in dict.fromkeys(run.notes))
+    page = f"""<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<title>mapmesh run: {esc(s.get('scenario', '?'))}</title>
+<style>{CSS}</style>
+</head>
+<body>
+<h1>mapmesh run: {esc(s.get('scenario', '?'))}</h1>
+<p id="intro">{intro}</p>
+{f'<ul class="note" id="notes">{notes}</ul>' if notes else ''}
+<h2>Summary</h2>
+<p>Metrics against the truth (mapmesh-eval); {DASH} where there is none. RMSE and NEES over matched
+landmarks; coverage is the share of the true landmarks some robot saw that the map holds. Red rows:
+agents not alive at the end.</p>
+{summary_table(run)}
+<h2>Peers and events</h2>
+{peers_table(run, frames)}
+<h2>Maps</h2>
+{''.join(maps)}
+<h2>Over time</h2>
+{''.join(timeline)}
+</body>
+</html>
+"""
+    path = run.dir / "report.html"
+    tmp = run.dir / "report.html.tmp"
+    tmp.write_text(page)
+    tmp.replace(path)
+    return path
+
+
+def main(argv):
+    d, code = directory_argument(argv, __doc__, "report.py", "summary.json", "scripts/swarm run ... --out")
+    if d is None:
+        return code
+    try:
+        path = write_report(d)
+    except (OSError, ValueError) as e:
+        print(f"report.py: {d}: {e}", file=sys.stderr)
+        return 1
+    print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

@@ -1,0 +1,153 @@
+#!/usr/bin/python3
+"""Plots a parameter sweep written by `scripts/swarm sweep ... --out DIR`.
+
+Usage: /usr/bin/python3 scripts/plots/sweep.py DIR      (reads DIR/sweep.csv, writes DIR/sweep.png)
+
+sweep.csv has one row per run and agent (or per run): its first column is the swept parameter,
+named by its scenario path (e.g. radio.range_m), and it has the columns coverage_global,
+nees_global and rmse_global_m (as `swarm sweep` writes them; the summary.json paths
+global.coverage, global.nees_mean and global.rmse_m are accepted too, with '.' or '_'). Other
+columns (seed, agent, ...) are ignored, apart from counting seeds and agents in the title.
+Empty, null, None and nan cells are skipped. For each metric a panel shows, against the parameter
+value, the mean over the seeds and agents as a line and their min-max as a shaded band.
+A parameter whose values are not all numbers is plotted as categories in order of appearance.
+Prints the figure's path on stdout.
+Needs Debian's python3-matplotlib and python3-numpy (scripts/install-deps installs them)."""
+
+import math
+import re
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from plotlib import directory_argument, plt, rows  # noqa: E402
+
+# (column names, first preferred; panel title; y label)
+METRICS = [
+    (("coverage_global", "global.coverage"), "global coverage", "share of the seen true landmarks"),
+    (("nees_global", "global.nees_mean"), "global mean NEES", "mean NEES (2 expected)"),
+    (("rmse_global_m", "global.rmse_m"), "global RMSE", "RMSE (m)"),
+]
+NEES_EXPECTED = 2.0
+MISSING = {"", "null", "none", "nan", "-", "\u2013"}
+
+
+def normalised(name):
+    return re.sub(r"[^0-9a-z]+", "_", name.strip().lower()).strip("_")
+
+
+def find_column(header, *names):
+    """The header column that is one of `names` (the first found) up to case and separators,
+    or None."""
+    for name in names:
+        want = normalised(name)
+        found = next((h for h in header if normalised(h) == want), None)
+        if found:
+            return found
+    return None
+
+
+def value(cell):
+    """A CSV cell as a finite float, or None when it is empty, null or not finite."""
+    if cell is None or cell.strip().lower() in MISSING:
+        return None
+    try:
+        v = float(cell)
+    except ValueError:
+        return None
+    return v if math.isfinite(v) else None
+
+
+def aggregate(data, column):
+    """[(parameter value, mean, min, max, count)] of a column over the rows of each value, in
+    the order of the parameter values (the keys as given: floats or category names)."""
+    groups = {}
+    for r in data:
+        key, v = r["_x"], value(r.get(column))
+        groups.setdefault(key, [])
+        if v is not None:
+            groups[key].append(v)
+    out = []
+    for key, vs in groups.items():
+        if vs:
+            out.append((key, sum(vs) / len(vs), min(vs), max(vs), len(vs)))
+    return out
+
+
+def distinct(data, header, name):
+    col = find_column(header, name)
+    return len({r[col] for r in data if r.get(col, "").strip()}) if col else None
+
+
+def main(argv):
+    d, code = directory_argument(argv, __doc__, "sweep.py", "sweep.csv", "scripts/swarm sweep ... --out")
+    if d is None:
+        return code
+    csv_path = d / "sweep.csv"
+    try:
+        data = rows(csv_path)
+    except (OSError, UnicodeDecodeError) as e:
+        print(f"sweep.py: {csv_path}: {e}", file=sys.stderr)
+        return 1
+    header = list(data[0].keys()) if data else []
+    if not header:
+        print(f"sweep.py: {csv_path}: no rows", file=sys.stderr)
+        return 1
+    param = header[0]
+    columns = {names[0]: find_column(header, *names) for names, _, _ in METRICS}
+    if not any(columns.values()):
+        print(f"sweep.py: {csv_path}: none of the columns {', '.join(columns)}", file=sys.stderr)
+        return 1
+    data = [r for r in data if (r.get(param) or "").strip()]
+    numeric = all(value(r[param]) is not None for r in data)
+    categories = []
+    for r in data:
+        r["_x"] = value(r[param]) if numeric else r[param].strip()
+        if not numeric and r["_x"] not in categories:
+            categories.append(r["_x"])
+    if numeric:
+        data.sort(key=lambda r: r["_x"])
+
+    fig, axes = plt.subplots(1, len(METRICS), figsize=(15, 4.8))
+    fig.subplots_adjust(left=0.05, right=0.98, top=0.82, bottom=0.13, wspace=0.25)
+    for ax, ((metric, _), title, ylabel) in zip(axes, METRICS):
+        col = columns[metric]
+        points = aggregate(data, col) if col else []
+        if points:
+            xs = [p[0] if numeric else categories.index(p[0]) for p in points]
+            ax.fill_between(xs, [p[2] for p in points], [p[3] for p in points], color="tab:blue", alpha=0.2,
+                            lw=0, label="min\u2013max", step=None)
+            ax.plot(xs, [p[1] for p in points], "o-", color="tab:blue", ms=4, label="mean over seeds and agents")
+            if not numeric:
+                ax.set_xticks(range(len(categories)))
+                ax.set_xticklabels(categories, rotation=30, ha="right", fontsize=8)
+            if metric.startswith("nees"):
+                ax.axhline(NEES_EXPECTED, color="black", ls="--", lw=1, label="expected (2 dof)")
+                lo = min(p[2] for p in points)
+                if lo > 0 and max(p[3] for p in points) / lo > 30:
+                    ax.set_yscale("log")
+            if metric.startswith("coverage"):
+                ax.set_ylim(0, 1.02)
+            ax.legend(fontsize=8)
+        else:
+            ax.text(0.5, 0.5, f"no {metric} values" if col else f"no column {metric}", transform=ax.transAxes,
+                    ha="center", va="center", color="grey")
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel(param)
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+    counts = [f"{len({r['_x'] for r in data})} values"]
+    for name in ("seed", "agent"):
+        n = distinct(data, header, name)
+        if n:
+            counts.append(f"{n} {name}s")
+    fig.suptitle(f"sweep of {param} ({', '.join(counts)}, {len(data)} rows)", fontsize=12)
+    out = d / "sweep.png"
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+    print(out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

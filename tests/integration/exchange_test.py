@@ -1,0 +1,145 @@
+"""End-to-end map exchange (M6) through real agent processes over DDS, driven by scripts/swarm
+on private domains: alignment and union, multi-hop relay, kills, restarts and liveliness.
+Every run has a hard timeout."""
+
+import json
+import math
+import subprocess
+import unittest
+from pathlib import Path
+
+from report_test import check_png, check_report, check_sweep
+from swarm_test import REPO, SWARM, SwarmCase
+
+SCENARIOS = REPO / "scenarios"
+
+
+def history(run, rid):
+    """Agent rid's history.jsonl lines (one per checkpoint and at the end)."""
+    path = run / f"agent_{rid}" / "history.jsonl"
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+
+
+def origins(map_json, robot):
+    """(incarnation, id) of every landmark input from `robot` in a global map JSON."""
+    return {(o[1], o[2]) for l in map_json["landmarks"] for o in l.get("origins", []) if o[0] == robot}
+
+
+class ExchangeTest(SwarmCase):
+    def run_ok(self, *args, timeout=240):
+        r = self.swarm(*args, "--no-report", timeout=timeout)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        return {a["id"]: a for a in self.summary()["agents"]}
+
+    def test_circle_pair_align_and_both_hold_the_union(self):
+        agents = self.run_ok(SCENARIOS / "thesis_circle_pair.yaml")
+        for rid, other in ((1, 2), (2, 1)):
+            a = agents[rid]
+            self.assertEqual(a["peers_aligned"], [other])
+            e = a["alignment_errors"][str(other)]
+            # The alignment against the frames the two maps are really in (their fits to the
+            # truth); the error against the true start poses adds both maps' own frame errors.
+            self.assertLessEqual(e["trans_fit_m"], 0.2, e)
+            self.assertLessEqual(math.degrees(e["rot_fit_rad"]), 1.0, e)
+            self.assertLess(e["trans_m"], 0.5, e)
+            g = a["global"]
+            self.assertEqual(g["coverage"], 1.0)  # every landmark either robot saw
+            self.assertEqual(g["matched"], g["landmarks"])  # and no duplicates nor strays
+            self.assertLessEqual(g["nees_mean"], a["local"]["nees_mean"] + 1e-6)
+
+    def test_multi_hop_line_of_three(self):
+        agents = self.run_ok(SCENARIOS / "line3.yaml")
+        one, three = agents[1], agents[3]
+        self.assertEqual(one["peers_aligned"], [2])  # 1 never hears 3
+        stats = json.loads((self.out / "agent_1" / "stats.json").read_text())
+        self.assertNotIn("3", stats["maps_received_from"])
+        # Yet its global map covers what 3 saw, every landmark on a true one.
+        self.assertLess(one["local"]["coverage"], 0.6)
+        self.assertGreaterEqual(one["global"]["coverage"], 0.9)
+        self.assertEqual(one["global"]["matched"], one["global"]["landmarks"])
+        self.assertLess(one["global"]["rmse_m"], 0.5)
+        self.assertGreater(three["local"]["landmarks"], 0)
+
+    def test_eight_agents_four_killed_keep_what_the_dead_sent(self):
+        kills = {2: 40.0, 4: 75.0, 5: 110.0, 7: 150.0}
+        args = [SCENARIOS / "park4.yaml", "--agents", "8"]
+        for rid, t in kills.items():
+            args += ["--kill", f"{rid}@{t}"]
+        agents = self.run_ok(*args)
+        survivors = [rid for rid in agents if rid not in kills]
+        self.assertEqual(len(survivors), 4)
+        checked = 0
+        for rid in survivors:
+            a = agents[rid]
+            self.assertTrue(a["alive_at_end"])
+            self.assertEqual(a["exit_code"], 0)
+            final = json.loads((self.out / f"agent_{rid}" / "global_map.json").read_text())
+            lines = history(self.out, rid)
+            for dead, t in kills.items():
+                before = [h for h in lines if h["t"] <= t]
+                if not before:
+                    continue
+                snap = json.loads((self.out / f"agent_{rid}" / f"snapshots" /
+                                   Path(f"t{before[-1]['t']:010.3f}_i{before[-1]['incarnation']}_global.json")).read_text())
+                had = origins(snap, dead)
+                checked += len(had)
+                self.assertLessEqual(had, origins(final, dead), f"agent {rid} lost landmarks of killed {dead}")
+        self.assertGreater(checked, 0)  # some survivor had received landmarks from the killed ones
+
+    def test_restarted_agent_ends_with_at_least_its_coverage_before_the_kill(self):
+        agents = self.run_ok(SCENARIOS / "park4.yaml", "--kill", "3@60", "--restart", "3@80")
+        a = agents[3]
+        self.assertTrue(a["alive_at_end"])
+        self.assertEqual(a["restarts"], 1)
+        timeline = json.loads((self.out / "timeline.json").read_text())["agents"]["3"]
+        before = [h for h in timeline if h["t"] <= 60.0 and h["incarnation"] == 1]
+        self.assertTrue(before)
+        self.assertGreaterEqual(a["global"]["coverage"], before[-1]["global"]["coverage"])
+        self.assertGreater(timeline[-1]["incarnation"], 1)
+
+    def test_a_killed_peer_is_reported_stale_within_two_seconds(self):
+        agents = self.run_ok(SCENARIOS / "thesis_circle_pair.yaml", "--kill", "2@100", "--pace", "realtime",
+                             "--rate", "40")
+        kill = self.summary()["kills"][0]
+        self.assertIsNotNone(kill["wall"])
+        self.assertEqual(agents[1]["peers_stale"], [2])
+        stats = json.loads((self.out / "agent_1" / "stats.json").read_text())
+        lost = stats["peers_lost_wall"]["2"] - kill["wall"]
+        self.assertGreaterEqual(lost, 0.0)
+        self.assertLessEqual(lost, 2.0)
+        # Its landmarks stay in the global map.
+        self.assertEqual(agents[1]["global"]["coverage"], 1.0)
+
+
+class ExperimentOutputTest(SwarmCase):
+    """M7: what a run and a sweep leave behind for the user."""
+
+    def test_run_with_a_kill_and_a_restart_writes_a_consistent_report(self):
+        r = self.swarm(SCENARIOS / "park4.yaml", "--set", "duration_s=80", "--kill", "2@30", "--restart", "2@50")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn(f"report:  {self.out / 'report.html'}", r.stdout)
+        # Not a terminal: a few plain progress lines, not one per event.
+        progress = [line for line in r.stdout.splitlines() if line.startswith("t=") and "alive" in line]
+        self.assertGreaterEqual(len(progress), 2)
+        self.assertLessEqual(len(progress), 8)
+        check_report(self, self.out, run=False)
+        # `swarm report` redraws it from the run directory alone.
+        r = subprocess.run(SWARM + ["report", str(self.out)], capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        check_report(self, self.out, run=False)
+
+    def test_sweep_over_three_radio_ranges_and_two_seeds(self):
+        d = self.out.parent / "sweep"
+        r = subprocess.run(SWARM + ["sweep", str(SCENARIOS / "park4.yaml"), "--param", "radio.range_m",
+                                    "--values", "0,10,40", "--seeds", "1,2", "--set", "duration_s=60",
+                                    "--out", str(d)], capture_output=True, text=True, timeout=280)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        rows = (d / "sweep.csv").read_text().splitlines()
+        self.assertEqual(rows[0].split(",")[0], "radio.range_m")
+        self.assertEqual(len(rows) - 1, 3 * 2 * 4)  # values x seeds x agents
+        check_png(self, d / "sweep.png")
+        check_sweep(self, d)
+
+
+if __name__ == "__main__":
+    unittest.main()
