@@ -132,7 +132,7 @@ struct AgentOptions {
   double status_period_s = 1.0;         // scenario seconds between status reports
   double association_gate_m = 1.0;      // dead reckoning without signatures: merge radius
   // Map exchange (agent/map_exchange.h).
-  std::string fusion = "ci_det";        // ml | information | ci | ci_det | ci_trace
+  std::string fusion = "ci";           // ml | information | ci | ci_det | ci_trace
   double align_period_s = 5.0;          // an unaligned peer is tried again this often (when a map changed)
   int drop_after_failures = 2;          // consecutive failed verifications drop an alignment
   bool relay_global_maps = true;        // fuse peers' global maps (multi-hop), not only their local maps
