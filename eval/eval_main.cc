@@ -29,18 +29,6 @@ json QualityJson(const MapQuality& q) {
           {"frame", q.aligned ? "aligned" : "true_origin"}};
 }
 
-// Where a map's frame really lies: its rigid fit to the truth by signature, if it has two.
-std::optional<Pose2> FittedFrame(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth) {
-  std::vector<Eigen::Vector2d> src, dst;
-  for (const Landmark& l : map.landmarks) {
-    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < truth.size()) {
-      src.push_back(l.mean);
-      dst.push_back(truth[l.signature]);
-    }
-  }
-  return FitRigid2D(src, dst);
-}
-
 // Errors of the agent's alignments against the truth, keyed by peer ("3"; an older
 // incarnation of a peer as "3@1"). trans_m is taken at the peer map's centroid, against the
 // true start poses of both frames; trans_fit_m and rot_fit_rad against the frames the two
@@ -75,7 +63,7 @@ json AlignmentErrors(const json& stats, const io::RunTruth& truth, const std::op
     if (own_fit && std::filesystem::exists(peer_dir + "/local_map.json") &&
         std::filesystem::exists(peer_dir + "/stats.json") &&
         io::ReadJson(peer_dir + "/stats.json").value("incarnation", 0u) == inc) {
-      if (const auto peer_fit = FittedFrame(io::MapFromJson(io::ReadJson(peer_dir + "/local_map.json")), truth.landmarks)) {
+      if (const auto peer_fit = MapFrameInWorld(io::MapFromJson(io::ReadJson(peer_dir + "/local_map.json")), truth.landmarks)) {
         const TransformError f = CompareTransforms(est, own_fit->Inverse() * *peer_fit, at);
         entry["trans_fit_m"] = f.translation_m;
         entry["rot_fit_rad"] = f.rotation_rad;
@@ -140,7 +128,7 @@ int Run(int argc, char** argv) {
     // is scored in the frame fitted from the local map.
     std::optional<Pose2> local_fit;
     if (!origin && std::filesystem::exists(dir + "/local_map.json")) {
-      local_fit = FittedFrame(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks);
+      local_fit = MapFrameInWorld(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks);
     }
     for (const char* kind : {"local", "global"}) {
       const std::string path = dir + "/" + kind + "_map.json";
@@ -172,7 +160,7 @@ int Run(int argc, char** argv) {
       const MapQuality q = EvaluateOwnFrameMap(own, truth.landmarks, truth.seen, origin, gate_m);
       entry["global"]["rmse_own_landmarks_m"] = q.evaluated && q.matched > 0 ? json(q.rmse_m) : json();
       const std::optional<Pose2> own_fit = std::filesystem::exists(dir + "/local_map.json")
-                                               ? FittedFrame(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks)
+                                               ? MapFrameInWorld(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks)
                                                : std::nullopt;
       entry["alignment_errors"] = AlignmentErrors(stats, truth, origin, own_fit, run_dir);
     }
@@ -201,7 +189,7 @@ int Run(int argc, char** argv) {
     // else its rigid fit by signatures, else unknown.
     std::optional<Pose2> frame = origin;
     if (!frame && std::filesystem::exists(dir + "/local_map.json")) {
-      frame = FittedFrame(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks);
+      frame = MapFrameInWorld(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks);
     }
     entry["frame_in_world"] = frame ? json{frame->x, frame->y, frame->theta} : json();
     entry["history"] = HistoryJson(dir, robot, truth, gate_m);

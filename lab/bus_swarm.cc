@@ -32,17 +32,6 @@ struct Slot {
 
 }  // namespace
 
-std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth) {
-  std::vector<Eigen::Vector2d> src, dst;
-  for (const Landmark& l : map.landmarks) {
-    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < truth.size()) {
-      src.push_back(l.mean);
-      dst.push_back(truth[l.signature]);
-    }
-  }
-  return FitRigid2D(src, dst);
-}
-
 BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o) {
   const auto start = std::chrono::steady_clock::now();
   Scenario sc = scenario_in;

@@ -62,8 +62,5 @@ struct BusSwarmResult {
 
 BusSwarmResult RunBusSwarm(const Scenario& scenario, const BusSwarmOptions& options);
 
-// Where a map's frame really lies in the world: the rigid fit of its landmarks to the truth
-// by signature (needs two); nullopt without signatures.
-std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth);
 
 }  // namespace mapmesh::lab

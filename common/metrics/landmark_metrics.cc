@@ -101,6 +101,17 @@ MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d
   return q;
 }
 
+std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth) {
+  std::vector<Eigen::Vector2d> src, dst;
+  for (const Landmark& l : map.landmarks) {
+    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < truth.size()) {
+      src.push_back(l.mean);
+      dst.push_back(truth[l.signature]);
+    }
+  }
+  return FitRigid2D(src, dst);
+}
+
 MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
                                const std::vector<int>& seen, const std::optional<Pose2>& origin,
                                double gate_m) {

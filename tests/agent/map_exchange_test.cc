@@ -58,13 +58,23 @@ struct World {
 constexpr double kSigma = 0.03;
 const Pose2 kFrameA{0.0, 0.0, 0.0}, kFrameB{20.0, 5.0, 1.2}, kFrameC{35.0, 30.0, -2.0};
 
+// Robot 1 (maps x in [0, 26)) and robot 2 (x in [14, 40)) of a world drawn from `seed`; robot 1
+// has received robot 2's first local map.
+struct Pair {
+  World w;
+  std::mt19937_64 rng;
+  MapExchange a;
+  LandmarkMap la, lb;
+  explicit Pair(std::uint64_t seed) : w(160, seed), rng(seed + 1), a(1, 1, {}, seed + 2) {
+    la = w.Map(0, 26, kFrameA, kSigma, rng);
+    lb = w.Map(14, 40, kFrameB, kSigma, rng);
+    a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
+  }
+};
+
 TEST(MapExchange, AlignsAPeerAndFusesItsLandmarksInPlace) {
-  World w(160, 1);
-  std::mt19937_64 rng(2);
-  MapExchange a(1, 1, {}, 3);
-  const LandmarkMap la = w.Map(0, 26, kFrameA, kSigma, rng);
-  const LandmarkMap lb = w.Map(14, 40, kFrameB, kSigma, rng);
-  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
+  Pair p(1);
+  auto& [w, rng, a, la, lb] = p;
   EXPECT_TRUE(a.Update(la, 10.0));
   ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
   const GlobalMap& g = a.global();
@@ -107,12 +117,8 @@ TEST(MapExchange, PublishesItsOneHopMapAndUsesAPeersOneHopMapForRobotsOutOfRange
 }
 
 TEST(MapExchange, AWrongButWellFormedMapFailsVerificationAndNeverEntersTheGlobalMap) {
-  World w(160, 8);
-  std::mt19937_64 rng(9);
-  MapExchange a(1, 1, {}, 10);
-  const LandmarkMap la = w.Map(0, 26, kFrameA, kSigma, rng);
-  const LandmarkMap lb = w.Map(14, 40, kFrameB, kSigma, rng);
-  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
+  Pair p(8);
+  auto& [w, rng, a, la, lb] = p;
   a.Update(la, 10.0);
   ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
   const LandmarkMap before = a.global().map;
@@ -146,11 +152,8 @@ TEST(MapExchange, AWrongButWellFormedMapFailsVerificationAndNeverEntersTheGlobal
 }
 
 TEST(MapExchange, AStalePeerKeepsItsLastVerifiedContribution) {
-  World w(160, 11);
-  std::mt19937_64 rng(12);
-  MapExchange a(1, 1, {}, 13);
-  const LandmarkMap la = w.Map(0, 26, kFrameA, kSigma, rng);
-  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, w.Map(14, 40, kFrameB, kSigma, rng), 0.0);
+  Pair p(11);
+  auto& [w, rng, a, la, lb] = p;
   a.Update(la, 10.0);
   const std::size_t n = a.global().map.size();
   a.OnPeerLiveliness(2, false, 15.0);

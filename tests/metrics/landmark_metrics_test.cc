@@ -92,5 +92,28 @@ TEST(LandmarkMetrics, AssociationPrecisionAndRecall) {
   EXPECT_DOUBLE_EQ(none.recall, 1.0);
 }
 
+TEST(MapFrameInWorld, RecoversTheFrameFromSignaturesOnly) {
+  const std::vector<Eigen::Vector2d> truth = {{0, 0}, {4, 1}, {2, 5}, {-3, 2}};
+  const Pose2 frame{1.5, -2.0, 0.7};
+  LandmarkMap m;
+  for (int i : {0, 2, 3}) {
+    Landmark l;
+    l.signature = i;
+    l.mean = frame.Inverse().Apply(truth[i]);
+    m.landmarks.push_back(l);
+  }
+  Landmark unknown;  // no signature: ignored
+  unknown.mean = {100, 100};
+  m.landmarks.push_back(unknown);
+  const auto fit = MapFrameInWorld(m, truth);
+  ASSERT_TRUE(fit.has_value());
+  EXPECT_NEAR(fit->x, frame.x, 1e-9);
+  EXPECT_NEAR(fit->y, frame.y, 1e-9);
+  EXPECT_NEAR(fit->theta, frame.theta, 1e-9);
+  m.landmarks.resize(1);
+  m.landmarks.push_back(unknown);
+  EXPECT_FALSE(MapFrameInWorld(m, truth).has_value());  // one signature is not enough
+}
+
 }  // namespace
 }  // namespace mapmesh
