@@ -138,16 +138,7 @@ void CekfSlam::Settled(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<Landm
 
 void CekfSlam::Switch() {
   const int n = gn_ + 2 * static_cast<int>(active_ids_.size() - period_active_);
-  if (n > gx_.size()) {
-    // Grow the settled storage geometrically (the copy is the only O(N^2) move).
-    const int cap = std::max<int>(n, 2 * static_cast<int>(gx_.size()));
-    Eigen::VectorXd gx = Eigen::VectorXd::Zero(cap);
-    Eigen::MatrixXd gp = Eigen::MatrixXd::Zero(cap, cap);
-    gx.head(gn_) = gx_.head(gn_);
-    gp.topLeftCorner(gn_, gn_) = gp_.topLeftCorner(gn_, gn_);
-    gx_.swap(gx);
-    gp_.swap(gp);
-  }
+  GrowStateStorage(gx_, gp_, gn_, n);  // the settled storage
   std::vector<LandmarkId> ids;
   BatchUpdate(gx_, gp_, gn_, &ids);  // in place
   for (LandmarkId id : ids) {

@@ -13,16 +13,18 @@ EkfState::EkfState(const Eigen::VectorXd& x, const Eigen::MatrixXd& p) : x_(x), 
   MAPMESH_CHECK(p.rows() == x.size() && p.cols() == x.size());
 }
 
-void EkfState::Reserve(int n) {
-  if (n <= x_.size()) return;
-  const int cap = std::max<int>(n, static_cast<int>(x_.size()) * 2);
-  Eigen::VectorXd x = Eigen::VectorXd::Zero(cap);
-  Eigen::MatrixXd p = Eigen::MatrixXd::Zero(cap, cap);
-  x.head(n_) = x_.head(n_);
-  p.topLeftCorner(n_, n_) = P_.topLeftCorner(n_, n_);
-  x_.swap(x);
-  P_.swap(p);
+void GrowStateStorage(Eigen::VectorXd& x, Eigen::MatrixXd& p, int used, int n) {
+  if (n <= x.size()) return;
+  const int cap = std::max<int>(n, static_cast<int>(x.size()) * 2);
+  Eigen::VectorXd gx = Eigen::VectorXd::Zero(cap);
+  Eigen::MatrixXd gp = Eigen::MatrixXd::Zero(cap, cap);
+  gx.head(used) = x.head(used);
+  gp.topLeftCorner(used, used) = p.topLeftCorner(used, used);
+  x.swap(gx);
+  p.swap(gp);
 }
+
+void EkfState::Reserve(int n) { GrowStateStorage(x_, P_, n_, n); }
 
 Eigen::Matrix3d EkfState::Predict(const MotionModel& model, const OdometryControl& u, double dt,
                                   const Eigen::Matrix2d& control_cov) {

@@ -12,6 +12,10 @@
 
 namespace mapmesh {
 
+// Makes room for n entries in a state vector and its covariance, keeping the first `used`:
+// storage grows geometrically (at least doubling), so the O(N^2) copy is rare.
+void GrowStateStorage(Eigen::VectorXd& x, Eigen::MatrixXd& p, int used, int n);
+
 class EkfState {
  public:
   // The robot at the origin of its own frame, with zero covariance (it defines the frame).
