@@ -60,6 +60,8 @@ json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
                      {"attempts", p.attempts},
                      {"verifications", p.verifications},
                      {"failures", p.failures},
+                     {"rejected", p.rejected},
+                     {"drops", p.drops},
                      {"last_verdict", std::string(ToString(p.last_verdict))}});
   }
   json lost = json::object();
@@ -271,13 +273,12 @@ int Run(int argc, char** argv) {
     for (const auto& s : maps.Take()) {
       if (s.valid) {
         node.OnMap(s.value);
-      } else if (!s.alive && s.value.robot_id != self) {
-        // Its writer is gone (liveliness lost or the process ended): the peer is stale.
+      } else if (!s.alive && node.OnPeerLiveliness(s.value.robot_id, false)) {
+        // A peer's writer is gone (liveliness lost or the process ended): the peer is stale.
         if (!lost_wall.count(s.value.robot_id)) {
           spdlog::info("peer {} lost (liveliness)", s.value.robot_id);
           lost_wall[s.value.robot_id] = WallNow();
         }
-        node.OnPeerLiveliness(s.value.robot_id, false);
       }
     }
     if (checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {

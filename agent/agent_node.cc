@@ -188,8 +188,10 @@ void AgentNode::OnMap(const MapMessage& msg) {
   ++stats_.maps_received_from[msg.robot_id];
 }
 
-void AgentNode::OnPeerLiveliness(RobotId robot, bool alive) {
-  if (robot != self_) exchange_.OnPeerLiveliness(robot, alive, sync_.processed_until());
+bool AgentNode::OnPeerLiveliness(RobotId robot, bool alive) {
+  if (robot == self_ || std::find(robot_ids_.begin(), robot_ids_.end(), robot) == robot_ids_.end()) return false;
+  exchange_.OnPeerLiveliness(robot, alive, sync_.processed_until());
+  return true;
 }
 
 void AgentNode::Resume(const AgentCheckpoint& c) {

@@ -83,7 +83,8 @@ class AgentNode : private SensorSync::Sink {
   void OnLinks(const RadioLinks& links);
   void OnMap(const MapMessage& msg);
   // A peer's map writer came back (alive) or went away (liveliness lost or disposed).
-  void OnPeerLiveliness(RobotId robot, bool alive);
+  // Returns false, and does nothing, for the agent itself and robots not in the scenario.
+  bool OnPeerLiveliness(RobotId robot, bool alive);
   // Re-merges what an earlier incarnation of this agent knew (from its checkpoint).
   void Resume(const AgentCheckpoint& checkpoint);
   AgentCheckpoint Checkpoint() const;

@@ -154,7 +154,11 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     ++p.report.verifications;
     if (Verify(p, own_local)) {
       p.report.failures = 0;
-    } else if (++p.report.failures >= options_.drop_after_failures) {
+      continue;
+    }
+    ++p.report.rejected;
+    if (++p.report.failures >= options_.drop_after_failures) {
+      ++p.report.drops;
       p.report.aligned = false;
       p.report.dropped = true;
       p.source.reset();

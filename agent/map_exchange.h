@@ -67,7 +67,10 @@ struct PeerReport {
   Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();
   bool relayed = false;            // its global map is fused (not its local map)
   Eigen::Vector2d centroid = Eigen::Vector2d::Zero();  // of the peer map aligned last, in its frame
-  int attempts = 0, verifications = 0, failures = 0;
+  int attempts = 0, verifications = 0;
+  int failures = 0;                // consecutive failed verifications (reset by a success)
+  int rejected = 0;                // failed verifications in all
+  int drops = 0;                   // times the alignment was dropped
   AlignmentVerdict last_verdict = AlignmentVerdict::kTooFewLandmarks;
 };
 

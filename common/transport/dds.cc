@@ -76,6 +76,10 @@ RawWriter::RawWriter(const Participant& p, const Topic& t, const Qos& qos)
 
 void RawWriter::Write(const void* sample) const { Check(dds_write(e_, sample), "dds_write"); }
 
+void RawWriter::Unregister(const void* sample) const {
+  Check(dds_unregister_instance(e_, sample), "dds_unregister_instance");
+}
+
 std::uint32_t RawWriter::MatchedReaders() const {
   dds_publication_matched_status_t st;
   Check(dds_get_publication_matched_status(e_, &st), "dds_get_publication_matched_status");

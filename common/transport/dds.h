@@ -103,6 +103,9 @@ class RawWriter : public Entity {
  public:
   RawWriter(const Participant& p, const Topic& t, const Qos& qos);
   void Write(const void* sample) const;
+  // Gives up this writer's claim on the sample's instance (its key); the instance stays alive
+  // while another writer holds it.
+  void Unregister(const void* sample) const;
   // Number of readers currently matched.
   std::uint32_t MatchedReaders() const;
   // Waits until every reliable reader acknowledged; false on timeout.

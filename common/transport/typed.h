@@ -19,6 +19,13 @@ class Writer {
     auto msg = ToMsg(value, scratch_);
     raw_.Write(&msg);
   }
+  // Writes, then unregisters the instance: readers see this writer's sample, but the
+  // instance's liveliness keeps following its other writers.
+  void WriteAndUnregister(const T& value) {
+    auto msg = ToMsg(value, scratch_);
+    raw_.Write(&msg);
+    raw_.Unregister(&msg);
+  }
   const RawWriter& raw() const { return raw_; }
 
  private:

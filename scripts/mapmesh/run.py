@@ -149,6 +149,7 @@ class SwarmRun:
         for s in args.set or []:
             self.common += ["--set", s]
         self.feeder = None
+        self.injector = None
         self.agents = {}
         self.lease = None
         self.info = None
@@ -167,6 +168,14 @@ class SwarmRun:
                 raise RunError(f"--kill/--restart {rid}@{t}: no robot {rid} in this run (robots {sorted(ids)})", 2)
             if t > self.info["duration"]:
                 raise RunError(f"--kill/--restart {rid}@{t}: after the end of the run ({self.info['duration']} s)", 2)
+
+        if self.args.inject:
+            cmd = [binary("mapmesh-inject"), "--scenario", self.scenario, "--cases", self.args.inject,
+                   "--check"] + self.common
+            r = subprocess.run(cmd, capture_output=True, text=True)
+            if r.returncode != 0:
+                msg = (r.stderr.strip().splitlines() or ["mapmesh-inject --check failed"])[-1]
+                raise RunError("--inject: " + msg.removeprefix("mapmesh-inject: "), 2)
 
     def agent_cmd(self, rid, incarnation):
         resume = ["--resume"] if incarnation > 1 else []
@@ -193,11 +202,17 @@ class SwarmRun:
         slot.procs.append(self.spawn(self.agent_cmd(rid, incarnation), self.out / f"agent_{rid}" / "agent.log",
                                      append=incarnation > 1))
 
+    def start_injector(self):
+        cmd = [binary("mapmesh-inject"), "--scenario", self.scenario, "--domain", str(self.lease.id),
+               "--cases", self.args.inject, "--period-s", str(self.args.inject_period),
+               "--report", str(self.out / "inject.json")] + self.common
+        self.injector = self.spawn(cmd, self.out / "inject.log")
+
     # ----- the run ------------------------------------------------------------------------
     def execute(self):
         self.check_scenario()
         self.out.mkdir(parents=True, exist_ok=True)
-        for stale in ["summary.json", "truth.json", "feeder.json", "timeline.json", "report.html"]:
+        for stale in ["summary.json", "truth.json", "feeder.json", "timeline.json", "report.html", "inject.json"]:
             (self.out / stale).unlink(missing_ok=True)
         self.lease = DomainLease()
         wall_start = time.monotonic()
@@ -206,6 +221,8 @@ class SwarmRun:
             for rid in self.info["robots"]:
                 self.agents[rid] = AgentSlot(rid)
                 self.start_agent(rid)
+            if self.args.inject:
+                self.start_injector()
             holds = sorted({t for t, _ in self.kills + self.restarts})
             cmd = [binary("mapmesh-feeder"), "--scenario", self.scenario, "--domain", str(self.lease.id),
                    "--out", str(self.out), "--events", "--control"] + self.common
@@ -320,7 +337,12 @@ class SwarmRun:
 
     def stop_all(self):
         """Stops every process this run started: agents politely (they write their maps),
-        then the feeder; anything that does not stop in time is killed."""
+        then the feeder; anything that does not stop in time is killed. A fault injector stops
+        first, so that the agents' final maps are written with no injection under way."""
+        if self.injector is not None:
+            if self.injector.poll() is None:
+                self.injector.signal(signal.SIGTERM)
+            self.injector.stop(10.0)
         for slot in self.agents.values():
             if slot.current is not None and slot.current.poll() is None:
                 slot.current.signal(signal.SIGTERM)
@@ -404,6 +426,10 @@ class SwarmRun:
                        "max_rss_mb": round(self.feeder.max_rss_mb, 1) if self.feeder else None},
             "agents": agents,
         }
+        if self.args.inject:
+            ipath = self.out / "inject.json"
+            summary["injected"] = json.loads(ipath.read_text()) if ipath.exists() else None
+            summary["injector_exit_code"] = self.injector.returncode if self.injector else None
         write_json(self.out / "summary.json", summary)
         # Each agent's counters and scored maps over time, for the report's time plots.
         timeline = {"kills": summary["kills"], "restarts": summary["restarts"],

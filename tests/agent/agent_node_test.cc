@@ -215,9 +215,14 @@ TEST_F(AgentNodeTest, LivelinessMarksEveryIncarnationOfAPeerStale) {
   node_.OnMap(m);
   m.incarnation = 3;
   node_.OnMap(m);
-  node_.OnPeerLiveliness(2, false);
+  EXPECT_TRUE(node_.OnPeerLiveliness(2, false));
   EXPECT_EQ(node_.Status().peers_stale, (std::vector<RobotId>{2}));
-  node_.OnPeerLiveliness(2, true);
+  EXPECT_TRUE(node_.OnPeerLiveliness(2, true));
+  EXPECT_TRUE(node_.Status().peers_stale.empty());
+  // A robot outside the run (say a fault injector's made-up id) and the agent itself are
+  // not peers: their writers coming and going changes nothing.
+  EXPECT_FALSE(node_.OnPeerLiveliness(9, false));
+  EXPECT_FALSE(node_.OnPeerLiveliness(1, false));
   EXPECT_TRUE(node_.Status().peers_stale.empty());
 }
 

@@ -6,6 +6,8 @@
 #include <random>
 #include <vector>
 
+#include "common/map/map_faults.h"
+
 namespace mapmesh {
 namespace {
 
@@ -122,22 +124,14 @@ TEST(MapExchange, AWrongButWellFormedMapFailsVerificationAndNeverEntersTheGlobal
   a.Update(la, 10.0);
   ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
   const LandmarkMap before = a.global().map;
-  // The peer's next map: same ids and covariances, coordinates shuffled between landmarks
-  // (each x and each y taken from a different landmark).
-  LandmarkMap shuffled = lb;
-  std::vector<double> xs, ys;
-  for (const Landmark& l : lb.landmarks) {
-    xs.push_back(l.mean.x());
-    ys.push_back(l.mean.y());
-  }
-  std::shuffle(xs.begin(), xs.end(), rng);
-  std::shuffle(ys.begin(), ys.end(), rng);
-  for (std::size_t i = 0; i < shuffled.size(); ++i) shuffled.landmarks[i].mean = {xs[i], ys[i]};
+  // The peer's next map: same ids and covariances, coordinates shuffled between landmarks.
+  const LandmarkMap shuffled = ShuffleCoordinates(lb, rng);
   a.OnPeerMap(2, 1, MapKind::kLocal, 2, 0.0, shuffled, 11.0);
   a.Update(la, 11.0);
   const PeerReport r = a.Peers().front();
   EXPECT_NE(r.last_verdict, AlignmentVerdict::kAccepted);
   EXPECT_EQ(r.failures, 1);
+  EXPECT_EQ(r.rejected, 1);
   // The global map still holds the last verified map, untouched.
   ASSERT_EQ(a.global().map.size(), before.size());
   for (std::size_t i = 0; i < before.size(); ++i) {
@@ -147,6 +141,8 @@ TEST(MapExchange, AWrongButWellFormedMapFailsVerificationAndNeverEntersTheGlobal
   a.OnPeerMap(2, 1, MapKind::kLocal, 3, 0.0, shuffled, 12.0);
   a.Update(la, 12.0);
   EXPECT_TRUE(a.Peers().front().dropped);
+  EXPECT_EQ(a.Peers().front().rejected, 2);
+  EXPECT_EQ(a.Peers().front().drops, 1);
   EXPECT_TRUE(a.AlignedRobots().empty());
   EXPECT_EQ(w.PlacedIn(a.global().map, kFrameA, 0, 40, 0.2), static_cast<int>(a.global().map.size()));
 }

@@ -110,6 +110,62 @@ class ExchangeTest(SwarmCase):
         # Its landmarks stay in the global map.
         self.assertEqual(agents[1]["global"]["coverage"], 1.0)
 
+    def test_bad_input_is_counted_and_refused_and_the_global_map_is_unaffected(self):
+        # mapmesh-inject publishes every malformed payload, stale versions, maps from a robot
+        # not in the run and a faulty peer (honest, then shuffled maps) while the pair maps.
+        # Paced so that the run lasts long enough (about 13 s) for every case to go out often.
+        agents = self.run_ok(SCENARIOS / "thesis_circle_pair.yaml", "--pace", "realtime", "--rate", "20",
+                             "--inject", "all", "--inject-period", "0.05")
+        summary = self.summary()
+        self.assertEqual(summary["injector_exit_code"], 0)
+        injected = summary["injected"]
+        cases = injected["cases"]
+        reasons = {"truncated": "truncated", "oversized": "oversized", "count_above_limit": "oversized",
+                   "bad_magic": "bad_magic", "unknown_version": "unknown_version", "non_finite": "non_finite",
+                   "bad_covariance": "bad_covariance", "duplicate_id": "duplicate_id", "bad_header": "bad_header"}
+        for rid, other in ((1, 2), (2, 1)):
+            a = agents[rid]
+            with self.subTest(agent=rid):
+                self.assertTrue(a["alive_at_end"])
+                self.assertEqual(a["exit_code"], 0)
+                stats = json.loads((self.out / f"agent_{rid}" / "stats.json").read_text())
+                # Each malformed payload from the other robot was refused for its own reason.
+                sent_by_other = {}
+                for case, reason in reasons.items():
+                    n = cases[case]["by_sender"].get(str(other), 0)
+                    self.assertGreater(n, 0, case)
+                    sent_by_other[reason] = sent_by_other.get(reason, 0) + n
+                for reason, n in sent_by_other.items():
+                    self.assertGreaterEqual(stats["maps_rejected"][reason], 1, reason)
+                    self.assertLessEqual(stats["maps_rejected"][reason], n, reason)
+                self.assertGreaterEqual(stats["maps_unknown_sender"], 1)
+                self.assertLessEqual(stats["maps_unknown_sender"], cases["unknown_sender"]["sent"])
+                self.assertGreaterEqual(stats["maps_stale_version"], 1)
+                # The faulty peer was aligned on its honest maps, and its shuffled maps failed
+                # verification and dropped it.
+                self.assertGreater(cases["shuffled"]["by_sender"].get(str(other), 0), 0)
+                faulty = [p for p in stats["peers"]
+                          if p["robot"] == other and p["incarnation"] == injected["faulty_incarnation"]]
+                self.assertEqual(len(faulty), 1, stats["peers"])
+                self.assertTrue(faulty[0]["ever_aligned"], faulty[0])
+                self.assertGreaterEqual(faulty[0]["rejected"], 1, faulty[0])
+                self.assertGreaterEqual(faulty[0]["drops"], 1, faulty[0])
+                # And the global map is what the pair alone makes: the union, every landmark on a
+                # true one, no less consistent or accurate than the agent's own map.
+                self.assertEqual(a["peers_aligned"], [other])
+                g, loc = a["global"], a["local"]
+                self.assertEqual(g["coverage"], 1.0)
+                self.assertEqual(g["matched"], g["landmarks"])
+                self.assertLessEqual(g["nees_mean"], loc["nees_mean"] + 1e-6)
+                self.assertLessEqual(g["rmse_m"], loc["rmse_m"] + 0.01)
+
+    def test_bad_inject_cases_are_one_line(self):
+        r = self.swarm(SCENARIOS / "thesis_circle_pair.yaml", "--inject", "truncated,nonsense")
+        self.assertEqual(r.returncode, 2)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+        self.assertIn("nonsense", r.stderr)
+        self.assertFalse((self.out / "summary.json").exists())
+
 
 class ExperimentOutputTest(SwarmCase):
     """M7: what a run and a sweep leave behind for the user."""

@@ -208,15 +208,12 @@ class BadInputTest(unittest.TestCase):
 class HelpTest(unittest.TestCase):
     def test_every_executable_answers_help(self):
         for cmd in ([str(BIN / "mapmesh-agent")], [str(BIN / "mapmesh-feeder")], [str(BIN / "mapmesh-eval")],
-                    SWARM, SWARM + ["run"]):
+                    [str(BIN / "mapmesh-inject")], [str(BIN / "mapmesh-lab")],
+                    SWARM, SWARM + ["run"], SWARM + ["report"], SWARM + ["sweep"]):
             with self.subTest(cmd=cmd[-1]):
                 r = subprocess.run(cmd + ["--help"], capture_output=True, text=True, timeout=30)
                 self.assertEqual(r.returncode, 0, r.stderr)
                 self.assertIn("--", r.stdout)
-
-
-if __name__ == "__main__":
-    unittest.main()
 
 
 class DeterminismTest(unittest.TestCase):
@@ -272,3 +269,7 @@ class DatasetReplayTest(SwarmCase):
     def test_victoria_4_whole_dataset(self):
         s, feeder = self.replay("victoria_4.yaml", 4)
         self.assertGreater(sum(f["measurement_rows"] for f in feeder.values()), 52974)
+
+
+if __name__ == "__main__":
+    unittest.main()

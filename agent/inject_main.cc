@@ -1,0 +1,149 @@
+// mapmesh-inject: a fault injector for experiments and tests. It joins a run's DDS domain and
+// publishes bad map messages made by MapInjector (map_injector.h lists the cases), one per
+// --period-s of wall time. Each message is written and its instance unregistered at once, so
+// the injector never keeps a dead agent's map instance alive. On SIGINT/SIGTERM (or after
+// --duration-s) it writes --report: what it sent, per case and claimed sender.
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+
+#include "agent/map_injector.h"
+#include "common/app/process.h"
+#include "common/io/run_files.h"
+#include "common/transport/session.h"
+#include "common/transport/shutdown.h"
+#include "common/transport/topics.h"
+#include "common/transport/typed.h"
+
+namespace mapmesh {
+namespace {
+
+namespace tp = transport;
+using io::json;
+
+// {"unknown_id": N, "faulty_incarnation": I, "faulty_honest_maps": n,
+//  "cases": {case: {"sent": n, "by_sender": {"id": n}}}}
+json ReportJson(const MapInjector& injector) {
+  json cases = json::object();
+  for (const std::string& c : injector.cases()) {
+    json by = json::object();
+    int total = 0;
+    if (const auto it = injector.sent().find(c); it != injector.sent().end()) {
+      for (const auto& [sender, n] : it->second) {
+        by[std::to_string(sender)] = n;
+        total += n;
+      }
+    }
+    cases[c] = {{"sent", total}, {"by_sender", by}};
+  }
+  return {{"unknown_id", injector.unknown_id()},
+          {"faulty_incarnation", kInjectFaultyIncarnation},
+          {"faulty_honest_maps", injector.honest_sent()},
+          {"cases", cases}};
+}
+
+int Run(int argc, char** argv) {
+  tp::ShutdownSignal shutdown;  // first: block SIGINT/SIGTERM before any thread starts
+
+  CLI::App cli{"mapmesh-inject: publish malformed, stale, foreign and wrong maps into a run's DDS domain"};
+  cli.footer(
+      "Cases: truncated, oversized, count_above_limit, bad_magic, unknown_version, non_finite, bad_covariance, "
+      "duplicate_id, bad_header (payloads every agent must refuse, one reason each), stale_version (an older "
+      "version of a robot's map), unknown_sender (a map from a robot not in the run), shuffled (a robot's map "
+      "with its coordinates shuffled, as its next version: alignment verification must refuse it). "
+      "scripts/swarm run --inject CASES starts it alongside a run.");
+  app::ProcessOptions po;
+  std::string cases_text = "all", report_path;
+  double period_s = 0.2, duration_s = 0.0;
+  unsigned unknown_id = 0;
+  std::optional<std::uint64_t> seed;
+  app::AddScenarioOptions(cli, po);
+  app::AddDdsOptions(cli, po, /*domain_required=*/false);
+  cli.add_option("--cases", cases_text, "'all' or a comma-separated list of cases")->capture_default_str();
+  cli.add_option("--period-s", period_s, "wall seconds between two messages")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  cli.add_option("--duration-s", duration_s, "stop after this many wall seconds (0: at SIGINT/SIGTERM)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cli.add_option("--unknown-id", unknown_id, "robot id of unknown_sender maps (default: the largest id + 1000)");
+  cli.add_option("--seed", seed, "seed of the random maps and shuffles (default: the scenario's)");
+  bool check = false;
+  cli.add_flag("--check", check, "only validate the arguments and the scenario, then exit");
+  cli.add_option("--report", report_path, "write what was sent, per case and sender, to this JSON file at exit");
+  if (auto code = app::ParseArgs(cli, "mapmesh-inject", argc, argv)) return *code;
+  app::SetupLogging("inject", po.log_level);
+  const std::optional<std::vector<std::string>> cases = ParseInjectCases(cases_text);
+  if (!cases) {
+    std::string names;
+    for (const std::string& c : AllInjectCases()) names += ", " + c;
+    std::fprintf(stderr, "mapmesh-inject: --cases %s: expected all or a comma-separated list of: %s\n",
+                 cases_text.c_str(), names.substr(2).c_str());
+    return 2;
+  }
+  const std::optional<Scenario> loaded = app::LoadScenarioOrReport("mapmesh-inject", po);
+  if (!loaded) return 2;
+  RobotId largest = 0;
+  for (const RobotSpec& r : loaded->robots) largest = std::max(largest, r.id);
+  if (unknown_id == 0) unknown_id = largest + 1000;
+  if (loaded->FindRobot(unknown_id)) {
+    std::fprintf(stderr, "mapmesh-inject: --unknown-id %u: robot %u is in this run\n", unknown_id, unknown_id);
+    return 2;
+  }
+
+  if (check) return 0;
+  if (po.domain < 0) {
+    std::fprintf(stderr, "mapmesh-inject: --domain is required (the run's DDS domain)\n");
+    return 2;
+  }
+
+  tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
+  const tp::Participant& p = session.participant();
+  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos());
+  tp::Reader<AgentStatus> status(p, tp::kStatusTopic, tp::StatusQos());
+  tp::Writer<MapMessage> out(p, tp::kMapTopic, tp::MapQos());
+  std::vector<RobotId> robots;
+  for (const RobotSpec& r : loaded->robots) robots.push_back(r.id);
+  MapInjector injector(robots, *cases, unknown_id, seed.value_or(loaded->seed));
+  tp::GuardCondition stop(p);
+  tp::WaitSet waitset(p);
+  waitset.AttachReader(maps.raw(), 1);
+  waitset.AttachReader(status.raw(), 2);
+  waitset.AttachGuard(stop, 3);
+  shutdown.Watch(&stop);
+  spdlog::info("up: domain {} cases {} period {:.3f}s unknown id {}", po.domain, cases->size(), period_s, unknown_id);
+
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period_s));
+  auto next = start + period;
+  int sent = 0;
+  while (!shutdown.requested()) {
+    if (duration_s > 0 && Clock::now() - start >= std::chrono::duration<double>(duration_s)) break;
+    waitset.Wait(std::max(0.0, std::chrono::duration<double>(next - Clock::now()).count()));
+    for (const auto& s : maps.Take()) {
+      if (s.valid) injector.OnMap(s.value);
+    }
+    for (const auto& s : status.Take()) {
+      if (s.valid) injector.OnStatus(s.value);
+    }
+    if (Clock::now() < next) continue;
+    next += period;
+    if (std::optional<MapMessage> m = injector.Next()) {
+      out.WriteAndUnregister(*m);
+      ++sent;
+    }
+  }
+  spdlog::info("done: {} messages sent", sent);
+  if (!report_path.empty()) io::WriteJsonAtomic(report_path, ReportJson(injector));
+  return 0;
+}
+
+}  // namespace
+}  // namespace mapmesh
+
+int main(int argc, char** argv) {
+  return mapmesh::app::GuardedMain("mapmesh-inject", [&] { return mapmesh::Run(argc, argv); });
+}

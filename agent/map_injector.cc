@@ -1,0 +1,124 @@
+#include "agent/map_injector.h"
+
+#include <algorithm>
+#include <sstream>
+
+#include "common/check.h"
+#include "common/map/map_codec.h"
+#include "common/map/map_faults.h"
+
+namespace mapmesh {
+
+std::vector<std::string> AllInjectCases() {
+  std::vector<std::string> cases;
+  for (int i = 0; i < kPayloadFaultCount; ++i) cases.emplace_back(ToString(static_cast<PayloadFault>(i)));
+  for (const char* c : {kInjectStaleVersion, kInjectUnknownSender, kInjectShuffled}) cases.emplace_back(c);
+  return cases;
+}
+
+std::optional<std::vector<std::string>> ParseInjectCases(const std::string& text) {
+  const std::vector<std::string> all = AllInjectCases();
+  if (text == "all") return all;
+  std::vector<std::string> cases;
+  std::stringstream in(text);
+  for (std::string c; std::getline(in, c, ',');) {
+    if (std::find(all.begin(), all.end(), c) == all.end()) return std::nullopt;
+    if (std::find(cases.begin(), cases.end(), c) == cases.end()) cases.push_back(c);
+  }
+  if (cases.empty()) return std::nullopt;
+  return cases;
+}
+
+MapInjector::MapInjector(std::vector<RobotId> robots, std::vector<std::string> cases, RobotId unknown_id,
+                         std::uint64_t seed)
+    : robots_(std::move(robots)), cases_(std::move(cases)), unknown_id_(unknown_id), rng_(seed) {
+  MAPMESH_CHECK(!robots_.empty() && !cases_.empty(), "MapInjector needs robots and cases");
+  MAPMESH_CHECK(std::find(robots_.begin(), robots_.end(), unknown_id_) == robots_.end(),
+                "the unknown sender id is a robot of the run");
+}
+
+void MapInjector::OnMap(const MapMessage& m) {
+  if (m.kind != MapKind::kLocal || injected_.count(Key(m)) ||
+      std::find(robots_.begin(), robots_.end(), m.robot_id) == robots_.end()) {
+    return;
+  }
+  const auto it = heard_.find(m.robot_id);
+  if (it != heard_.end() && it->second.msg.incarnation == m.incarnation && m.version <= it->second.msg.version) return;
+  MapDecodeResult d = DecodeMap(m.payload);
+  if (!d.ok()) return;
+  heard_[m.robot_id] = {m, std::move(d.map)};
+}
+
+void MapInjector::OnStatus(const AgentStatus& s) { aligned_.insert(s.peers_aligned.begin(), s.peers_aligned.end()); }
+
+std::optional<MapMessage> MapInjector::Next() {
+  const std::size_t slots = cases_.size() * robots_.size();
+  for (std::size_t k = 0; k < slots; ++k) {
+    const std::size_t t = tick_++;
+    const std::string& c = cases_[(t / robots_.size()) % cases_.size()];
+    if (std::optional<MapMessage> m = Make(c, robots_[t % robots_.size()])) {
+      injected_.insert(Key(*m));
+      if (!IsHonest(*m)) ++sent_[c][m->robot_id];
+      return m;
+    }
+  }
+  return std::nullopt;
+}
+
+LandmarkMap MapInjector::RandomMap(int n) {
+  std::uniform_real_distribution<double> u(0.0, 50.0);
+  LandmarkMap m;
+  for (int i = 0; i < n; ++i) {
+    Landmark l;
+    l.id = static_cast<std::uint32_t>(i + 1);
+    l.mean = {u(rng_), u(rng_)};
+    l.cov = Eigen::Matrix2d::Identity() * 0.01;
+    m.landmarks.push_back(l);
+  }
+  return m;
+}
+
+std::optional<MapMessage> MapInjector::Make(const std::string& c, RobotId sender) {
+  MapMessage m;
+  m.robot_id = sender;
+  const auto it = heard_.find(sender);
+  const Heard* h = it == heard_.end() ? nullptr : &it->second;
+  if (h) {
+    m.incarnation = h->msg.incarnation;
+    m.stamp = h->msg.stamp;
+    m.origin_stamp = h->msg.origin_stamp;
+  }
+  if (const std::optional<PayloadFault> f = PayloadFaultFromString(c)) {
+    m.kind = MapKind::kGlobal;
+    m.payload = CorruptPayload(EncodeMap(RandomMap(8)), *f);
+    return m;
+  }
+  m.kind = MapKind::kLocal;
+  if (c == kInjectUnknownSender) {
+    m.robot_id = unknown_id_;
+    m.incarnation = 1;
+    m.version = ++unknown_version_;
+    m.payload = EncodeMap(RandomMap(30));
+    return m;
+  }
+  if (!h || h->msg.version < 2) return std::nullopt;
+  if (c == kInjectStaleVersion) {
+    m.version = h->msg.version - 1;
+    m.payload = h->msg.payload;
+    return m;
+  }
+  // shuffled: a faulty peer in the sender's frame, honest every third map so that it is
+  // aligned again, the other maps then being verifications.
+  if (!aligned_.count(sender) || h->map.size() < 6) return std::nullopt;
+  m.incarnation = kInjectFaultyIncarnation;
+  m.version = ++faulty_version_[sender];
+  if (IsHonest(m)) {
+    m.payload = h->msg.payload;
+    ++honest_sent_;
+  } else {
+    m.payload = EncodeMap(ShuffleCoordinates(h->map, rng_));
+  }
+  return m;
+}
+
+}  // namespace mapmesh

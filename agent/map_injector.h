@@ -1,0 +1,89 @@
+#pragma once
+// MapInjector: the decisions of mapmesh-inject, a fault injector for experiments and tests
+// (pure; the process wires it to DDS). It listens to the maps the robots of a run publish and
+// to the agents' statuses, and makes bad map messages, going through the chosen cases and, for
+// each case, through the run's robots as claimed senders:
+//   truncated .. bad_header  a payload corrupted so that decoding must refuse it (map_faults.h),
+//                            sent as the sender's GLOBAL map;
+//   stale_version            a copy of the sender's latest local map under an older version;
+//   unknown_sender           a well-formed random map from a robot id that is not in the run;
+//   shuffled                 a faulty peer: a further incarnation of the sender
+//                            (kInjectFaultyIncarnation) whose maps are copies of the sender's
+//                            latest local map, first honest, so that agents align it, then twice
+//                            with its coordinates shuffled (well-formed but wrong, so that
+//                            alignment verification must refuse them), and so on. It starts once
+//                            some agent reports the sender aligned, and its map has at least 6
+//                            landmarks.
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <random>
+#include <set>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "common/map/landmark_map.h"
+#include "common/types/messages.h"
+
+namespace mapmesh {
+
+inline constexpr const char* kInjectStaleVersion = "stale_version";
+inline constexpr const char* kInjectUnknownSender = "unknown_sender";
+inline constexpr const char* kInjectShuffled = "shuffled";
+// The incarnation the faulty peer of the shuffled case claims (real agents count from 1).
+inline constexpr std::uint32_t kInjectFaultyIncarnation = 3000000000u;
+
+// Every case, in the order they are sent.
+std::vector<std::string> AllInjectCases();
+// "all" or a comma-separated list of cases (repeats ignored); nullopt on an unknown or no case.
+std::optional<std::vector<std::string>> ParseInjectCases(const std::string& text);
+
+class MapInjector {
+ public:
+  // robots: the run's robot ids (the claimed senders); unknown_id must not be one of them.
+  MapInjector(std::vector<RobotId> robots, std::vector<std::string> cases, RobotId unknown_id, std::uint64_t seed);
+
+  // A map seen on the map topic (the injector's own messages included; they are ignored).
+  void OnMap(const MapMessage& m);
+  void OnStatus(const AgentStatus& s);
+
+  // The next message that can be made now, trying every (case, sender) slot once in turn,
+  // or nothing when no case is ready.
+  std::optional<MapMessage> Next();
+
+  // Messages made so far: case -> claimed sender -> count (shuffled: the shuffled maps only).
+  const std::map<std::string, std::map<RobotId, int>>& sent() const { return sent_; }
+  // Honest maps the faulty peers sent before turning bad.
+  int honest_sent() const { return honest_sent_; }
+  RobotId unknown_id() const { return unknown_id_; }
+  const std::vector<std::string>& cases() const { return cases_; }
+
+ private:
+  using MsgKey = std::tuple<RobotId, std::uint32_t, std::uint32_t>;  // robot, incarnation, version
+  struct Heard {
+    MapMessage msg;
+    LandmarkMap map;
+  };
+  static MsgKey Key(const MapMessage& m) { return {m.robot_id, m.incarnation, m.version}; }
+  // The faulty peer's maps 1, 4, 7, ... are honest copies.
+  static bool IsHonest(const MapMessage& m) { return m.incarnation == kInjectFaultyIncarnation && m.version % 3 == 1; }
+  std::optional<MapMessage> Make(const std::string& c, RobotId sender);
+  LandmarkMap RandomMap(int n);
+
+  std::vector<RobotId> robots_;
+  std::vector<std::string> cases_;
+  RobotId unknown_id_;
+  std::mt19937_64 rng_;
+  std::map<RobotId, Heard> heard_;  // each robot's newest well-formed local map of its own
+  std::set<RobotId> aligned_;       // robots some agent reported aligned
+  std::set<MsgKey> injected_;
+  std::map<std::string, std::map<RobotId, int>> sent_;
+  std::size_t tick_ = 0;
+  std::uint32_t unknown_version_ = 0;
+  std::map<RobotId, std::uint32_t> faulty_version_;  // per claimed sender
+  int honest_sent_ = 0;
+};
+
+}  // namespace mapmesh

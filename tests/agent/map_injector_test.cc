@@ -1,0 +1,140 @@
+#include "agent/map_injector.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <random>
+
+#include "common/map/map_codec.h"
+#include "common/map/map_faults.h"
+
+namespace mapmesh {
+namespace {
+
+MapMessage RobotMap(RobotId robot, std::uint32_t version, int landmarks) {
+  std::mt19937_64 rng(robot * 100 + version);
+  std::uniform_real_distribution<double> u(0.0, 30.0);
+  LandmarkMap m;
+  for (int i = 0; i < landmarks; ++i) {
+    Landmark l;
+    l.id = static_cast<std::uint32_t>(i);
+    l.mean = {u(rng), u(rng)};
+    l.cov = Eigen::Matrix2d::Identity() * 0.04;
+    m.landmarks.push_back(l);
+  }
+  MapMessage msg;
+  msg.robot_id = robot;
+  msg.kind = MapKind::kLocal;
+  msg.incarnation = 7;
+  msg.version = version;
+  msg.stamp = version;
+  msg.payload = EncodeMap(m);
+  return msg;
+}
+
+TEST(InjectCases, ParsesAllAListAndRefusesUnknownOnes) {
+  EXPECT_EQ(ParseInjectCases("all"), AllInjectCases());
+  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 3));
+  EXPECT_EQ(ParseInjectCases("shuffled,truncated,shuffled"), (std::vector<std::string>{"shuffled", "truncated"}));
+  EXPECT_FALSE(ParseInjectCases("shuffle").has_value());
+  EXPECT_FALSE(ParseInjectCases("").has_value());
+  EXPECT_FALSE(ParseInjectCases("truncated,,bogus").has_value());
+}
+
+TEST(MapInjector, BeforeHearingAnyMapOnlyMalformedAndForeignMapsAreMade) {
+  MapInjector inj({1, 2}, AllInjectCases(), 99, 3);
+  std::map<std::string, int> made;
+  for (int i = 0; i < 3 * kPayloadFaultCount * 2; ++i) {
+    const std::optional<MapMessage> m = inj.Next();
+    ASSERT_TRUE(m.has_value());
+    const MapDecodeResult d = DecodeMap(m->payload);
+    if (m->robot_id == 99) {
+      EXPECT_TRUE(d.ok());
+      EXPECT_EQ(d.map.size(), 30u);
+      ++made["unknown_sender"];
+    } else {
+      EXPECT_TRUE(m->robot_id == 1 || m->robot_id == 2);
+      EXPECT_EQ(m->kind, MapKind::kGlobal);
+      EXPECT_FALSE(d.ok());
+      ++made[std::string(ToString(d.error))];
+    }
+  }
+  EXPECT_EQ(made.count("ok"), 0u);
+  // Every decode error is among what was made, from both claimed senders in turn.
+  for (int e = 1; e < kMapDecodeErrorCount; ++e) EXPECT_GT(made[std::string(ToString(static_cast<MapDecodeError>(e)))], 0);
+  EXPECT_GT(made["unknown_sender"], 0);
+  EXPECT_EQ(inj.sent().at("truncated").at(1), inj.sent().at("truncated").at(2));
+  EXPECT_EQ(inj.sent().count("stale_version"), 0u);
+  EXPECT_EQ(inj.sent().count("shuffled"), 0u);
+}
+
+TEST(MapInjector, StaleAndShuffledMapsFollowWhatTheRobotPublished) {
+  MapInjector inj({2}, {"stale_version", "shuffled"}, 99, 5);
+  EXPECT_FALSE(inj.Next().has_value());
+  inj.OnMap(RobotMap(2, 1, 10));
+  EXPECT_FALSE(inj.Next().has_value());  // no older version than 1 to claim
+  const MapMessage v3 = RobotMap(2, 3, 10);
+  inj.OnMap(v3);
+  inj.OnMap(RobotMap(2, 2, 10));  // an older one arriving late changes nothing
+  std::optional<MapMessage> stale = inj.Next();
+  ASSERT_TRUE(stale.has_value());
+  EXPECT_EQ(stale->version, 2u);
+  EXPECT_EQ(stale->incarnation, 7u);
+  EXPECT_EQ(stale->payload, v3.payload);
+  // shuffled waits until an agent reports robot 2 aligned.
+  EXPECT_EQ(inj.Next()->version, 2u);
+  AgentStatus s;
+  s.robot_id = 1;
+  s.peers_aligned = {2};
+  inj.OnStatus(s);
+  // The faulty peer: its own incarnation in robot 2's frame, an honest copy first, then two
+  // shuffled maps, then honest again.
+  std::vector<MapMessage> faulty;
+  while (faulty.size() < 4) {
+    std::optional<MapMessage> m = inj.Next();
+    ASSERT_TRUE(m.has_value());
+    if (m->incarnation == kInjectFaultyIncarnation) faulty.push_back(*m);
+  }
+  for (std::size_t i = 0; i < faulty.size(); ++i) {
+    EXPECT_EQ(faulty[i].robot_id, 2u);
+    EXPECT_EQ(faulty[i].kind, MapKind::kLocal);
+    EXPECT_EQ(faulty[i].version, i + 1);
+  }
+  EXPECT_EQ(faulty[0].payload, v3.payload);
+  EXPECT_EQ(faulty[3].payload, v3.payload);
+  const LandmarkMap before = DecodeMap(v3.payload).map;
+  for (const MapMessage& bad : {faulty[1], faulty[2]}) {
+    const LandmarkMap after = DecodeMap(bad.payload).map;
+    ASSERT_EQ(after.size(), before.size());
+    int moved = 0;
+    for (std::size_t i = 0; i < after.size(); ++i) {
+      EXPECT_EQ(after.landmarks[i].id, before.landmarks[i].id);
+      moved += (after.landmarks[i].mean - before.landmarks[i].mean).norm() > 1e-6;
+    }
+    EXPECT_GE(moved, 7);
+  }
+  EXPECT_EQ(inj.sent().at("shuffled").at(2), 2);  // the honest copies are counted apart
+  EXPECT_EQ(inj.honest_sent(), 2);
+  // Its own maps coming back are not taken for the robot's: the stale case still copies v3.
+  for (const MapMessage& m : faulty) inj.OnMap(m);
+  std::optional<MapMessage> again;
+  while (!again || again->incarnation == kInjectFaultyIncarnation) again = inj.Next();
+  EXPECT_EQ(again->version, 2u);
+  EXPECT_EQ(again->payload, v3.payload);
+}
+
+TEST(MapInjector, MalformedOwnMapsAndOtherRobotsAreNotHeard) {
+  MapInjector inj({2}, {"stale_version"}, 99, 5);
+  MapMessage bad = RobotMap(2, 5, 10);
+  bad.payload.pop_back();
+  inj.OnMap(bad);
+  MapMessage foreign = RobotMap(4, 5, 10);
+  inj.OnMap(foreign);
+  MapMessage global = RobotMap(2, 5, 10);
+  global.kind = MapKind::kGlobal;
+  inj.OnMap(global);
+  EXPECT_FALSE(inj.Next().has_value());
+}
+
+}  // namespace
+}  // namespace mapmesh
