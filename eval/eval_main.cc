@@ -1,16 +1,20 @@
-// mapmesh-eval: scores the maps of a run directory against its truth.json and prints one
-// JSON document on stdout (scripts/swarm merges it into summary.json).
+// mapmesh-eval: scores the maps of a run directory against its truth.json (and, with
+// --reference, against a reference map) and prints one JSON document on stdout (scripts/swarm
+// merges it into summary.json).
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 
 #include <map>
+#include <optional>
+#include <random>
 
 #include "common/app/process.h"
 #include "common/geometry/rigid_fit.h"
 #include "common/io/run_files.h"
 #include "common/metrics/landmark_metrics.h"
+#include "common/metrics/reference_metrics.h"
 #include "common/metrics/trajectory_metrics.h"
 
 namespace mapmesh {
@@ -100,13 +104,35 @@ json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::
   return out;
 }
 
+json ReferenceJson(const ReferenceQuality& q) {
+  json j = {{"aligned", q.aligned}, {"landmarks", q.landmarks}, {"reference_landmarks", q.reference_landmarks}};
+  if (!q.aligned) return j;
+  j.update({{"matched", q.matched},
+            {"duplicates", q.duplicates},
+            {"extra", q.extra},
+            {"reference_coverage", q.reference_coverage},
+            {"rmse_m", q.rmse_m},
+            {"nees_mean", q.nees_mean},
+            {"to_reference", {q.to_reference.x, q.to_reference.y, q.to_reference.theta}}});
+  return j;
+}
+
 int Run(int argc, char** argv) {
   CLI::App cli{"mapmesh-eval: scores a run's maps against its ground truth (JSON on stdout)"};
   std::string run_dir;
   double gate_m = 2.0;
   cli.add_option("--run", run_dir, "run directory (holds truth.json and agent_<id>/)")->required();
   cli.add_option("--gate", gate_m, "metres: landmarks without a signature match the nearest true one within this");
+  std::string reference_path;
+  cli.add_option("--reference", reference_path,
+                 "also score every map against this reference map (a map JSON, say the whole run as one agent): "
+                 "aligned to it by geometry, matched to its nearest landmark within --gate; for data without "
+                 "landmark truth")
+      ->check(CLI::ExistingFile);
   if (auto code = app::ParseArgs(cli, "mapmesh-eval", argc, argv)) return *code;
+  std::optional<LandmarkMap> reference;
+  if (!reference_path.empty()) reference = io::MapFromJson(io::ReadJson(reference_path));
+  std::mt19937_64 rng(1);
   const io::RunTruth truth = io::TruthFromJson(io::ReadJson(run_dir + "/truth.json"));
   json agents = json::object();
   for (const io::RobotTruth& robot : truth.robots) {
@@ -141,6 +167,9 @@ int Run(int argc, char** argv) {
       // error of its shape alone.
       const MapQuality aligned = EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, std::nullopt, gate_m);
       entry[kind]["rmse_aligned_m"] = aligned.evaluated ? json(aligned.rmse_m) : json();
+      if (reference) {
+        entry[kind]["reference"] = ReferenceJson(CompareToReference(map, *reference, gate_m, AlignmentOptions{}, rng));
+      }
     }
     // The global map restricted to the landmarks this agent mapped itself (its local map is
     // one of their inputs): fusion must not make them worse.

@@ -64,11 +64,6 @@ Eigen::Vector2d Centroid(const LandmarkMap& m) {
   return m.empty() ? c : Eigen::Vector2d(c / static_cast<double>(m.size()));
 }
 
-LandmarkMap WithoutSignatures(LandmarkMap m) {
-  for (Landmark& l : m.landmarks) l.signature = -1;
-  return m;
-}
-
 }  // namespace
 
 FusionTrialResult RunFusionTrial(const std::vector<SlamRunResult>& robots, const FusionTrialOptions& o,

@@ -31,4 +31,9 @@ LandmarkMap TransformMap(const LandmarkMap& map, const Pose2& pose) {
   return out;
 }
 
+LandmarkMap WithoutSignatures(LandmarkMap map) {
+  for (Landmark& l : map.landmarks) l.signature = -1;
+  return map;
+}
+
 }  // namespace mapmesh

@@ -41,4 +41,7 @@ bool IsValidCovariance(const Eigen::Matrix2d& cov);
 // The map expressed in a parent frame: means mapped by `pose`, covariances rotated.
 LandmarkMap TransformMap(const LandmarkMap& map, const Pose2& pose);
 
+// The map with every signature cleared: what geometry-only alignment and matching see.
+LandmarkMap WithoutSignatures(LandmarkMap map);
+
 }  // namespace mapmesh
