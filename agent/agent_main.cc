@@ -62,6 +62,8 @@ json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
                      {"failures", p.failures},
                      {"rejected", p.rejected},
                      {"drops", p.drops},
+                     {"realignments", p.realignments},
+                     {"corrections", p.corrections},
                      {"last_verdict", std::string(ToString(p.last_verdict))}});
   }
   json lost = json::object();

@@ -77,6 +77,7 @@ bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now) {
   p.report.last_verdict = r.verdict;
   p.last_attempt = now;
   p.own_size_at_attempt = own_local.size();
+  p.peer_size_at_attempt = theirs.size();
   p.changed = false;
   if (!r.accepted()) return false;
   p.report.to_own = r.transform;
@@ -84,6 +85,14 @@ bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now) {
   p.report.centroid = Centroid(theirs);
   ChooseSource(p, own_local);
   return true;
+}
+
+bool MapExchange::RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const {
+  if (!options_.realign_on_growth || now - p.last_attempt < options_.align_period_s) return false;
+  const auto grew = [&](std::size_t size, std::size_t at) {
+    return static_cast<double>(size) >= (1.0 + options_.retry_growth) * static_cast<double>(std::max<std::size_t>(1, at));
+  };
+  return grew(own_local.size(), p.own_size_at_attempt) || grew(PeerMap(p).size(), p.peer_size_at_attempt);
 }
 
 bool MapExchange::Verify(Peer& p, const LandmarkMap& own_local) {
@@ -147,6 +156,27 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
         changed = true;
       }
       continue;
+    }
+    // Aligned, and both maps grew since the last full alignment: align afresh. A transform
+    // accepted on small maps can be a coincidence that verification at that same transform
+    // keeps passing in a dense map; with more landmarks the true alignment has the larger
+    // support. An accepted answer replaces the transform; otherwise verification goes on.
+    if (RealignDue(p, own_local, now)) {
+      const Pose2 before = p.report.to_own;
+      const Eigen::Vector2d at = p.report.centroid;
+      const bool was_changed = p.changed;
+      ++p.report.realignments;
+      if (Align(p, own_local, now)) {
+        p.report.failures = 0;
+        const double dt = (p.report.to_own.Apply(at) - before.Apply(at)).norm();
+        const double dth = std::abs(WrapAngle(p.report.to_own.theta - before.theta));
+        if (dt > options_.relay_tolerance_m || dth > DegToRad(options_.relay_tolerance_deg)) {
+          ++p.report.corrections;
+          changed = true;
+        }
+        continue;
+      }
+      p.changed = was_changed;
     }
     // Aligned: every newer map is verified at the known transform before it is used. A
     // stale peer's maps no longer change: its verified state stays as it is.

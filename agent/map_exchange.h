@@ -37,6 +37,8 @@ struct ExchangeOptions {
   double align_period_s = 5.0;     // an unaligned peer is tried again this often, when its map changed ...
   double retry_growth = 0.2;       // ... or ours grew by this share
   int drop_after_failures = 2;     // consecutive failed verifications drop the alignment
+  bool realign_on_growth = true;   // an aligned peer is aligned afresh when either map grew by retry_growth
+                                   // (at most every align_period_s); an accepted answer replaces the transform
   bool relay_global_maps = true;   // fuse a peer's global map when it agrees with the peer's alignment
   double relay_tolerance_m = 1.0;  // ... within this (at the map's centroid) ...
   double relay_tolerance_deg = 2.0;  // ... and this
@@ -71,6 +73,8 @@ struct PeerReport {
   int failures = 0;                // consecutive failed verifications (reset by a success)
   int rejected = 0;                // failed verifications in all
   int drops = 0;                   // times the alignment was dropped
+  int realignments = 0;            // fresh alignments of an aligned peer (realign_on_growth) ...
+  int corrections = 0;             // ... that replaced a transform they disagreed with
   AlignmentVerdict last_verdict = AlignmentVerdict::kTooFewLandmarks;
 };
 
@@ -115,13 +119,15 @@ class MapExchange {
     std::uint32_t local_version = 0, global_version = 0;
     bool changed = false;            // a map arrived since the last attempt or verification
     double last_attempt = -1e300;
-    std::size_t own_size_at_attempt = 0;
+    std::size_t own_size_at_attempt = 0, peer_size_at_attempt = 0;
     // What the global map takes from this peer.
     std::optional<MapSource> source;
     std::optional<MapSource> direct;  // ... and the one-hop map (never a relayed global map)
   };
   // Aligns the peer's map to the own local map; on success stores the transform and source.
   bool Align(Peer& p, const LandmarkMap& own_local, double now);
+  // An aligned peer's fresh alignment is due (realign_on_growth).
+  bool RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const;
   // Checks the peer's newest map at the known transform; on success refines it and the source.
   bool Verify(Peer& p, const LandmarkMap& own_local);
   // Which map of the peer the global map fuses: its global map when it verifies, else its local map.

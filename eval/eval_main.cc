@@ -156,6 +156,7 @@ int Run(int argc, char** argv) {
     if (!origin && std::filesystem::exists(dir + "/local_map.json")) {
       local_fit = MapFrameInWorld(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks);
     }
+    std::optional<Pose2> local_to_reference;
     for (const char* kind : {"local", "global"}) {
       const std::string path = dir + "/" + kind + "_map.json";
       if (!std::filesystem::exists(path)) continue;
@@ -168,7 +169,12 @@ int Run(int argc, char** argv) {
       const MapQuality aligned = EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, std::nullopt, gate_m);
       entry[kind]["rmse_aligned_m"] = aligned.evaluated ? json(aligned.rmse_m) : json();
       if (reference) {
-        entry[kind]["reference"] = ReferenceJson(CompareToReference(map, *reference, gate_m, AlignmentOptions{}, rng));
+        // The global map is in the local map's frame: it is placed where the local map aligned.
+        const ReferenceQuality rq = CompareToReference(map, *reference, gate_m, AlignmentOptions{}, rng,
+                                                       std::string(kind) == "global" ? local_to_reference : std::nullopt);
+        if (std::string(kind) == "local" && rq.aligned) local_to_reference = rq.to_reference;
+        entry[kind]["reference"] = ReferenceJson(rq);
+        entry[kind]["reference"]["frame"] = std::string(kind) == "global" ? "local_map_alignment" : "alignment";
       }
     }
     // The global map restricted to the landmarks this agent mapped itself (its local map is

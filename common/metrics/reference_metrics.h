@@ -14,7 +14,7 @@
 namespace mapmesh {
 
 struct ReferenceQuality {
-  bool aligned = false;        // the map aligned to the reference; nothing else is set otherwise
+  bool aligned = false;        // the map's frame in the reference's is known (aligned, or given); nothing else is set otherwise
   Pose2 to_reference;          // the map's frame in the reference's
   int landmarks = 0;           // in the map
   int reference_landmarks = 0;
@@ -26,8 +26,11 @@ struct ReferenceQuality {
   double nees_mean = 0.0;      // over matched landmarks, map and reference covariances added
 };
 
-// Signatures are ignored: the alignment and the matching use geometry only.
+// Signatures are ignored: the alignment and the matching use geometry only. With
+// known_frame (the map's frame in the reference's, say from another map in the same frame)
+// the alignment is skipped.
 ReferenceQuality CompareToReference(const LandmarkMap& map, const LandmarkMap& reference, double gate_m,
-                                    const AlignmentOptions& align, std::mt19937_64& rng);
+                                    const AlignmentOptions& align, std::mt19937_64& rng,
+                                    const std::optional<Pose2>& known_frame = std::nullopt);
 
 }  // namespace mapmesh

@@ -147,6 +147,72 @@ TEST(MapExchange, AWrongButWellFormedMapFailsVerificationAndNeverEntersTheGlobal
   EXPECT_EQ(w.PlacedIn(a.global().map, kFrameA, 0, 40, 0.2), static_cast<int>(a.global().map.size()));
 }
 
+// A world with a repeated patch: 10 landmarks near the origin (R1), the same pattern turned by
+// 90 degrees at x = 40 (R2), and 14 more landmarks just above R1 (S).
+struct RepeatedPatch {
+  std::vector<Eigen::Vector2d> r1, r2, s;
+  explicit RepeatedPatch(std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 10.0);
+    auto spaced = [](std::vector<Eigen::Vector2d>& v, const Eigen::Vector2d& p) {
+      if (std::all_of(v.begin(), v.end(), [&](const auto& q) { return (q - p).norm() > 1.5; })) v.push_back(p);
+    };
+    while (r1.size() < 10) spaced(r1, {u(rng), u(rng)});
+    const Pose2 copy{45.0, 0.0, M_PI / 2};
+    for (const auto& p : r1) r2.push_back(copy.Apply(p));
+    while (s.size() < 14) spaced(s, {u(rng), 12.0 + u(rng)});
+  }
+  static LandmarkMap Map(const std::vector<std::vector<Eigen::Vector2d>>& parts, const Pose2& frame) {
+    LandmarkMap m;
+    for (const auto& part : parts) {
+      for (const auto& p : part) {
+        Landmark l;
+        l.id = static_cast<std::uint32_t>(m.size());
+        l.mean = frame.Inverse().Apply(p);
+        l.cov = kSigma * kSigma * Eigen::Matrix2d::Identity();
+        m.landmarks.push_back(l);
+      }
+    }
+    m.shape_sigma_m = kSigma;
+    return m;
+  }
+};
+
+// Robot 2 first maps R1 while robot 1 has mapped only R2 (the copy): the only alignment
+// there is is the false one. Later both maps grow over R1 and S. Verification at the false
+// transform keeps passing (R1 still lies on R2, and S falls where robot 1 has mapped nothing);
+// aligning afresh on the grown maps finds the true transform.
+TEST(MapExchange, AnAlignmentAcceptedOnSmallMapsIsCorrectedAsTheMapsGrow) {
+  for (bool realign : {false, true}) {
+    SCOPED_TRACE(realign);
+    const RepeatedPatch w(5);
+    ExchangeOptions o;
+    o.realign_on_growth = realign;
+    MapExchange a(1, 1, o, 6);
+    a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, RepeatedPatch::Map({w.r1}, kFrameB), 0.0);
+    a.Update(RepeatedPatch::Map({w.r2}, kFrameA), 10.0);
+    ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
+    const Pose2 truth = kFrameA.Inverse() * kFrameB;
+    const Eigen::Vector2d probe = kFrameB.Inverse().Apply(Eigen::Vector2d(5.0, 5.0));
+    EXPECT_GT((a.Peers().front().to_own.Apply(probe) - truth.Apply(probe)).norm(), 10.0);  // false
+
+    a.OnPeerMap(2, 1, MapKind::kLocal, 2, 0.0, RepeatedPatch::Map({w.r1, w.s}, kFrameB), 20.0);
+    a.Update(RepeatedPatch::Map({w.r2, w.r1, w.s}, kFrameA), 20.0);
+    const PeerReport r = a.Peers().front();
+    EXPECT_TRUE(r.aligned);
+    const double error = (r.to_own.Apply(probe) - truth.Apply(probe)).norm();
+    if (realign) {
+      EXPECT_LT(error, 0.1);
+      EXPECT_EQ(r.realignments, 1);
+      EXPECT_EQ(r.corrections, 1);
+    } else {
+      EXPECT_GT(error, 10.0);  // verification alone keeps the false transform
+      EXPECT_EQ(r.realignments, 0);
+      EXPECT_EQ(r.rejected, 0);
+    }
+  }
+}
+
 TEST(MapExchange, AStalePeerKeepsItsLastVerifiedContribution) {
   Pair p(11);
   auto& [w, rng, a, la, lb] = p;

@@ -78,6 +78,23 @@ TEST_P(ReferenceQualityTest, FindsTheFrameCountsMatchesDuplicatesAndExtras) {
 
 INSTANTIATE_TEST_SUITE_P(Seeds, ReferenceQualityTest, ::testing::Range<std::uint64_t>(1, 6));
 
+TEST(ReferenceQuality, AKnownFrameSkipsTheAlignment) {
+  std::mt19937_64 rng(2);
+  const LandmarkMap reference = World(50, rng);
+  const Pose2 frame{3.0, 4.0, -0.5};
+  const LandmarkMap map = TransformMap(reference, frame.Inverse());
+  const ReferenceQuality q = CompareToReference(map, reference, 2.0, AlignmentOptions{}, rng, frame);
+  ASSERT_TRUE(q.aligned);
+  EXPECT_EQ(q.to_reference.x, frame.x);
+  EXPECT_EQ(q.matched, 50);
+  EXPECT_LT(q.rmse_m, 1e-9);
+  // A wrong known frame is used as given: nothing matches.
+  const ReferenceQuality off = CompareToReference(map, reference, 2.0, AlignmentOptions{}, rng, Pose2{500.0, 0.0, 0.0});
+  EXPECT_TRUE(off.aligned);
+  EXPECT_EQ(off.matched, 0);
+  EXPECT_EQ(off.extra, 50);
+}
+
 TEST(ReferenceQuality, AnUnrelatedMapDoesNotAlign) {
   std::mt19937_64 rng(3);
   const LandmarkMap reference = World(50, rng);
