@@ -71,7 +71,7 @@ void MapExchange::AddOwnCheckpoint(std::uint32_t incarnation, double origin_stam
   p.changed = true;
 }
 
-bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now) {
+bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool reconsider_relay) {
   const LandmarkMap& theirs = PeerMap(p);
   const AlignmentResult r = AlignMaps(own_local, theirs, options_.align, rng_);
   p.report.last_verdict = r.verdict;
@@ -83,12 +83,13 @@ bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now) {
   p.report.to_own = r.transform;
   p.report.to_own_cov = r.cov;
   p.report.centroid = Centroid(theirs);
-  ChooseSource(p, own_local);
+  ChooseSource(p, own_local, reconsider_relay);
   return true;
 }
 
 bool MapExchange::RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const {
-  if (!options_.realign_on_growth || now - p.last_attempt < options_.align_period_s) return false;
+  // A stale peer's contribution stays as it was verified (nothing already learned is lost).
+  if (!options_.realign_on_growth || p.report.stale || now - p.last_attempt < options_.align_period_s) return false;
   const auto grew = [&](std::size_t size, std::size_t at) {
     return static_cast<double>(size) >= (1.0 + options_.retry_growth) * static_cast<double>(std::max<std::size_t>(1, at));
   };
@@ -103,21 +104,45 @@ bool MapExchange::Verify(Peer& p, const LandmarkMap& own_local) {
   p.report.to_own = r.transform;
   p.report.to_own_cov = r.cov;
   p.report.centroid = Centroid(PeerMap(p));
-  ChooseSource(p, own_local);
+  ChooseSource(p, own_local, true);
+  return true;
+}
+
+bool MapExchange::RelayAgrees(const Peer& p, const Pose2& to_own) const {
+  for (const auto& [key, q] : peers_) {
+    if (&q == &p || !q.direct || q.direct->map.empty()) continue;
+    // q's map as we placed it, against p's global map where p placed it: where they overlap,
+    // p's map must verify there, at the same transform.
+    const LandmarkMap placed = TransformMap(q.direct->map, q.direct->to_own);
+    const AlignmentResult r = VerifyAlignment(placed, p.global, to_own, options_.align);
+    if (r.covered < options_.align.min_inliers) continue;  // they do not overlap
+    if (!r.accepted() || static_cast<double>(r.inliers.size()) < options_.relay_min_agreement * r.covered) return false;
+    const Eigen::Vector2d c = Centroid(p.global);
+    if ((r.transform.Apply(c) - to_own.Apply(c)).norm() > options_.relay_tolerance_m ||
+        std::abs(WrapAngle(r.transform.theta - to_own.theta)) > DegToRad(options_.relay_tolerance_deg)) {
+      return false;
+    }
+  }
   return true;
 }
 
 const LandmarkMap& MapExchange::PeerMap(const Peer& p) { return p.has_local && !p.local.empty() ? p.local : p.global; }
 
-void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local) {
+void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local, bool reconsider_relay) {
   MapSource s;
   s.robot = p.report.key.robot;
   s.incarnation = p.report.key.incarnation;
   s.to_own = p.report.to_own;
   s.to_own_cov = p.report.to_own_cov;
   s.map = PeerMap(p);
-  p.report.relayed = false;
   p.direct = s;
+  if (!reconsider_relay) {  // the same maps as before, at the new transform
+    if (p.report.relayed) s.map = p.global;
+    if (p.report.own_checkpoint) p.direct = s;
+    p.source = std::move(s);
+    return;
+  }
+  p.report.relayed = false;
   // The peer's global map is in the peer's frame too: use it if it verifies where the peer's
   // local map aligned.
   if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
@@ -127,8 +152,12 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local) {
       const double dt = (g.transform.Apply(c) - s.to_own.Apply(c)).norm();
       const double dth = std::abs(WrapAngle(g.transform.theta - s.to_own.theta));
       if (dt <= options_.relay_tolerance_m && dth <= DegToRad(options_.relay_tolerance_deg)) {
-        s.map = p.global;
-        p.report.relayed = true;
+        if (!options_.relay_must_agree || RelayAgrees(p, s.to_own)) {
+          s.map = p.global;
+          p.report.relayed = true;
+        } else {
+          ++p.report.relay_conflicts;
+        }
       }
     }
   }
@@ -139,6 +168,7 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local) {
 
 bool MapExchange::Update(const LandmarkMap& own_local, double now) {
   bool changed = false;
+  std::set<PeerKey> chosen;  // peers whose map was chosen in this round
   for (auto& [key, p] : peers_) {
     if (!p.has_local && !p.has_global) continue;
     if (!p.report.aligned) {
@@ -147,7 +177,8 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
                                                      static_cast<double>(std::max<std::size_t>(1, p.own_size_at_attempt));
       if (now - p.last_attempt < options_.align_period_s || !(p.changed || own_grew)) continue;
       ++p.report.attempts;
-      if (Align(p, own_local, now)) {
+      if (Align(p, own_local, now, /*reconsider_relay=*/true)) {
+        chosen.insert(key);
         p.report.aligned = true;
         p.report.dropped = false;
         p.report.failures = 0;
@@ -166,7 +197,9 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
       const Eigen::Vector2d at = p.report.centroid;
       const bool was_changed = p.changed;
       ++p.report.realignments;
-      if (Align(p, own_local, now)) {
+      // With no new map from the peer, the choice of its map stays: only its transform moves.
+      if (Align(p, own_local, now, /*reconsider_relay=*/was_changed)) {
+        if (was_changed) chosen.insert(key);
         p.report.failures = 0;
         const double dt = (p.report.to_own.Apply(at) - before.Apply(at)).norm();
         const double dth = std::abs(WrapAngle(p.report.to_own.theta - before.theta));
@@ -183,6 +216,7 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     if (!p.changed || p.report.stale) continue;
     ++p.report.verifications;
     if (Verify(p, own_local)) {
+      chosen.insert(key);
       p.report.failures = 0;
       continue;
     }
@@ -195,6 +229,15 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
       p.direct.reset();
       p.last_attempt = now;
       changed = true;
+    }
+  }
+  // A new or moved alignment changes what the other peers' relays must agree with: the peers
+  // whose maps were chosen in this round choose again, now that all its transforms are known.
+  // (A peer that sent nothing new keeps its choice: until its liveliness is lost, a dead peer
+  // is not known to be dead, and what it gave must stay as it was.)
+  if (changed && options_.relay_must_agree) {
+    for (auto& [key, p] : peers_) {
+      if (p.source && chosen.count(key)) ChooseSource(p, own_local, true);
     }
   }
   std::vector<MapSource> sources, direct;

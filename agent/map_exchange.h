@@ -5,11 +5,13 @@
 // peer's map to its own local map (map_alignment.h), verifies every newer map of an aligned
 // peer at the known transform before using it (so a corrupted or wrong map is refused, and the
 // transform is refined as both maps grow), drops the alignment when verification keeps failing,
-// and rebuilds the cloned global map (global_map.h) from its local map and every aligned peer's
+// aligns afresh as the maps grow (a false alignment accepted on small maps is replaced), and
+// rebuilds the cloned global map (global_map.h) from its local map and every aligned peer's
 // latest verified map.
 //
-// - Relay: when a peer's global map agrees with the peer's alignment, it is fused instead of
-//   the peer's local map, which brings in what the peer learned from robots out of our range.
+// - Relay: when a peer's global map agrees with the peer's alignment, and with every other
+//   aligned peer's map it overlaps, it is fused instead of the peer's local map, which brings in
+//   what the peer learned from robots out of our range.
 //   What an agent publishes as its global map is its one-hop map (published()): its local map
 //   fused with its aligned peers' local maps only. A relayed map therefore never carries back
 //   what the receiver itself sent, nor anything of a source once that source is dropped, so
@@ -37,11 +39,14 @@ struct ExchangeOptions {
   double align_period_s = 5.0;     // an unaligned peer is tried again this often, when its map changed ...
   double retry_growth = 0.2;       // ... or ours grew by this share
   int drop_after_failures = 2;     // consecutive failed verifications drop the alignment
-  bool realign_on_growth = true;   // an aligned peer is aligned afresh when either map grew by retry_growth
+  bool realign_on_growth = true;   // a live aligned peer is aligned afresh when either map grew by retry_growth
                                    // (at most every align_period_s); an accepted answer replaces the transform
   bool relay_global_maps = true;   // fuse a peer's global map when it agrees with the peer's alignment
   double relay_tolerance_m = 1.0;  // ... within this (at the map's centroid) ...
   double relay_tolerance_deg = 2.0;  // ... and this
+  bool relay_must_agree = true;    // ... and where it overlaps another aligned peer's map, verifies against
+                                   // that map too (a relay must not place a robot elsewhere than we do) ...
+  double relay_min_agreement = 0.8;  // ... with this share of the overlapping landmarks as inliers
   AlignmentOptions align;
   GlobalMapOptions global;
 };
@@ -68,6 +73,7 @@ struct PeerReport {
   Pose2 to_own;                    // the peer's frame in ours
   Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();
   bool relayed = false;            // its global map is fused (not its local map)
+  int relay_conflicts = 0;         // times its global map disagreed with another peer's map (not relayed then)
   Eigen::Vector2d centroid = Eigen::Vector2d::Zero();  // of the peer map aligned last, in its frame
   int attempts = 0, verifications = 0;
   int failures = 0;                // consecutive failed verifications (reset by a success)
@@ -125,13 +131,17 @@ class MapExchange {
     std::optional<MapSource> direct;  // ... and the one-hop map (never a relayed global map)
   };
   // Aligns the peer's map to the own local map; on success stores the transform and source.
-  bool Align(Peer& p, const LandmarkMap& own_local, double now);
+  bool Align(Peer& p, const LandmarkMap& own_local, double now, bool reconsider_relay);
   // An aligned peer's fresh alignment is due (realign_on_growth).
   bool RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const;
   // Checks the peer's newest map at the known transform; on success refines it and the source.
   bool Verify(Peer& p, const LandmarkMap& own_local);
-  // Which map of the peer the global map fuses: its global map when it verifies, else its local map.
-  void ChooseSource(Peer& p, const LandmarkMap& own_local);
+  // Which map of the peer the global map fuses: its global map when it verifies, else its local
+  // map. Without reconsider_relay the earlier choice stays and only the transform is updated.
+  void ChooseSource(Peer& p, const LandmarkMap& own_local, bool reconsider_relay);
+  // Whether the peer's global map, at `to_own`, agrees with every other peer's one-hop
+  // contribution it overlaps (relay_must_agree).
+  bool RelayAgrees(const Peer& p, const Pose2& to_own) const;
   static const LandmarkMap& PeerMap(const Peer& p);
 
   RobotId self_;

@@ -118,6 +118,58 @@ TEST(MapExchange, PublishesItsOneHopMapAndUsesAPeersOneHopMapForRobotsOutOfRange
   EXPECT_LT(a.published().map.size(), a.global().map.size());
 }
 
+// A hears B and C; B's one-hop map carries C's landmarks 3 m from where A (and the truth)
+// puts them, say from a poor alignment at B. A must not relay it: its global map would hold
+// C's landmarks twice.
+TEST(MapExchange, ARelayThatPlacesAPeerElsewhereThanWeDoIsNotUsed) {
+  World w(200, 4);
+  std::mt19937_64 rng(5);
+  const LandmarkMap la = w.Map(0, 25, kFrameA, kSigma, rng);
+  const LandmarkMap lb = w.Map(10, 30, kFrameB, kSigma, rng);
+  const LandmarkMap lc = w.Map(20, 40, kFrameC, kSigma, rng);
+  MapExchange b(2, 1, {}, 6);
+  b.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
+  b.OnPeerMap(1, 1, MapKind::kLocal, 1, 0.0, la, 0.0);
+  b.Update(lb, 10.0);
+  ASSERT_EQ(b.AlignedRobots(), (std::vector<RobotId>{1, 3}));
+  // B's one-hop map with everything beyond x = 30 (C's alone) moved 3 m.
+  LandmarkMap bad = b.published().map;
+  for (Landmark& l : bad.landmarks) {
+    if (kFrameB.Apply(l.mean).x() >= 30.0) l.mean += Eigen::Vector2d(3.0, 0.0);
+  }
+  for (bool must_agree : {true, false}) {
+    SCOPED_TRACE(must_agree);
+    ExchangeOptions o;
+    o.relay_must_agree = must_agree;
+    MapExchange a(1, 1, o, 7);
+    a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
+    a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
+    a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, bad, 0.0);
+    a.Update(la, 10.0);
+    ASSERT_EQ(a.AlignedRobots(), (std::vector<RobotId>{2, 3}));
+    const PeerReport rb = a.Peers().front();
+    ASSERT_EQ(rb.key.robot, 2u);
+    const int placed = w.PlacedIn(a.global().map, kFrameA, 0, 40, 0.3);
+    if (must_agree) {
+      EXPECT_FALSE(rb.relayed);
+      EXPECT_EQ(rb.relay_conflicts, 1);
+      EXPECT_EQ(placed, static_cast<int>(a.global().map.size()));
+      EXPECT_EQ(w.PlacedIn(a.global().map, kFrameA, 30, 40, 0.2), w.PlacedIn(lc, kFrameC, 30, 40, 0.2));
+    } else {
+      EXPECT_TRUE(rb.relayed);
+      EXPECT_LT(placed, static_cast<int>(a.global().map.size()));  // C's landmarks twice, once 3 m off
+    }
+  }
+  // B's true one-hop map agrees with C's map where they overlap: it is relayed.
+  MapExchange a(1, 1, {}, 7);
+  a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
+  a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b.published().map, 0.0);
+  a.Update(la, 10.0);
+  EXPECT_TRUE(a.Peers().front().relayed);
+  EXPECT_EQ(a.Peers().front().relay_conflicts, 0);
+}
+
 TEST(MapExchange, AWrongButWellFormedMapFailsVerificationAndNeverEntersTheGlobalMap) {
   Pair p(8);
   auto& [w, rng, a, la, lb] = p;
