@@ -274,10 +274,10 @@ int Run(int argc, char** argv) {
       if (s.valid) node.OnOdometry(s.value);
     }
     for (const auto& s : maps.Take()) {
-      if (s.valid) {
-        node.OnMap(s.value);
-      } else if (!s.alive && node.OnPeerLiveliness(s.value.robot_id, false)) {
-        // A peer's writer is gone (liveliness lost or the process ended): the peer is stale.
+      if (s.valid) node.OnMap(s.value);
+      // A peer's writer is gone: an invalid sample carries that, or the state of its last
+      // sample when that was still unread.
+      if (!s.alive && node.OnPeerLiveliness(s.value.robot_id, false)) {
         if (!lost_wall.count(s.value.robot_id)) {
           spdlog::info("peer {} lost (liveliness)", s.value.robot_id);
           lost_wall[s.value.robot_id] = WallNow();

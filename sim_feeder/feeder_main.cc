@@ -121,8 +121,10 @@ class Feeder {
       if (s.valid) {
         spdlog::trace("status {} inc {} t {:.2f}", s.value.robot_id, s.value.incarnation, s.value.processed_until);
         tracker_.OnStatus(s.value);
-      } else if (!s.alive) {
-        // The writer of that status instance is gone: liveliness expired or it was disposed.
+      }
+      if (!s.alive) {
+        // The writer of that status instance is gone (liveliness expired or it was disposed):
+        // an invalid sample says so, or the state of a last sample still unread.
         if (!tracker_.IsDead(s.value.robot_id)) {
           spdlog::warn("agent {} lost (DDS liveliness)", s.value.robot_id);
           tracker_.OnGone(s.value.robot_id);
