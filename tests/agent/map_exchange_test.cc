@@ -89,17 +89,26 @@ TEST(MapExchange, AlignsAPeerAndFusesItsLandmarksInPlace) {
   EXPECT_EQ(static_cast<int>(g.map.size()), union_size);
 }
 
+// Robots 1, 2 and 3 in a line: 1 maps x in [0, a_end), 2 [10, 30), 3 [c_start, 40). Robot 2
+// hears both others and has aligned them.
+struct LineOfThree {
+  World w{200, 4};
+  std::mt19937_64 rng{5};
+  LandmarkMap la, lb, lc;
+  MapExchange b{2, 1, {}, 6};
+  LineOfThree(double a_end, double c_start) {
+    la = w.Map(0, a_end, kFrameA, kSigma, rng);
+    lb = w.Map(10, 30, kFrameB, kSigma, rng);
+    lc = w.Map(c_start, 40, kFrameC, kSigma, rng);
+    b.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
+    b.OnPeerMap(1, 1, MapKind::kLocal, 1, 0.0, la, 0.0);
+    b.Update(lb, 10.0);
+  }
+};
+
 TEST(MapExchange, PublishesItsOneHopMapAndUsesAPeersOneHopMapForRobotsOutOfRange) {
-  World w(200, 4);
-  std::mt19937_64 rng(5);
-  const LandmarkMap la = w.Map(0, 18, kFrameA, kSigma, rng);
-  const LandmarkMap lb = w.Map(10, 30, kFrameB, kSigma, rng);
-  const LandmarkMap lc = w.Map(22, 40, kFrameC, kSigma, rng);
-  // B hears A and C; A never hears C.
-  MapExchange b(2, 1, {}, 6);
-  b.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
-  b.OnPeerMap(1, 1, MapKind::kLocal, 1, 0.0, la, 0.0);
-  b.Update(lb, 10.0);
+  LineOfThree line(18, 22);  // A never hears C
+  auto& [w, rng, la, lb, lc, b] = line;
   ASSERT_EQ(b.AlignedRobots(), (std::vector<RobotId>{1, 3}));
   MapExchange a(1, 1, {}, 7);
   a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
@@ -122,15 +131,8 @@ TEST(MapExchange, PublishesItsOneHopMapAndUsesAPeersOneHopMapForRobotsOutOfRange
 // puts them, say from a poor alignment at B. A must not relay it: its global map would hold
 // C's landmarks twice.
 TEST(MapExchange, ARelayThatPlacesAPeerElsewhereThanWeDoIsNotUsed) {
-  World w(200, 4);
-  std::mt19937_64 rng(5);
-  const LandmarkMap la = w.Map(0, 25, kFrameA, kSigma, rng);
-  const LandmarkMap lb = w.Map(10, 30, kFrameB, kSigma, rng);
-  const LandmarkMap lc = w.Map(20, 40, kFrameC, kSigma, rng);
-  MapExchange b(2, 1, {}, 6);
-  b.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
-  b.OnPeerMap(1, 1, MapKind::kLocal, 1, 0.0, la, 0.0);
-  b.Update(lb, 10.0);
+  LineOfThree line(25, 20);  // A hears C too
+  auto& [w, rng, la, lb, lc, b] = line;
   ASSERT_EQ(b.AlignedRobots(), (std::vector<RobotId>{1, 3}));
   // B's one-hop map with everything beyond x = 30 (C's alone) moved 3 m.
   LandmarkMap bad = b.published().map;
