@@ -51,6 +51,7 @@ std::unique_ptr<LocalMapper> MakeLocalMapper(const Scenario& sc, RobotId self) {
   o.tentative_timeout_s = a.tentative_timeout_s;
   o.min_range_m = a.min_range_m;
   o.max_range_m = a.max_range_m;
+  o.ekf.first_estimates_jacobians = a.first_estimates_jacobians;
   o.cekf.region_half_m = a.region_half_m;
   const double range = a.max_range_m > 0 ? a.max_range_m : robot->sensor.max_range_m;
   o.cekf.reach_m = a.region_reach_m > 0 ? a.region_reach_m : range + 4.0;

@@ -288,6 +288,7 @@ AgentOptions ReadAgent(YamlReader a) {
   a.GetNonNegative("max_range_m", o.max_range_m);
   a.GetPositive("region_half_m", o.region_half_m);
   a.GetNonNegative("region_reach_m", o.region_reach_m);
+  a.Get("first_estimates_jacobians", o.first_estimates_jacobians);
   a.GetPositive("map_publish_period_s", o.map_publish_period_s);
   a.GetPositive("status_period_s", o.status_period_s);
   a.GetPositive("association_gate_m", o.association_gate_m);

@@ -8,8 +8,14 @@
 
 namespace mapmesh {
 
-CekfSlam::CekfSlam(const FilterNoise& noise, const CekfOptions& options)
-    : noise_(noise), options_(options), gx_(Eigen::VectorXd::Zero(3)), gp_(Eigen::MatrixXd::Zero(3, 3)), gn_(3) {
+CekfSlam::CekfSlam(const FilterNoise& noise, const CekfOptions& options, const EkfOptions& ekf_options)
+    : noise_(noise),
+      options_(options),
+      ekf_options_(ekf_options),
+      gx_(Eigen::VectorXd::Zero(3)),
+      gp_(Eigen::MatrixXd::Zero(3, 3)),
+      gfe_(Eigen::VectorXd::Zero(3)),
+      gn_(3) {
   StartPeriod();
 }
 
@@ -42,7 +48,9 @@ void CekfSlam::StartPeriod() {
   Eigen::VectorXd xa;
   Eigen::MatrixXd paa;
   GatherState(gx_, gp_, idx_a_, &xa, &paa);
-  active_ = EkfState(xa, paa);
+  // The active part keeps its first estimates (and the robot's propagated pose) across periods,
+  // so that its Jacobians are the full EKF's.
+  active_ = EkfState(xa, paa, gfe_(idx_a_), ekf_options_);
   pab1_ = gp_(idx_a_, idx_b_);
   const int na = static_cast<int>(idx_a_.size());
   phi_ = Eigen::MatrixXd::Identity(na, na);
@@ -90,7 +98,8 @@ void CekfSlam::Add(LandmarkId id, const Eigen::Vector2d& z) {
   phi_.bottomRows<2>() = rows;
 }
 
-void CekfSlam::BatchUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& p, int n_old, std::vector<LandmarkId>* new_ids) const {
+void CekfSlam::BatchUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& p, int n_old, std::vector<LandmarkId>* new_ids,
+                           Eigen::VectorXd* fe) const {
   // (x, p) hold the state settled at the period start over [0, n_old), with room after it
   // for this period's new landmarks.
   std::vector<int> idx_a = idx_a_;
@@ -121,6 +130,9 @@ void CekfSlam::BatchUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& p, int n_old, st
   }
   const Eigen::MatrixXd pab = phi_ * pab1_;
   for (std::size_t i = 0; i < idx_a.size(); ++i) x(idx_a[i]) = active_.x()(static_cast<Eigen::Index>(i));
+  if (fe) {
+    for (std::size_t i = 0; i < idx_a.size(); ++i) (*fe)(idx_a[i]) = active_.first_estimates()(static_cast<Eigen::Index>(i));
+  }
   p(idx_a, idx_a) = active_.P();
   p(idx_a, idx_b_) = pab;
   p(idx_b_, idx_a) = pab.transpose();
@@ -138,9 +150,9 @@ void CekfSlam::Settled(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<Landm
 
 void CekfSlam::Switch() {
   const int n = gn_ + 2 * static_cast<int>(active_ids_.size() - period_active_);
-  GrowStateStorage(gx_, gp_, gn_, n);  // the settled storage
+  GrowStateStorage(gx_, gp_, gn_, n, &gfe_);  // the settled storage
   std::vector<LandmarkId> ids;
-  BatchUpdate(gx_, gp_, gn_, &ids);  // in place
+  BatchUpdate(gx_, gp_, gn_, &ids, &gfe_);  // in place
   for (LandmarkId id : ids) {
     global_index_[id] = static_cast<int>(global_ids_.size());
     global_ids_.push_back(id);

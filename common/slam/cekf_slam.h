@@ -22,7 +22,7 @@ struct CekfOptions {
 
 class CekfSlam : public LandmarkFilter {
  public:
-  CekfSlam(const FilterNoise& noise, const CekfOptions& options);
+  CekfSlam(const FilterNoise& noise, const CekfOptions& options, const EkfOptions& ekf_options = {});
 
   void Predict(const OdometryControl& u, double dt) override;
   bool Update(const std::vector<std::pair<LandmarkId, Eigen::Vector2d>>& obs) override;
@@ -47,17 +47,21 @@ class CekfSlam : public LandmarkFilter {
  private:
   // The batch update, applied in place to (x, p) holding the settled state of the period
   // start over [0, n_old); this period's new landmarks go after it, their ids to new_ids.
-  void BatchUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& p, int n_old, std::vector<LandmarkId>* new_ids) const;
+  // fe, if given, alongside x, receives the active part's first estimates.
+  void BatchUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& p, int n_old, std::vector<LandmarkId>* new_ids,
+                   Eigen::VectorXd* fe = nullptr) const;
   // A copy of the full state at the current time, over global indices.
   void Settled(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<LandmarkId>* ids) const;
   void StartPeriod();
 
   FilterNoise noise_;
   CekfOptions options_;
+  EkfOptions ekf_options_;
   // The settled state at the start of the period, over global indices: [robot, landmarks in
   // the order they were added]. Its active rows are stale during the period.
   Eigen::VectorXd gx_;  // storage with spare capacity: the state is its first gn_ entries
   Eigen::MatrixXd gp_;
+  Eigen::VectorXd gfe_;  // first estimates alongside gx_ (EkfState::first_estimates)
   int gn_ = 3;
   std::vector<LandmarkId> global_ids_;
   std::unordered_map<LandmarkId, int> global_index_;

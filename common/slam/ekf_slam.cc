@@ -16,7 +16,7 @@ void GatherState(const Eigen::VectorXd& x, const Eigen::MatrixXd& p, const std::
   }
 }
 
-EkfSlam::EkfSlam(const FilterNoise& noise) : noise_(noise) {}
+EkfSlam::EkfSlam(const FilterNoise& noise, const EkfOptions& options) : noise_(noise), state_(options) {}
 
 void EkfSlam::Predict(const OdometryControl& u, double dt) {
   state_.Predict(noise_.motion, u, dt, noise_.ControlCovFor(dt));

@@ -10,7 +10,7 @@ namespace mapmesh {
 
 class EkfSlam : public LandmarkFilter {
  public:
-  explicit EkfSlam(const FilterNoise& noise);
+  explicit EkfSlam(const FilterNoise& noise, const EkfOptions& options = {});
 
   void Predict(const OdometryControl& u, double dt) override;
   bool Update(const std::vector<std::pair<LandmarkId, Eigen::Vector2d>>& obs) override;

@@ -13,9 +13,9 @@ namespace mapmesh {
 
 LocalSlam::LocalSlam(const FilterNoise& noise, const LocalSlamOptions& options) : noise_(noise), options_(options) {
   if (options.filter == "ekf") {
-    filter_ = std::make_unique<EkfSlam>(noise);
+    filter_ = std::make_unique<EkfSlam>(noise, options.ekf);
   } else {
-    filter_ = std::make_unique<CekfSlam>(noise, options.cekf);
+    filter_ = std::make_unique<CekfSlam>(noise, options.cekf, options.ekf);
   }
 }
 

@@ -16,6 +16,7 @@ namespace mapmesh {
 struct LocalSlamOptions {
   std::string filter = "cekf";          // ekf | cekf
   AssociationOptions association;
+  EkfOptions ekf;                       // linearisation, of either filter
   CekfOptions cekf;
   bool tentative = false;               // a new landmark enters the map only when seen twice
   double tentative_gate_m = 1.0;        // a second sighting lands within this of the first

@@ -38,5 +38,44 @@ TEST(SlamQuality, ThesisDefaultScenarioIsConsistent) {
   EXPECT_LE(pose_nees, 4.5);
 }
 
+// The park runs (200 s, 4 robots, 20 seeds): the standard EKF grows overconfident (landmark
+// NEES near 3 where 2 is ideal); first-estimates Jacobians (FEJ-EKF) keep it consistent and no
+// less accurate.
+TEST(SlamQuality, FirstEstimatesJacobiansKeepTheParkRunsConsistent) {
+  struct Mean {
+    double landmark_nees = 0.0, pose_nees = 0.0, rmse = 0.0;
+    int n = 0;
+  };
+  Mean m[2];
+  for (bool fej : {false, true}) {
+    for (int seed = 1; seed <= 20; ++seed) {
+      const Scenario sc = LoadScenario(MAPMESH_SOURCE_DIR "/scenarios/park4.yaml",
+                                       {ParseOverride("seed=" + std::to_string(seed)),
+                                        ParseOverride(std::string("agent.first_estimates_jacobians=") + (fej ? "true" : "false"))});
+      for (const lab::SlamRunResult& r : lab::RunSlam(sc, {})) {
+        ASSERT_TRUE(r.map_evaluated);
+        ASSERT_FALSE(r.map_aligned);
+        m[fej].landmark_nees += r.landmark_nees;
+        m[fej].pose_nees += r.pose_nees;
+        m[fej].rmse += r.landmark_rmse_m;
+        ++m[fej].n;
+      }
+    }
+    m[fej].landmark_nees /= m[fej].n;
+    m[fej].pose_nees /= m[fej].n;
+    m[fej].rmse /= m[fej].n;
+    std::printf("park4, 20 seeds x 4 robots, %s: landmark NEES %.2f, pose NEES %.2f, landmark RMSE %.3f m\n",
+                fej ? "FEJ" : "standard", m[fej].landmark_nees, m[fej].pose_nees, m[fej].rmse);
+  }
+  RecordProperty("landmark_nees_standard", std::to_string(m[0].landmark_nees));
+  RecordProperty("landmark_nees_fej", std::to_string(m[1].landmark_nees));
+  EXPECT_GT(m[0].landmark_nees, 2.5);  // the inconsistency FEJ removes
+  EXPECT_GE(m[1].landmark_nees, 1.5);
+  EXPECT_LE(m[1].landmark_nees, 2.4);
+  EXPECT_GE(m[1].pose_nees, 2.5);
+  EXPECT_LE(m[1].pose_nees, 3.5);
+  EXPECT_LT(m[1].rmse, 1.05 * m[0].rmse);
+}
+
 }  // namespace
 }  // namespace mapmesh

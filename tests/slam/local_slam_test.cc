@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "common/slam/observation_model.h"
+#include "sim_feeder/simulator.h"
 
 namespace mapmesh {
 namespace {
@@ -85,6 +86,46 @@ TEST(LocalSlam, OutliersWithKnownSignaturesDoNotMoveTheMap) {
   slam.Observe({bad}, 6.0);
   EXPECT_EQ(slam.stats().rejected_gate, 1u);
   EXPECT_EQ(slam.Map().landmarks[0].mean, before);
+}
+
+TEST(LocalSlam, FirstEstimatesJacobiansReachEitherFilter) {
+  const Scenario sc = ParseScenario(R"(
+seed: 3
+duration_s: 60
+world: {landmarks: {generator: {count: 80, area_m: [0, 0, 40, 40], min_spacing_m: 1.5}}}
+robots:
+  count: 1
+  defaults: {preset: thesis, path: {type: random, count: 4}, sensor: {signatures: true}}
+)",
+                                    "fej.yaml");
+  auto run = [&](const std::string& filter, bool fej) {
+    LocalSlamOptions o;
+    o.filter = filter;
+    o.cekf = {/*region_half_m=*/3.0, /*reach_m=*/9.0};
+    o.ekf.first_estimates_jacobians = fej;
+    LocalSlam slam(Noise(), o);
+    Simulator sim(sc, BuildWorld(sc));
+    while (!sim.Done()) {
+      const FeedBatch b = sim.Next();
+      for (const Odometry& od : b.odom) slam.Predict({od.v, od.w, 0.0}, od.dt);
+      for (const Scan& scan : b.scans) slam.Observe(scan.obs, scan.stamp);
+    }
+    EXPECT_GT(slam.stats().associated, 100u);
+    return slam.Map();
+  };
+  auto largest_difference = [](const LandmarkMap& a, const LandmarkMap& b) {
+    EXPECT_EQ(a.size(), b.size());
+    double d = 0.0;
+    for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) {
+      d = std::max(d, (a.landmarks[i].mean - b.landmarks[i].mean).cwiseAbs().maxCoeff());
+    }
+    return d;
+  };
+  const LandmarkMap ekf = run("ekf", false), cekf = run("cekf", false);
+  const LandmarkMap ekf_fej = run("ekf", true), cekf_fej = run("cekf", true);
+  EXPECT_LT(largest_difference(ekf, cekf), 1e-9);
+  EXPECT_LT(largest_difference(ekf_fej, cekf_fej), 1e-9);
+  EXPECT_GT(largest_difference(ekf, ekf_fej), 1e-6);  // the option reached the filters
 }
 
 }  // namespace

@@ -137,5 +137,24 @@ TEST_P(AckermannJacobianTest, MatchesNumericalDifferentiation) {
 
 INSTANTIATE_TEST_SUITE_P(Seeds, AckermannJacobianTest, ::testing::Range(1, 6));
 
+// The first-estimates Jacobians (EkfState) rely on this: for both models the heading column
+// of the pose Jacobian is the position change turned by 90 degrees, d(p')/d(theta) = J (p' - p).
+TEST(MoveRobot, HeadingColumnIsThePositionChangeTurnedBy90Degrees) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-5, 5), ua(-M_PI, M_PI), uv(0.0, 3.0), us(-0.4, 0.4);
+  MotionModel car;
+  car.kind = MotionModel::Kind::kAckermann;
+  for (const MotionModel& model : {MotionModel{}, car}) {
+    for (int trial = 0; trial < 20; ++trial) {
+      const Pose2 p{u(rng), u(rng), ua(rng)};
+      const OdometryControl c{uv(rng), us(rng), us(rng)};
+      Eigen::Matrix3d j;
+      const Pose2 q = MoveRobot(model, p, c, 0.25, &j);
+      EXPECT_NEAR(j(0, 2), -(q.y - p.y), 1e-12);
+      EXPECT_NEAR(j(1, 2), q.x - p.x, 1e-12);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace mapmesh

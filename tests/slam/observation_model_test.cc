@@ -64,5 +64,28 @@ TEST_P(ObservationJacobianTest, MatchNumericalDifferentiation) {
 
 INSTANTIATE_TEST_SUITE_P(Seeds, ObservationJacobianTest, ::testing::Range(1, 6));
 
+// The structure the first-estimates Jacobians (EkfState) rely on: with d = m - p and J the
+// 90 degree rotation, H_robot = -H_landmark [I, J d] and G_robot = [I, J d], so a Jacobian
+// evaluated at other points (a landmark's first estimate) keeps the global translation and
+// rotation unobservable.
+TEST(RangeBearingJacobians, RobotPartIsTheLandmarkPartTimesTheRigidMotion) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-10, 10), ua(-M_PI, M_PI);
+  for (int trial = 0; trial < 20; ++trial) {
+    const Pose2 robot{u(rng), u(rng), ua(rng)};
+    const Eigen::Vector2d m(u(rng), u(rng));
+    const Eigen::Vector2d d = m - Eigen::Vector2d(robot.x, robot.y);
+    Matrix23 rigid;
+    rigid << 1, 0, -d.y(), 0, 1, d.x();
+    Matrix23 hr, gr;
+    Eigen::Matrix2d hl;
+    const Eigen::Vector2d z = ObserveRangeBearing(robot, m, &hr, &hl);
+    EXPECT_LT((hr + hl * rigid).cwiseAbs().maxCoeff(), 1e-12);
+    const Eigen::Vector2d back = InverseRangeBearing(robot, z, &gr);
+    EXPECT_LT((back - m).norm(), 1e-9);
+    EXPECT_LT((gr - rigid).cwiseAbs().maxCoeff(), 1e-9);
+  }
+}
+
 }  // namespace
 }  // namespace mapmesh
