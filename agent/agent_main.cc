@@ -59,6 +59,7 @@ json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
                      {"transform_cov", {c(0, 0), c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2)}},
                      {"centroid", {p.centroid.x(), p.centroid.y()}},
                      {"attempts", p.attempts},
+                     {"unconfirmed", p.unconfirmed},
                      {"verifications", p.verifications},
                      {"failures", p.failures},
                      {"rejected", p.rejected},

@@ -71,6 +71,11 @@ void MapExchange::AddOwnCheckpoint(std::uint32_t incarnation, double origin_stam
   p.changed = true;
 }
 
+bool MapExchange::Agree(const Pose2& a, const Pose2& b, const Eigen::Vector2d& at) const {
+  return (a.Apply(at) - b.Apply(at)).norm() <= options_.relay_tolerance_m &&
+         std::abs(WrapAngle(a.theta - b.theta)) <= DegToRad(options_.relay_tolerance_deg);
+}
+
 bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool reconsider_relay) {
   const LandmarkMap& theirs = PeerMap(p);
   const AlignmentResult r = AlignMaps(own_local, theirs, options_.align, rng_);
@@ -80,6 +85,16 @@ bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool 
   p.peer_size_at_attempt = theirs.size();
   p.changed = false;
   if (!r.accepted()) return false;
+  // An answer is used once a second, later one agrees with it (or with the transform in use).
+  const Eigen::Vector2d at = Centroid(theirs);
+  const bool confirmed = !options_.confirm_alignments || (p.report.aligned && Agree(p.report.to_own, r.transform, at)) ||
+                         (p.candidate && Agree(*p.candidate, r.transform, at));
+  if (!confirmed) {
+    p.candidate = r.transform;
+    ++p.report.unconfirmed;
+    return false;
+  }
+  p.candidate.reset();
   p.report.to_own = r.transform;
   p.report.to_own_cov = r.cov;
   p.report.centroid = Centroid(theirs);
@@ -117,11 +132,7 @@ bool MapExchange::RelayAgrees(const Peer& p, const Pose2& to_own) const {
     const AlignmentResult r = VerifyAlignment(placed, p.global, to_own, options_.align);
     if (r.covered < options_.align.min_inliers) continue;  // they do not overlap
     if (!r.accepted() || static_cast<double>(r.inliers.size()) < options_.relay_min_agreement * r.covered) return false;
-    const Eigen::Vector2d c = Centroid(p.global);
-    if ((r.transform.Apply(c) - to_own.Apply(c)).norm() > options_.relay_tolerance_m ||
-        std::abs(WrapAngle(r.transform.theta - to_own.theta)) > DegToRad(options_.relay_tolerance_deg)) {
-      return false;
-    }
+    if (!Agree(r.transform, to_own, Centroid(p.global))) return false;
   }
   return true;
 }
@@ -148,10 +159,7 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local, bool recon
   if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
     const AlignmentResult g = VerifyAlignment(own_local, p.global, s.to_own, options_.align);
     if (g.accepted()) {
-      const Eigen::Vector2d c = Centroid(p.global);
-      const double dt = (g.transform.Apply(c) - s.to_own.Apply(c)).norm();
-      const double dth = std::abs(WrapAngle(g.transform.theta - s.to_own.theta));
-      if (dt <= options_.relay_tolerance_m && dth <= DegToRad(options_.relay_tolerance_deg)) {
+      if (Agree(g.transform, s.to_own, Centroid(p.global))) {
         if (!options_.relay_must_agree || RelayAgrees(p, s.to_own)) {
           s.map = p.global;
           p.report.relayed = true;
@@ -201,9 +209,7 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
       if (Align(p, own_local, now, /*reconsider_relay=*/was_changed)) {
         if (was_changed) chosen.insert(key);
         p.report.failures = 0;
-        const double dt = (p.report.to_own.Apply(at) - before.Apply(at)).norm();
-        const double dth = std::abs(WrapAngle(p.report.to_own.theta - before.theta));
-        if (dt > options_.relay_tolerance_m || dth > DegToRad(options_.relay_tolerance_deg)) {
+        if (!Agree(p.report.to_own, before, at)) {
           ++p.report.corrections;
           changed = true;
         }

@@ -5,7 +5,8 @@
 // peer's map to its own local map (map_alignment.h), verifies every newer map of an aligned
 // peer at the known transform before using it (so a corrupted or wrong map is refused, and the
 // transform is refined as both maps grow), drops the alignment when verification keeps failing,
-// aligns afresh as the maps grow (a false alignment accepted on small maps is replaced), and
+// aligns afresh as the maps grow (a false alignment accepted on small maps is replaced), uses
+// an alignment only once a second, later one agrees with it, and
 // rebuilds the cloned global map (global_map.h) from its local map and every aligned peer's
 // latest verified map.
 //
@@ -39,11 +40,12 @@ struct ExchangeOptions {
   double align_period_s = 5.0;     // an unaligned peer is tried again this often, when its map changed ...
   double retry_growth = 0.2;       // ... or ours grew by this share
   int drop_after_failures = 2;     // consecutive failed verifications drop the alignment
+  bool confirm_alignments = true;  // an alignment is used once a later, independent one agrees with it
   bool realign_on_growth = true;   // a live aligned peer is aligned afresh when either map grew by retry_growth
                                    // (at most every align_period_s); an accepted answer replaces the transform
   bool relay_global_maps = true;   // fuse a peer's global map when it agrees with the peer's alignment
   double relay_tolerance_m = 1.0;  // ... within this (at the map's centroid) ...
-  double relay_tolerance_deg = 2.0;  // ... and this
+  double relay_tolerance_deg = 2.0;  // ... and this (two transforms within both agree, for confirmations too)
   bool relay_must_agree = true;    // ... and where it overlaps another aligned peer's map, verifies against
                                    // that map too (a relay must not place a robot elsewhere than we do) ...
   double relay_min_agreement = 0.8;  // ... with this share of the overlapping landmarks as inliers
@@ -76,6 +78,7 @@ struct PeerReport {
   int relay_conflicts = 0;         // times its global map disagreed with another peer's map (not relayed then)
   Eigen::Vector2d centroid = Eigen::Vector2d::Zero();  // of the peer map aligned last, in its frame
   int attempts = 0, verifications = 0;
+  int unconfirmed = 0;             // accepted alignments not (yet) confirmed by a later one
   int failures = 0;                // consecutive failed verifications (reset by a success)
   int rejected = 0;                // failed verifications in all
   int drops = 0;                   // times the alignment was dropped
@@ -129,9 +132,13 @@ class MapExchange {
     // What the global map takes from this peer.
     std::optional<MapSource> source;
     std::optional<MapSource> direct;  // ... and the one-hop map (never a relayed global map)
+    std::optional<Pose2> candidate;   // an accepted alignment awaiting confirmation
   };
-  // Aligns the peer's map to the own local map; on success stores the transform and source.
+  // Aligns the peer's map to the own local map; when the answer is confirmed (confirm_alignments)
+  // stores the transform and source and returns true.
   bool Align(Peer& p, const LandmarkMap& own_local, double now, bool reconsider_relay);
+  // Whether two transforms of a peer's frame agree at a point of its map (relay tolerances).
+  bool Agree(const Pose2& a, const Pose2& b, const Eigen::Vector2d& at) const;
   // An aligned peer's fresh alignment is due (realign_on_growth).
   bool RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const;
   // Checks the peer's newest map at the known transform; on success refines it and the source.

@@ -107,8 +107,8 @@ std::optional<MapMessage> MapInjector::Make(const std::string& c, RobotId sender
     m.payload = h->msg.payload;
     return m;
   }
-  // shuffled: a faulty peer in the sender's frame, honest every third map so that it is
-  // aligned again, the other maps then being verifications.
+  // shuffled: a faulty peer in the sender's frame, two honest maps (aligned and confirmed)
+  // then two shuffled ones (refused by verification, which drops the alignment), and again.
   if (!aligned_.count(sender) || h->map.size() < 6) return std::nullopt;
   m.incarnation = kInjectFaultyIncarnation;
   m.version = ++faulty_version_[sender];

@@ -9,9 +9,10 @@
 //   unknown_sender           a well-formed random map from a robot id that is not in the run;
 //   shuffled                 a faulty peer: a further incarnation of the sender
 //                            (kInjectFaultyIncarnation) whose maps are copies of the sender's
-//                            latest local map, first honest, so that agents align it, then twice
-//                            with its coordinates shuffled (well-formed but wrong, so that
-//                            alignment verification must refuse them), and so on. It starts once
+//                            latest local map, twice honest, so that agents align and confirm
+//                            it, then twice with its coordinates shuffled (well-formed but
+//                            wrong, so that alignment verification must refuse them and drop
+//                            the alignment), and so on. It starts once
 //                            some agent reports the sender aligned, and its map has at least 6
 //                            landmarks.
 
@@ -67,8 +68,8 @@ class MapInjector {
     LandmarkMap map;
   };
   static MsgKey Key(const MapMessage& m) { return {m.robot_id, m.incarnation, m.version}; }
-  // The faulty peer's maps 1, 4, 7, ... are honest copies.
-  static bool IsHonest(const MapMessage& m) { return m.incarnation == kInjectFaultyIncarnation && m.version % 3 == 1; }
+  // The faulty peer's maps 1, 2, 5, 6, 9, 10, ... are honest copies.
+  static bool IsHonest(const MapMessage& m) { return m.incarnation == kInjectFaultyIncarnation && m.version % 4 != 3 && m.version % 4 != 0; }
   std::optional<MapMessage> Make(const std::string& c, RobotId sender);
   LandmarkMap RandomMap(int n);
 

@@ -58,6 +58,14 @@ struct World {
 };
 
 constexpr double kSigma = 0.03;
+
+// Alignments used as soon as accepted: the cases below are about what follows an alignment
+// (AlignmentsAreUsedOnceConfirmed covers the confirmation).
+ExchangeOptions Immediate() {
+  ExchangeOptions o;
+  o.confirm_alignments = false;
+  return o;
+}
 const Pose2 kFrameA{0.0, 0.0, 0.0}, kFrameB{20.0, 5.0, 1.2}, kFrameC{35.0, 30.0, -2.0};
 
 // Robot 1 (maps x in [0, 26)) and robot 2 (x in [14, 40)) of a world drawn from `seed`; robot 1
@@ -67,7 +75,7 @@ struct Pair {
   std::mt19937_64 rng;
   MapExchange a;
   LandmarkMap la, lb;
-  explicit Pair(std::uint64_t seed) : w(160, seed), rng(seed + 1), a(1, 1, {}, seed + 2) {
+  explicit Pair(std::uint64_t seed) : w(160, seed), rng(seed + 1), a(1, 1, Immediate(), seed + 2) {
     la = w.Map(0, 26, kFrameA, kSigma, rng);
     lb = w.Map(14, 40, kFrameB, kSigma, rng);
     a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
@@ -95,7 +103,7 @@ struct LineOfThree {
   World w{200, 4};
   std::mt19937_64 rng{5};
   LandmarkMap la, lb, lc;
-  MapExchange b{2, 1, {}, 6};
+  MapExchange b{2, 1, Immediate(), 6};
   LineOfThree(double a_end, double c_start) {
     la = w.Map(0, a_end, kFrameA, kSigma, rng);
     lb = w.Map(10, 30, kFrameB, kSigma, rng);
@@ -110,7 +118,7 @@ TEST(MapExchange, PublishesItsOneHopMapAndUsesAPeersOneHopMapForRobotsOutOfRange
   LineOfThree line(18, 22);  // A never hears C
   auto& [w, rng, la, lb, lc, b] = line;
   ASSERT_EQ(b.AlignedRobots(), (std::vector<RobotId>{1, 3}));
-  MapExchange a(1, 1, {}, 7);
+  MapExchange a(1, 1, Immediate(), 7);
   a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
   a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b.published().map, 0.0);
   a.Update(la, 10.0);
@@ -141,7 +149,7 @@ TEST(MapExchange, ARelayThatPlacesAPeerElsewhereThanWeDoIsNotUsed) {
   }
   for (bool must_agree : {true, false}) {
     SCOPED_TRACE(must_agree);
-    ExchangeOptions o;
+    ExchangeOptions o = Immediate();
     o.relay_must_agree = must_agree;
     MapExchange a(1, 1, o, 7);
     a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
@@ -163,7 +171,7 @@ TEST(MapExchange, ARelayThatPlacesAPeerElsewhereThanWeDoIsNotUsed) {
     }
   }
   // B's true one-hop map agrees with C's map where they overlap: it is relayed.
-  MapExchange a(1, 1, {}, 7);
+  MapExchange a(1, 1, Immediate(), 7);
   a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
   a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
   a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b.published().map, 0.0);
@@ -240,7 +248,7 @@ TEST(MapExchange, AnAlignmentAcceptedOnSmallMapsIsCorrectedAsTheMapsGrow) {
   for (bool realign : {false, true}) {
     SCOPED_TRACE(realign);
     const RepeatedPatch w(5);
-    ExchangeOptions o;
+    ExchangeOptions o = Immediate();
     o.realign_on_growth = realign;
     MapExchange a(1, 1, o, 6);
     a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, RepeatedPatch::Map({w.r1}, kFrameB), 0.0);
@@ -265,6 +273,28 @@ TEST(MapExchange, AnAlignmentAcceptedOnSmallMapsIsCorrectedAsTheMapsGrow) {
       EXPECT_EQ(r.rejected, 0);
     }
   }
+}
+
+TEST(MapExchange, AlignmentsAreUsedOnceConfirmed) {
+  World w(160, 12);
+  std::mt19937_64 rng(13);
+  const LandmarkMap la = w.Map(0, 26, kFrameA, kSigma, rng);
+  MapExchange a(1, 1, {}, 14);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, w.Map(14, 36, kFrameB, kSigma, rng), 0.0);
+  a.Update(la, 10.0);
+  EXPECT_TRUE(a.AlignedRobots().empty());  // accepted once: a candidate
+  EXPECT_EQ(a.Peers().front().unconfirmed, 1);
+  EXPECT_EQ(a.global().map.size(), la.size());
+  a.OnPeerMap(2, 1, MapKind::kLocal, 2, 0.0, w.Map(14, 40, kFrameB, kSigma, rng), 12.0);
+  a.Update(la, 12.0);  // not due yet (align_period_s)
+  EXPECT_TRUE(a.AlignedRobots().empty());
+  a.Update(la, 15.0);  // a second, agreeing answer from the grown map
+  ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
+  const Pose2 truth = kFrameA.Inverse() * kFrameB;
+  EXPECT_NEAR(a.Peers().front().to_own.x, truth.x, 0.05);
+  EXPECT_NEAR(a.Peers().front().to_own.theta, truth.theta, 0.01);
+  EXPECT_EQ(a.Peers().front().aligned_since, 15.0);
+  EXPECT_GT(a.global().map.size(), la.size());
 }
 
 TEST(MapExchange, AStalePeerKeepsItsLastVerifiedContribution) {

@@ -87,10 +87,10 @@ TEST(MapInjector, StaleAndShuffledMapsFollowWhatTheRobotPublished) {
   s.robot_id = 1;
   s.peers_aligned = {2};
   inj.OnStatus(s);
-  // The faulty peer: its own incarnation in robot 2's frame, an honest copy first, then two
+  // The faulty peer: its own incarnation in robot 2's frame, two honest copies, then two
   // shuffled maps, then honest again.
   std::vector<MapMessage> faulty;
-  while (faulty.size() < 4) {
+  while (faulty.size() < 5) {
     std::optional<MapMessage> m = inj.Next();
     ASSERT_TRUE(m.has_value());
     if (m->incarnation == kInjectFaultyIncarnation) faulty.push_back(*m);
@@ -101,9 +101,10 @@ TEST(MapInjector, StaleAndShuffledMapsFollowWhatTheRobotPublished) {
     EXPECT_EQ(faulty[i].version, i + 1);
   }
   EXPECT_EQ(faulty[0].payload, v3.payload);
-  EXPECT_EQ(faulty[3].payload, v3.payload);
+  EXPECT_EQ(faulty[1].payload, v3.payload);
+  EXPECT_EQ(faulty[4].payload, v3.payload);
   const LandmarkMap before = DecodeMap(v3.payload).map;
-  for (const MapMessage& bad : {faulty[1], faulty[2]}) {
+  for (const MapMessage& bad : {faulty[2], faulty[3]}) {
     const LandmarkMap after = DecodeMap(bad.payload).map;
     ASSERT_EQ(after.size(), before.size());
     int moved = 0;
@@ -114,7 +115,7 @@ TEST(MapInjector, StaleAndShuffledMapsFollowWhatTheRobotPublished) {
     EXPECT_GE(moved, 7);
   }
   EXPECT_EQ(inj.sent().at("shuffled").at(2), 2);  // the honest copies are counted apart
-  EXPECT_EQ(inj.honest_sent(), 2);
+  EXPECT_EQ(inj.honest_sent(), 3);
   // Its own maps coming back are not taken for the robot's: the stale case still copies v3.
   for (const MapMessage& m : faulty) inj.OnMap(m);
   std::optional<MapMessage> again;
