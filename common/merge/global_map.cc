@@ -263,7 +263,9 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
         Cluster& c = clusters[assign[s]];
         c.inputs.push_back(e);
         c.origins.push_back(origin);
-        if (c.signature != moved[s].signature) c.signature = -1;
+        // A known identity survives inputs of unknown identity (peers' maps carry none);
+        // two different known ones make it unknown.
+        if (moved[s].signature >= 0 && c.signature != moved[s].signature) c.signature = -1;
         ++g.stats.associated;
       } else {
         clusters.push_back({e, {e}, {origin}, moved[s].signature});

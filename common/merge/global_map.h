@@ -71,7 +71,8 @@ struct GlobalMapStats {
 };
 
 struct GlobalMap {
-  LandmarkMap map;                                // in the own frame; ids are indices
+  LandmarkMap map;                                // in the own frame; ids are indices; a landmark keeps a
+                                                  // signature its inputs agree on (unknown ones aside)
   std::vector<std::vector<LandmarkOrigin>> origins;  // per global landmark, its inputs (first: the anchor)
   GlobalMapStats stats;
 };

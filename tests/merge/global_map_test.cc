@@ -135,6 +135,28 @@ TEST(GlobalMap, OverlappingPeerIsAssociatedByGateAndTheRestAppended) {
   EXPECT_GE(associated, static_cast<int>(0.99 * 20 * trials));
 }
 
+TEST(GlobalMap, AKnownIdentitySurvivesPeersWithoutOneAndConflictingOnesAreDropped) {
+  LandmarkMap local;
+  for (int i = 0; i < 3; ++i) {
+    Landmark l;
+    l.id = static_cast<std::uint32_t>(i);
+    l.signature = 10 + i;
+    l.mean = {5.0 * i, 0.0};
+    l.cov = Eigen::Matrix2d::Identity() * 0.01;
+    local.landmarks.push_back(l);
+  }
+  LandmarkMap peer = local;
+  peer.landmarks[0].signature = -1;  // a peer's map off the wire: identity unknown
+  peer.landmarks[1].signature = 99;  // a different known identity
+  peer.landmarks[2].signature = 12;  // the same one
+  const std::vector<MapSource> src{{2, 1, peer, Pose2{}, Eigen::Matrix3d::Identity() * 1e-6}};
+  const GlobalMap g = BuildGlobalMap(local, 1, src, {});
+  ASSERT_EQ(g.map.size(), 3u);
+  EXPECT_EQ(g.map.landmarks[0].signature, 10);
+  EXPECT_EQ(g.map.landmarks[1].signature, -1);
+  EXPECT_EQ(g.map.landmarks[2].signature, 12);
+}
+
 TEST(GlobalMap, JointCompatibilityResolvesWhatNearestNeighbourGetsWrong) {
   // The alignment is 0.6 m off in x, and its covariance says so (sigma 0.5 m in x): the
   // peer's landmark at 0.6 is individually nearer to the local one at 1.0 than to its true
