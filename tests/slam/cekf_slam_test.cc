@@ -53,6 +53,20 @@ void Feed(const Scenario& sc, const std::vector<LandmarkFilter*>& filters, int* 
   }
 }
 
+// The compressed filter's full state (mean and covariance) equals the full EKF's to 1e-9 of
+// the largest entry.
+void ExpectSameFullState(const EkfSlam& ekf, const CekfSlam& cekf) {
+  Eigen::VectorXd xe, xc;
+  Eigen::MatrixXd pe, pc;
+  std::vector<LandmarkId> ie, ic;
+  ekf.FullState(&xe, &pe, &ie);
+  cekf.FullState(&xc, &pc, &ic);
+  ASSERT_EQ(ie, ic);
+  ASSERT_EQ(xe.size(), xc.size());
+  EXPECT_LT((xe - xc).cwiseAbs().maxCoeff() / std::max(1.0, xe.cwiseAbs().maxCoeff()), 1e-9);
+  EXPECT_LT((pe - pc).cwiseAbs().maxCoeff() / pe.cwiseAbs().maxCoeff(), 1e-9);
+}
+
 // Seed, and whether the filters use first-estimates Jacobians.
 class CekfEqualsEkfTest : public ::testing::TestWithParam<std::tuple<int, bool>> {};
 
@@ -67,17 +81,11 @@ TEST_P(CekfEqualsEkfTest, FinalMeanAndCovarianceEqualTheFullEkf) {
   // The run switched regions many times, and added landmarks inside compressed periods.
   EXPECT_GE(cekf.switches(), 5);
   EXPECT_GT(inits, 10);
-  Eigen::VectorXd xe, xc;
-  Eigen::MatrixXd pe, pc;
-  std::vector<LandmarkId> ie, ic;
-  ekf.FullState(&xe, &pe, &ie);
-  cekf.FullState(&xc, &pc, &ic);
-  ASSERT_EQ(ie, ic);
-  ASSERT_EQ(xe.size(), xc.size());
-  const double dx = (xe - xc).cwiseAbs().maxCoeff() / std::max(1.0, xe.cwiseAbs().maxCoeff());
-  const double dp = (pe - pc).cwiseAbs().maxCoeff() / pe.cwiseAbs().maxCoeff();
-  EXPECT_LT(dx, 1e-9);
-  EXPECT_LT(dp, 1e-9);
+  ExpectSameFullState(ekf, cekf);
+  Eigen::VectorXd xe;
+  Eigen::MatrixXd pe;
+  std::vector<LandmarkId> ids;
+  ekf.FullState(&xe, &pe, &ids);
   // The map both publish agrees as well (the compressed one without a batch update).
   const LandmarkMap me = ekf.Map(), mc = cekf.Map();
   ASSERT_EQ(me.size(), mc.size());
@@ -339,14 +347,7 @@ TEST(EkfSlamFirstEstimates, CompressedFilterSwitchingAfterAnUpdateEqualsTheFullE
     }
   }
   EXPECT_GT(cekf.switches(), 20);
-  Eigen::VectorXd xe, xc;
-  Eigen::MatrixXd pe, pc;
-  std::vector<LandmarkId> ie, ic;
-  ekf.FullState(&xe, &pe, &ie);
-  cekf.FullState(&xc, &pc, &ic);
-  ASSERT_EQ(ie, ic);
-  EXPECT_LT((xe - xc).cwiseAbs().maxCoeff() / std::max(1.0, xe.cwiseAbs().maxCoeff()), 1e-9);
-  EXPECT_LT((pe - pc).cwiseAbs().maxCoeff() / pe.cwiseAbs().maxCoeff(), 1e-9);
+  ExpectSameFullState(ekf, cekf);
 }
 
 }  // namespace
