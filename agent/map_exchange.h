@@ -48,7 +48,8 @@ struct ExchangeOptions {
   double relay_tolerance_deg = 2.0;  // ... and this (two transforms within both agree, for confirmations too)
   bool relay_must_agree = true;    // ... and where it overlaps another aligned peer's map, verifies against
                                    // that map too (a relay must not place a robot elsewhere than we do) ...
-  double relay_min_agreement = 0.8;  // ... with this share of the overlapping landmarks as inliers
+  double relay_min_agreement = 0.6;  // ... with this share of the overlapping landmarks as inliers (in
+                                     // the unit test a relay partly 3 m off scores 0.49, a true one 0.97)
   AlignmentOptions align;
   GlobalMapOptions global;
 };
