@@ -164,7 +164,7 @@ void AgentNode::OnLinks(const RadioLinks& links) { gate_.UpdateLinks(links); }
 void AgentNode::OnMap(const MapMessage& msg) {
   // Our own publications echo back; an earlier incarnation of ours comes from the checkpoint.
   if (msg.robot_id == self_) return;
-  if (std::find(robot_ids_.begin(), robot_ids_.end(), msg.robot_id) == robot_ids_.end()) {
+  if (!InRun(msg.robot_id)) {
     ++stats_.maps_unknown_sender;
     return;
   }
@@ -189,8 +189,12 @@ void AgentNode::OnMap(const MapMessage& msg) {
   ++stats_.maps_received_from[msg.robot_id];
 }
 
+bool AgentNode::InRun(RobotId robot) const {
+  return std::find(robot_ids_.begin(), robot_ids_.end(), robot) != robot_ids_.end();
+}
+
 bool AgentNode::OnPeerLiveliness(RobotId robot, bool alive) {
-  if (robot == self_ || std::find(robot_ids_.begin(), robot_ids_.end(), robot) == robot_ids_.end()) return false;
+  if (robot == self_ || !InRun(robot)) return false;
   exchange_.OnPeerLiveliness(robot, alive, sync_.processed_until());
   return true;
 }

@@ -118,6 +118,8 @@ class AgentNode : private SensorSync::Sink {
   void AfterInterval(const Odometry& odom);
   void PublishMaps();
   void Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version);
+  // Whether the robot is one of this run's.
+  bool InRun(RobotId robot) const;
 
   AgentOptions options_;
   std::vector<RobotId> robot_ids_;  // the robots of this run; maps from others are rejected

@@ -97,18 +97,20 @@ bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool 
   p.candidate.reset();
   p.report.to_own = r.transform;
   p.report.to_own_cov = r.cov;
-  p.report.centroid = Centroid(theirs);
+  p.report.centroid = at;
   ChooseSource(p, own_local, reconsider_relay);
   return true;
+}
+
+bool MapExchange::Grew(std::size_t size, std::size_t at_attempt) const {
+  return static_cast<double>(size) >=
+         (1.0 + options_.retry_growth) * static_cast<double>(std::max<std::size_t>(1, at_attempt));
 }
 
 bool MapExchange::RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const {
   // A stale peer's contribution stays as it was verified (nothing already learned is lost).
   if (!options_.realign_on_growth || p.report.stale || now - p.last_attempt < options_.align_period_s) return false;
-  const auto grew = [&](std::size_t size, std::size_t at) {
-    return static_cast<double>(size) >= (1.0 + options_.retry_growth) * static_cast<double>(std::max<std::size_t>(1, at));
-  };
-  return grew(own_local.size(), p.own_size_at_attempt) || grew(PeerMap(p).size(), p.peer_size_at_attempt);
+  return Grew(own_local.size(), p.own_size_at_attempt) || Grew(PeerMap(p).size(), p.peer_size_at_attempt);
 }
 
 bool MapExchange::Verify(Peer& p, const LandmarkMap& own_local) {
@@ -147,21 +149,14 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local, bool recon
   s.to_own_cov = p.report.to_own_cov;
   s.map = PeerMap(p);
   p.direct = s;
-  if (!reconsider_relay) {  // the same maps as before, at the new transform
-    if (p.report.relayed) s.map = p.global;
-    if (p.report.own_checkpoint) p.direct = s;
-    p.source = std::move(s);
-    return;
-  }
-  p.report.relayed = false;
   // The peer's global map is in the peer's frame too: use it if it verifies where the peer's
-  // local map aligned.
-  if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
-    const AlignmentResult g = VerifyAlignment(own_local, p.global, s.to_own, options_.align);
-    if (g.accepted()) {
-      if (Agree(g.transform, s.to_own, Centroid(p.global))) {
+  // local map aligned. Without reconsider_relay the earlier choice stays, at the new transform.
+  if (reconsider_relay) {
+    p.report.relayed = false;
+    if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
+      const AlignmentResult g = VerifyAlignment(own_local, p.global, s.to_own, options_.align);
+      if (g.accepted() && Agree(g.transform, s.to_own, Centroid(p.global))) {
         if (!options_.relay_must_agree || RelayAgrees(p, s.to_own)) {
-          s.map = p.global;
           p.report.relayed = true;
         } else {
           ++p.report.relay_conflicts;
@@ -169,6 +164,7 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local, bool recon
       }
     }
   }
+  if (p.report.relayed) s.map = p.global;
   // An earlier own incarnation's global map is frozen (it cannot echo anything back).
   if (p.report.own_checkpoint) p.direct = s;
   p.source = std::move(s);
@@ -181,9 +177,9 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     if (!p.has_local && !p.has_global) continue;
     if (!p.report.aligned) {
       // Try again when due and when either map changed since the last try.
-      const bool own_grew = own_local.size() >= (1.0 + options_.retry_growth) *
-                                                     static_cast<double>(std::max<std::size_t>(1, p.own_size_at_attempt));
-      if (now - p.last_attempt < options_.align_period_s || !(p.changed || own_grew)) continue;
+      if (now - p.last_attempt < options_.align_period_s || !(p.changed || Grew(own_local.size(), p.own_size_at_attempt))) {
+        continue;
+      }
       ++p.report.attempts;
       if (Align(p, own_local, now, /*reconsider_relay=*/true)) {
         chosen.insert(key);

@@ -140,6 +140,8 @@ class MapExchange {
   bool Align(Peer& p, const LandmarkMap& own_local, double now, bool reconsider_relay);
   // Whether two transforms of a peer's frame agree at a point of its map (relay tolerances).
   bool Agree(const Pose2& a, const Pose2& b, const Eigen::Vector2d& at) const;
+  // A map of `size` landmarks has grown by retry_growth since it had `at_attempt`.
+  bool Grew(std::size_t size, std::size_t at_attempt) const;
   // An aligned peer's fresh alignment is due (realign_on_growth).
   bool RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const;
   // Checks the peer's newest map at the known transform; on success refines it and the source.
