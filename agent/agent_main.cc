@@ -55,6 +55,8 @@ json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
                      {"stale_since", p.stale_since},
                      {"relayed", p.relayed},
                      {"relay_conflicts", p.relay_conflicts},
+                     {"refuted", p.refuted},
+                     {"refuted_answers", p.refuted_answers},
                      {"transform", {p.to_own.x, p.to_own.y, p.to_own.theta}},
                      {"transform_cov", {c(0, 0), c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2)}},
                      {"centroid", {p.centroid.x(), p.centroid.y()}},

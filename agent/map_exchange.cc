@@ -85,8 +85,12 @@ bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool 
   p.peer_size_at_attempt = theirs.size();
   p.changed = false;
   if (!r.accepted()) return false;
-  // An answer is used once a second, later one agrees with it (or with the transform in use).
   const Eigen::Vector2d at = Centroid(theirs);
+  if (std::any_of(p.refuted.begin(), p.refuted.end(), [&](const Pose2& t) { return Agree(t, r.transform, at); })) {
+    ++p.report.refuted_answers;
+    return false;
+  }
+  // An answer is used once a second, later one agrees with it (or with the transform in use).
   const bool confirmed = !options_.confirm_alignments || (p.report.aligned && Agree(p.report.to_own, r.transform, at)) ||
                          (p.candidate && Agree(*p.candidate, r.transform, at));
   if (!confirmed) {
@@ -125,17 +129,78 @@ bool MapExchange::Verify(Peer& p, const LandmarkMap& own_local) {
   return true;
 }
 
-bool MapExchange::RelayAgrees(const Peer& p, const Pose2& to_own) const {
-  for (const auto& [key, q] : peers_) {
+bool MapExchange::RelayAgrees(const Peer& p, const Pose2& to_own, Peer** conflict) {
+  for (auto& [key, q] : peers_) {
     if (&q == &p || !q.direct || q.direct->map.empty()) continue;
     // q's map as we placed it, against p's global map where p placed it: where they overlap,
     // p's map must verify there, at the same transform.
     const LandmarkMap placed = TransformMap(q.direct->map, q.direct->to_own);
     const AlignmentResult r = VerifyAlignment(placed, p.global, to_own, options_.align);
     if (r.covered < options_.align.min_inliers) continue;  // they do not overlap
-    if (!r.accepted() || static_cast<double>(r.inliers.size()) < options_.relay_min_agreement * r.covered) return false;
-    if (!Agree(r.transform, to_own, Centroid(p.global))) return false;
+    if (!r.accepted() || static_cast<double>(r.inliers.size()) < options_.relay_min_agreement * r.covered ||
+        !Agree(r.transform, to_own, Centroid(p.global))) {
+      if (conflict != nullptr) *conflict = &q;
+      return false;
+    }
   }
+  return true;
+}
+
+MapExchange::Evidence MapExchange::Weigh(const Peer& q, const Pose2& placement, const LandmarkMap& own_local) const {
+  const LandmarkMap& theirs = PeerMap(q);
+  Evidence e;
+  auto weigh = [&](const LandmarkMap& witness) {
+    const AlignmentResult r = VerifyAlignment(witness, theirs, placement, options_.align);
+    if (r.covered < options_.align.min_inliers) return;  // it has not mapped where q's map lies
+    if (r.accepted() && static_cast<double>(r.inliers.size()) >= options_.relay_min_agreement * r.covered &&
+        Agree(r.transform, placement, Centroid(theirs))) {
+      ++e.supporters;
+      e.inliers += static_cast<int>(r.inliers.size());
+    } else {
+      ++e.against;
+    }
+  };
+  weigh(own_local);
+  for (const auto& [key, w] : peers_) {
+    if (&w == &q || !w.direct || w.direct->map.empty() || key.robot == q.report.key.robot) continue;
+    weigh(TransformMap(w.direct->map, w.direct->to_own));
+  }
+  return e;
+}
+
+bool MapExchange::RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, const LandmarkMap& own_local) {
+  if (!options_.refute_by_relay || !q.report.aligned || !q.direct ||
+      now_ - q.last_refute_check < options_.align_period_s) {
+    return false;
+  }
+  q.last_refute_check = now_;
+  const LandmarkMap& theirs = PeerMap(q);
+  const Pose2 ours = q.report.to_own;
+  const Evidence held = Weigh(q, ours, own_local);
+  if (held.against <= held.supporters) {
+    // Not contradicted on its own: it loses only to a better supported placement, where p's
+    // global map puts q (q's map aligned to it: it holds q's landmarks as p fused them).
+    AlignmentOptions find = options_.align;
+    find.ambiguity_ratio = 2.0;  // the best placement: the evidence decides ...
+    find.max_iterations = 300;   // ... among few: a relay that holds q's map matches most of it
+    const AlignmentResult r = AlignMaps(TransformMap(p.global, to_own), theirs, find, rng_);
+    if (!r.accepted() || Agree(r.transform, ours, Centroid(theirs))) return false;
+    const Evidence relay = Weigh(q, r.transform, own_local);
+    if (relay.supporters == 0 || relay.against > held.against ||
+        (relay.against == held.against && relay.inliers <= held.inliers)) {
+      return false;
+    }
+  }
+  q.refuted.push_back(ours);
+  ++q.report.refuted;
+  ++q.report.drops;
+  q.report.aligned = false;
+  q.report.dropped = true;
+  q.report.relayed = false;
+  q.candidate.reset();
+  q.source.reset();
+  q.direct.reset();
+  q.last_attempt = now_;
   return true;
 }
 
@@ -156,8 +221,14 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local, bool recon
     if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
       const AlignmentResult g = VerifyAlignment(own_local, p.global, s.to_own, options_.align);
       if (g.accepted() && Agree(g.transform, s.to_own, Centroid(p.global))) {
-        if (!options_.relay_must_agree || RelayAgrees(p, s.to_own)) {
+        Peer* conflict = nullptr;
+        if (!options_.relay_must_agree || RelayAgrees(p, s.to_own, &conflict)) {
           p.report.relayed = true;
+        } else if (RefuteByRelay(p, s.to_own, *conflict, own_local)) {
+          // Our alignment of the other peer was the false one; the relay may now agree.
+          refuted_ = true;
+          p.report.relayed = RelayAgrees(p, s.to_own);
+          if (!p.report.relayed) ++p.report.relay_conflicts;
         } else {
           ++p.report.relay_conflicts;
         }
@@ -171,6 +242,8 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local, bool recon
 }
 
 bool MapExchange::Update(const LandmarkMap& own_local, double now) {
+  now_ = now;
+  refuted_ = false;
   bool changed = false;
   std::set<PeerKey> chosen;  // peers whose map was chosen in this round
   for (auto& [key, p] : peers_) {
@@ -237,6 +310,7 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
   // whose maps were chosen in this round choose again, now that all its transforms are known.
   // (A peer that sent nothing new keeps its choice: until its liveliness is lost, a dead peer
   // is not known to be dead, and what it gave must stay as it was.)
+  changed = changed || refuted_;
   if (changed && options_.relay_must_agree) {
     for (auto& [key, p] : peers_) {
       if (p.source && chosen.count(key)) ChooseSource(p, own_local, true);

@@ -17,6 +17,13 @@
 //   fused with its aligned peers' local maps only. A relayed map therefore never carries back
 //   what the receiver itself sent, nor anything of a source once that source is dropped, so
 //   no loop can keep a wrong landmark alive; the price is that relays reach two hops.
+// - Conflicts: when a peer's relay places another peer elsewhere than our own alignment does,
+//   both placements are tested against every map we hold that is independent of the placed
+//   peer (our local map and the other aligned peers' local maps). If the relay's placement is
+//   supported by one and contradicts fewer of them (then has more support), or if more of them
+//   contradict our placement than support it, our direct alignment is the false one (in a park,
+//   rows of trees allow a 90-degree match where two paths cross): it is refuted, never accepted
+//   again, and the relay is used instead.
 // - Liveliness: a peer whose writer is gone is stale; its last verified map stays in the global
 //   map (nothing already learned is lost), and it is no longer re-verified.
 // - Resume: an earlier incarnation of this agent (from its checkpoint) is one more peer.
@@ -50,6 +57,8 @@ struct ExchangeOptions {
                                    // that map too (a relay must not place a robot elsewhere than we do) ...
   double relay_min_agreement = 0.6;  // ... with this share of the overlapping landmarks as inliers (in
                                      // the unit test a relay partly 3 m off scores 0.49, a true one 0.97)
+  bool refute_by_relay = true;     // a relay that places a peer elsewhere than our alignment does, and is better
+                                   // supported by the maps we hold, refutes our alignment (at most every align_period_s)
   AlignmentOptions align;
   GlobalMapOptions global;
 };
@@ -77,6 +86,8 @@ struct PeerReport {
   Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();
   bool relayed = false;            // its global map is fused (not its local map)
   int relay_conflicts = 0;         // times its global map disagreed with another peer's map (not relayed then)
+  int refuted = 0;                 // times our alignment of it lost to a relay's placement (then dropped)
+  int refuted_answers = 0;         // alignments refused for agreeing with a refuted one
   Eigen::Vector2d centroid = Eigen::Vector2d::Zero();  // of the peer map aligned last, in its frame
   int attempts = 0, verifications = 0;
   int unconfirmed = 0;             // accepted alignments not (yet) confirmed by a later one
@@ -134,6 +145,8 @@ class MapExchange {
     std::optional<MapSource> source;
     std::optional<MapSource> direct;  // ... and the one-hop map (never a relayed global map)
     std::optional<Pose2> candidate;   // an accepted alignment awaiting confirmation
+    std::vector<Pose2> refuted;       // alignments that lost to a relay's placement
+    double last_refute_check = -1e300;
   };
   // Aligns the peer's map to the own local map; when the answer is confirmed (confirm_alignments)
   // stores the transform and source and returns true.
@@ -148,10 +161,22 @@ class MapExchange {
   bool Verify(Peer& p, const LandmarkMap& own_local);
   // Which map of the peer the global map fuses: its global map when it verifies, else its local
   // map. Without reconsider_relay the earlier choice stays and only the transform is updated.
+  // Sets refuted_ when it refuted another peer's alignment (see Conflicts above).
   void ChooseSource(Peer& p, const LandmarkMap& own_local, bool reconsider_relay);
   // Whether the peer's global map, at `to_own`, agrees with every other peer's one-hop
-  // contribution it overlaps (relay_must_agree).
-  bool RelayAgrees(const Peer& p, const Pose2& to_own) const;
+  // contribution it overlaps (relay_must_agree); if not, the first peer it disagrees with.
+  bool RelayAgrees(const Peer& p, const Pose2& to_own, Peer** conflict = nullptr);
+  // p's relay (at to_own) places q elsewhere than q's alignment: refutes q's alignment and
+  // returns true when the relay's placement is better supported.
+  bool RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, const LandmarkMap& own_local);
+  // What the maps we hold independently of q (our local map and the other aligned peers' one-hop
+  // maps) say of a placement of q's map.
+  struct Evidence {
+    int against = 0;     // maps that overlap it and disagree
+    int supporters = 0;  // maps that overlap it and agree ...
+    int inliers = 0;     // ... with this many matched landmarks in all
+  };
+  Evidence Weigh(const Peer& q, const Pose2& placement, const LandmarkMap& own_local) const;
   static const LandmarkMap& PeerMap(const Peer& p);
 
   RobotId self_;
@@ -159,6 +184,8 @@ class MapExchange {
   ExchangeOptions options_;
   std::mt19937_64 rng_;
   std::map<PeerKey, Peer> peers_;
+  double now_ = 0.0;      // of the Update in progress
+  bool refuted_ = false;  // ... which refuted an alignment
   GlobalMap global_;
   GlobalMap published_;
 };

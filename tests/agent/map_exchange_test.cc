@@ -210,9 +210,10 @@ TEST(MapExchange, AWrongButWellFormedMapFailsVerificationAndNeverEntersTheGlobal
 }
 
 // A world with a repeated patch: 10 landmarks near the origin (R1), the same pattern turned by
-// 90 degrees at x = 40 (R2), and 14 more landmarks just above R1 (S).
+// 90 degrees at x = 35..45 (R2), and 14 more landmarks just above R1 (S). Further off: V (12
+// landmarks at x = 23..33, where the copy's turn takes S) and T (20 at x = 48..60).
 struct RepeatedPatch {
-  std::vector<Eigen::Vector2d> r1, r2, s;
+  std::vector<Eigen::Vector2d> r1, r2, s, v, t;
   explicit RepeatedPatch(std::uint64_t seed) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> u(0.0, 10.0);
@@ -223,6 +224,8 @@ struct RepeatedPatch {
     const Pose2 copy{45.0, 0.0, M_PI / 2};
     for (const auto& p : r1) r2.push_back(copy.Apply(p));
     while (s.size() < 14) spaced(s, {u(rng), 12.0 + u(rng)});
+    while (v.size() < 12) spaced(v, {23.0 + u(rng), u(rng)});
+    while (t.size() < 20) spaced(t, {48.0 + 1.2 * u(rng), u(rng)});
   }
   static LandmarkMap Map(const std::vector<std::vector<Eigen::Vector2d>>& parts, const Pose2& frame) {
     LandmarkMap m;
@@ -272,6 +275,70 @@ TEST(MapExchange, AnAlignmentAcceptedOnSmallMapsIsCorrectedAsTheMapsGrow) {
       EXPECT_EQ(r.realignments, 0);
       EXPECT_EQ(r.rejected, 0);
     }
+  }
+}
+
+// Robot 1 maps R2 and T, robot 2 T, V and S, robot 3 R1 and S. Robot 1's only alignment with
+// robot 3 is the false one (R1 on R2; S then falls on V, which robot 1 has not mapped). Robot 2
+// aligns robot 3 truly, and its global map, relayed to robot 1, places robot 3 there. Robot 2's
+// local map contradicts robot 1's placement of robot 3 (S on V) and supports the relay's: the
+// false alignment is refuted and never accepted again, and the relay brings robot 3's landmarks.
+TEST(MapExchange, ARelayBetterSupportedThanOurAlignmentRefutesIt) {
+  const RepeatedPatch w(5);
+  const LandmarkMap la = RepeatedPatch::Map({w.r2, w.t}, kFrameA);
+  const LandmarkMap lb = RepeatedPatch::Map({w.t, w.v, w.s}, kFrameB);
+  const LandmarkMap lc = RepeatedPatch::Map({w.r1, w.s}, kFrameC);
+  MapExchange b(2, 1, Immediate(), 3);
+  b.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
+  b.Update(lb, 10.0);
+  ASSERT_EQ(b.AlignedRobots(), std::vector<RobotId>{3});
+  // Every landmark of `m` (in robot 1's frame) on a true one: the count of those that are.
+  std::vector<Eigen::Vector2d> all;
+  for (const auto* part : {&w.r1, &w.r2, &w.s, &w.v, &w.t}) all.insert(all.end(), part->begin(), part->end());
+  auto placed = [&](const LandmarkMap& m) {
+    int n = 0;
+    for (const Landmark& l : m.landmarks) {
+      const Eigen::Vector2d p = kFrameA.Apply(l.mean);
+      n += std::any_of(all.begin(), all.end(), [&](const auto& q) { return (q - p).norm() < 0.2; }) ? 1 : 0;
+    }
+    return n;
+  };
+  for (bool refute : {false, true}) {
+    SCOPED_TRACE(refute);
+    ExchangeOptions o = Immediate();
+    o.refute_by_relay = refute;
+    MapExchange a(1, 1, o, 4);
+    a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
+    a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
+    a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b.published().map, 0.0);
+    a.Update(la, 10.0);
+    const std::vector<PeerReport> peers = a.Peers();
+    ASSERT_EQ(peers.size(), 2u);
+    const PeerReport& rb = peers[0];
+    const PeerReport& rc = peers[1];
+    ASSERT_EQ(rc.key.robot, 3u);
+    EXPECT_TRUE(rc.ever_aligned);
+    if (!refute) {
+      // The false alignment stays, the relay is refused, S is in the global map where V is.
+      EXPECT_TRUE(rc.aligned);
+      EXPECT_FALSE(rb.relayed);
+      EXPECT_EQ(rb.relay_conflicts, 1);
+      EXPECT_LT(placed(a.global().map), static_cast<int>(a.global().map.size()));
+      continue;
+    }
+    EXPECT_FALSE(rc.aligned);
+    EXPECT_EQ(rc.refuted, 1);
+    EXPECT_TRUE(rb.relayed);
+    EXPECT_EQ(rb.relay_conflicts, 0);
+    const std::size_t union_size = w.r1.size() + w.r2.size() + w.s.size() + w.v.size() + w.t.size();
+    EXPECT_EQ(a.global().map.size(), union_size);
+    EXPECT_EQ(placed(a.global().map), static_cast<int>(union_size));
+    // Aligning robot 3 again finds the same false answer: refused.
+    a.OnPeerMap(3, 1, MapKind::kLocal, 2, 0.0, lc, 20.0);
+    a.Update(la, 20.0);
+    EXPECT_FALSE(a.Peers()[1].aligned);
+    EXPECT_EQ(a.Peers()[1].refuted_answers, 1);
+    EXPECT_EQ(a.global().map.size(), union_size);
   }
 }
 
