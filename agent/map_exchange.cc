@@ -174,23 +174,25 @@ bool MapExchange::RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, con
     return false;
   }
   q.last_refute_check = now_;
+  // Where p's global map places q: q's map aligned to it (it holds q's landmarks as p fused them).
   const LandmarkMap& theirs = PeerMap(q);
+  AlignmentOptions find = options_.align;
+  find.ambiguity_ratio = 2.0;  // the best placement: the evidence decides ...
+  find.max_iterations = 300;   // ... among few: a relay that holds q's map matches most of it
+  const AlignmentResult r = AlignMaps(TransformMap(p.global, to_own), theirs, find, rng_);
+  if (!r.accepted() || static_cast<double>(r.inliers.size()) < options_.refute_min_share * theirs.size()) return false;
+  // Placements this close are two fits of one alignment (of a bent map, say), not a false one.
   const Pose2 ours = q.report.to_own;
-  const Evidence held = Weigh(q, ours, own_local);
-  if (held.against <= held.supporters) {
-    // Not contradicted on its own: it loses only to a better supported placement, where p's
-    // global map puts q (q's map aligned to it: it holds q's landmarks as p fused them).
-    AlignmentOptions find = options_.align;
-    find.ambiguity_ratio = 2.0;  // the best placement: the evidence decides ...
-    find.max_iterations = 300;   // ... among few: a relay that holds q's map matches most of it
-    const AlignmentResult r = AlignMaps(TransformMap(p.global, to_own), theirs, find, rng_);
-    if (!r.accepted() || Agree(r.transform, ours, Centroid(theirs))) return false;
-    const Evidence relay = Weigh(q, r.transform, own_local);
-    if (relay.supporters == 0 || relay.against > held.against ||
-        (relay.against == held.against && relay.inliers <= held.inliers)) {
-      return false;
-    }
+  const Eigen::Vector2d at = Centroid(theirs);
+  if ((r.transform.Apply(at) - ours.Apply(at)).norm() <= options_.refute_min_offset_m &&
+      std::abs(WrapAngle(r.transform.theta - ours.theta)) <= DegToRad(options_.refute_min_offset_deg)) {
+    return false;
   }
+  const Evidence held = Weigh(q, ours, own_local);
+  const Evidence relay = Weigh(q, r.transform, own_local);
+  const bool relay_better = relay.supporters > 0 && (relay.against < held.against ||
+                                                     (relay.against == held.against && relay.inliers > held.inliers));
+  if (!relay_better && held.against <= held.supporters) return false;
   q.refuted.push_back(ours);
   ++q.report.refuted;
   ++q.report.drops;

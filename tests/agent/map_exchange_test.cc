@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <vector>
 
@@ -213,6 +214,7 @@ TEST(MapExchange, AWrongButWellFormedMapFailsVerificationAndNeverEntersTheGlobal
 // 90 degrees at x = 35..45 (R2), and 14 more landmarks just above R1 (S). Further off: V (12
 // landmarks at x = 23..33, where the copy's turn takes S) and T (20 at x = 48..60).
 struct RepeatedPatch {
+  const Pose2 copy{45.0, 0.0, M_PI / 2};  // R1 to R2
   std::vector<Eigen::Vector2d> r1, r2, s, v, t;
   explicit RepeatedPatch(std::uint64_t seed) {
     std::mt19937_64 rng(seed);
@@ -221,7 +223,6 @@ struct RepeatedPatch {
       if (std::all_of(v.begin(), v.end(), [&](const auto& q) { return (q - p).norm() > 1.5; })) v.push_back(p);
     };
     while (r1.size() < 10) spaced(r1, {u(rng), u(rng)});
-    const Pose2 copy{45.0, 0.0, M_PI / 2};
     for (const auto& p : r1) r2.push_back(copy.Apply(p));
     while (s.size() < 14) spaced(s, {u(rng), 12.0 + u(rng)});
     while (v.size() < 12) spaced(v, {23.0 + u(rng), u(rng)});
@@ -339,6 +340,39 @@ TEST(MapExchange, ARelayBetterSupportedThanOurAlignmentRefutesIt) {
     EXPECT_FALSE(a.Peers()[1].aligned);
     EXPECT_EQ(a.Peers()[1].refuted_answers, 1);
     EXPECT_EQ(a.global().map.size(), union_size);
+  }
+}
+
+// Robot 1 maps R2, and landmarks 1 m from where the copy's turn takes S (each in a random
+// direction); robot 3 maps R1 and S. The false alignment (R1 on R2) lays 24 of robot 3's
+// landmarks on ground robot 1 has mapped and matches 10: 0.42, which AlignmentOptions' 0.3
+// lets through and the exchange's alignment refuses.
+TEST(MapExchange, AnAlignmentMustMatchHalfOfThePeersLandmarksOnGroundWeMapped) {
+  const RepeatedPatch w(5);
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> turn(-M_PI, M_PI);
+  std::vector<Eigen::Vector2d> near;
+  for (const auto& s : w.s) {
+    const double a = turn(rng);
+    near.push_back(w.copy.Apply(s) + Eigen::Vector2d(std::cos(a), std::sin(a)));
+  }
+  const LandmarkMap la = RepeatedPatch::Map({w.r2, near}, kFrameA);
+  const LandmarkMap lc = RepeatedPatch::Map({w.r1, w.s}, kFrameC);
+  for (const double ratio : {AlignmentOptions{}.min_overlap_ratio, ExchangeAlignment().min_overlap_ratio}) {
+    SCOPED_TRACE(ratio);
+    ExchangeOptions o = Immediate();
+    o.align.min_overlap_ratio = ratio;
+    MapExchange a(1, 1, o, 4);
+    a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
+    a.Update(la, 10.0);
+    const PeerReport r = a.Peers().front();
+    if (ratio < 0.42) {
+      EXPECT_TRUE(r.aligned);  // the false alignment
+      EXPECT_GT((r.to_own.Apply(Eigen::Vector2d::Zero()) - (kFrameA.Inverse() * kFrameC).Apply(Eigen::Vector2d::Zero())).norm(), 10.0);
+    } else {
+      EXPECT_FALSE(r.aligned);
+      EXPECT_EQ(r.last_verdict, AlignmentVerdict::kInconsistentOverlap);
+    }
   }
 }
 
