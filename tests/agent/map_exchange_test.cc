@@ -136,6 +136,18 @@ TEST(MapExchange, PublishesItsOneHopMapAndUsesAPeersOneHopMapForRobotsOutOfRange
   EXPECT_LT(a.published().map.size(), a.global().map.size());
 }
 
+// Robot 1 that has heard robot 3's local map, and robot 2's local map and global map `b_global`,
+// after one update of its own local map la.
+MapExchange HeardBAndC(const ExchangeOptions& o, std::uint64_t seed, const LandmarkMap& la, const LandmarkMap& lb,
+                       const LandmarkMap& lc, const LandmarkMap& b_global) {
+  MapExchange a(1, 1, o, seed);
+  a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
+  a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b_global, 0.0);
+  a.Update(la, 10.0);
+  return a;
+}
+
 // A hears B and C; B's one-hop map carries C's landmarks 3 m from where A (and the truth)
 // puts them, say from a poor alignment at B. A must not relay it: its global map would hold
 // C's landmarks twice.
@@ -152,11 +164,7 @@ TEST(MapExchange, ARelayThatPlacesAPeerElsewhereThanWeDoIsNotUsed) {
     SCOPED_TRACE(must_agree);
     ExchangeOptions o = Immediate();
     o.relay_must_agree = must_agree;
-    MapExchange a(1, 1, o, 7);
-    a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
-    a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
-    a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, bad, 0.0);
-    a.Update(la, 10.0);
+    const MapExchange a = HeardBAndC(o, 7, la, lb, lc, bad);
     ASSERT_EQ(a.AlignedRobots(), (std::vector<RobotId>{2, 3}));
     const PeerReport rb = a.Peers().front();
     ASSERT_EQ(rb.key.robot, 2u);
@@ -172,11 +180,7 @@ TEST(MapExchange, ARelayThatPlacesAPeerElsewhereThanWeDoIsNotUsed) {
     }
   }
   // B's true one-hop map agrees with C's map where they overlap: it is relayed.
-  MapExchange a(1, 1, Immediate(), 7);
-  a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
-  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
-  a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b.published().map, 0.0);
-  a.Update(la, 10.0);
+  const MapExchange a = HeardBAndC(Immediate(), 7, la, lb, lc, b.published().map);
   EXPECT_TRUE(a.Peers().front().relayed);
   EXPECT_EQ(a.Peers().front().relay_conflicts, 0);
 }
@@ -308,11 +312,7 @@ TEST(MapExchange, ARelayBetterSupportedThanOurAlignmentRefutesIt) {
     SCOPED_TRACE(refute);
     ExchangeOptions o = Immediate();
     o.refute_by_relay = refute;
-    MapExchange a(1, 1, o, 4);
-    a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
-    a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
-    a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b.published().map, 0.0);
-    a.Update(la, 10.0);
+    MapExchange a = HeardBAndC(o, 4, la, lb, lc, b.published().map);
     const std::vector<PeerReport> peers = a.Peers();
     ASSERT_EQ(peers.size(), 2u);
     const PeerReport& rb = peers[0];
