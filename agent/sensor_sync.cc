@@ -21,7 +21,9 @@ void SensorSync::OnScan(const Scan& scan) {
     ++stats_.scans_rejected;
     return;
   }
-  if (started_ && scan.stamp <= processed_until_) {
+  // Late: its interval was processed. Until the first one is, a scan at the stream's origin (from
+  // the start pose) still belongs to it.
+  if (started_ && (scan.stamp < processed_until_ || (scan.stamp == processed_until_ && stats_.odom_processed > 0))) {
     ++stats_.scans_late;
     return;
   }

@@ -37,11 +37,28 @@ RadioLinks Simulator::Links(double stamp) const {
   return {stamp, LinksInRange(pos, scenario_.radio.range_m)};
 }
 
+Scan Simulator::Sense(Robot& r, double stamp) {
+  Scan s;
+  s.robot_id = r.spec->id;
+  s.seq = r.scan_seq++;
+  s.stamp = stamp;
+  seen_scratch_.clear();
+  s.obs = SenseLandmarks(r.pose, truth_.landmarks, r.spec->sensor, r.rng, &seen_scratch_);
+  for (int i : seen_scratch_) truth_.seen[i] = true;
+  return s;
+}
+
 FeedBatch Simulator::Next() {
   FeedBatch b;
   const std::uint64_t k = step_++;
   b.stamp = static_cast<double>(k) * dt_;
-  if (k > 0) {
+  if (k == 0) {
+    for (Robot& r : robots_) {
+      if (!r.spec->sensor.scan_at_start) continue;
+      b.scans.push_back(Sense(r, b.stamp));
+      r.start_scans = 1;
+    }
+  } else {
     std::normal_distribution<double> n01(0.0, 1.0);
     for (Robot& r : robots_) {
       const RobotSpec& spec = *r.spec;
@@ -54,16 +71,12 @@ FeedBatch Simulator::Next() {
       o.dt = dt_;
       o.v = u.v_mps + spec.motion.sigma_v_mps * n01(r.rng);
       o.w = u.w_radps + spec.motion.sigma_w_radps * n01(r.rng);
+      // The first interval also carries the scan from the start pose (at its opening stamp).
+      o.scans_in_interval = r.start_scans;
+      r.start_scans = 0;
       if (k % static_cast<std::uint64_t>(spec.sensor.scan_every_steps) == 0) {
-        Scan s;
-        s.robot_id = spec.id;
-        s.seq = r.scan_seq++;
-        s.stamp = b.stamp;
-        seen_scratch_.clear();
-        s.obs = SenseLandmarks(r.pose, truth_.landmarks, spec.sensor, r.rng, &seen_scratch_);
-        for (int i : seen_scratch_) truth_.seen[i] = true;
-        b.scans.push_back(std::move(s));
-        o.scans_in_interval = 1;
+        b.scans.push_back(Sense(r, b.stamp));
+        ++o.scans_in_interval;
       }
       b.odom.push_back(o);
     }

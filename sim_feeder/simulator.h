@@ -35,7 +35,10 @@ class Simulator : public FeedSource {
     std::mt19937_64 rng;
     std::uint32_t odom_seq = 0;
     std::uint32_t scan_seq = 0;
+    std::uint32_t start_scans = 0;  // taken from the start pose: announced by the first odometry
   };
+  // One scan of robot r from its true pose at `stamp`.
+  Scan Sense(Robot& r, double stamp);
   RadioLinks Links(double stamp) const;
 
   Scenario scenario_;

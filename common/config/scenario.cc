@@ -214,6 +214,7 @@ void ReadSensor(YamlReader s, SensorOptions& o) {
   s.GetNonNegative("sigma_range_m", o.sigma_range_m);
   s.GetNonNegative("sigma_bearing_deg", o.sigma_bearing_deg);
   s.GetPositive("scan_every_steps", o.scan_every_steps);
+  s.Get("scan_at_start", o.scan_at_start);
   s.Get("signatures", o.signatures);
   s.Finish();
 }

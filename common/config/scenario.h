@@ -80,6 +80,8 @@ struct SensorOptions {
   double sigma_range_m = 0.05;          // range noise
   double sigma_bearing_deg = 1.0;       // bearing noise
   int scan_every_steps = 5;             // one scan per this many control steps
+  bool scan_at_start = false;           // simulation: also scan from the start pose, before the first control
+                                        // step (anchors the map frame before any odometry noise)
   bool signatures = false;              // share landmark identities (known correspondence)
   static SensorOptions ThesisDefaults() { return {}; }
   static SensorOptions DownsDefaults();

@@ -51,6 +51,25 @@ TEST(SensorSync, SplitsAnIntervalAtEachScan) {
   EXPECT_DOUBLE_EQ(*sync.frame_origin_stamp(), 0.0);
 }
 
+// A scan at the opening stamp of the first interval (from the start pose) is applied there,
+// before the robot moves.
+TEST(SensorSync, AppliesAScanAtTheStreamsOriginBeforeMoving) {
+  for (bool scan_first : {true, false}) {
+    SCOPED_TRACE(scan_first);
+    Log log;
+    SensorSync sync(log);
+    if (scan_first) sync.OnScan(ScanAt(0.0, 2));
+    sync.OnOdometry(Odom(0, 0.1, 0.1, 1));
+    if (!scan_first) {
+      EXPECT_TRUE(log.events.empty());  // announced: waited for
+      sync.OnScan(ScanAt(0.0, 2));
+    }
+    EXPECT_EQ(log.events, (std::vector<std::string>{"scan 0.00 n2", "move 0.10 v1.00", "done 0.10"}));
+    EXPECT_EQ(sync.stats().scans_processed, 1u);
+    EXPECT_EQ(sync.stats().scans_before_start + sync.stats().scans_late, 0u);
+  }
+}
+
 TEST(SensorSync, RejectsBadInputWithACountedReason) {
   Log log;
   SensorSync sync(log);

@@ -8,7 +8,9 @@
 namespace mapmesh {
 namespace {
 
-Scenario Small(std::uint64_t seed, int agents = 0) {
+Scenario Small(std::uint64_t seed, int agents = 0, const std::vector<std::string>& overrides = {}) {
+  std::vector<ConfigOverride> o{ParseOverride("seed=" + std::to_string(seed))};
+  for (const std::string& s : overrides) o.push_back(ParseOverride(s));
   return ParseScenario(R"(version: 1
 duration_s: 20
 world: {landmarks: {generator: {count: 60, area_m: [0, 0, 30, 30], min_spacing_m: 1}}}
@@ -17,7 +19,7 @@ robots:
   defaults: {sensor: {signatures: true}}
 radio: {range_m: 15, links_period_s: 1.0}
 )",
-                       "sim.yaml", {ParseOverride("seed=" + std::to_string(seed))}, agents);
+                       "sim.yaml", o, agents);
 }
 
 // Flattens everything a simulator produces, for comparisons.
@@ -71,6 +73,35 @@ TEST(Simulator, ProducesTheExpectedStreams) {
   EXPECT_NEAR(last, 20.0, 1e-9);
   const auto& seen = sim.Truth().seen;
   EXPECT_GT(std::count(seen.begin(), seen.end(), true), 0);
+}
+
+// sensor.scan_at_start: one more scan per robot, from the true start pose at t = 0, announced
+// by the robot's first odometry; everything after it comes as every 5th step.
+TEST(Simulator, ScansFromTheStartPoseWhenAsked) {
+  const Scenario s = Small(5, 0, {"robots.defaults.sensor.scan_at_start=true"});
+  Simulator sim(s, BuildWorld(s));
+  const FeedBatch first = sim.Next();
+  ASSERT_EQ(first.scans.size(), 3u);
+  EXPECT_TRUE(first.odom.empty());
+  for (const Scan& sc : first.scans) {
+    EXPECT_EQ(sc.stamp, 0.0);
+    EXPECT_EQ(sc.seq, 0u);
+    EXPECT_FALSE(sc.obs.empty());
+  }
+  const FeedBatch second = sim.Next();
+  ASSERT_EQ(second.odom.size(), 3u);
+  for (const Odometry& o : second.odom) EXPECT_EQ(o.scans_in_interval, 1u);
+  int scans = 3;
+  while (!sim.Done()) {
+    const FeedBatch b = sim.Next();
+    scans += static_cast<int>(b.scans.size());
+    for (const Odometry& o : b.odom) EXPECT_EQ(o.scans_in_interval, b.scans.empty() ? 0u : 1u);
+  }
+  EXPECT_EQ(scans, 41 * 3);
+  // Without it the first batch has no scan (the default stream is unchanged).
+  const Scenario d = Small(5);
+  Simulator plain(d, BuildWorld(d));
+  EXPECT_TRUE(plain.Next().scans.empty());
 }
 
 TEST(Simulator, ARobotsStreamDoesNotDependOnHowManyRun) {
