@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <string>
+
 #include "lab/slam_experiment.h"
 
 namespace mapmesh {
@@ -38,43 +41,48 @@ TEST(SlamQuality, ThesisDefaultScenarioIsConsistent) {
   EXPECT_LE(pose_nees, 4.5);
 }
 
+// Means over every robot of seeds 1..seeds of a scenario, with `key` set to `value`.
+struct Means {
+  double landmark_nees = 0.0, pose_nees = 0.0, rmse = 0.0, aligned = 0.0;
+};
+Means MeansOverSeeds(const std::string& scenario, const std::string& key, bool value, int seeds) {
+  Means m;
+  int n = 0;
+  for (int seed = 1; seed <= seeds; ++seed) {
+    const Scenario sc = LoadScenario(std::string(MAPMESH_SOURCE_DIR "/scenarios/") + scenario,
+                                     {ParseOverride("seed=" + std::to_string(seed)),
+                                      ParseOverride(key + "=" + (value ? "true" : "false"))});
+    for (const lab::SlamRunResult& r : lab::RunSlam(sc, {})) {
+      EXPECT_TRUE(r.map_evaluated);
+      EXPECT_FALSE(r.map_aligned);
+      m.landmark_nees += r.landmark_nees;
+      m.pose_nees += r.pose_nees;
+      m.rmse += r.landmark_rmse_m;
+      m.aligned += r.landmark_rmse_aligned_m;
+      ++n;
+    }
+  }
+  for (double* v : {&m.landmark_nees, &m.pose_nees, &m.rmse, &m.aligned}) *v /= n;
+  std::printf("%s, %d seeds, %s=%s: landmark NEES %.2f, pose NEES %.2f, landmark RMSE %.3f m (aligned %.3f m)\n",
+              scenario.c_str(), seeds, key.c_str(), value ? "true" : "false", m.landmark_nees, m.pose_nees, m.rmse,
+              m.aligned);
+  return m;
+}
+
 // The park runs (200 s, 4 robots, 20 seeds): the standard EKF grows overconfident (landmark
 // NEES near 3 where 2 is ideal); first-estimates Jacobians (FEJ-EKF) keep it consistent and no
 // less accurate.
 TEST(SlamQuality, FirstEstimatesJacobiansKeepTheParkRunsConsistent) {
-  struct Mean {
-    double landmark_nees = 0.0, pose_nees = 0.0, rmse = 0.0;
-    int n = 0;
-  };
-  Mean m[2];
-  for (bool fej : {false, true}) {
-    for (int seed = 1; seed <= 20; ++seed) {
-      const Scenario sc = LoadScenario(MAPMESH_SOURCE_DIR "/scenarios/park4.yaml",
-                                       {ParseOverride("seed=" + std::to_string(seed)),
-                                        ParseOverride(std::string("agent.first_estimates_jacobians=") + (fej ? "true" : "false"))});
-      for (const lab::SlamRunResult& r : lab::RunSlam(sc, {})) {
-        ASSERT_TRUE(r.map_evaluated);
-        ASSERT_FALSE(r.map_aligned);
-        m[fej].landmark_nees += r.landmark_nees;
-        m[fej].pose_nees += r.pose_nees;
-        m[fej].rmse += r.landmark_rmse_m;
-        ++m[fej].n;
-      }
-    }
-    m[fej].landmark_nees /= m[fej].n;
-    m[fej].pose_nees /= m[fej].n;
-    m[fej].rmse /= m[fej].n;
-    std::printf("park4, 20 seeds x 4 robots, %s: landmark NEES %.2f, pose NEES %.2f, landmark RMSE %.3f m\n",
-                fej ? "FEJ" : "standard", m[fej].landmark_nees, m[fej].pose_nees, m[fej].rmse);
-  }
-  RecordProperty("landmark_nees_standard", std::to_string(m[0].landmark_nees));
-  RecordProperty("landmark_nees_fej", std::to_string(m[1].landmark_nees));
-  EXPECT_GT(m[0].landmark_nees, 2.5);  // the inconsistency FEJ removes
-  EXPECT_GE(m[1].landmark_nees, 1.5);
-  EXPECT_LE(m[1].landmark_nees, 2.4);
-  EXPECT_GE(m[1].pose_nees, 2.5);
-  EXPECT_LE(m[1].pose_nees, 3.5);
-  EXPECT_LT(m[1].rmse, 1.05 * m[0].rmse);
+  const Means standard = MeansOverSeeds("park4.yaml", "agent.first_estimates_jacobians", false, 20);
+  const Means fej = MeansOverSeeds("park4.yaml", "agent.first_estimates_jacobians", true, 20);
+  RecordProperty("landmark_nees_standard", std::to_string(standard.landmark_nees));
+  RecordProperty("landmark_nees_fej", std::to_string(fej.landmark_nees));
+  EXPECT_GT(standard.landmark_nees, 2.5);  // the inconsistency FEJ removes
+  EXPECT_GE(fej.landmark_nees, 1.5);
+  EXPECT_LE(fej.landmark_nees, 2.4);
+  EXPECT_GE(fej.pose_nees, 2.5);
+  EXPECT_LE(fej.pose_nees, 3.5);
+  EXPECT_LT(fej.rmse, 1.05 * standard.rmse);
 }
 
 // The map frame is the start pose. With the first scan after 0.5 s of odometry (the thesis's
@@ -83,37 +91,13 @@ TEST(SlamQuality, FirstEstimatesJacobiansKeepTheParkRunsConsistent) {
 // improve, their shapes do not change, and the filter stays consistent. Circle pair, full lap,
 // 10 seeds.
 TEST(SlamQuality, AScanFromTheStartPoseAnchorsTheMapFrame) {
-  struct Mean {
-    double rmse = 0.0, aligned = 0.0, nees = 0.0;
-    int n = 0;
-  };
-  Mean m[2];
-  for (bool start_scan : {false, true}) {
-    for (int seed = 1; seed <= 10; ++seed) {
-      const Scenario sc = LoadScenario(MAPMESH_SOURCE_DIR "/scenarios/thesis_circle_pair.yaml",
-                                       {ParseOverride("seed=" + std::to_string(seed)),
-                                        ParseOverride(std::string("robots.defaults.sensor.scan_at_start=") +
-                                                      (start_scan ? "true" : "false"))});
-      for (const lab::SlamRunResult& r : lab::RunSlam(sc, {})) {
-        ASSERT_TRUE(r.map_evaluated);
-        ASSERT_FALSE(r.map_aligned);
-        m[start_scan].rmse += r.landmark_rmse_m;
-        m[start_scan].aligned += r.landmark_rmse_aligned_m;
-        m[start_scan].nees += r.landmark_nees;
-        ++m[start_scan].n;
-      }
-    }
-    Mean& x = m[start_scan];
-    x.rmse /= x.n;
-    x.aligned /= x.n;
-    x.nees /= x.n;
-    std::printf("circle pair, 10 seeds x 2 robots, %s: landmark RMSE %.3f m (aligned %.3f m), NEES %.2f\n",
-                start_scan ? "scan at start" : "first scan at 0.5 s", x.rmse, x.aligned, x.nees);
-  }
-  EXPECT_LT(m[1].rmse, 0.8 * m[0].rmse);
-  EXPECT_LT(m[1].aligned, 1.1 * m[0].aligned);
-  EXPECT_GE(m[1].nees, 1.0);
-  EXPECT_LE(m[1].nees, 3.0);
+  const std::string key = "robots.defaults.sensor.scan_at_start";
+  const Means later = MeansOverSeeds("thesis_circle_pair.yaml", key, false, 10);
+  const Means start = MeansOverSeeds("thesis_circle_pair.yaml", key, true, 10);
+  EXPECT_LT(start.rmse, 0.8 * later.rmse);
+  EXPECT_LT(start.aligned, 1.1 * later.aligned);
+  EXPECT_GE(start.landmark_nees, 1.0);
+  EXPECT_LE(start.landmark_nees, 3.0);
 }
 
 }  // namespace
