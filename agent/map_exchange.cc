@@ -13,6 +13,12 @@ Eigen::Vector2d Centroid(const LandmarkMap& m) {
   return m.empty() ? c : Eigen::Vector2d(c / static_cast<double>(m.size()));
 }
 
+// Whether two transforms of a frame place the point `at` of it within tol_m of each other and
+// turn it within tol_deg.
+bool Within(const Pose2& a, const Pose2& b, const Eigen::Vector2d& at, double tol_m, double tol_deg) {
+  return (a.Apply(at) - b.Apply(at)).norm() <= tol_m && std::abs(WrapAngle(a.theta - b.theta)) <= DegToRad(tol_deg);
+}
+
 }  // namespace
 
 MapExchange::MapExchange(RobotId self, std::uint32_t incarnation, const ExchangeOptions& options, std::uint64_t seed)
@@ -72,8 +78,28 @@ void MapExchange::AddOwnCheckpoint(std::uint32_t incarnation, double origin_stam
 }
 
 bool MapExchange::Agree(const Pose2& a, const Pose2& b, const Eigen::Vector2d& at) const {
-  return (a.Apply(at) - b.Apply(at)).norm() <= options_.relay_tolerance_m &&
-         std::abs(WrapAngle(a.theta - b.theta)) <= DegToRad(options_.relay_tolerance_deg);
+  return Within(a, b, at, options_.relay_tolerance_m, options_.relay_tolerance_deg);
+}
+
+MapExchange::Overlap MapExchange::Compare(const LandmarkMap& witness, const LandmarkMap& map, const Pose2& placement,
+                                          int* inliers) const {
+  const AlignmentResult r = VerifyAlignment(witness, map, placement, options_.align);
+  if (r.covered < options_.align.min_inliers) return Overlap::kNone;  // the witness has not mapped there
+  if (!r.accepted() || static_cast<double>(r.inliers.size()) < options_.relay_min_agreement * r.covered ||
+      !Agree(r.transform, placement, Centroid(map))) {
+    return Overlap::kDisagrees;
+  }
+  if (inliers != nullptr) *inliers = static_cast<int>(r.inliers.size());
+  return Overlap::kAgrees;
+}
+
+void MapExchange::Drop(Peer& p, double now) {
+  ++p.report.drops;
+  p.report.aligned = false;
+  p.report.dropped = true;
+  p.source.reset();
+  p.direct.reset();
+  p.last_attempt = now;
 }
 
 bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool reconsider_relay) {
@@ -134,11 +160,7 @@ bool MapExchange::RelayAgrees(const Peer& p, const Pose2& to_own, Peer** conflic
     if (&q == &p || !q.direct || q.direct->map.empty()) continue;
     // q's map as we placed it, against p's global map where p placed it: where they overlap,
     // p's map must verify there, at the same transform.
-    const LandmarkMap placed = TransformMap(q.direct->map, q.direct->to_own);
-    const AlignmentResult r = VerifyAlignment(placed, p.global, to_own, options_.align);
-    if (r.covered < options_.align.min_inliers) continue;  // they do not overlap
-    if (!r.accepted() || static_cast<double>(r.inliers.size()) < options_.relay_min_agreement * r.covered ||
-        !Agree(r.transform, to_own, Centroid(p.global))) {
+    if (Compare(TransformMap(q.direct->map, q.direct->to_own), p.global, to_own) == Overlap::kDisagrees) {
       if (conflict != nullptr) *conflict = &q;
       return false;
     }
@@ -150,14 +172,14 @@ MapExchange::Evidence MapExchange::Weigh(const Peer& q, const Pose2& placement, 
   const LandmarkMap& theirs = PeerMap(q);
   Evidence e;
   auto weigh = [&](const LandmarkMap& witness) {
-    const AlignmentResult r = VerifyAlignment(witness, theirs, placement, options_.align);
-    if (r.covered < options_.align.min_inliers) return;  // it has not mapped where q's map lies
-    if (r.accepted() && static_cast<double>(r.inliers.size()) >= options_.relay_min_agreement * r.covered &&
-        Agree(r.transform, placement, Centroid(theirs))) {
-      ++e.supporters;
-      e.inliers += static_cast<int>(r.inliers.size());
-    } else {
-      ++e.against;
+    int inliers = 0;
+    switch (Compare(witness, theirs, placement, &inliers)) {
+      case Overlap::kNone: break;
+      case Overlap::kAgrees:
+        ++e.supporters;
+        e.inliers += inliers;
+        break;
+      case Overlap::kDisagrees: ++e.against; break;
     }
   };
   weigh(own_local);
@@ -184,10 +206,7 @@ bool MapExchange::RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, con
   // Placements this close are two fits of one alignment (of a bent map, say), not a false one.
   const Pose2 ours = q.report.to_own;
   const Eigen::Vector2d at = Centroid(theirs);
-  if ((r.transform.Apply(at) - ours.Apply(at)).norm() <= options_.refute_min_offset_m &&
-      std::abs(WrapAngle(r.transform.theta - ours.theta)) <= DegToRad(options_.refute_min_offset_deg)) {
-    return false;
-  }
+  if (Within(r.transform, ours, at, options_.refute_min_offset_m, options_.refute_min_offset_deg)) return false;
   const Evidence held = Weigh(q, ours, own_local);
   const Evidence relay = Weigh(q, r.transform, own_local);
   const bool relay_better = relay.supporters > 0 && (relay.against < held.against ||
@@ -195,14 +214,9 @@ bool MapExchange::RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, con
   if (!relay_better && held.against <= held.supporters) return false;
   q.refuted.push_back(ours);
   ++q.report.refuted;
-  ++q.report.drops;
-  q.report.aligned = false;
-  q.report.dropped = true;
   q.report.relayed = false;
   q.candidate.reset();
-  q.source.reset();
-  q.direct.reset();
-  q.last_attempt = now_;
+  Drop(q, now_);
   return true;
 }
 
@@ -299,12 +313,7 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     }
     ++p.report.rejected;
     if (++p.report.failures >= options_.drop_after_failures) {
-      ++p.report.drops;
-      p.report.aligned = false;
-      p.report.dropped = true;
-      p.source.reset();
-      p.direct.reset();
-      p.last_attempt = now;
+      Drop(p, now);
       changed = true;
     }
   }

@@ -168,6 +168,14 @@ class MapExchange {
   bool Align(Peer& p, const LandmarkMap& own_local, double now, bool reconsider_relay);
   // Whether two transforms of a peer's frame agree at a point of its map (relay tolerances).
   bool Agree(const Pose2& a, const Pose2& b, const Eigen::Vector2d& at) const;
+  // How `map` at `placement` compares with `witness` (a map in our frame) where they overlap:
+  // agreeing means verifying there with relay_min_agreement of the overlapping landmarks as
+  // inliers (their count in *inliers), at a transform that Agrees with the placement.
+  enum class Overlap { kNone, kAgrees, kDisagrees };
+  Overlap Compare(const LandmarkMap& witness, const LandmarkMap& map, const Pose2& placement,
+                  int* inliers = nullptr) const;
+  // The peer no longer contributes (its alignment is dropped); aligned again from `now` on.
+  void Drop(Peer& p, double now);
   // A map of `size` landmarks has grown by retry_growth since it had `at_attempt`.
   bool Grew(std::size_t size, std::size_t at_attempt) const;
   // An aligned peer's fresh alignment is due (realign_on_growth).

@@ -11,7 +11,6 @@
 #include <random>
 
 #include "common/app/process.h"
-#include "common/geometry/rigid_fit.h"
 #include "common/io/run_files.h"
 #include "common/metrics/landmark_metrics.h"
 #include "common/metrics/reference_metrics.h"

@@ -5,7 +5,6 @@
 #include <memory>
 #include <set>
 
-#include "common/geometry/rigid_fit.h"
 #include "common/metrics/trajectory_metrics.h"
 #include "sim_feeder/sources.h"
 

@@ -4,7 +4,8 @@
 #include <cstdio>
 #include <sstream>
 
-#include "common/geometry/rigid_fit.h"
+#include "common/map/landmark_map.h"
+#include "common/metrics/landmark_metrics.h"
 #include "common/merge/rendezvous.h"
 #include "common/metrics/trajectory_metrics.h"
 
@@ -16,14 +17,7 @@ namespace {
 // (heading drift before the first landmark rotates a map about its nominal origin), else
 // from the true start pose.
 std::optional<Pose2> FrameInWorld(const SlamRunResult& r) {
-  std::vector<Eigen::Vector2d> src, dst;
-  for (const Landmark& l : r.map.landmarks) {
-    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < r.landmark_truth.size()) {
-      src.push_back(l.mean);
-      dst.push_back(r.landmark_truth[l.signature]);
-    }
-  }
-  if (auto fit = FitRigid2D(src, dst)) return fit;
+  if (auto fit = MapFrameInWorld(r.map, r.landmark_truth)) return fit;
   return r.origin_truth;
 }
 
@@ -59,10 +53,7 @@ std::vector<PairResult> AlignPairs(const std::vector<SlamRunResult>& robots, con
       if (!rb.map.empty()) centroid /= static_cast<double>(rb.map.size());
 
       // Map overlap, geometry only.
-      LandmarkMap ma = ra.map, mb = rb.map;
-      for (Landmark& l : ma.landmarks) l.signature = -1;
-      for (Landmark& l : mb.landmarks) l.signature = -1;
-      const AlignmentResult al = AlignMaps(ma, mb, options, rng);
+      const AlignmentResult al = AlignMaps(WithoutSignatures(ra.map), WithoutSignatures(rb.map), options, rng);
       p.verdict = al.verdict;
       p.inliers = static_cast<int>(al.inliers.size());
       p.best_support = al.best_support;

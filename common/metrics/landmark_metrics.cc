@@ -104,7 +104,8 @@ MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d
 std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth) {
   std::vector<Eigen::Vector2d> src, dst;
   for (const Landmark& l : map.landmarks) {
-    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < truth.size()) {
+    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < truth.size() &&
+        truth[l.signature].allFinite()) {
       src.push_back(l.mean);
       dst.push_back(truth[l.signature]);
     }
@@ -116,15 +117,7 @@ MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::
                                const std::vector<int>& seen, const std::optional<Pose2>& origin,
                                double gate_m) {
   if (origin) return EvaluateMap(TransformMap(map, *origin), truth, seen, gate_m);
-  std::vector<Eigen::Vector2d> src, dst;
-  for (const Landmark& l : map.landmarks) {
-    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < truth.size() &&
-        truth[l.signature].allFinite()) {
-      src.push_back(l.mean);
-      dst.push_back(truth[l.signature]);
-    }
-  }
-  const std::optional<Pose2> fit = FitRigid2D(src, dst);
+  const std::optional<Pose2> fit = MapFrameInWorld(map, truth);
   if (!fit) {
     MapQuality q;
     q.evaluated = false;

@@ -55,13 +55,12 @@ struct MapQuality {
 MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
                        const std::vector<int>& seen, double gate_m = 2.0);
 
-// Quality of a map given in its own frame. It is moved into the truth frame by `origin` (the
-// true pose of the frame) when known; otherwise by the least-squares rigid fit of its
-// signature-matched landmarks to the truth (needs two), and then aligned is true.
 // Where a map's frame really lies in the world: the least-squares rigid fit of its landmarks to
-// the true ones they carry the signature of (needs two); nullopt without signatures.
+// the (finite) true ones they carry the signature of (needs two); nullopt without signatures.
 std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth);
 
+// Quality of a map given in its own frame. It is moved into the truth frame by `origin` (the
+// true pose of the frame) when known; otherwise by MapFrameInWorld, and then aligned is true.
 MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
                                const std::vector<int>& seen, const std::optional<Pose2>& origin,
                                double gate_m = 2.0);

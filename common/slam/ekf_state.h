@@ -57,7 +57,6 @@ class EkfState {
   // Jacobians use them (EkfOptions::first_estimates_jacobians).
   auto first_estimates() const { return fe_.head(n_); }
   Eigen::Vector2d first_estimate(int slot) const { return fe_.segment<2>(3 + 2 * slot); }
-  const EkfOptions& options() const { return options_; }
 
   // EKF prediction (thesis eq. 19-22): only the robot rows and columns of P change; the
   // landmark block is not touched. Returns the robot Jacobian of the motion that was used.

@@ -150,6 +150,7 @@ class SwarmRun:
             self.common += ["--set", s]
         self.feeder = None
         self.injector = None
+        self.kill_wall = {}  # (t, id) -> wall time of the kill
         self.agents = {}
         self.lease = None
         self.info = None
@@ -159,8 +160,7 @@ class SwarmRun:
         cmd = [binary("mapmesh-feeder"), "--scenario", self.scenario, "--check", "--events"] + self.common
         r = subprocess.run(cmd, capture_output=True, text=True)
         if r.returncode != 0:
-            msg = (r.stderr.strip().splitlines() or ["scenario check failed"])[-1]
-            raise RunError(msg.removeprefix("mapmesh-feeder: "), 2)
+            raise RunError(last_line(r.stderr, "scenario check failed").removeprefix("mapmesh-feeder: "), 2)
         self.info = json.loads(r.stdout.strip().splitlines()[-1])
         ids = set(self.info["robots"])
         for t, rid in self.kills + self.restarts:
@@ -174,8 +174,7 @@ class SwarmRun:
                    "--check"] + self.common
             r = subprocess.run(cmd, capture_output=True, text=True)
             if r.returncode != 0:
-                msg = (r.stderr.strip().splitlines() or ["mapmesh-inject --check failed"])[-1]
-                raise RunError("--inject: " + msg.removeprefix("mapmesh-inject: "), 2)
+                raise RunError("--inject: " + last_line(r.stderr, "check failed").removeprefix("mapmesh-inject: "), 2)
 
     def agent_cmd(self, rid, incarnation):
         resume = ["--resume"] if incarnation > 1 else []
@@ -277,7 +276,6 @@ class SwarmRun:
 
     def loop(self, wall_start):
         self.done_kills, self.done_restarts = {}, {}
-        self.kill_wall = {}
         self.reported_dead = set()  # pids whose end the feeder has been told about
         self.progress = Progress(self.info["duration"], quiet=self.args.quiet)
         deadline = wall_start + self.args.timeout
@@ -340,8 +338,6 @@ class SwarmRun:
         then the feeder; anything that does not stop in time is killed. A fault injector stops
         first, so that the agents' final maps are written with no injection under way."""
         if self.injector is not None:
-            if self.injector.poll() is None:
-                self.injector.signal(signal.SIGTERM)
             self.injector.stop(10.0)
         for slot in self.agents.values():
             if slot.current is not None and slot.current.poll() is None:
@@ -419,7 +415,7 @@ class SwarmRun:
             "real_time_factor": round(duration / wall_s, 3) if wall_s > 0 else None,
             "pace": self.args.pace or self.info["pace"],
             "interrupted": interrupted,
-            "kills": [{"id": r, "t": t, "wall": getattr(self, "kill_wall", {}).get((t, r))} for t, r in self.kills],
+            "kills": [{"id": r, "t": t, "wall": self.kill_wall.get((t, r))} for t, r in self.kills],
             "restarts": [{"id": r, "t": t} for t, r in self.restarts],
             "feeder": {"exit_code": self.feeder.returncode if self.feeder else None,
                        "cpu_s": round(self.feeder.cpu_s, 3) if self.feeder else None,
@@ -444,16 +440,25 @@ def write_json(path, value):
     tmp.replace(path)
 
 
-def write_report(run_dir, quiet=False):
-    """RUN_DIR/report.html by scripts/plots/report.py (Debian's python3 with matplotlib).
-    Returns its path, or None with the reason on stderr."""
-    r = subprocess.run([PLOT_PYTHON, str(REPO / "scripts" / "plots" / "report.py"), str(run_dir)],
+def last_line(text, default):
+    """The last line of a process's stderr (its one-line reason), or default."""
+    return (text.strip().splitlines() or [default])[-1]
+
+
+def plot(script, run_dir, what):
+    """Runs scripts/plots/SCRIPT on RUN_DIR with Debian's python3 (matplotlib). True when it
+    worked; otherwise prints why WHAT was not written and returns False."""
+    r = subprocess.run([PLOT_PYTHON, str(REPO / "scripts" / "plots" / script), str(run_dir)],
                        capture_output=True, text=True)
     if r.returncode != 0:
-        reason = (r.stderr.strip().splitlines() or [f"exit code {r.returncode}"])[-1]
-        print(f"swarm: report not written: {reason}", file=sys.stderr)
-        return None
-    return Path(run_dir) / "report.html"
+        print(f"swarm: {what} not written: {last_line(r.stderr, f'exit code {r.returncode}')}", file=sys.stderr)
+    return r.returncode == 0
+
+
+def write_report(run_dir):
+    """RUN_DIR/report.html by scripts/plots/report.py. Returns its path, or None with the
+    reason on stderr."""
+    return Path(run_dir) / "report.html" if plot("report.py", run_dir, "report") else None
 
 
 def _maps_dropped(stats):

@@ -11,7 +11,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from .run import PLOT_PYTHON, REPO, RunError
+from .run import REPO, RunError, last_line, plot
 
 COLUMNS = ["seed", "agent", "alive", "lm_local", "lm_global", "coverage_global", "nees_global", "rmse_global_m",
            "rmse_local_m", "nees_local", "peers_aligned", "bytes_sent", "wall_s"]
@@ -29,7 +29,7 @@ def _run_one(args, value, seed, run_dir):
         cmd += ["--set", s]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if not (run_dir / "summary.json").exists():
-        reason = (r.stderr.strip().splitlines() or [f"exit code {r.returncode}"])[-1]
+        reason = last_line(r.stderr, f"exit code {r.returncode}")
         raise RunError(f"{args.param}={value}" + (f" seed {seed}" if seed is not None else "") + f": {reason}", 1)
     return json.loads((run_dir / "summary.json").read_text()), r.returncode
 
@@ -83,11 +83,7 @@ def cmd_sweep(args):
         for (v, s) in plan:
             w.writerows(_rows(v, s if s is not None else "", results[(v, s)]))
     print(f"csv:  {path}")
-    r = subprocess.run([PLOT_PYTHON, str(REPO / "scripts" / "plots" / "sweep.py"), str(out)],
-                       capture_output=True, text=True)
-    if r.returncode == 0:
-        print(f"plot: {out / 'sweep.png'}")
-    else:
-        print(f"swarm: sweep plot not written: {(r.stderr.strip().splitlines() or ['?'])[-1]}", file=sys.stderr)
+    if not plot("sweep.py", out, "sweep plot"):
         return 1
+    print(f"plot: {out / 'sweep.png'}")
     return 1 if failed else 0

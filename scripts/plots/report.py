@@ -436,10 +436,9 @@ def typical_period(tl):
     return steps[len(steps) // 2] if steps else 1.0
 
 
-def exchanges_figure(run, tl, path):
-    """A row per (receiver, sender): a bar over each period in which the receiver's count of
+def exchanges_figure(run, tl, period, path):
+    """A row per (receiver, sender): a bar over each period (s) in which the receiver's count of
     maps from the sender grew. Kills and restarts marked on the receiver's rows."""
-    period = (run.timeline or {}).get("period_s") or typical_period(tl)
     receivers = list(tl)
     senders = set(run.ids)
     for entries in tl.values():
@@ -638,14 +637,13 @@ def write_report(d):
                                 "true trajectory (black), local map (blue dots) and global map (orange +) with 95 % "
                                 "ellipses, estimated trajectory (purple, dashed).", agent=rid))
 
-    timeline = []
     if run.timeline is not None:
         tl = timeline_entries(run)
-        exchanges_figure(run, tl, out / "exchanges.png")
+        period = run.timeline.get("period_s") or typical_period(tl)
+        exchanges_figure(run, tl, period, out / "exchanges.png")
         nees_figure(run, tl, out / "nees.png")
         coverage_figure(run, tl, out / "coverage.png")
         bytes_figure(run, tl, out / "bytes.png")
-        period = run.timeline.get("period_s")
         timeline = [
             figure_html("report/exchanges.png", "map exchanges over time",
                         f"Maps received, per receiver \u2190 sender, per checkpoint period ({seconds(period)})."),

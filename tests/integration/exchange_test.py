@@ -6,7 +6,6 @@ import json
 import math
 import subprocess
 import unittest
-from pathlib import Path
 
 from report_test import check_png, check_report, check_sweep
 from swarm_test import REPO, SWARM, SwarmCase
@@ -79,8 +78,8 @@ class ExchangeTest(SwarmCase):
                 before = [h for h in lines if h["t"] <= t]
                 if not before:
                     continue
-                snap = json.loads((self.out / f"agent_{rid}" / f"snapshots" /
-                                   Path(f"t{before[-1]['t']:010.3f}_i{before[-1]['incarnation']}_global.json")).read_text())
+                snap = json.loads((self.out / f"agent_{rid}" / "snapshots" /
+                                   f"t{before[-1]['t']:010.3f}_i{before[-1]['incarnation']}_global.json").read_text())
                 had = origins(snap, dead)
                 checked += len(had)
                 self.assertLessEqual(had, origins(final, dead), f"agent {rid} lost landmarks of killed {dead}")

@@ -1,13 +1,10 @@
 """mapmesh-lab bus: a scenario's agents in one process over an in-memory bus, and its table."""
 
-import os
 import re
 import subprocess
 import unittest
-from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
-BIN = Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
+from swarm_test import BIN, DATASETS, REPO
 
 
 def bus(scenario):
@@ -46,9 +43,8 @@ class LabBusTest(unittest.TestCase):
             self.assertLess(float(fit_deg), 0.5)
 
     def test_victoria_park_without_landmark_truth_prints_map_sizes(self):
-        root = Path(os.environ.get("MAPMESH_DATASETS", REPO.parent / "shared" / "datasets"))
-        if not root.is_dir():
-            self.skipTest(f"datasets not found at {root} (set MAPMESH_DATASETS)")
+        if not DATASETS.is_dir():
+            self.skipTest(f"datasets not found at {DATASETS} (set MAPMESH_DATASETS)")
         header, rows = bus("victoria_4.yaml")
         self.assertNotIn("error", header)
         self.assertEqual(sorted(rows), [1, 2, 3, 4])

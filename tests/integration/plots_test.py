@@ -1,14 +1,13 @@
 """The lab's experiment CSVs through their plot scripts: every figure is written and is a PNG
 of non-trivial size. Plots run with Debian's /usr/bin/python3 (matplotlib, numpy)."""
 
-import os
 import subprocess
 import tempfile
 import unittest
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
-BIN = Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
+from swarm_test import BIN, DATASETS, REPO
+
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
@@ -45,8 +44,7 @@ class FusionPlotsTest(unittest.TestCase):
         with tempfile.TemporaryDirectory(prefix="mapmesh_plots_") as tmp:
             out = Path(tmp) / "fusion"
             # Table 7 replays Victoria Park: without the datasets only the simulated figures are drawn.
-            datasets = Path(os.environ.get("MAPMESH_DATASETS", REPO.parent / "shared" / "datasets"))
-            have_vp = (datasets / "victoria_park").is_dir()
+            have_vp = (DATASETS / "victoria_park").is_dir()
             only = [] if have_vp else ["--only", "bearing", "velocity", "range"]
             subprocess.run([str(BIN / "mapmesh-lab"), "thesis-fusion", "--out", str(out), "--seeds", "1",
                             "--threads", "1"] + only, check=True, capture_output=True, timeout=240)

@@ -88,7 +88,7 @@ def make_fake_run(d):
 
     frames = {r["id"]: next(p[1:] for p in r["trajectory"] if p[0] >= origin_stamp[r["id"]]) for r in robots}
 
-    def estimate(rid, lid, frame, sigma):
+    def estimate(lid, frame, sigma):
         lm = landmarks[lid]
         x, y = _compose_inverse(frame, lm["x"], lm["y"])
         a = rng.uniform(0, math.pi)
@@ -101,14 +101,14 @@ def make_fake_run(d):
     for r in robots:
         rid, frame = r["id"], frames[r["id"]]
         adir = d / f"agent_{rid}"
-        local = [estimate(rid, lid, frame, 0.15) for lid in sensed[rid]]
+        local = [estimate(lid, frame, 0.15) for lid in sensed[rid]]
         _write(adir / "local_map.json", {"landmarks": local, "shape_sigma_m": 0.03})
         if rid != 2:
             glob = []
             for other in robots:
                 for lid in sensed[other["id"]]:
                     if lid not in {g["id"] for g in glob}:
-                        e = estimate(rid, lid, frame, 0.15 if other["id"] == rid else 0.4)
+                        e = estimate(lid, frame, 0.15 if other["id"] == rid else 0.4)
                         e.update(signature=-1, origins=[[other["id"], 2 if other["id"] == 3 else 1, lid]])
                         glob.append(e)
             _write(adir / "global_map.json", {"landmarks": glob, "shape_sigma_m": 0.0, "stats": {}})
@@ -262,7 +262,7 @@ def _lookup(record, path):
     return record
 
 
-def _check_cell_text(testcase, key, value, text, where):
+def _check_cell_text(testcase, value, text, where):
     text = text.strip()
     if value is None:
         testcase.assertEqual(text, DASH, where)
@@ -321,7 +321,7 @@ def check_report(testcase, run_dir, run=True):
             where = f"agent {a['id']} {key}"
             expected = _lookup(a, key)
             testcase.assertEqual(json.loads(data_value), expected, where)
-            _check_cell_text(testcase, key, expected, text, where)
+            _check_cell_text(testcase, expected, text, where)
     return page
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 BIN = Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
+DATASETS = Path(os.environ.get("MAPMESH_DATASETS", REPO.parent / "shared" / "datasets"))
 SWARM = [sys.executable, str(REPO / "scripts" / "swarm")]
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -241,9 +242,8 @@ class DatasetReplayTest(SwarmCase):
     """Whole datasets through real agents in lockstep (skipped without ../shared/datasets)."""
 
     def replay(self, scenario, agents):
-        root = Path(os.environ.get("MAPMESH_DATASETS", REPO.parent / "shared" / "datasets"))
-        if not root.is_dir():
-            self.skipTest(f"datasets not found at {root} (set MAPMESH_DATASETS)")
+        if not DATASETS.is_dir():
+            self.skipTest(f"datasets not found at {DATASETS} (set MAPMESH_DATASETS)")
         r = self.swarm(REPO / "scenarios" / scenario)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         s = self.summary()
