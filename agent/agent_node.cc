@@ -94,7 +94,7 @@ AgentNode::AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incar
       out_(out),
       gate_(self, RadioGateOptions{scenario.radio.loss_probability, scenario.radio.bandwidth_bytes_per_s},
             scenario.seed * 1000003ULL + self * 7919ULL + incarnation),
-      sync_(*this),
+      sync_(*this, scenario.agent.frame_at_first_landmark),
       mapper_(MakeLocalMapper(scenario, self)),
       trajectory_period_s_(scenario.feeder.truth_period_s),
       exchange_(self, incarnation, ExchangeOptionsFor(scenario),
@@ -112,8 +112,11 @@ void AgentNode::ApplyScan(const Scan& scan, double stamp) { mapper_->Observe(sca
 
 void AgentNode::IntervalDone(const Odometry& odom) { AfterInterval(odom); }
 
+bool AgentNode::Mapped() const { return mapper_->size() > 0; }
+
 void AgentNode::AfterInterval(const Odometry& odom) {
-  if (sync_.processed_until() + 1e-9 >= next_trajectory_s_) {
+  // Before the frame is fixed the robot's place in it is not known yet.
+  if (sync_.frame_fixed() && sync_.processed_until() + 1e-9 >= next_trajectory_s_) {
     trajectory_.push_back({sync_.processed_until(), mapper_->pose()});
     next_trajectory_s_ = sync_.processed_until() + trajectory_period_s_;
   }

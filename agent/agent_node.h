@@ -114,6 +114,7 @@ class AgentNode : private SensorSync::Sink {
   // SensorSync::Sink: the robot's data in time order.
   void Move(const OdometryControl& u, double dt) override;
   void ApplyScan(const Scan& scan, double stamp) override;
+  bool Mapped() const override;
   void IntervalDone(const Odometry& odom) override;
   void AfterInterval(const Odometry& odom);
   void PublishMaps();

@@ -37,6 +37,7 @@ void SensorSync::Drain() {
     if (!started_) {
       started_ = true;
       frame_origin_stamp_ = odom.stamp - odom.dt;
+      frame_fixed_ = !frame_at_first_landmark_;
       if (odom.seq == 0) {
         // The very first interval of the stream: nothing can have been missed, so it is
         // processed like any other.
@@ -44,7 +45,7 @@ void SensorSync::Drain() {
       } else {
         // Joining a running stream (a restart): this interval's scans may have been missed
         // while this process was discovering the feeder, so it only moves the robot.
-        sink_.Move({odom.v, odom.w, odom.steering}, odom.dt);
+        Move({odom.v, odom.w, odom.steering}, odom.dt, odom.stamp);
         processed_until_ = odom.stamp;
         pending_odom_.erase(pending_odom_.begin());
         const auto end = pending_scans_.upper_bound(odom.stamp);
@@ -67,6 +68,14 @@ void SensorSync::Drain() {
   }
 }
 
+void SensorSync::Move(const OdometryControl& u, double dt, double until) {
+  if (frame_fixed_) {
+    sink_.Move(u, dt);
+  } else {
+    frame_origin_stamp_ = until;
+  }
+}
+
 void SensorSync::ProcessInterval(const Odometry& odom) {
   // Odometry holds over (stamp - dt, stamp]; each scan is applied at its own time.
   const OdometryControl u{odom.v, odom.w, odom.steering};
@@ -74,17 +83,18 @@ void SensorSync::ProcessInterval(const Odometry& odom) {
   const auto end = pending_scans_.upper_bound(odom.stamp);
   for (auto it = pending_scans_.begin(); it != end; ++it) {
     const double ts = std::max(it->first, t);
-    if (ts > t) sink_.Move(u, ts - t);
+    if (ts > t) Move(u, ts - t, ts);
     t = ts;
     ++stats_.scans_processed;
     if (it->second.obs.empty()) {
       ++stats_.scans_empty;
     } else {
       sink_.ApplyScan(it->second, ts);
+      if (!frame_fixed_ && sink_.Mapped()) frame_fixed_ = true;
     }
   }
   pending_scans_.erase(pending_scans_.begin(), end);
-  if (odom.stamp > t) sink_.Move(u, odom.stamp - t);
+  if (odom.stamp > t) Move(u, odom.stamp - t, odom.stamp);
   processed_until_ = odom.stamp;
   ++stats_.odom_processed;
 }

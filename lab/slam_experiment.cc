@@ -24,7 +24,8 @@ using PoseSample = SlamRunResult::PoseSample;
 // A robot's estimator fed in time order, recording what the scoring needs.
 class RobotRun : public SensorSync::Sink {
  public:
-  RobotRun(const Scenario& sc, RobotId id, bool hide) : mapper_(MakeLocalMapper(sc, id)), sync_(*this), hide_(hide) {}
+  RobotRun(const Scenario& sc, RobotId id, bool hide)
+      : mapper_(MakeLocalMapper(sc, id)), sync_(*this, sc.agent.frame_at_first_landmark), hide_(hide) {}
 
   void Move(const OdometryControl& u, double dt) override { mapper_->Predict(u, dt); }
   void ApplyScan(const Scan& scan, double stamp) override {
@@ -38,12 +39,13 @@ class RobotRun : public SensorSync::Sink {
       mapper_->Observe(obs, stamp);
       ScoreAssociations(scan.obs);
     }
-    samples_.push_back({stamp, mapper_->pose(), mapper_->pose_cov()});
+    if (Mapped()) samples_.push_back({stamp, mapper_->pose(), mapper_->pose_cov()});
     for (const Observation& o : scan.obs) {
       if (o.kind == ObservationKind::kRobot) sightings_.push_back({stamp, static_cast<RobotId>(o.signature), o.range, o.bearing});
     }
   }
   void IntervalDone(const Odometry&) override {}
+  bool Mapped() const override { return mapper_->size() > 0; }
 
   SensorSync& sync() { return sync_; }
   // The true identity of each landmark the estimator started (from the observation that

@@ -290,6 +290,7 @@ AgentOptions ReadAgent(YamlReader a) {
   a.GetPositive("region_half_m", o.region_half_m);
   a.GetNonNegative("region_reach_m", o.region_reach_m);
   a.Get("first_estimates_jacobians", o.first_estimates_jacobians);
+  a.Get("frame_at_first_landmark", o.frame_at_first_landmark);
   a.GetPositive("map_publish_period_s", o.map_publish_period_s);
   a.GetPositive("status_period_s", o.status_period_s);
   a.GetPositive("association_gate_m", o.association_gate_m);

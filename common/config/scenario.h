@@ -131,6 +131,7 @@ struct AgentOptions {
   double region_half_m = 5.0;           // cekf: region half-size (switch when the robot leaves it)
   double region_reach_m = 0.0;          // cekf: active landmarks this far beyond the region (0: sensor range + 4 m)
   bool first_estimates_jacobians = true;  // ekf, cekf: FEJ-EKF (Jacobians at first estimates) for consistency
+  bool frame_at_first_landmark = true;  // the map frame is the robot's pose when it first maps a landmark (else its start)
   double map_publish_period_s = 2.0;    // scenario seconds between map publications
   double status_period_s = 1.0;         // scenario seconds between status reports
   double association_gate_m = 1.0;      // dead reckoning without signatures: merge radius

@@ -16,15 +16,17 @@ class Capture : public AgentOutput {
   std::vector<AgentStatus> statuses;
 };
 
-Scenario TwoRobots() {
-  return ParseScenario(R"(version: 1
+// The frame is the start pose (agent.frame_at_first_landmark off), so that positions below
+// count from the start of the stream.
+Scenario TwoRobots(bool frame_at_first_landmark = false) {
+  return ParseScenario(std::string(R"(version: 1
 world: {landmarks: {list: [[5, 0], [0, 5]]}}
 robots:
   list:
     - {id: 1, start: [0, 0, 0]}
     - {id: 2, start: [1, 0, 0]}
-agent: {map_publish_period_s: 1.0, status_period_s: 0.5}
-)",
+agent: {map_publish_period_s: 1.0, status_period_s: 0.5, frame_at_first_landmark: )") +
+                           (frame_at_first_landmark ? "true" : "false") + "}\n",
                        "test.yaml");
 }
 
@@ -101,6 +103,25 @@ TEST_F(AgentNodeTest, JoiningARunningStreamDiscardsTheFirstIntervalsScans) {
   EXPECT_DOUBLE_EQ(node_.processed_until(), 3.1);
   EXPECT_NEAR(*node_.frame_origin_stamp(), 3.0, 1e-12);
   EXPECT_NEAR(node_.Pose().x, 0.1, 1e-12);  // the first interval still moves the pose
+}
+
+// By default the frame is the robot's pose when it first maps a landmark: the motion before
+// is not applied, and the trajectory starts there.
+TEST(AgentNodeFrameTest, TheFrameIsThePoseOfTheFirstScanThatMapsALandmark) {
+  const Scenario sc = TwoRobots(/*frame_at_first_landmark=*/true);
+  Capture out;
+  AgentNode node(sc, 1, 1, out);
+  node.OnOdometry(Odom(0.1, 0));
+  node.OnOdometry(Odom(0.2, 1));
+  node.OnScan(ScanAt(0.15, 4.85, 0.0, 0));  // 4.85 m ahead of the robot at 0.15 s
+  node.OnOdometry(Odom(0.3, 0));
+  EXPECT_DOUBLE_EQ(*node.frame_origin_stamp(), 0.15);
+  ASSERT_EQ(node.LocalMap().size(), 1u);
+  EXPECT_NEAR(node.LocalMap().landmarks[0].mean.x(), 4.85, 1e-9);
+  EXPECT_NEAR(node.Pose().x, 0.15, 1e-12);  // moved from 0.15 s to 0.3 s only
+  const auto& trajectory = node.trajectory();
+  ASSERT_FALSE(trajectory.empty());
+  EXPECT_GE(trajectory.front().t, 0.15);
 }
 
 TEST_F(AgentNodeTest, RejectsBadOdometryAndLateScans) {

@@ -14,12 +14,14 @@ class Log : public SensorSync::Sink {
   void Move(const OdometryControl& u, double dt) override { events.push_back("move " + Fmt(dt) + " v" + Fmt(u.v_mps)); }
   void ApplyScan(const Scan& s, double stamp) override { events.push_back("scan " + Fmt(stamp) + " n" + std::to_string(s.obs.size())); }
   void IntervalDone(const Odometry& o) override { events.push_back("done " + Fmt(o.stamp)); }
+  bool Mapped() const override { return mapped; }
   static std::string Fmt(double v) {
     char b[32];
     std::snprintf(b, sizeof b, "%.2f", v);
     return b;
   }
   std::vector<std::string> events;
+  bool mapped = true;  // what the estimator answers after a scan
 };
 
 Odometry Odom(std::uint32_t seq, double stamp, double dt, std::uint32_t scans) {
@@ -68,6 +70,39 @@ TEST(SensorSync, AppliesAScanAtTheStreamsOriginBeforeMoving) {
     EXPECT_EQ(sync.stats().scans_processed, 1u);
     EXPECT_EQ(sync.stats().scans_before_start + sync.stats().scans_late, 0u);
   }
+}
+
+// frame_at_first_landmark: no motion reaches the estimator before its first landmark, and the
+// frame's origin is the time of the scan that mapped it.
+TEST(SensorSync, FixesTheFrameWhenTheEstimatorFirstMapsALandmark) {
+  Log log;
+  log.mapped = false;
+  SensorSync sync(log, /*frame_at_first_landmark=*/true);
+  sync.OnOdometry(Odom(0, 0.5, 0.5, 0));  // no scan: the robot stays at the origin, which moves on
+  EXPECT_FALSE(sync.frame_fixed());
+  EXPECT_DOUBLE_EQ(*sync.frame_origin_stamp(), 0.5);
+  sync.OnScan(ScanAt(0.7));  // applied, but it maps nothing (say every reading was out of range)
+  sync.OnOdometry(Odom(1, 1.0, 0.5, 1));
+  EXPECT_FALSE(sync.frame_fixed());
+  EXPECT_DOUBLE_EQ(*sync.frame_origin_stamp(), 1.0);
+  log.mapped = true;
+  sync.OnScan(ScanAt(1.2));
+  sync.OnOdometry(Odom(2, 1.5, 0.5, 1));
+  EXPECT_TRUE(sync.frame_fixed());
+  EXPECT_DOUBLE_EQ(*sync.frame_origin_stamp(), 1.2);
+  sync.OnOdometry(Odom(3, 2.0, 0.5, 0));
+  EXPECT_EQ(log.events, (std::vector<std::string>{"done 0.50", "scan 0.70 n1", "done 1.00", "scan 1.20 n1",
+                                                  "move 0.30 v1.00", "done 1.50", "move 0.50 v1.00", "done 2.00"}));
+  EXPECT_DOUBLE_EQ(*sync.frame_origin_stamp(), 1.2);
+
+  // Without it the frame is the stream's start and every motion is applied.
+  Log all;
+  all.mapped = false;
+  SensorSync from_start(all);
+  from_start.OnOdometry(Odom(0, 0.5, 0.5, 0));
+  EXPECT_TRUE(from_start.frame_fixed());
+  EXPECT_DOUBLE_EQ(*from_start.frame_origin_stamp(), 0.0);
+  EXPECT_EQ(all.events, (std::vector<std::string>{"move 0.50 v1.00", "done 0.50"}));
 }
 
 TEST(SensorSync, RejectsBadInputWithACountedReason) {
