@@ -140,6 +140,10 @@ bool MapExchange::Grew(std::size_t size, std::size_t at_attempt) const {
 bool MapExchange::RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const {
   // A stale peer's contribution stays as it was verified (nothing already learned is lost).
   if (!options_.realign_on_growth || p.report.stale || now - p.last_attempt < options_.align_period_s) return false;
+  // A realignment that disagreed with the transform in use waits for a second, later answer to
+  // confirm it: that one is due as soon as either map has changed, as for a first alignment, not
+  // only after the next fifth of growth (which may never come).
+  if (p.candidate && (p.changed || own_local.size() != p.own_size_at_attempt)) return true;
   return Grew(own_local.size(), p.own_size_at_attempt) || Grew(PeerMap(p).size(), p.peer_size_at_attempt);
 }
 
@@ -191,11 +195,12 @@ MapExchange::Evidence MapExchange::Weigh(const Peer& q, const Pose2& placement, 
 }
 
 bool MapExchange::RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, const LandmarkMap& own_local) {
-  if (!options_.refute_by_relay || !q.report.aligned || !q.direct ||
-      now_ - q.last_refute_check < options_.align_period_s) {
-    return false;
-  }
-  q.last_refute_check = now_;
+  // At most once per align period for each relay: one that does not hold q's map must not keep
+  // another, which does, from being heard.
+  if (!options_.refute_by_relay || !q.report.aligned || !q.direct) return false;
+  const auto checked = q.last_refute_check.find(p.report.key);
+  if (checked != q.last_refute_check.end() && now_ - checked->second < options_.align_period_s) return false;
+  q.last_refute_check[p.report.key] = now_;
   // Where p's global map places q: q's map aligned to it (it holds q's landmarks as p fused them).
   const LandmarkMap& theirs = PeerMap(q);
   AlignmentOptions find = options_.align;

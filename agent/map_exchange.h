@@ -161,7 +161,7 @@ class MapExchange {
     std::optional<MapSource> direct;  // ... and the one-hop map (never a relayed global map)
     std::optional<Pose2> candidate;   // an accepted alignment awaiting confirmation
     std::vector<Pose2> refuted;       // alignments that lost to a relay's placement
-    double last_refute_check = -1e300;
+    std::map<PeerKey, double> last_refute_check;  // by relay: when its placement of this peer was last weighed
   };
   // Aligns the peer's map to the own local map; when the answer is confirmed (confirm_alignments)
   // stores the transform and source and returns true.

@@ -283,6 +283,36 @@ TEST(MapExchange, AnAlignmentAcceptedOnSmallMapsIsCorrectedAsTheMapsGrow) {
   }
 }
 
+// As above, with confirmations: the false alignment is confirmed on the small maps; on the
+// grown maps a realignment finds the true transform, which waits for a second answer. That one
+// is due with the peer's next map, not after another fifth of growth (which may never come).
+TEST(MapExchange, ARealignmentThatDisagreesIsConfirmedWithThePeersNextMap) {
+  const RepeatedPatch w(5);
+  MapExchange a(1, 1, ExchangeOptions{}, 6);
+  const LandmarkMap small_b = RepeatedPatch::Map({w.r1}, kFrameB), small_a = RepeatedPatch::Map({w.r2}, kFrameA);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, small_b, 0.0);
+  a.Update(small_a, 10.0);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 2, 0.0, small_b, 20.0);
+  a.Update(small_a, 20.0);
+  ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});  // the false alignment, confirmed
+  const Pose2 truth = kFrameA.Inverse() * kFrameB;
+  const Eigen::Vector2d probe = kFrameB.Inverse().Apply(Eigen::Vector2d(5.0, 5.0));
+  auto error = [&] { return (a.Peers().front().to_own.Apply(probe) - truth.Apply(probe)).norm(); };
+  EXPECT_GT(error(), 10.0);
+
+  const LandmarkMap grown_b = RepeatedPatch::Map({w.r1, w.s}, kFrameB);
+  const LandmarkMap grown_a = RepeatedPatch::Map({w.r2, w.r1, w.s}, kFrameA);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 3, 0.0, grown_b, 30.0);
+  a.Update(grown_a, 30.0);
+  EXPECT_GT(error(), 10.0);  // the true answer is a candidate
+  EXPECT_EQ(a.Peers().front().unconfirmed, 2);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 4, 0.0, grown_b, 36.0);  // no growth
+  a.Update(grown_a, 36.0);
+  EXPECT_LT(error(), 0.1);
+  EXPECT_EQ(a.Peers().front().corrections, 1);
+  EXPECT_EQ(a.Peers().front().realignments, 2);
+}
+
 // Robot 1 maps R2 and T, robot 2 T, V and S, robot 3 R1 and S. Robot 1's only alignment with
 // robot 3 is the false one (R1 on R2; S then falls on V, which robot 1 has not mapped). Robot 2
 // aligns robot 3 truly, and its global map, relayed to robot 1, places robot 3 there. Robot 2's
