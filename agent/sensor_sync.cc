@@ -37,7 +37,6 @@ void SensorSync::Drain() {
     if (!started_) {
       started_ = true;
       frame_origin_stamp_ = odom.stamp - odom.dt;
-      frame_fixed_ = !frame_at_first_landmark_;
       if (odom.seq == 0) {
         // The very first interval of the stream: nothing can have been missed, so it is
         // processed like any other.

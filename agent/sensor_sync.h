@@ -47,7 +47,7 @@ class SensorSync {
   };
 
   explicit SensorSync(Sink& sink, bool frame_at_first_landmark = false)
-      : sink_(sink), frame_at_first_landmark_(frame_at_first_landmark) {}
+      : sink_(sink), frame_fixed_(!frame_at_first_landmark) {}
 
   void OnOdometry(const Odometry& odom);
   void OnScan(const Scan& scan);
@@ -73,8 +73,7 @@ class SensorSync {
   static constexpr double kMaxScanWaitS = 30.0;
 
   Sink& sink_;
-  bool frame_at_first_landmark_;
-  bool frame_fixed_ = false;
+  bool frame_fixed_;
   bool started_ = false;
   double processed_until_ = 0.0;
   std::optional<double> frame_origin_stamp_;
