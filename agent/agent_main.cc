@@ -56,6 +56,7 @@ json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
                      {"relayed", p.relayed},
                      {"relay_conflicts", p.relay_conflicts},
                      {"refuted", p.refuted},
+                     {"refuted_by", p.refuted_by},
                      {"refuted_answers", p.refuted_answers},
                      {"transform", {p.to_own.x, p.to_own.y, p.to_own.theta}},
                      {"transform_cov", {c(0, 0), c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2)}},
@@ -67,12 +68,33 @@ json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
                      {"rejected", p.rejected},
                      {"drops", p.drops},
                      {"realignments", p.realignments},
+                     {"refinements", p.refinements},
                      {"corrections", p.corrections},
                      {"last_verdict", std::string(ToString(p.last_verdict))}});
   }
   json lost = json::object();
   for (const auto& [id, t] : lost_wall) lost[std::to_string(id)] = t;
   return {{"peers", peers}, {"peers_lost_wall", lost}};
+}
+
+// One log line per alignment event (aligned, corrected, refuted, dropped), so that the log
+// tells how the global map came to be.
+void LogPeerEvents(const AgentNode& node, std::map<PeerKey, PeerReport>& last) {
+  for (const PeerReport& p : node.exchange().Peers()) {
+    const PeerReport before = last.count(p.key) ? last[p.key] : PeerReport{};
+    last[p.key] = p;
+    const double t = node.processed_until();
+    const std::string who = fmt::format("peer {}.{}{}", p.key.robot, p.key.incarnation, p.own_checkpoint ? " (own checkpoint)" : "");
+    if (p.refuted > before.refuted) {
+      spdlog::info("t={:.1f}s {}: our alignment refuted by peer {}'s relay; dropped", t, who, p.refuted_by);
+    } else if (p.drops > before.drops) {
+      spdlog::info("t={:.1f}s {}: alignment dropped after {} failed verifications", t, who, before.failures + 1);
+    }
+    if (p.aligned && (!before.aligned || p.corrections > before.corrections)) {
+      spdlog::info("t={:.1f}s {}: {} at ({:.2f} m, {:.2f} m, {:.2f} deg){}", t, who, before.aligned ? "realigned" : "aligned",
+                   p.to_own.x, p.to_own.y, RadToDeg(p.to_own.theta), p.relayed ? ", relaying its global map" : "");
+    }
+  }
 }
 
 json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall) {
@@ -265,6 +287,7 @@ int Run(int argc, char** argv) {
   constexpr auto kStatusBeat = std::chrono::milliseconds(200);
   output.PublishStatus(node.Status());
   auto next_beat = Clock::now() + kStatusBeat;
+  std::map<PeerKey, PeerReport> peer_events;
   while (!shutdown.requested()) {
     waitset.Wait(0.1);
     for (const auto& s : links.Take()) {
@@ -287,6 +310,7 @@ int Run(int argc, char** argv) {
         }
       }
     }
+    LogPeerEvents(node, peer_events);
     if (checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {
       io::WriteJsonAtomic(checkpoint_path, CheckpointToJson(node.Checkpoint()));
       WriteOutputs(node, out_dir, lost_wall, /*final=*/false);

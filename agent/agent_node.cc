@@ -62,6 +62,7 @@ ExchangeOptions ExchangeOptionsFor(const Scenario& sc) {
   const AgentOptions& a = sc.agent;
   ExchangeOptions o;
   o.align_period_s = a.align_period_s;
+  o.refine_period_s = a.refine_period_s;
   o.drop_after_failures = a.drop_after_failures;
   o.relay_global_maps = a.relay_global_maps;
   const std::optional<FusionMethod> m = ParseFusionMethod(a.fusion);

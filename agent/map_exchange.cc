@@ -128,6 +128,7 @@ bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool 
   p.report.to_own = r.transform;
   p.report.to_own_cov = r.cov;
   p.report.centroid = at;
+  p.last_refine = now;
   ChooseSource(p, own_local, reconsider_relay);
   return true;
 }
@@ -155,8 +156,19 @@ bool MapExchange::Verify(Peer& p, const LandmarkMap& own_local) {
   p.report.to_own = r.transform;
   p.report.to_own_cov = r.cov;
   p.report.centroid = Centroid(PeerMap(p));
+  p.last_refine = now_;
   ChooseSource(p, own_local, true);
   return true;
+}
+
+void MapExchange::Refine(Peer& p, const LandmarkMap& own_local) {
+  p.last_refine = now_;
+  const AlignmentResult r = VerifyAlignment(own_local, PeerMap(p), p.report.to_own, options_.align);
+  if (!r.accepted() || !Agree(r.transform, p.report.to_own, Centroid(PeerMap(p)))) return;
+  ++p.report.refinements;
+  p.report.to_own = r.transform;
+  p.report.to_own_cov = r.cov;
+  ChooseSource(p, own_local, /*reconsider_relay=*/false);
 }
 
 bool MapExchange::RelayAgrees(const Peer& p, const Pose2& to_own, Peer** conflict) {
@@ -219,6 +231,7 @@ bool MapExchange::RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, con
   if (!relay_better && held.against <= held.supporters) return false;
   q.refuted.push_back(ours);
   ++q.report.refuted;
+  q.report.refuted_by = p.report.key.robot;
   q.report.relayed = false;
   q.candidate.reset();
   Drop(q, now_);
@@ -309,7 +322,11 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     }
     // Aligned: every newer map is verified at the known transform before it is used. A
     // stale peer's maps no longer change: its verified state stays as it is.
-    if (!p.changed || p.report.stale) continue;
+    if (p.report.stale) continue;
+    if (!p.changed) {
+      if (options_.refine_period_s > 0.0 && now - p.last_refine >= options_.refine_period_s) Refine(p, own_local);
+      continue;
+    }
     ++p.report.verifications;
     if (Verify(p, own_local)) {
       chosen.insert(key);

@@ -4,7 +4,8 @@
 // start has its own map frame), it keeps the latest local and global map received, aligns the
 // peer's map to its own local map (map_alignment.h), verifies every newer map of an aligned
 // peer at the known transform before using it (so a corrupted or wrong map is refused, and the
-// transform is refined as both maps grow), drops the alignment when verification keeps failing,
+// transform is refined as both maps grow; also on our own map alone, while the peer's map stays
+// as it was, e.g. out of radio range), drops the alignment when verification keeps failing,
 // aligns afresh as the maps grow (a false alignment accepted on small maps is replaced), uses
 // an alignment only once a second, later one agrees with it, and
 // rebuilds the cloned global map (global_map.h) from its local map and every aligned peer's
@@ -60,6 +61,8 @@ struct ExchangeOptions {
   bool confirm_alignments = true;  // an alignment is used once a later, independent one agrees with it
   bool realign_on_growth = true;   // a live aligned peer is aligned afresh when either map grew by retry_growth
                                    // (at most every align_period_s); an accepted answer replaces the transform
+  double refine_period_s = 5.0;    // a live aligned peer that sent nothing new has its transform refined on our
+                                   // own map as it is now, this often (0: only when the peer's map changes)
   bool relay_global_maps = true;   // fuse a peer's global map when it agrees with the peer's alignment
   double relay_tolerance_m = 1.0;  // ... within this (at the map's centroid) ...
   double relay_tolerance_deg = 2.0;  // ... and this (two transforms within both agree, for confirmations too)
@@ -101,7 +104,8 @@ struct PeerReport {
   Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();
   bool relayed = false;            // its global map is fused (not its local map)
   int relay_conflicts = 0;         // times its global map disagreed with another peer's map (not relayed then)
-  int refuted = 0;                 // times our alignment of it lost to a relay's placement (then dropped)
+  int refuted = 0;                 // times our alignment of it lost to a relay's placement (then dropped) ...
+  RobotId refuted_by = 0;          // ... the last time, to this peer's relay
   int refuted_answers = 0;         // alignments refused for agreeing with a refuted one
   Eigen::Vector2d centroid = Eigen::Vector2d::Zero();  // of the peer map aligned last, in its frame
   int attempts = 0, verifications = 0;
@@ -111,6 +115,7 @@ struct PeerReport {
   int drops = 0;                   // times the alignment was dropped
   int realignments = 0;            // fresh alignments of an aligned peer (realign_on_growth) ...
   int corrections = 0;             // ... that replaced a transform they disagreed with
+  int refinements = 0;             // transforms refined on our newer own map alone (refine_period_s)
   AlignmentVerdict last_verdict = AlignmentVerdict::kTooFewLandmarks;
 };
 
@@ -155,6 +160,7 @@ class MapExchange {
     std::uint32_t local_version = 0, global_version = 0;
     bool changed = false;            // a map arrived since the last attempt or verification
     double last_attempt = -1e300;
+    double last_refine = -1e300;     // last alignment, verification or refinement against our map
     std::size_t own_size_at_attempt = 0, peer_size_at_attempt = 0;
     // What the global map takes from this peer.
     std::optional<MapSource> source;
@@ -182,6 +188,10 @@ class MapExchange {
   bool RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const;
   // Checks the peer's newest map at the known transform; on success refines it and the source.
   bool Verify(Peer& p, const LandmarkMap& own_local);
+  // The peer's map is the one verified already, ours has moved on (loop closures, more landmarks):
+  // refits the transform on our map as it is now, keeping the choice of source. A fit that fails
+  // or disagrees changes nothing (the peer's next map is verified as usual).
+  void Refine(Peer& p, const LandmarkMap& own_local);
   // Which map of the peer the global map fuses: its global map when it verifies, else its local
   // map. Without reconsider_relay the earlier choice stays and only the transform is updated.
   // Sets refuted_ when it refuted another peer's alignment (see Conflicts above).

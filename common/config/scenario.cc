@@ -296,6 +296,7 @@ AgentOptions ReadAgent(YamlReader a) {
   a.GetPositive("association_gate_m", o.association_gate_m);
   a.GetChoice("fusion", o.fusion, {"ml", "information", "ci", "ci_det", "ci_trace"});
   a.GetPositive("align_period_s", o.align_period_s);
+  a.GetNonNegative("refine_period_s", o.refine_period_s);
   a.GetPositive("drop_after_failures", o.drop_after_failures);
   a.Get("relay_global_maps", o.relay_global_maps);
   a.GetNonNegative("checkpoint_period_s", o.checkpoint_period_s);

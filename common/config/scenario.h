@@ -138,6 +138,7 @@ struct AgentOptions {
   // Map exchange (agent/map_exchange.h).
   std::string fusion = "ci";           // ml | information | ci | ci_det | ci_trace
   double align_period_s = 5.0;          // an unaligned peer is tried again this often (when a map changed)
+  double refine_period_s = 5.0;         // an aligned peer's transform is refitted on our newer own map this often (0: off)
   int drop_after_failures = 2;          // consecutive failed verifications drop an alignment
   bool relay_global_maps = true;        // fuse peers' global maps (multi-hop), not only their local maps
   double checkpoint_period_s = 10.0;    // scenario seconds between checkpoints (0: none)

@@ -204,17 +204,22 @@ Eigen::Matrix3d Refine(const LandmarkMap& a, const LandmarkMap& b, const std::ve
   return info;
 }
 
-// The map as alignment compares it: where the map's shape precision is known and tighter
-// than a landmark's marginal, the landmark counts with that precision (isotropic), since a
-// rigid transform absorbs the pose error that the marginals mostly hold. Shape precision
-// never counts below the floor: landmarks are not points, and real maps' shapes are rarely
-// as good as their filters believe (MRCLAM: 2-4 cm claimed, 4-11 cm found).
-LandmarkMap ForAlignment(const LandmarkMap& m, double floor_m) {
+// The map as alignment compares it (consensus, matching, the tests): where the map's shape
+// precision is known and tighter than a landmark's marginal, the landmark counts with that
+// precision (isotropic), since a rigid transform absorbs the pose error that the marginals
+// mostly hold. With every_landmark (the fit), all landmarks count with it: the marginals would
+// weigh the landmarks near the map's origin up to a hundred times more than the rest (a SLAM
+// map's marginals grow with the distance travelled) and the fit would follow those few; alike,
+// it is the least-squares fit of the shapes (line of three: robot 3's landmarks placed at
+// 0.031 m by the marginals' fit, 0.017 m by this one, on the final maps). Shape precision never
+// counts below the floor: landmarks are not points, and real maps' shapes are rarely as good as
+// their filters believe (MRCLAM: 2-4 cm claimed, 4-11 cm found).
+LandmarkMap ForAlignment(const LandmarkMap& m, double floor_m, bool every_landmark = false) {
   if (!(m.shape_sigma_m > 0.0) || !std::isfinite(m.shape_sigma_m)) return m;
   LandmarkMap out = m;
   const double s = std::max(m.shape_sigma_m, floor_m), v = s * s;
   for (Landmark& l : out.landmarks) {
-    if (l.mean.allFinite() && IsValidCovariance(l.cov) && LargestSigma(l.cov) * LargestSigma(l.cov) > v) {
+    if (l.mean.allFinite() && IsValidCovariance(l.cov) && (every_landmark || LargestSigma(l.cov) * LargestSigma(l.cov) > v)) {
       l.cov = v * Eigen::Matrix2d::Identity();
     }
   }
@@ -378,11 +383,13 @@ double GatedD2(const Landmark& la, const Landmark& lb, const Pose2& t, const Ali
 
 // From a transform and its first inliers: guided matching (optional), refinement, the
 // transform's covariance and the acceptance tests. a and b are the maps as alignment compares
-// them, a_in and b_in as given (for the covariance).
+// them, a_in and b_in as given (for the fit's weights and the covariance).
 void Conclude(const LandmarkMap& a_in, const LandmarkMap& b_in, const LandmarkMap& a, const LandmarkMap& b, Pose2 t,
               std::vector<std::pair<int, int>> inliers, const AlignmentOptions& o, bool guided, AlignmentResult& r) {
   const double gate = Chi2Quantile(o.gate_probability, 2);
-  if (!inliers.empty()) Refine(a, b, inliers, &t);
+  const LandmarkMap fit_a = ForAlignment(a_in, o.min_shape_sigma_m, /*every_landmark=*/true);
+  const LandmarkMap fit_b = ForAlignment(b_in, o.min_shape_sigma_m, /*every_landmark=*/true);
+  if (!inliers.empty()) Refine(fit_a, fit_b, inliers, &t);
   if (guided) {
     const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
     if (!ua.points.empty() && !ub.points.empty()) {
@@ -401,7 +408,7 @@ void Conclude(const LandmarkMap& a_in, const LandmarkMap& b_in, const LandmarkMa
           }
         }
         inliers = OneToOne(std::move(scored));
-        Refine(a, b, inliers, &t);
+        Refine(fit_a, fit_b, inliers, &t);
       }
     }
   }

@@ -62,7 +62,8 @@ struct AlignmentOptions {
   double min_overlap_ratio = 0.3;       // ... and at least this share of those must be inliers
   LandmarkErrors landmark_errors = LandmarkErrors::kUnknownCorrelation;  // for the transform's covariance
   double min_shape_sigma_m = 0.1;       // maps that report their shape precision (LandmarkMap::shape_sigma_m)
-                                        // are compared with it, but never below this
+                                        // are compared with it (and fitted with it, every landmark alike), but
+                                        // never below this
 };
 
 // A proposed correspondence: landmark a of map A and landmark b of map B, with the number

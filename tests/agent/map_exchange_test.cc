@@ -98,6 +98,42 @@ TEST(MapExchange, AlignsAPeerAndFusesItsLandmarksInPlace) {
   EXPECT_EQ(static_cast<int>(g.map.size()), union_size);
 }
 
+// A peer out of radio range sends nothing new while our own map moves on (a loop closure has
+// turned it a little): the peer's landmarks must move with ours. Its transform is refitted on
+// our map as it is now every refine_period_s; with 0 it stays where the peer's last map put it.
+TEST(MapExchange, AQuietPeersTransformFollowsOurOwnMap) {
+  for (double period : {0.0, 5.0}) {
+    SCOPED_TRACE(period);
+    const World w(160, 2);
+    std::mt19937_64 rng(3);
+    ExchangeOptions o = Immediate();
+    o.refine_period_s = period;
+    MapExchange a(1, 1, o, 4);
+    const LandmarkMap la = w.Map(0, 26, kFrameA, kSigma, rng), lb = w.Map(14, 40, kFrameB, kSigma, rng);
+    a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
+    a.Update(la, 10.0);
+    ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
+
+    const Pose2 turn{0.1, -0.05, DegToRad(0.5)};
+    LandmarkMap moved = la;
+    for (Landmark& l : moved.landmarks) l.mean = turn.Apply(l.mean);
+    a.Update(moved, 20.0);
+    const Pose2 expected = turn * (kFrameA.Inverse() * kFrameB);
+    const Eigen::Vector2d probe = kFrameB.Inverse().Apply(Eigen::Vector2d(35.0, 20.0));  // robot 2's alone
+    const PeerReport r = a.Peers().front();
+    const double error = (r.to_own.Apply(probe) - expected.Apply(probe)).norm();
+    EXPECT_TRUE(r.aligned);
+    if (period > 0.0) {
+      EXPECT_LT(error, 0.03);
+      EXPECT_EQ(r.refinements, 1);
+    } else {
+      EXPECT_GT(error, 0.2);
+      EXPECT_EQ(r.refinements, 0);
+    }
+    EXPECT_EQ(r.verifications, 0);
+  }
+}
+
 // Robots 1, 2 and 3 in a line: 1 maps x in [0, a_end), 2 [10, 30), 3 [c_start, 40). Robot 2
 // hears both others and has aligned them.
 struct LineOfThree {

@@ -136,6 +136,36 @@ TEST(MapAlignment, ThesisSimilarityMatcherAlignsAnEasyPair) {
   EXPECT_LT(e.translation_m, 0.2);
 }
 
+// A SLAM map's marginals grow with the distance travelled, while its shape (what a rigid
+// transform cannot absorb) is about equally good everywhere. Maps that report their shape
+// precision are fitted with every landmark alike: the transform is the unweighted least-squares
+// fit of the inliers, however unequal the marginals (here up to 20 times apart in sigma).
+class ShapePrecisionTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(ShapePrecisionTest, WeighsEveryLandmarkAlike) {
+  std::mt19937_64 rng(300 + GetParam());
+  lab::MapPair p = lab::MakeMapPair(Pair(200, 0.4, 0.05), rng);
+  std::uniform_real_distribution<double> scale(0.01, 0.2);
+  for (LandmarkMap* m : {&p.a, &p.b}) {
+    m->shape_sigma_m = 0.05;
+    for (Landmark& l : m->landmarks) l.cov = std::pow(scale(rng), 2) * Eigen::Matrix2d::Identity();
+  }
+  const AlignmentResult r = AlignMaps(p.a, p.b, {}, rng);
+  ASSERT_TRUE(r.accepted()) << ToString(r.verdict);
+  std::vector<Eigen::Vector2d> from_b, to_a;
+  for (const auto& [ia, ib] : r.inliers) {
+    from_b.push_back(p.b.landmarks[ib].mean);
+    to_a.push_back(p.a.landmarks[ia].mean);
+  }
+  const std::optional<Pose2> fit = FitRigid2D(from_b, to_a);
+  ASSERT_TRUE(fit.has_value());
+  const TransformError e = CompareTransforms(r.transform, *fit, Centroid(p.b));
+  EXPECT_LT(e.translation_m, 1e-6);
+  EXPECT_LT(e.rotation_rad, 1e-8);
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, ShapePrecisionTest, ::testing::Range(1, 6));
+
 LandmarkMap FromPoints(const std::vector<Eigen::Vector2d>& pts, double sigma = 0.1) {
   LandmarkMap m;
   for (std::size_t i = 0; i < pts.size(); ++i) {
