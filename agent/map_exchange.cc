@@ -125,12 +125,16 @@ bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool 
     return false;
   }
   p.candidate.reset();
+  Use(p, r, own_local, reconsider_relay);
+  return true;
+}
+
+void MapExchange::Use(Peer& p, const AlignmentResult& r, const LandmarkMap& own_local, bool reconsider_relay) {
   p.report.to_own = r.transform;
   p.report.to_own_cov = r.cov;
-  p.report.centroid = at;
-  p.last_refine = now;
+  p.report.centroid = Centroid(PeerMap(p));
+  p.last_refine = now_;
   ChooseSource(p, own_local, reconsider_relay);
-  return true;
 }
 
 bool MapExchange::Grew(std::size_t size, std::size_t at_attempt) const {
@@ -153,11 +157,7 @@ bool MapExchange::Verify(Peer& p, const LandmarkMap& own_local) {
   p.report.last_verdict = r.verdict;
   p.changed = false;
   if (!r.accepted()) return false;
-  p.report.to_own = r.transform;
-  p.report.to_own_cov = r.cov;
-  p.report.centroid = Centroid(PeerMap(p));
-  p.last_refine = now_;
-  ChooseSource(p, own_local, true);
+  Use(p, r, own_local, /*reconsider_relay=*/true);
   return true;
 }
 
@@ -166,9 +166,7 @@ void MapExchange::Refine(Peer& p, const LandmarkMap& own_local) {
   const AlignmentResult r = VerifyAlignment(own_local, PeerMap(p), p.report.to_own, options_.align);
   if (!r.accepted() || !Agree(r.transform, p.report.to_own, Centroid(PeerMap(p)))) return;
   ++p.report.refinements;
-  p.report.to_own = r.transform;
-  p.report.to_own_cov = r.cov;
-  ChooseSource(p, own_local, /*reconsider_relay=*/false);
+  Use(p, r, own_local, /*reconsider_relay=*/false);
 }
 
 bool MapExchange::RelayAgrees(const Peer& p, const Pose2& to_own, Peer** conflict) {

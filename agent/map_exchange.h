@@ -186,6 +186,8 @@ class MapExchange {
   bool Grew(std::size_t size, std::size_t at_attempt) const;
   // An aligned peer's fresh alignment is due (realign_on_growth).
   bool RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const;
+  // Uses an accepted (and confirmed) alignment r of the peer: its transform, and the source at it.
+  void Use(Peer& p, const AlignmentResult& r, const LandmarkMap& own_local, bool reconsider_relay);
   // Checks the peer's newest map at the known transform; on success refines it and the source.
   bool Verify(Peer& p, const LandmarkMap& own_local);
   // The peer's map is the one verified already, ours has moved on (loop closures, more landmarks):
