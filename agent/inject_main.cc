@@ -50,7 +50,7 @@ int Run(int argc, char** argv) {
   CLI::App cli{"mapmesh-inject: publish malformed, stale, foreign and wrong maps into a run's DDS domain"};
   cli.footer(
       "Cases: truncated, oversized, count_above_limit, bad_magic, unknown_version, non_finite, bad_covariance, "
-      "duplicate_id, bad_header (payloads every agent must refuse, one reason each), stale_version (an older "
+      "duplicate_id, bad_header, out_of_bounds (payloads every agent must refuse, one reason each), stale_version (an older "
       "version of a robot's map), unknown_sender (a map from a robot not in the run), shuffled (a robot's map "
       "with its coordinates shuffled, as its next version: alignment verification must refuse it). "
       "scripts/swarm run --inject CASES starts it alongside a run.");

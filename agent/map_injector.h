@@ -3,7 +3,7 @@
 // (pure; the process wires it to DDS). It listens to the maps the robots of a run publish and
 // to the agents' statuses, and makes bad map messages, going through the chosen cases and, for
 // each case, through the run's robots as claimed senders:
-//   truncated .. bad_header  a payload corrupted so that decoding must refuse it (map_faults.h),
+//   truncated .. out_of_bounds  a payload corrupted so that decoding must refuse it (map_faults.h),
 //                            sent as the sender's GLOBAL map;
 //   stale_version            a copy of the sender's latest local map under an older version;
 //   unknown_sender           a well-formed random map from a robot id that is not in the run;

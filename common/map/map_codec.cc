@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <unordered_set>
 
 namespace mapmesh {
@@ -44,6 +45,8 @@ constexpr double kLogStep = 3e-4;
 constexpr std::uint16_t kSigmaCodeMax = 65534;  // 65535 is invalid
 constexpr std::int16_t kRhoCodeMax = 32766;
 constexpr double kRhoScale = 32767.0;
+constexpr double kMaxCoordinateMm = kMapCodecMaxCoordinateM * 1000.0;
+static_assert(kMaxCoordinateMm < kI24Max, "a map within the bound must fit the 24-bit offsets");
 
 std::uint16_t SigmaCode(double sigma) {
   const double c = std::round(std::log(std::max(sigma, kSigmaMin) / kSigmaMin) / kLogStep);
@@ -65,24 +68,39 @@ std::string_view ToString(MapDecodeError e) {
     case MapDecodeError::kBadCovariance: return "bad_covariance";
     case MapDecodeError::kDuplicateId: return "duplicate_id";
     case MapDecodeError::kBadHeader: return "bad_header";
+    case MapDecodeError::kOutOfBounds: return "out_of_bounds";
   }
   return "unknown";
 }
 
-std::vector<std::uint8_t> EncodeMap(const LandmarkMap& map) {
-  // The origin: the middle of the map's bounding box, to the millimetre.
+std::vector<std::uint8_t> EncodeMap(const LandmarkMap& map, MapDecodeError* error) {
+  auto fail = [error](MapDecodeError e) {
+    if (error != nullptr) *error = e;
+    return std::vector<std::uint8_t>{};
+  };
+  if (error != nullptr) *error = MapDecodeError::kOk;
+  if (map.size() > kMapCodecMaxLandmarks) return fail(MapDecodeError::kOversized);
+  // The origin: the middle of the map's bounding box, to the millimetre. Positions are
+  // rounded to the millimetre first, as the decoder sees them.
   double lo_x = 0.0, hi_x = 0.0, lo_y = 0.0, hi_y = 0.0;
+  std::unordered_set<std::uint32_t> ids;
+  ids.reserve(map.size());
   for (std::size_t i = 0; i < map.size(); ++i) {
     const Landmark& l = map.landmarks[i];
-    if (!l.mean.allFinite() || !IsValidCovariance(l.cov)) return {};
-    lo_x = i == 0 ? l.mean.x() : std::min(lo_x, l.mean.x());
-    hi_x = i == 0 ? l.mean.x() : std::max(hi_x, l.mean.x());
-    lo_y = i == 0 ? l.mean.y() : std::min(lo_y, l.mean.y());
-    hi_y = i == 0 ? l.mean.y() : std::max(hi_y, l.mean.y());
+    if (!l.mean.allFinite()) return fail(MapDecodeError::kNonFinite);
+    if (!IsValidCovariance(l.cov)) return fail(MapDecodeError::kBadCovariance);
+    if (!ids.insert(l.id).second) return fail(MapDecodeError::kDuplicateId);
+    const double x = std::round(l.mean.x() * 1000.0), y = std::round(l.mean.y() * 1000.0);
+    if (!(std::abs(x) <= kMaxCoordinateMm && std::abs(y) <= kMaxCoordinateMm)) return fail(MapDecodeError::kOutOfBounds);
+    lo_x = i == 0 ? x : std::min(lo_x, x);
+    hi_x = i == 0 ? x : std::max(hi_x, x);
+    lo_y = i == 0 ? y : std::min(lo_y, y);
+    hi_y = i == 0 ? y : std::max(hi_y, y);
   }
-  const double ox = std::round(500.0 * (lo_x + hi_x)), oy = std::round(500.0 * (lo_y + hi_y));
-  if (!(std::abs(ox) < 2e9 && std::abs(oy) < 2e9)) return {};
-  const double shape = std::isfinite(map.shape_sigma_m) && map.shape_sigma_m > 0 ? map.shape_sigma_m : 0.0;
+  const double ox = std::round(0.5 * (lo_x + hi_x)), oy = std::round(0.5 * (lo_y + hi_y));
+  const bool shape_ok = std::isfinite(map.shape_sigma_m) && map.shape_sigma_m > 0 &&
+                        map.shape_sigma_m <= std::numeric_limits<float>::max();
+  const double shape = shape_ok ? map.shape_sigma_m : 0.0;
 
   std::vector<std::uint8_t> out;
   out.reserve(kMapCodecHeaderBytes + kMapCodecLandmarkBytes * map.size());
@@ -95,8 +113,8 @@ std::vector<std::uint8_t> EncodeMap(const LandmarkMap& map) {
   Put<std::int32_t>(out, static_cast<std::int32_t>(oy));
   Put<float>(out, static_cast<float>(shape));
   for (const Landmark& l : map.landmarks) {
+    // Within the bound, |offset| <= 8e6 mm < 2^23 - 1: it always fits.
     const double dx = std::round(l.mean.x() * 1000.0) - ox, dy = std::round(l.mean.y() * 1000.0) - oy;
-    if (dx < kI24Min || dx > kI24Max || dy < kI24Min || dy > kI24Max) return {};
     const double sx = std::sqrt(std::max(0.0, l.cov(0, 0))), sy = std::sqrt(std::max(0.0, l.cov(1, 1)));
     const double cxy = 0.5 * (l.cov(0, 1) + l.cov(1, 0));
     const double rho = sx > 0 && sy > 0 ? cxy / (sx * sy) : 0.0;
@@ -109,6 +127,13 @@ std::vector<std::uint8_t> EncodeMap(const LandmarkMap& map) {
                                                                 double{kRhoCodeMax})));
   }
   return out;
+}
+
+std::optional<std::uint32_t> MapPayloadCount(std::span<const std::uint8_t> payload) {
+  if (payload.size() < kMapCodecHeaderBytes) return std::nullopt;
+  const std::uint8_t* p = payload.data();
+  if (p[0] != 'M' || p[1] != 'M' || p[2] != kMapCodecVersion) return std::nullopt;
+  return Get<std::uint32_t>(p + 4);
 }
 
 MapDecodeResult DecodeMap(std::span<const std::uint8_t> payload) {
@@ -133,6 +158,7 @@ MapDecodeResult DecodeMap(std::span<const std::uint8_t> payload) {
   const double shape = Get<float>(p + 16);
   if (!std::isfinite(shape)) return fail(MapDecodeError::kNonFinite);
   if (shape < 0) return fail(MapDecodeError::kBadHeader);
+  if (std::abs(ox) > kMaxCoordinateMm || std::abs(oy) > kMaxCoordinateMm) return fail(MapDecodeError::kOutOfBounds);
   r.map.shape_sigma_m = shape;
 
   r.map.landmarks.reserve(count);
@@ -142,7 +168,9 @@ MapDecodeResult DecodeMap(std::span<const std::uint8_t> payload) {
   for (std::uint32_t i = 0; i < count; ++i, p += kMapCodecLandmarkBytes) {
     Landmark l;
     l.id = Get<std::uint32_t>(p);
-    l.mean = {(ox + GetI24(p + 4)) / 1000.0, (oy + GetI24(p + 7)) / 1000.0};
+    const double x_mm = ox + GetI24(p + 4), y_mm = oy + GetI24(p + 7);
+    if (std::abs(x_mm) > kMaxCoordinateMm || std::abs(y_mm) > kMaxCoordinateMm) return fail(MapDecodeError::kOutOfBounds);
+    l.mean = {x_mm / 1000.0, y_mm / 1000.0};
     const auto cx = Get<std::uint16_t>(p + 10), cy = Get<std::uint16_t>(p + 12);
     const auto cr = Get<std::int16_t>(p + 14);
     if (cx > kSigmaCodeMax || cy > kSigmaCodeMax) return fail(MapDecodeError::kNonFinite);

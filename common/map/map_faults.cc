@@ -12,10 +12,10 @@ namespace {
 
 constexpr std::array<std::string_view, kPayloadFaultCount> kNames = {
     "truncated", "oversized", "count_above_limit", "bad_magic", "unknown_version",
-    "non_finite", "bad_covariance", "duplicate_id", "bad_header"};
+    "non_finite", "bad_covariance", "duplicate_id", "bad_header", "out_of_bounds"};
 
 // Byte offsets in the version-2 layout (map_codec.h).
-constexpr std::size_t kVersionAt = 2, kFlagsAt = 3, kCountAt = 4, kShapeAt = 16;
+constexpr std::size_t kVersionAt = 2, kFlagsAt = 3, kCountAt = 4, kOriginXAt = 8, kShapeAt = 16;
 constexpr std::size_t kRhoInLandmark = 14;
 
 template <typename T>
@@ -45,6 +45,7 @@ MapDecodeError ExpectedDecodeError(PayloadFault f) {
     case PayloadFault::kBadCovariance: return MapDecodeError::kBadCovariance;
     case PayloadFault::kDuplicateId: return MapDecodeError::kDuplicateId;
     case PayloadFault::kBadHeader: return MapDecodeError::kBadHeader;
+    case PayloadFault::kOutOfBounds: return MapDecodeError::kOutOfBounds;
   }
   return MapDecodeError::kOk;
 }
@@ -64,6 +65,7 @@ std::vector<std::uint8_t> CorruptPayload(std::span<const std::uint8_t> valid, Pa
     case PayloadFault::kBadCovariance: Poke<std::int16_t>(b, second + kRhoInLandmark, 32767); break;
     case PayloadFault::kDuplicateId: std::memcpy(b.data() + second, b.data() + first, 4); break;
     case PayloadFault::kBadHeader: b[kFlagsAt] = 0x80; break;
+    case PayloadFault::kOutOfBounds: Poke<std::int32_t>(b, kOriginXAt, 2000000000); break;
   }
   return b;
 }

@@ -26,8 +26,9 @@ enum class PayloadFault {
   kBadCovariance,   // a correlation code of exactly +-1 on one landmark
   kDuplicateId,     // the second landmark takes the first one's id
   kBadHeader,       // unknown flags
+  kOutOfBounds,     // the map's origin 2000 km away (beyond kMapCodecMaxCoordinateM)
 };
-inline constexpr int kPayloadFaultCount = 9;
+inline constexpr int kPayloadFaultCount = 10;
 
 std::string_view ToString(PayloadFault f);
 std::optional<PayloadFault> PayloadFaultFromString(std::string_view name);

@@ -121,7 +121,8 @@ class ExchangeTest(SwarmCase):
         cases = injected["cases"]
         reasons = {"truncated": "truncated", "oversized": "oversized", "count_above_limit": "oversized",
                    "bad_magic": "bad_magic", "unknown_version": "unknown_version", "non_finite": "non_finite",
-                   "bad_covariance": "bad_covariance", "duplicate_id": "duplicate_id", "bad_header": "bad_header"}
+                   "bad_covariance": "bad_covariance", "duplicate_id": "duplicate_id", "bad_header": "bad_header",
+                   "out_of_bounds": "out_of_bounds"}
         for rid, other in ((1, 2), (2, 1)):
             a = agents[rid]
             with self.subTest(agent=rid):

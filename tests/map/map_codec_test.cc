@@ -76,8 +76,80 @@ TEST(MapCodec, EncodingRefusesWhatItCannotCarry) {
   m.landmarks[1].cov << 1, 2, 2, 1;  // not PSD
   EXPECT_TRUE(EncodeMap(m).empty());
   m = RandomMap(3, 5);
-  m.landmarks[1].mean.x() += 20000.0;  // beyond +-8.3 km of the map's middle
+  m.landmarks[1].mean.x() += 20000.0;  // beyond kMapCodecMaxCoordinateM
+  MapDecodeError why = MapDecodeError::kOk;
+  EXPECT_TRUE(EncodeMap(m, &why).empty());
+  EXPECT_EQ(why, MapDecodeError::kOutOfBounds);
+  m = RandomMap(3, 5);
+  m.landmarks[2].id = m.landmarks[0].id;  // the decoder would refuse it
+  EXPECT_TRUE(EncodeMap(m, &why).empty());
+  EXPECT_EQ(why, MapDecodeError::kDuplicateId);
+  m = RandomMap(kMapCodecMaxLandmarks + 1, 5, 100.0);
+  EXPECT_TRUE(EncodeMap(m, &why).empty());
+  EXPECT_EQ(why, MapDecodeError::kOversized);
+  m.landmarks.pop_back();
+  EXPECT_FALSE(EncodeMap(m, &why).empty());
+  EXPECT_EQ(why, MapDecodeError::kOk);
+}
+
+// A map whose landmarks lie on the bound in every direction is carried; one millimetre
+// beyond it is not, on either side of the wire.
+TEST(MapCodec, TheCoordinateBoundHoldsOnBothSides) {
+  LandmarkMap m;
+  const double b = kMapCodecMaxCoordinateM;
+  m.landmarks.push_back({1, -1, {-b, -b}, Eigen::Matrix2d::Identity()});
+  m.landmarks.push_back({2, -1, {b, b}, Eigen::Matrix2d::Identity()});
+  m.landmarks.push_back({3, -1, {b, -b}, Eigen::Matrix2d::Identity()});
+  const MapDecodeResult r = DecodeMap(EncodeMap(m));
+  ASSERT_TRUE(r.ok()) << ToString(r.error);
+  EXPECT_EQ(r.map.landmarks[1].mean, Eigen::Vector2d(b, b));
+  m.landmarks[2].mean.x() = b + 0.001;
   EXPECT_TRUE(EncodeMap(m).empty());
+}
+
+// What the decoder accepts, the encoder accepts: any payload that decodes re-encodes into one
+// that decodes to the very same map (ids, millimetres, covariance codes, shape precision).
+void ExpectReEncodes(const LandmarkMap& decoded) {
+  MapDecodeError why = MapDecodeError::kOk;
+  const auto again = EncodeMap(decoded, &why);
+  ASSERT_FALSE(again.empty()) << ToString(why);
+  const MapDecodeResult r = DecodeMap(again);
+  ASSERT_TRUE(r.ok()) << ToString(r.error);
+  ASSERT_EQ(r.map.size(), decoded.size());
+  EXPECT_EQ(r.map.shape_sigma_m, decoded.shape_sigma_m);
+  for (std::size_t i = 0; i < decoded.size(); ++i) {
+    EXPECT_EQ(r.map.landmarks[i].id, decoded.landmarks[i].id);
+    EXPECT_EQ(r.map.landmarks[i].mean, decoded.landmarks[i].mean);
+    EXPECT_LE((r.map.landmarks[i].cov - decoded.landmarks[i].cov).norm(), 1e-9 * decoded.landmarks[i].cov.norm());
+  }
+}
+
+TEST(MapCodec, EncoderAndDecoderAcceptTheSameMaps) {
+  std::mt19937_64 rng(21);
+  int decoded = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    // Random headers and landmark slots, not mutations of a valid payload only: origins and
+    // offsets anywhere in their ranges, any codes.
+    std::vector<std::uint8_t> bytes = EncodeMap(RandomMap(1 + trial % 5, trial, trial % 2 ? 10.0 : 7000.0));
+    for (std::size_t k = 8; k < bytes.size(); ++k) {
+      if (rng() % 3 == 0) bytes[k] = static_cast<std::uint8_t>(rng());
+    }
+    const MapDecodeResult r = DecodeMap(bytes);
+    if (!r.ok()) continue;
+    ++decoded;
+    ExpectReEncodes(r.map);
+  }
+  EXPECT_GT(decoded, 100);
+  // And what the encoder accepts decodes: maps anywhere within the bound.
+  for (int trial = 0; trial < 200; ++trial) {
+    LandmarkMap m = RandomMap(50, 100 + trial, 2500.0);  // within 2.5 km of (1234.5, -987.6)
+    std::uniform_real_distribution<double> shift(-4000.0, 4000.0);
+    const Eigen::Vector2d d(shift(rng), shift(rng));
+    for (Landmark& l : m.landmarks) l.mean += d;
+    const auto bytes = EncodeMap(m);
+    ASSERT_FALSE(bytes.empty());
+    EXPECT_TRUE(DecodeMap(bytes).ok());
+  }
 }
 
 class MapCodecRejects : public ::testing::Test {
@@ -146,6 +218,25 @@ TEST_F(MapCodecRejects, NonPositiveDefiniteCovariance) {
 TEST_F(MapCodecRejects, DuplicateIds) {
   std::memcpy(Slot(1), Slot(0), 4);
   EXPECT_EQ(Decode(), MapDecodeError::kDuplicateId);
+}
+
+TEST_F(MapCodecRejects, OriginOrLandmarkBeyondTheBound) {
+  auto copy = good_;
+  const std::int32_t far = 2000000000;  // 2000 km: the encoder never sends it
+  std::memcpy(good_.data() + 8, &far, 4);
+  EXPECT_EQ(Decode(), MapDecodeError::kOutOfBounds);
+  good_ = copy;
+  const std::int32_t edge = 7999000;  // origin 7.999 km: a landmark 8.3 km beyond it is out
+  std::memcpy(good_.data() + 12, &edge, 4);
+  const std::uint8_t plus_8300m[3] = {0xE0, 0xA5, 0x7E};  // 8300000 mm, little-endian i24
+  std::memcpy(Slot(1) + 7, plus_8300m, 3);
+  EXPECT_EQ(Decode(), MapDecodeError::kOutOfBounds);
+}
+
+TEST(MapCodec, PayloadCountIsReadFromTheHeader) {
+  const auto bytes = EncodeMap(RandomMap(7, 1));
+  EXPECT_EQ(MapPayloadCount(bytes), 7u);
+  EXPECT_FALSE(MapPayloadCount(std::span<const std::uint8_t>(bytes.data(), 10)).has_value());
 }
 
 TEST(MapCodec, RandomBytesNeverCrashAndNeverYieldInvalidMaps) {
