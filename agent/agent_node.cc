@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "common/check.h"
 #include "common/slam/dead_reckoning_mapper.h"
@@ -12,6 +13,13 @@ namespace {
 
 // MapMessage fields besides the payload: robot_id, kind, version, stamp, sequence length.
 constexpr std::size_t kMapMessageFixedBytes = 4 + 1 + 4 + 4 + 8 + 8 + 4;  // keys, incarnation, version, stamps, payload length
+
+// No stamp of the run comes after this: its end when the scenario says (a dataset replayed
+// whole ends where its data does, which the agent does not read), and a window's slack.
+double RunEnd(const Scenario& sc) {
+  return sc.source.IsDataset() && !sc.duration_given ? std::numeric_limits<double>::infinity()
+                                                     : sc.duration_s + sc.agent.max_stamp_jump_s;
+}
 
 }  // namespace
 
@@ -50,7 +58,9 @@ std::unique_ptr<LocalMapper> MakeLocalMapper(const Scenario& sc, RobotId self) {
   o.tentative_gate_m = a.tentative_gate_m;
   o.tentative_timeout_s = a.tentative_timeout_s;
   o.min_range_m = a.min_range_m;
-  o.max_range_m = a.max_range_m;
+  // Readings beyond what the sensor can see (allowing for its noise) are refused: one forged
+  // reading 30 km away must not end up in the map.
+  o.max_range_m = a.max_range_m > 0 ? a.max_range_m : robot->sensor.max_range_m + 5.0 * robot->sensor.sigma_range_m;
   o.ekf.first_estimates_jacobians = a.first_estimates_jacobians;
   o.cekf.region_half_m = a.region_half_m;
   const double range = a.max_range_m > 0 ? a.max_range_m : robot->sensor.max_range_m;
@@ -65,6 +75,9 @@ ExchangeOptions ExchangeOptionsFor(const Scenario& sc) {
   o.refine_period_s = a.refine_period_s;
   o.drop_after_failures = a.drop_after_failures;
   o.relay_global_maps = a.relay_global_maps;
+  o.silent_after_s = a.silent_after_s > 0 ? a.silent_after_s : 3.0 * a.map_publish_period_s;
+  o.max_alignments_per_update = a.max_alignments_per_update;
+  o.max_versions_per_s = 2.0 / a.map_publish_period_s;  // one of each kind per period, twice over
   const std::optional<FusionMethod> m = ParseFusionMethod(a.fusion);
   MAPMESH_CHECK(m.has_value(), "agent.fusion was validated when the scenario was read");
   o.global.method = *m;
@@ -72,6 +85,24 @@ ExchangeOptions ExchangeOptionsFor(const Scenario& sc) {
 }
 
 std::size_t WireBytes(const MapMessage& msg) { return kMapMessageFixedBytes + msg.payload.size(); }
+
+std::string_view ToString(MapRefusal r) {
+  switch (r) {
+    case MapRefusal::kImplausibleStamp: return "implausible_stamp";
+    case MapRefusal::kTooManyLandmarks: return "too_many_landmarks";
+    case MapRefusal::kOutOfWorld: return "out_of_world";
+    case MapRefusal::kCovarianceTooLarge: return "covariance_too_large";
+    case MapRefusal::kVersionJump: return "version_jump";
+    case MapRefusal::kTooManyIncarnations: return "too_many_incarnations";
+  }
+  return "unknown";
+}
+
+std::uint32_t AgentStats::MapsRefused() const {
+  std::uint32_t n = 0;
+  for (auto c : maps_refused) n += c;
+  return n;
+}
 
 std::uint32_t AgentStats::MapsRejected() const {
   std::uint32_t n = 0;
@@ -84,18 +115,24 @@ double AgentStats::BytesPerLandmark() const {
 }
 
 std::uint32_t AgentStats::MapsDropped() const {
-  return maps_out_of_range + maps_lost + maps_over_bandwidth + maps_unknown_sender + maps_stale_version + MapsRejected();
+  return maps_out_of_range + maps_lost + maps_over_bandwidth + maps_unknown_sender + maps_stale_version + MapsRejected() +
+         MapsRefused();
 }
 
 AgentNode::AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incarnation,
                      AgentOutput& out)
     : options_(scenario.agent),
+      peer_limits_{static_cast<std::size_t>(scenario.agent.max_peer_landmarks), scenario.agent.world_radius_m,
+                   scenario.agent.max_landmark_sigma_m},
       self_(self),
       incarnation_(incarnation),
       out_(out),
-      gate_(self, RadioGateOptions{scenario.radio.loss_probability, scenario.radio.bandwidth_bytes_per_s},
+      gate_(self,
+            RadioGateOptions{scenario.radio.loss_probability, scenario.radio.bandwidth_bytes_per_s,
+                             scenario.agent.max_stamp_jump_s, RunEnd(scenario)},
             scenario.seed * 1000003ULL + self * 7919ULL + incarnation),
-      sync_(*this, scenario.agent.frame_at_first_landmark),
+      sync_(*this, SensorSync::Options{scenario.agent.frame_at_first_landmark, scenario.agent.max_stamp_jump_s,
+                                       RunEnd(scenario)}),
       mapper_(MakeLocalMapper(scenario, self)),
       trajectory_period_s_(scenario.feeder.truth_period_s),
       exchange_(self, incarnation, ExchangeOptionsFor(scenario),
@@ -151,19 +188,38 @@ void AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t vers
   msg.version = version;
   msg.stamp = sync_.processed_until();
   msg.origin_stamp = sync_.frame_origin_stamp().value_or(0.0);
-  msg.payload = EncodeMap(map);
+  MapDecodeError why = MapDecodeError::kOk;
+  msg.payload = EncodeMap(map, &why);
+  std::size_t landmarks = map.size();
+  if (msg.payload.empty() && why == MapDecodeError::kOutOfBounds) {
+    // A landmark beyond what a map can carry (a robot 8 km from its frame's origin) must not
+    // silence the agent: the rest of the map goes out.
+    LandmarkMap within = map;
+    std::erase_if(within.landmarks, [](const Landmark& l) {
+      return !(std::abs(l.mean.x()) <= kMapCodecMaxCoordinateM && std::abs(l.mean.y()) <= kMapCodecMaxCoordinateM);
+    });
+    msg.payload = EncodeMap(within, &why);
+    landmarks = within.size();
+    if (!msg.payload.empty()) ++stats_.maps_encode_trimmed;
+  }
   if (msg.payload.empty()) {
     ++stats_.maps_encode_failed;
+    stats_.last_encode_error = why;
     return;
   }
   ++stats_.maps_sent;
   stats_.bytes_sent += WireBytes(msg);
-  stats_.landmarks_sent += map.size();
+  stats_.landmarks_sent += landmarks;
   stats_.payload_bytes_sent += msg.payload.size();
   out_.PublishMap(msg);
 }
 
-void AgentNode::OnLinks(const RadioLinks& links) { gate_.UpdateLinks(links); }
+void AgentNode::OnLinks(const RadioLinks& links) {
+  gate_.UpdateLinks(links, sync_.processed_until());
+  stats_.links_refused = gate_.links_refused();
+}
+
+double AgentNode::Clock() const { return std::max(sync_.processed_until(), gate_.links_stamp()); }
 
 void AgentNode::OnMap(const MapMessage& msg) {
   // Our own publications echo back; an earlier incarnation of ours comes from the checkpoint.
@@ -172,6 +228,11 @@ void AgentNode::OnMap(const MapMessage& msg) {
     ++stats_.maps_unknown_sender;
     return;
   }
+  const double now = Clock();
+  auto refuse = [this](MapRefusal r) { ++stats_.maps_refused[static_cast<int>(r)]; };
+  if (!std::isfinite(msg.stamp) || !std::isfinite(msg.origin_stamp) || msg.stamp > now + options_.max_stamp_jump_s) {
+    return refuse(MapRefusal::kImplausibleStamp);
+  }
   switch (gate_.Admit(msg.robot_id, WireBytes(msg), msg.stamp)) {
     case GateVerdict::kOutOfRange: ++stats_.maps_out_of_range; return;
     case GateVerdict::kLost: ++stats_.maps_lost; return;
@@ -179,15 +240,28 @@ void AgentNode::OnMap(const MapMessage& msg) {
     case GateVerdict::kPass: break;
   }
   stats_.bytes_received += WireBytes(msg);
+  // A map larger than we will align is refused before it is decoded (kept within the codec's
+  // own limit, so that a malformed count is still reported as such).
+  if (const auto n = MapPayloadCount(msg.payload); n && *n <= kMapCodecMaxLandmarks && *n > peer_limits_.max_landmarks) {
+    return refuse(MapRefusal::kTooManyLandmarks);
+  }
   MapDecodeResult decoded = DecodeMap(msg.payload);
   if (!decoded.ok()) {
     ++stats_.maps_rejected[static_cast<int>(decoded.error)];
     return;
   }
-  if (exchange_.OnPeerMap(msg.robot_id, msg.incarnation, msg.kind, msg.version, msg.origin_stamp,
-                          std::move(decoded.map), sync_.processed_until()) == MapExchange::Receipt::kStaleVersion) {
-    ++stats_.maps_stale_version;
-    return;
+  switch (CheckMapLimits(decoded.map, peer_limits_)) {
+    case MapLimitViolation::kNone: break;
+    case MapLimitViolation::kTooManyLandmarks: return refuse(MapRefusal::kTooManyLandmarks);
+    case MapLimitViolation::kOutOfWorld: return refuse(MapRefusal::kOutOfWorld);
+    case MapLimitViolation::kCovarianceTooLarge: return refuse(MapRefusal::kCovarianceTooLarge);
+  }
+  switch (exchange_.OnPeerMap(msg.robot_id, msg.incarnation, msg.kind, msg.version, msg.origin_stamp,
+                              std::move(decoded.map), now)) {
+    case MapExchange::Receipt::kAccepted: break;
+    case MapExchange::Receipt::kStaleVersion: ++stats_.maps_stale_version; return;
+    case MapExchange::Receipt::kVersionJump: return refuse(MapRefusal::kVersionJump);
+    case MapExchange::Receipt::kTooManyIncarnations: return refuse(MapRefusal::kTooManyIncarnations);
   }
   ++stats_.maps_received;
   ++stats_.maps_received_from[msg.robot_id];

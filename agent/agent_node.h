@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <string_view>
 #include <vector>
 
 #include "agent/map_exchange.h"
@@ -16,6 +17,7 @@
 #include "common/config/scenario.h"
 #include "common/map/landmark_map.h"
 #include "common/map/map_codec.h"
+#include "common/map/map_limits.h"
 #include "common/slam/local_mapper.h"
 #include "common/types/messages.h"
 
@@ -50,6 +52,19 @@ struct AgentCheckpoint {
   std::vector<AgentCheckpoint> earlier;
 };
 
+// Why a well-formed map from a robot of this run was refused before it was used; each refusal
+// changes nothing.
+enum class MapRefusal {
+  kImplausibleStamp = 0,  // its stamp is not finite or runs ahead of ours (agent.max_stamp_jump_s)
+  kTooManyLandmarks,      // agent.max_peer_landmarks (refused before decoding)
+  kOutOfWorld,            // a landmark beyond agent.world_radius_m
+  kCovarianceTooLarge,    // a landmark less certain than agent.max_landmark_sigma_m
+  kVersionJump,           // a version further ahead than the peer could have published
+  kTooManyIncarnations,   // a new map frame of a robot that has max_incarnations kept already
+};
+inline constexpr int kMapRefusalCount = 6;
+std::string_view ToString(MapRefusal r);
+
 // Counters of the maps the agent sent, received, dropped or rejected, and why.
 struct AgentStats {
   std::uint32_t maps_sent = 0;
@@ -62,13 +77,18 @@ struct AgentStats {
   std::uint32_t maps_unknown_sender = 0;
   std::array<std::uint32_t, kMapDecodeErrorCount> maps_rejected{};  // by MapDecodeError
   std::uint32_t maps_stale_version = 0; // not newer than one already received from that sender
-  std::uint32_t maps_encode_failed = 0; // own maps that could not be encoded (never sent)
+  std::array<std::uint32_t, kMapRefusalCount> maps_refused{};  // by MapRefusal
+  std::uint32_t maps_encode_failed = 0; // own maps that could not be encoded (never sent) ...
+  MapDecodeError last_encode_error = MapDecodeError::kOk;  // ... the last time, why
+  std::uint32_t maps_encode_trimmed = 0;  // own maps sent without landmarks beyond the codec's bound
+  std::uint32_t links_refused = 0;      // link tables with implausible stamps
   std::uint64_t landmarks_sent = 0;     // over all maps sent
   std::uint64_t payload_bytes_sent = 0; // their encoded payloads
   std::map<RobotId, std::uint32_t> maps_received_from;
   std::uint32_t MapsRejected() const;
   // Encoded bytes per landmark sent (header included), 0 before anything was sent.
   double BytesPerLandmark() const;
+  std::uint32_t MapsRefused() const;
   // Everything that did not make it into peer_maps(), whatever the reason.
   std::uint32_t MapsDropped() const;
 };
@@ -121,8 +141,12 @@ class AgentNode : private SensorSync::Sink {
   void Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version);
   // Whether the robot is one of this run's.
   bool InRun(RobotId robot) const;
+  // The scenario time as far as this agent can tell: its own progress, or the link table's
+  // when that is ahead (before the first odometry of a restarted agent).
+  double Clock() const;
 
   AgentOptions options_;
+  MapLimits peer_limits_;
   std::vector<RobotId> robot_ids_;  // the robots of this run; maps from others are rejected
   RobotId self_;
   std::uint32_t incarnation_;

@@ -26,27 +26,58 @@ MapExchange::MapExchange(RobotId self, std::uint32_t incarnation, const Exchange
 
 MapExchange::Receipt MapExchange::OnPeerMap(RobotId robot, std::uint32_t incarnation, MapKind kind,
                                             std::uint32_t version, double origin_stamp, LandmarkMap map, double now) {
-  Peer& p = peers_[{robot, incarnation}];
-  p.report.key = {robot, incarnation};
-  std::uint32_t& last = kind == MapKind::kLocal ? p.local_version : p.global_version;
-  if ((kind == MapKind::kLocal ? p.has_local : p.has_global) && version <= last) return Receipt::kStaleVersion;
-  last = version;
-  p.report.origin_stamp = origin_stamp;
+  const PeerKey key{robot, incarnation};
+  auto it = peers_.find(key);
+  // Versions count publications: no publisher can be further ahead than its maps could go out.
+  const double rate = options_.max_versions_per_s;
+  if (version > options_.version_slack + rate * std::max(0.0, now)) return Receipt::kVersionJump;
+  if (it != peers_.end()) {
+    const Peer& known = it->second;
+    const bool has = kind == MapKind::kLocal ? known.has_local : known.has_global;
+    const std::uint32_t last = kind == MapKind::kLocal ? known.local_version : known.global_version;
+    const double heard = kind == MapKind::kLocal ? known.local_heard : known.global_heard;
+    if (has && version <= last) return Receipt::kStaleVersion;
+    if (has && version - last > options_.version_slack + rate * std::max(0.0, now - heard)) return Receipt::kVersionJump;
+  } else if (!MakeRoomFor(robot)) {
+    return Receipt::kTooManyIncarnations;
+  }
+  Peer& p = peers_[key];
+  p.report.key = key;
   if (kind == MapKind::kLocal) {
+    p.local_version = version;
+    p.local_heard = now;
     p.local = std::move(map);
     p.has_local = true;
     p.report.local_landmarks = static_cast<int>(p.local.size());
   } else {
+    p.global_version = version;
+    p.global_heard = now;
     p.global = std::move(map);
     p.has_global = true;
     p.report.global_landmarks = static_cast<int>(p.global.size());
   }
+  p.report.origin_stamp = origin_stamp;
+  p.report.last_heard = now;
   p.changed = true;
-  if (p.report.stale) {  // heard again
-    p.report.stale = false;
-  }
-  (void)now;
+  p.report.stale = false;  // heard again
   return Receipt::kAccepted;
+}
+
+bool MapExchange::MakeRoomFor(RobotId robot) {
+  std::vector<std::map<PeerKey, Peer>::iterator> kept;
+  for (auto it = peers_.lower_bound({robot, 0}); it != peers_.end() && it->first.robot == robot; ++it) kept.push_back(it);
+  if (static_cast<int>(kept.size()) < options_.max_incarnations) return true;
+  // Evict the incarnation heard longest ago among those that never contributed and can no
+  // longer speak; one that did contribute stays (nothing learned is lost).
+  auto victim = peers_.end();
+  for (auto it : kept) {
+    const Peer& p = it->second;
+    if (p.report.ever_aligned || p.report.own_checkpoint || !Frozen(p)) continue;
+    if (victim == peers_.end() || p.report.last_heard < victim->second.report.last_heard) victim = it;
+  }
+  if (victim == peers_.end()) return false;
+  peers_.erase(victim);
+  return true;
 }
 
 void MapExchange::OnPeerLiveliness(RobotId robot, bool alive, double now) {
@@ -58,6 +89,7 @@ void MapExchange::OnPeerLiveliness(RobotId robot, bool alive, double now) {
     } else if (alive) {
       p.report.stale = false;
     }
+    p.report.frozen = Frozen(p);
   }
 }
 
@@ -102,7 +134,26 @@ void MapExchange::Drop(Peer& p, double now) {
   p.last_attempt = now;
 }
 
+bool MapExchange::Spend() {
+  if (budget_ <= 0) return false;
+  --budget_;
+  return true;
+}
+
+bool MapExchange::Frozen(const Peer& p) const {
+  return p.report.stale || p.report.own_checkpoint || now_ - p.report.last_heard > options_.silent_after_s;
+}
+
+bool MapExchange::AttemptDue(const Peer& p, const LandmarkMap& own_local, double now) const {
+  if (now - p.last_attempt < options_.align_period_s) return false;
+  if (p.changed || Grew(own_local.size(), p.own_size_at_attempt)) return true;
+  // A peer that can no longer speak will send no better map: what it sent is tried whenever
+  // ours has changed, for the rest of the run.
+  return p.report.frozen && own_local.size() != p.own_size_at_attempt;
+}
+
 bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool reconsider_relay) {
+  if (!Spend()) return false;
   const LandmarkMap& theirs = PeerMap(p);
   const AlignmentResult r = AlignMaps(own_local, theirs, options_.align, rng_);
   p.report.last_verdict = r.verdict;
@@ -143,8 +194,8 @@ bool MapExchange::Grew(std::size_t size, std::size_t at_attempt) const {
 }
 
 bool MapExchange::RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const {
-  // A stale peer's contribution stays as it was verified (nothing already learned is lost).
-  if (!options_.realign_on_growth || p.report.stale || now - p.last_attempt < options_.align_period_s) return false;
+  // A frozen peer's contribution stays as it was verified (nothing already learned is lost).
+  if (!options_.realign_on_growth || p.report.frozen || now - p.last_attempt < options_.align_period_s) return false;
   // A realignment that disagreed with the transform in use waits for a second, later answer to
   // confirm it: that one is due as soon as either map has changed, as for a first alignment, not
   // only after the next fifth of growth (which may never come).
@@ -227,11 +278,22 @@ bool MapExchange::RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, con
   const bool relay_better = relay.supporters > 0 && (relay.against < held.against ||
                                                      (relay.against == held.against && relay.inliers > held.inliers));
   if (!relay_better && held.against <= held.supporters) return false;
+  // A frozen q cannot speak for itself any more: its landmarks stay, moved to where the live
+  // relay (holding them) places them, and only if another map we hold supports that placement.
+  if (q.report.frozen && relay.supporters == 0) return false;
+
   q.refuted.push_back(ours);
   ++q.report.refuted;
   q.report.refuted_by = p.report.key.robot;
-  q.report.relayed = false;
   q.candidate.reset();
+  if (q.report.frozen) {
+    ++q.report.replaced;
+    AlignmentResult placed = r;
+    placed.cov = r.cov + p.report.to_own_cov;  // the relay's frame is placed with that uncertainty
+    Use(q, placed, own_local, /*reconsider_relay=*/false);
+    return true;
+  }
+  q.report.relayed = false;
   Drop(q, now_);
   return true;
 }
@@ -276,13 +338,24 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local, bool recon
 bool MapExchange::Update(const LandmarkMap& own_local, double now) {
   now_ = now;
   refuted_ = false;
+  budget_ = options_.max_alignments_per_update;
   bool changed = false;
   std::set<PeerKey> chosen;  // peers whose map was chosen in this round
-  for (auto& [key, p] : peers_) {
+  for (auto& [key, p] : peers_) p.report.frozen = Frozen(p);
+  // Round robin: the first peer left without an alignment it was due last time goes first.
+  std::vector<std::map<PeerKey, Peer>::iterator> order;
+  const auto turn = peers_.lower_bound(next_turn_);
+  for (auto it = turn; it != peers_.end(); ++it) order.push_back(it);
+  for (auto it = peers_.begin(); it != turn; ++it) order.push_back(it);
+  std::optional<PeerKey> starved;
+  for (auto it : order) {
+    const PeerKey& key = it->first;
+    Peer& p = it->second;
     if (!p.has_local && !p.has_global) continue;
     if (!p.report.aligned) {
-      // Try again when due and when either map changed since the last try.
-      if (now - p.last_attempt < options_.align_period_s || !(p.changed || Grew(own_local.size(), p.own_size_at_attempt))) {
+      if (!AttemptDue(p, own_local, now)) continue;
+      if (budget_ <= 0) {
+        if (!starved) starved = key;
         continue;
       }
       ++p.report.attempts;
@@ -301,7 +374,8 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     // accepted on small maps can be a coincidence that verification at that same transform
     // keeps passing in a dense map; with more landmarks the true alignment has the larger
     // support. An accepted answer replaces the transform; otherwise verification goes on.
-    if (RealignDue(p, own_local, now)) {
+    if (RealignDue(p, own_local, now) && budget_ <= 0 && !starved) starved = key;
+    if (budget_ > 0 && RealignDue(p, own_local, now)) {
       const Pose2 before = p.report.to_own;
       const Eigen::Vector2d at = p.report.centroid;
       const bool was_changed = p.changed;
@@ -337,6 +411,7 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
       changed = true;
     }
   }
+  if (starved) next_turn_ = *starved;
   // A new or moved alignment changes what the other peers' relays must agree with: the peers
   // whose maps were chosen in this round choose again, now that all its transforms are known.
   // (A peer that sent nothing new keeps its choice: until its liveliness is lost, a dead peer

@@ -25,8 +25,18 @@
 //   contradict our placement than support it, our direct alignment is the false one (in a park,
 //   rows of trees allow a 90-degree match where two paths cross): it is refuted, never accepted
 //   again, and the relay is used instead.
-// - Liveliness: a peer whose writer is gone is stale; its last verified map stays in the global
-//   map (nothing already learned is lost), and it is no longer re-verified.
+// - Nothing learned is lost: a peer that can no longer speak (its writer is gone, or it sent
+//   no map for silent_after_s: killed, stalled or out of radio range) is frozen. Its last
+//   verified map stays in the global map, and no decision taken on other evidence removes it:
+//   it is neither verified nor realigned, and a relay that refutes its placement re-places it
+//   (moves it to where that live relay, holding the same landmarks, puts them) instead of
+//   dropping it. Only the peer itself, speaking again, can withdraw what it said. A frozen
+//   peer's last map that was never aligned keeps being tried against our growing map.
+// - Bounded work: at most max_alignments_per_update full alignments per Update, handed out
+//   round robin so that every peer's turn comes (the agent refuses maps larger than it will
+//   align before they get here: agent.max_peer_landmarks); a peer's map version may run ahead
+//   of the last one only as fast as maps can be published, so one forged version cannot make
+//   the peer's genuine maps stale; and a robot keeps at most max_incarnations map frames.
 // - Resume: an earlier incarnation of this agent (from its checkpoint) is one more peer.
 
 #include <Eigen/Core>
@@ -77,6 +87,11 @@ struct ExchangeOptions {
                                         // as of Victoria Park's bent maps, 3-5 m and 2-3 degrees apart) ...
   double refute_min_share = 0.5;        // ... and the relay's placement matches this share of the peer's map
                                         // (the relay holds that map, not a stretch of it by coincidence)
+  double silent_after_s = 6.0;          // a peer that sent no map for this long (scenario s) is frozen (see above)
+  int max_alignments_per_update = 4;    // full alignments (first, retried and fresh ones) per Update, round robin
+  double max_versions_per_s = 2.0;      // a map's version may exceed the last one received by version_slack plus this
+  std::uint32_t version_slack = 64;     // rate times the scenario seconds since (and any version by this rate times now)
+  int max_incarnations = 8;             // incarnations kept per robot; a newer one evicts one never aligned and frozen
   AlignmentOptions align = ExchangeAlignment();
   GlobalMapOptions global;
 };
@@ -99,12 +114,15 @@ struct PeerReport {
   bool dropped = false;            // was aligned, stopped verifying
   bool stale = false;              // its writer is gone (liveliness)
   double stale_since = 0.0;
+  bool frozen = false;             // can no longer speak (stale, or silent for silent_after_s): kept as it is
+  double last_heard = 0.0;         // scenario time of its last map (ours, when it arrived)
   double aligned_since = 0.0;      // scenario time of the first acceptance
   Pose2 to_own;                    // the peer's frame in ours
   Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();
   bool relayed = false;            // its global map is fused (not its local map)
   int relay_conflicts = 0;         // times its global map disagreed with another peer's map (not relayed then)
-  int refuted = 0;                 // times our alignment of it lost to a relay's placement (then dropped) ...
+  int refuted = 0;                 // times our alignment of it lost to a relay's placement (then dropped, or re-placed when frozen) ...
+  int replaced = 0;                // ... of which it was frozen and moved to the relay's placement
   RobotId refuted_by = 0;          // ... the last time, to this peer's relay
   int refuted_answers = 0;         // alignments refused for agreeing with a refuted one
   Eigen::Vector2d centroid = Eigen::Vector2d::Zero();  // of the peer map aligned last, in its frame
@@ -123,8 +141,12 @@ class MapExchange {
  public:
   MapExchange(RobotId self, std::uint32_t incarnation, const ExchangeOptions& options, std::uint64_t seed);
 
-  enum class Receipt { kAccepted, kStaleVersion };
-  // A decoded map from a peer. Versions must grow within an incarnation and kind.
+  enum class Receipt { kAccepted, kStaleVersion, kVersionJump, kTooManyIncarnations };
+  // A decoded map from a peer, received at scenario time `now`. Versions must grow within an
+  // incarnation and kind (else kStaleVersion), and by no more than a publisher could have
+  // published since (else kVersionJump: see max_versions_per_s). A new incarnation beyond
+  // max_incarnations, when no kept one can be evicted, is kTooManyIncarnations. A refused map
+  // changes nothing.
   Receipt OnPeerMap(RobotId robot, std::uint32_t incarnation, MapKind kind, std::uint32_t version, double origin_stamp,
                     LandmarkMap map, double now);
   // The peer's writer came back (true) or went away (false): every incarnation of the robot.
@@ -158,6 +180,7 @@ class MapExchange {
     LandmarkMap local, global;
     bool has_local = false, has_global = false;
     std::uint32_t local_version = 0, global_version = 0;
+    double local_heard = 0.0, global_heard = 0.0;  // when the last map of each kind arrived
     bool changed = false;            // a map arrived since the last attempt or verification
     double last_attempt = -1e300;
     double last_refine = -1e300;     // last alignment, verification or refinement against our map
@@ -170,8 +193,18 @@ class MapExchange {
     std::map<PeerKey, double> last_refute_check;  // by relay: when its placement of this peer was last weighed
   };
   // Aligns the peer's map to the own local map; when the answer is confirmed (confirm_alignments)
-  // stores the transform and source and returns true.
+  // stores the transform and source and returns true. Returns false at once, trying nothing,
+  // when this Update's alignment budget is spent.
   bool Align(Peer& p, const LandmarkMap& own_local, double now, bool reconsider_relay);
+  // Whether a new incarnation of robot can be kept (max_incarnations), evicting one if need be.
+  bool MakeRoomFor(RobotId robot);
+  // Takes one alignment from this Update's budget; false when none is left.
+  bool Spend();
+  // The peer can no longer speak (stale, own checkpoint, or silent for silent_after_s).
+  bool Frozen(const Peer& p) const;
+  // An unaligned peer's alignment is due: after align_period_s, when its map changed or ours
+  // grew by retry_growth (a frozen peer's map cannot change: whenever ours did).
+  bool AttemptDue(const Peer& p, const LandmarkMap& own_local, double now) const;
   // Whether two transforms of a peer's frame agree at a point of its map (relay tolerances).
   bool Agree(const Pose2& a, const Pose2& b, const Eigen::Vector2d& at) const;
   // How `map` at `placement` compares with `witness` (a map in our frame) where they overlap:
@@ -202,7 +235,9 @@ class MapExchange {
   // contribution it overlaps (relay_must_agree); if not, the first peer it disagrees with.
   bool RelayAgrees(const Peer& p, const Pose2& to_own, Peer** conflict = nullptr);
   // p's relay (at to_own) places q elsewhere than q's alignment: refutes q's alignment and
-  // returns true when the relay's placement is better supported.
+  // returns true when the relay's placement is better supported. A live q is dropped (the relay
+  // then brings its landmarks); a frozen q is re-placed at the relay's placement, and only when
+  // another map we hold supports it, so that its landmarks stay.
   bool RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, const LandmarkMap& own_local);
   // What the maps we hold independently of q (our local map and the other aligned peers' one-hop
   // maps) say of a placement of q's map.
@@ -221,6 +256,8 @@ class MapExchange {
   std::map<PeerKey, Peer> peers_;
   double now_ = 0.0;      // of the Update in progress
   bool refuted_ = false;  // ... which refuted an alignment
+  int budget_ = 0;        // ... and the alignments it may still run
+  PeerKey next_turn_;     // the peer whose turn is first in the next Update (round robin)
   GlobalMap global_;
   GlobalMap published_;
 };

@@ -1,12 +1,38 @@
 #include "agent/radio_gate.h"
 
+#include <cmath>
+#include <utility>
+
 namespace mapmesh {
 
 RadioGate::RadioGate(RobotId self, const RadioGateOptions& options, std::uint64_t seed)
     : self_(self), options_(options), rng_(seed) {}
 
-void RadioGate::UpdateLinks(const RadioLinks& links) {
-  if (links.stamp < stamp_) return;
+RadioGate::LinksReceipt RadioGate::UpdateLinks(const RadioLinks& links, double now) {
+  if (!std::isfinite(links.stamp) || links.stamp < 0.0 || links.stamp > options_.max_stamp_s) {
+    ++links_refused_;
+    return LinksReceipt::kImplausible;
+  }
+  const double jump = options_.max_stamp_jump_s;
+  if (held_) {
+    const RadioLinks held = *std::exchange(held_, std::nullopt);
+    if (links.stamp >= held.stamp && links.stamp <= held.stamp + jump) {
+      Use(links);  // confirmed: the stream did move on
+      return LinksReceipt::kUsed;
+    }
+    ++links_refused_;  // nothing confirmed it
+  }
+  if (links.stamp < stamp_) return LinksReceipt::kOlder;
+  // The first table sets the clock; later ones may run ahead of it and of ours by the window.
+  if (stamp_ >= 0.0 && links.stamp > std::max(stamp_, now) + jump) {
+    held_ = links;
+    return LinksReceipt::kHeld;
+  }
+  Use(links);
+  return LinksReceipt::kUsed;
+}
+
+void RadioGate::Use(const RadioLinks& links) {
   stamp_ = links.stamp;
   neighbours_.clear();
   for (const Link& l : links.links) {

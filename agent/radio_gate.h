@@ -5,8 +5,16 @@
 // bytes keeps the link from that sender busy for B / bandwidth seconds of scenario time, and
 // messages arriving meanwhile are dropped (a newer map supersedes them anyway). Estimation
 // never uses the links.
+//
+// A table's stamp must be plausible: finite, within the run, and no further than
+// max_stamp_jump_s ahead of the agent's own time and of the table in use. A table that jumps
+// further is held until the next table confirms it (a later stamp within the window of it);
+// a table confirmed by none is refused, so one forged stamp cannot make every later table
+// look old.
 
 #include <cstdint>
+#include <limits>
+#include <optional>
 #include <random>
 #include <unordered_map>
 #include <unordered_set>
@@ -18,6 +26,8 @@ namespace mapmesh {
 struct RadioGateOptions {
   double loss_probability = 0.0;      // chance that a message in range is dropped anyway
   double bandwidth_bytes_per_s = 0.0; // per link; 0 means unlimited
+  double max_stamp_jump_s = 20.0;     // a table this far ahead of our time and the last table is held (see above)
+  double max_stamp_s = std::numeric_limits<double>::infinity();  // no table is stamped after this (the run's end)
 };
 
 enum class GateVerdict { kPass, kOutOfRange, kLost, kBusy };
@@ -26,8 +36,12 @@ class RadioGate {
  public:
   RadioGate(RobotId self, const RadioGateOptions& options, std::uint64_t seed);
 
-  // Replaces the link table (messages with an older stamp are ignored).
-  void UpdateLinks(const RadioLinks& links);
+  enum class LinksReceipt { kUsed, kOlder, kHeld, kImplausible };
+  // Replaces the link table at the agent's scenario time `now` (an older table is ignored; an
+  // implausible one refused or held: see above).
+  LinksReceipt UpdateLinks(const RadioLinks& links, double now);
+  // Tables refused as implausible so far (held ones nothing confirmed included).
+  std::uint32_t links_refused() const { return links_refused_; }
   // Decides the fate of one message of `bytes` from `sender` sent at scenario time `stamp`.
   // Before any table arrives, nobody is in range.
   GateVerdict Admit(RobotId sender, std::size_t bytes, double stamp);
@@ -37,9 +51,13 @@ class RadioGate {
 
  private:
   RobotId self_;
+  void Use(const RadioLinks& links);
+
   RadioGateOptions options_;
   std::mt19937_64 rng_;
   double stamp_ = -1.0;
+  std::optional<RadioLinks> held_;
+  std::uint32_t links_refused_ = 0;
   std::unordered_set<RobotId> neighbours_;
   std::unordered_map<RobotId, double> busy_until_;  // per sender, scenario seconds
 };

@@ -5,20 +5,72 @@
 
 namespace mapmesh {
 
+namespace {
+
+// Sequence gaps this large are not losses but a stream from elsewhere (a forged message).
+constexpr std::uint32_t kMaxSeqGap = 1000000;
+
+}  // namespace
+
 void SensorSync::OnOdometry(const Odometry& odom) {
+  ++stats_.odom_received;
   const bool finite = std::isfinite(odom.stamp) && std::isfinite(odom.dt) && std::isfinite(odom.v) &&
                       std::isfinite(odom.w) && std::isfinite(odom.steering);
-  if (!finite || odom.dt <= 0.0 || (started_ && odom.stamp <= processed_until_) || pending_odom_.count(odom.stamp)) {
+  if (!finite || odom.dt <= 0.0 || (has_odom_ && odom.stamp <= last_odom_stamp_)) {
     ++stats_.odom_rejected;
     return;
   }
+  if (odom.stamp - odom.dt < -1e-6 || odom.stamp > options_.max_stamp_s || odom.dt > options_.max_stamp_jump_s) {
+    ++stats_.odom_implausible;
+    return;
+  }
+  if (jump_) {
+    const Odometry held = *jump_;
+    jump_.reset();
+    const bool continues = odom.seq == held.seq + 1 &&
+                           std::abs(odom.stamp - odom.dt - held.stamp) <= 1e-6 * std::max(1.0, std::abs(held.stamp));
+    if (continues) {
+      Accept(held);
+      Accept(odom);
+      return;
+    }
+    ++stats_.odom_implausible;  // nothing continued it
+  }
+  if (has_odom_ && odom.stamp - odom.dt > last_odom_stamp_ + options_.max_stamp_jump_s) {
+    jump_ = odom;
+    return;
+  }
+  Accept(odom);
+}
+
+void SensorSync::Accept(const Odometry& odom) {
+  if (has_odom_ && odom.seq > last_odom_seq_ + 1 && odom.seq - last_odom_seq_ < kMaxSeqGap) {
+    stats_.odom_lost += odom.seq - last_odom_seq_ - 1;
+  }
+  has_odom_ = true;
+  last_odom_seq_ = odom.seq;
+  last_odom_stamp_ = odom.stamp;
   pending_odom_.emplace(odom.stamp, odom);
   Drain();
 }
 
 void SensorSync::OnScan(const Scan& scan) {
+  ++stats_.scans_received;
+  if (has_scan_seq_ && scan.seq > last_scan_seq_ && scan.seq - last_scan_seq_ < kMaxSeqGap) {
+    stats_.scans_lost += scan.seq - last_scan_seq_ - 1;
+    last_scan_seq_ = scan.seq;
+  } else if (!has_scan_seq_) {
+    has_scan_seq_ = true;
+    last_scan_seq_ = scan.seq;
+  }
   if (!std::isfinite(scan.stamp)) {
     ++stats_.scans_rejected;
+    return;
+  }
+  const double reach = std::max(last_odom_stamp_, jump_ ? jump_->stamp : last_odom_stamp_);
+  if (scan.stamp < 0.0 || scan.stamp > options_.max_stamp_s ||
+      (has_odom_ && scan.stamp > reach + options_.max_stamp_jump_s)) {
+    ++stats_.scans_implausible;
     return;
   }
   // Late: its interval was processed. Until the first one is, a scan at the stream's origin (from

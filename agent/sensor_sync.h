@@ -5,6 +5,13 @@
 // scan applied, then moved to the end of the interval. Bad input (non-finite values, dt <= 0,
 // time going backwards, empty scans) is counted and never reaches the estimator.
 //
+// Stamps must be plausible: none beyond the run's end (when known), and none further than
+// max_stamp_jump_s beyond the odometry received so far. An odometry message that jumps further
+// is held until the next one continues it (its interval starts where the held one ends, and
+// its sequence number follows): then both are taken, as after a stream resumes from a stall;
+// otherwise the held one is refused. So one forged stamp cannot move the stream's clock ahead
+// and freeze it. Gaps in the sequence numbers of either stream are counted as lost messages.
+//
 // With frame_at_first_landmark the estimator's frame is fixed only when it first maps a
 // landmark: until then odometry is not applied (the robot stays at the origin) and the
 // frame's origin moves with time. Odometry before any landmark carries no information about
@@ -13,6 +20,7 @@
 // then the robot's pose at that scan, the convention of keyframe SLAM (the first keyframe).
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <optional>
 
@@ -22,8 +30,14 @@
 namespace mapmesh {
 
 struct SyncStats {
+  std::uint32_t odom_received = 0;      // every odometry message handed in
   std::uint32_t odom_processed = 0;
   std::uint32_t odom_rejected = 0;      // non-finite values, dt <= 0, or stamp going backwards
+  std::uint32_t odom_implausible = 0;   // stamp beyond the run's end, or a jump nothing continued
+  std::uint32_t odom_lost = 0;          // never arrived: gaps in the sequence numbers
+  std::uint32_t scans_received = 0;     // every scan handed in
+  std::uint32_t scans_implausible = 0;  // stamp beyond the run's end or the plausible window
+  std::uint32_t scans_lost = 0;         // never arrived: gaps in the sequence numbers
   std::uint32_t scans_processed = 0;    // applied (empty ones included: they are consumed)
   std::uint32_t scans_empty = 0;        // of which carried no observation: nothing to apply
   std::uint32_t scans_rejected = 0;     // non-finite stamp
@@ -46,8 +60,15 @@ class SensorSync {
     virtual bool Mapped() const = 0;
   };
 
+  struct Options {
+    bool frame_at_first_landmark = false;  // see above
+    double max_stamp_jump_s = 20.0;        // stamps this far beyond the odometry received so far are implausible
+    double max_stamp_s = std::numeric_limits<double>::infinity();  // and any beyond this (the run's end)
+  };
+
+  SensorSync(Sink& sink, const Options& options) : sink_(sink), options_(options), frame_fixed_(!options.frame_at_first_landmark) {}
   explicit SensorSync(Sink& sink, bool frame_at_first_landmark = false)
-      : sink_(sink), frame_fixed_(!frame_at_first_landmark) {}
+      : SensorSync(sink, Options{frame_at_first_landmark}) {}
 
   void OnOdometry(const Odometry& odom);
   void OnScan(const Scan& scan);
@@ -62,6 +83,8 @@ class SensorSync {
   const SyncStats& stats() const { return stats_; }
 
  private:
+  // Takes a plausible odometry message into the queue.
+  void Accept(const Odometry& odom);
   void Drain();
   void ProcessInterval(const Odometry& odom);
   // Moves the robot by u over dt, reaching time `until`; before the frame is fixed, moves
@@ -73,7 +96,14 @@ class SensorSync {
   static constexpr double kMaxScanWaitS = 30.0;
 
   Sink& sink_;
+  Options options_;
   bool frame_fixed_;
+  bool has_odom_ = false;            // some odometry was accepted ...
+  double last_odom_stamp_ = 0.0;     // ... the latest, pending ones included
+  std::uint32_t last_odom_seq_ = 0;
+  std::optional<Odometry> jump_;     // a jump beyond the window, until the next message tells
+  bool has_scan_seq_ = false;
+  std::uint32_t last_scan_seq_ = 0;
   bool started_ = false;
   double processed_until_ = 0.0;
   std::optional<double> frame_origin_stamp_;

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "common/config/yaml_reader.h"
+#include "common/map/map_codec.h"
 
 namespace mapmesh {
 namespace {
@@ -300,6 +301,15 @@ AgentOptions ReadAgent(YamlReader a) {
   a.GetPositive("drop_after_failures", o.drop_after_failures);
   a.Get("relay_global_maps", o.relay_global_maps);
   a.GetNonNegative("checkpoint_period_s", o.checkpoint_period_s);
+  a.GetNonNegative("silent_after_s", o.silent_after_s);
+  a.GetPositive("max_alignments_per_update", o.max_alignments_per_update);
+  a.GetPositive("max_peer_landmarks", o.max_peer_landmarks);
+  if (o.max_peer_landmarks > static_cast<int>(kMapCodecMaxLandmarks)) {
+    a.Fail("max_peer_landmarks", "must be at most " + std::to_string(kMapCodecMaxLandmarks) + " (what a map can carry)");
+  }
+  a.GetInRange("world_radius_m", o.world_radius_m, 1.0, kMapCodecMaxCoordinateM);
+  a.GetPositive("max_landmark_sigma_m", o.max_landmark_sigma_m);
+  a.GetPositive("max_stamp_jump_s", o.max_stamp_jump_s);
   a.Finish();
   return o;
 }
@@ -511,6 +521,10 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
   sc.radio = ReadRadio(top.Child("radio"));
   sc.agent = ReadAgent(top.Child("agent"));
   sc.feeder = ReadFeeder(top.Child("feeder"));
+  if (sc.agent.max_stamp_jump_s < 2.0 * sc.feeder.lockstep_window_s) {
+    // Lockstep publishes scans up to a window ahead of the odometry that covers them.
+    top.Child("agent").Fail("max_stamp_jump_s", "must be at least twice feeder.lockstep_window_s");
+  }
 
   // Robots: defaults, then the listed ones (each overriding defaults key by key).
   YamlReader robots = top.Child("robots");

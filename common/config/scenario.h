@@ -127,7 +127,7 @@ struct AgentOptions {
   double tentative_gate_m = 1.0;        // where the second sighting must land
   double tentative_timeout_s = 30.0;    // how long a first sighting waits
   double min_range_m = 0.0;             // observations nearer than this are dropped
-  double max_range_m = 0.0;             // and farther than this (0: no limit)
+  double max_range_m = 0.0;             // and farther than this (0: the sensor's max_range_m plus 5 sigma_range_m)
   double region_half_m = 5.0;           // cekf: region half-size (switch when the robot leaves it)
   double region_reach_m = 0.0;          // cekf: active landmarks this far beyond the region (0: sensor range + 4 m)
   bool first_estimates_jacobians = true;  // ekf, cekf: FEJ-EKF (Jacobians at first estimates) for consistency
@@ -142,6 +142,13 @@ struct AgentOptions {
   int drop_after_failures = 2;          // consecutive failed verifications drop an alignment
   bool relay_global_maps = true;        // fuse peers' global maps (multi-hop), not only their local maps
   double checkpoint_period_s = 10.0;    // scenario seconds between checkpoints (0: none)
+  double silent_after_s = 0.0;          // a peer that sent no map for this long is frozen (0: 3 map periods)
+  int max_alignments_per_update = 4;    // full alignments per map period, handed out round robin over peers
+  // Input bounds: what an agent refuses (and counts) before it spends work on it.
+  int max_peer_landmarks = 10000;       // a peer's map with more landmarks is refused unread
+  double world_radius_m = 5000.0;       // ... and one with a landmark farther from its frame's origin
+  double max_landmark_sigma_m = 500.0;  // ... or one with a landmark this uncertain along an axis
+  double max_stamp_jump_s = 20.0;       // sensor, link and map stamps this far ahead of ours are implausible
 };
 
 struct FeederOptions {

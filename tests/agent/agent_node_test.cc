@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "common/config/scenario.h"
 
 namespace mapmesh {
@@ -245,6 +247,62 @@ TEST_F(AgentNodeTest, LivelinessMarksEveryIncarnationOfAPeerStale) {
   EXPECT_FALSE(node_.OnPeerLiveliness(9, false));
   EXPECT_FALSE(node_.OnPeerLiveliness(1, false));
   EXPECT_TRUE(node_.Status().peers_stale.empty());
+}
+
+// Each bound an agent keeps on peers' maps is its own counted reason, and a refused map
+// changes nothing: the peer table stays empty, and a genuine map is still taken after.
+TEST(AgentNodeLimits, RefusesPeerMapsBeyondItsLimitsAndCountsWhy) {
+  Scenario sc = TwoRobots();
+  sc.agent.max_peer_landmarks = 5;
+  sc.agent.world_radius_m = 1000.0;
+  sc.agent.max_landmark_sigma_m = 10.0;
+  Capture out;
+  AgentNode node(sc, 1, 1, out);
+  node.OnLinks({0.0, {{1, 2}}});
+  auto map_of = [](int n, double x, double sigma) {
+    LandmarkMap m;
+    for (int i = 0; i < n; ++i) {
+      m.landmarks.push_back({static_cast<std::uint32_t>(i), -1, {x + i, 0.0}, sigma * sigma * Eigen::Matrix2d::Identity()});
+    }
+    return m;
+  };
+  auto refused = [&](MapRefusal r) { return node.stats().maps_refused[static_cast<int>(r)]; };
+  node.OnMap(PeerMap(2, EncodeMap(map_of(6, 0.0, 0.1))));
+  EXPECT_EQ(refused(MapRefusal::kTooManyLandmarks), 1u);
+  node.OnMap(PeerMap(2, EncodeMap(map_of(3, 1500.0, 0.1))));
+  EXPECT_EQ(refused(MapRefusal::kOutOfWorld), 1u);
+  node.OnMap(PeerMap(2, EncodeMap(map_of(3, 0.0, 11.0))));
+  EXPECT_EQ(refused(MapRefusal::kCovarianceTooLarge), 1u);
+  MapMessage late = PeerMap(2, EncodeMap(map_of(3, 0.0, 0.1)));
+  late.stamp = 1e9;
+  node.OnMap(late);
+  late.stamp = std::numeric_limits<double>::quiet_NaN();
+  node.OnMap(late);
+  EXPECT_EQ(refused(MapRefusal::kImplausibleStamp), 2u);
+  MapMessage ahead = PeerMap(2, EncodeMap(map_of(3, 0.0, 0.1)));
+  ahead.version = 0xFFFFFFF0u;
+  node.OnMap(ahead);
+  EXPECT_EQ(refused(MapRefusal::kVersionJump), 1u);
+  EXPECT_TRUE(node.exchange().Peers().empty());
+  EXPECT_EQ(node.stats().maps_received, 0u);
+  EXPECT_EQ(node.Status().maps_dropped, 6u);
+  node.OnMap(PeerMap(2, EncodeMap(map_of(3, 0.0, 0.1))));
+  EXPECT_EQ(node.stats().maps_received, 1u);
+}
+
+// One reading 30 km away (beyond what the 8 m sensor sees) never reaches the map, and the
+// agent keeps publishing.
+TEST(AgentNodeLimits, AReadingBeyondTheSensorsRangeIsRefused) {
+  Scenario sc = TwoRobots();
+  Capture out;
+  AgentNode node(sc, 1, 1, out);
+  node.OnScan(ScanAt(0.05, 30000.0, 0.0, -1));
+  node.OnOdometry(Odom(0.1, 1));
+  EXPECT_EQ(node.mapper().stats().out_of_range, 1u);
+  EXPECT_EQ(node.LocalMap().size(), 0u);
+  for (int k = 2; k <= 20; ++k) node.OnOdometry(Odom(0.1 * k, 0));
+  EXPECT_GT(out.maps.size(), 0u);
+  EXPECT_EQ(node.stats().maps_encode_failed, 0u);
 }
 
 }  // namespace

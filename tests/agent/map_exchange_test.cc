@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <set>
 #include <vector>
 
 #include "common/map/map_faults.h"
@@ -174,12 +175,15 @@ TEST(MapExchange, PublishesItsOneHopMapAndUsesAPeersOneHopMapForRobotsOutOfRange
 
 // Robot 1 that has heard robot 3's local map, and robot 2's local map and global map `b_global`,
 // after one update of its own local map la.
+// Robot 1 hears B and C (both live: their maps arrive as it updates, unless c_gone: then C's
+// writer is gone by then).
 MapExchange HeardBAndC(const ExchangeOptions& o, std::uint64_t seed, const LandmarkMap& la, const LandmarkMap& lb,
-                       const LandmarkMap& lc, const LandmarkMap& b_global) {
+                       const LandmarkMap& lc, const LandmarkMap& b_global, bool c_gone = false) {
   MapExchange a(1, 1, o, seed);
-  a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 0.0);
-  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 0.0);
-  a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b_global, 0.0);
+  a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 10.0);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 10.0);
+  a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b_global, 10.0);
+  if (c_gone) a.OnPeerLiveliness(3, false, 10.0);
   a.Update(la, 10.0);
   return a;
 }
@@ -407,6 +411,31 @@ TEST(MapExchange, ARelayBetterSupportedThanOurAlignmentRefutesIt) {
     EXPECT_EQ(a.Peers()[1].refuted_answers, 1);
     EXPECT_EQ(a.global().map.size(), union_size);
   }
+  // The same relay when robot 3 can no longer speak: its landmarks are not dropped but moved to
+  // where the relay, which holds them, puts them (robot 1's own map supports that placement).
+  MapExchange a = HeardBAndC(Immediate(), 4, la, lb, lc, b.published().map, /*c_gone=*/true);
+  const PeerReport rc = a.Peers()[1];
+  ASSERT_EQ(rc.key.robot, 3u);
+  EXPECT_TRUE(rc.frozen);
+  EXPECT_TRUE(rc.aligned);
+  EXPECT_EQ(rc.refuted, 1);
+  EXPECT_EQ(rc.replaced, 1);
+  const Pose2 truth = kFrameA.Inverse() * kFrameC;
+  EXPECT_NEAR(rc.to_own.x, truth.x, 0.1);
+  EXPECT_NEAR(rc.to_own.y, truth.y, 0.1);
+  EXPECT_NEAR(WrapAngle(rc.to_own.theta - truth.theta), 0.0, 0.01);
+  EXPECT_TRUE(a.Peers()[0].relayed);
+  const std::size_t union_size = w.r1.size() + w.r2.size() + w.s.size() + w.v.size() + w.t.size();
+  EXPECT_EQ(placed(a.global().map), static_cast<int>(a.global().map.size()));
+  EXPECT_EQ(a.global().map.size(), union_size);
+  // Every landmark robot 3 sent is in the global map, under its own origin.
+  std::set<std::uint32_t> from_c;
+  for (const auto& o : a.global().origins) {
+    for (const LandmarkOrigin& x : o) {
+      if (x.robot == 3) from_c.insert(x.id);
+    }
+  }
+  EXPECT_EQ(from_c.size(), lc.size());
 }
 
 // Robot 1 maps R2, and landmarks 1 m from where the copy's turn takes S (each in a random
@@ -475,6 +504,191 @@ TEST(MapExchange, AStalePeerKeepsItsLastVerifiedContribution) {
   EXPECT_EQ(a.global().map.size(), n);
   EXPECT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
 }
+
+// Robot 2 sent one map, then died, before robot 1 had mapped any of its ground. Its map is
+// information all the same: it is tried again whenever robot 1's map changes (here by less
+// than the retry_growth a live peer waits for), confirmed, and fused.
+TEST(MapExchange, ADeadPeersMapThatWasNeverAlignedKeepsBeingTried) {
+  World w(160, 21);
+  std::mt19937_64 rng(22);
+  MapExchange a(1, 1, {}, 23);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, w.Map(16, 40, kFrameB, kSigma, rng), 1.0);
+  a.OnPeerLiveliness(2, false, 2.0);
+  double t = 5.0;
+  for (double edge = 14.0; edge <= 24.0; edge += 1.0, t += 5.0) a.Update(w.Map(0, edge, kFrameA, kSigma, rng), t);
+  const PeerReport r = a.Peers().front();
+  EXPECT_TRUE(r.frozen);
+  EXPECT_GE(r.attempts, 4);
+  ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
+  const Pose2 truth = kFrameA.Inverse() * kFrameB;
+  EXPECT_NEAR(r.to_own.x, truth.x, 0.1);
+  EXPECT_NEAR(WrapAngle(r.to_own.theta - truth.theta), 0.0, 0.01);
+  EXPECT_EQ(w.PlacedIn(a.global().map, kFrameA, 0, 40, 0.2), static_cast<int>(a.global().map.size()));
+}
+
+// Versions count a peer's publications: one far ahead of the last (or of anything a peer
+// could have published by now) is refused and changes nothing, so the genuine next map is
+// still taken.
+TEST(MapExchange, AVersionFarAheadCannotMakeLaterMapsStale) {
+  World w(60, 31);
+  std::mt19937_64 rng(32);
+  const LandmarkMap m = w.Map(0, 40, kFrameB, kSigma, rng);
+  MapExchange a(1, 1, {}, 33);
+  // First contact: nothing heard yet, but no peer publishes 4e9 maps in 10 s.
+  EXPECT_EQ(a.OnPeerMap(2, 1, MapKind::kLocal, 0xFFFFFFF0u, 0.0, m, 10.0), MapExchange::Receipt::kVersionJump);
+  EXPECT_TRUE(a.Peers().empty());
+  EXPECT_EQ(a.OnPeerMap(2, 1, MapKind::kLocal, 5, 0.0, m, 10.0), MapExchange::Receipt::kAccepted);
+  EXPECT_EQ(a.OnPeerMap(2, 1, MapKind::kLocal, 0xFFFFFFF0u, 0.0, m, 12.0), MapExchange::Receipt::kVersionJump);
+  EXPECT_EQ(a.OnPeerMap(2, 1, MapKind::kLocal, 6, 0.0, m, 12.0), MapExchange::Receipt::kAccepted);
+  EXPECT_EQ(a.OnPeerMap(2, 1, MapKind::kLocal, 6, 0.0, m, 13.0), MapExchange::Receipt::kStaleVersion);
+  // A peer out of range for 100 s comes back some 50 versions on: plausible.
+  EXPECT_EQ(a.OnPeerMap(2, 1, MapKind::kLocal, 60, 0.0, m, 112.0), MapExchange::Receipt::kAccepted);
+  EXPECT_EQ(a.OnPeerMap(2, 1, MapKind::kLocal, 60 + 65 + 2 * 10, 0.0, m, 122.0), MapExchange::Receipt::kVersionJump);
+}
+
+// Ten peers due at once share max_alignments_per_update round robin: each is tried once before
+// any is tried twice, whatever their ids.
+TEST(MapExchange, AlignmentWorkIsBudgetedRoundRobin) {
+  World w(160, 41);
+  std::mt19937_64 rng(42);
+  ExchangeOptions o;
+  o.max_alignments_per_update = 3;
+  o.align_period_s = 0.0;
+  MapExchange a(1, 1, o, 43);
+  const LandmarkMap la = w.Map(0, 10, kFrameA, kSigma, rng);
+  for (int round = 1; round <= 4; ++round) {
+    // Every peer sends a new map each round: all ten are due every time.
+    for (RobotId r = 2; r <= 11; ++r) {
+      a.OnPeerMap(r, 1, MapKind::kLocal, round, 0.0, w.Map(30, 40, kFrameB, kSigma, rng), round);
+    }
+    a.Update(la, round);
+    int total = 0, least = 1000, most = 0;
+    for (const PeerReport& p : a.Peers()) {
+      total += p.attempts;
+      least = std::min(least, p.attempts);
+      most = std::max(most, p.attempts);
+    }
+    EXPECT_EQ(total, 3 * round);
+    EXPECT_LE(most - least, 1) << round;
+  }
+}
+
+// A flood of made-up incarnations of one robot cannot grow the peer table without end: beyond
+// max_incarnations a newcomer takes the place of one that never contributed and went silent,
+// and is refused when every kept one still counts.
+TEST(MapExchange, IncarnationsPerRobotAreBounded) {
+  World w(60, 61);
+  std::mt19937_64 rng(62);
+  const LandmarkMap m = w.Map(0, 40, kFrameB, kSigma, rng);
+  ExchangeOptions o;
+  o.max_incarnations = 3;
+  MapExchange a(1, 1, o, 63);
+  for (std::uint32_t inc = 1; inc <= 3; ++inc) {
+    EXPECT_EQ(a.OnPeerMap(2, inc, MapKind::kLocal, 1, 0.0, m, 10.0), MapExchange::Receipt::kAccepted);
+  }
+  // All three were heard just now: none can go.
+  EXPECT_EQ(a.OnPeerMap(2, 4, MapKind::kLocal, 1, 0.0, m, 10.0), MapExchange::Receipt::kTooManyIncarnations);
+  a.Update(LandmarkMap{}, 30.0);  // silent since 10 s
+  EXPECT_EQ(a.OnPeerMap(2, 4, MapKind::kLocal, 1, 0.0, m, 30.0), MapExchange::Receipt::kAccepted);
+  EXPECT_EQ(a.Peers().size(), 3u);
+  EXPECT_EQ(a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, m, 30.0), MapExchange::Receipt::kAccepted);  // per robot
+}
+
+// The rule of ARCHITECTURE "nothing learned is lost", as a property: whatever happens after a
+// peer can no longer speak (other peers' true, shifted or turned relays, their deaths, false
+// maps, our map moving on), every landmark it contributed when it went silent stays in the
+// global map under its own origin.
+class FrozenPeers : public ::testing::TestWithParam<int> {};
+
+TEST_P(FrozenPeers, KeepEverythingTheyContributed) {
+  const int seed = GetParam();
+  std::mt19937_64 rng(1000 + seed);
+  World w(220, 2000 + seed);
+  const std::vector<Pose2> frames = {kFrameA, kFrameB, kFrameC, {5.0, 35.0, 2.5}, {38.0, 2.0, -0.7}};
+  const std::vector<std::pair<double, double>> strips = {{0, 22}, {10, 30}, {18, 40}, {0, 16}, {24, 40}};
+  ExchangeOptions o;
+  MapExchange a(1, 1, o, 3000 + seed);
+  std::map<RobotId, std::uint32_t> version;
+  std::map<RobotId, bool> dead;
+  std::map<RobotId, std::set<std::uint32_t>> kept;  // what each frozen peer gave when it froze
+  auto origins_of = [&](RobotId r) {
+    std::set<std::uint32_t> ids;
+    for (const auto& o : a.global().origins) {
+      for (const LandmarkOrigin& x : o) {
+        if (x.robot == r) ids.insert(x.id);
+      }
+    }
+    return ids;
+  };
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  double own_end = strips[0].second;
+  for (int step = 1; step <= 40; ++step) {
+    const double now = 5.0 * step;
+    for (RobotId r = 2; r <= 5; ++r) {
+      if (dead[r]) continue;
+      const auto [x0, x1] = strips[r - 1];
+      LandmarkMap local = w.Map(x0, x1, frames[r - 1], kSigma, rng);
+      if (u(rng) < 0.1) local = ShuffleCoordinates(local, rng);  // a false map now and then
+      a.OnPeerMap(r, 1, MapKind::kLocal, ++version[r], 0.0, local, now);
+      // Its relay: everything, sometimes shifted or turned (a relay with a false alignment).
+      LandmarkMap relay = w.Map(0, 40, frames[r - 1], kSigma, rng);
+      const double v = u(rng);
+      if (v < 0.2) relay = TransformMap(relay, Pose2{3.0, -2.0, 0.0});
+      else if (v < 0.35) relay = TransformMap(relay, Pose2{0.0, 0.0, 0.6});
+      a.OnPeerMap(r, 1, MapKind::kGlobal, version[r], 0.0, relay, now);
+      if (step > 8 && u(rng) < 0.08) {
+        dead[r] = true;
+        a.OnPeerLiveliness(r, false, now);
+      }
+    }
+    own_end = std::min(40.0, own_end + 0.5);
+    a.Update(w.Map(0, own_end, kFrameA, kSigma, rng), now);
+    for (RobotId r = 2; r <= 5; ++r) {
+      const std::set<std::uint32_t> now_held = origins_of(r);
+      if (dead[r] && !kept.count(r)) kept[r] = now_held;
+      if (!kept.count(r)) continue;
+      for (std::uint32_t id : kept[r]) ASSERT_TRUE(now_held.count(id)) << "robot " << r << " landmark " << id << " step " << step;
+    }
+  }
+  // The case is not empty: some peer froze while it contributed.
+  std::size_t frozen_landmarks = 0;
+  for (const auto& [r, ids] : kept) frozen_landmarks += ids.size();
+  EXPECT_GT(frozen_landmarks, 0u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, FrozenPeers, ::testing::Range(0, 12));
+
+// Robot 3 (R1 and S) was aligned to robot 1 (R2 and T) on the repeated patch, then died; robot
+// 2's relay, which holds robot 3's map, comes later and places it elsewhere. However that
+// placement is judged, robot 3's landmarks stay in robot 1's global map under their origin.
+class DeadPeerAndALaterRelay : public ::testing::TestWithParam<int> {};
+
+TEST_P(DeadPeerAndALaterRelay, KeepsTheDeadPeersLandmarks) {
+  const RepeatedPatch w(100 + GetParam());
+  const LandmarkMap la = RepeatedPatch::Map({w.r2, w.t}, kFrameA);
+  const LandmarkMap lb = RepeatedPatch::Map({w.t, w.v, w.s}, kFrameB);
+  const LandmarkMap lc = RepeatedPatch::Map({w.r1, w.s}, kFrameC);
+  MapExchange b(2, 1, Immediate(), 200 + GetParam());
+  b.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 10.0);
+  b.Update(lb, 10.0);
+  MapExchange a(1, 1, Immediate(), 300 + GetParam());
+  a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 10.0);
+  a.Update(la, 10.0);
+  if (a.AlignedRobots().empty()) GTEST_SKIP() << "robot 3 was not aligned on this patch";
+  a.OnPeerLiveliness(3, false, 11.0);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 20.0);
+  a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b.published().map, 20.0);
+  a.Update(la, 20.0);
+  std::set<std::uint32_t> from_c;
+  for (const auto& o : a.global().origins) {
+    for (const LandmarkOrigin& x : o) {
+      if (x.robot == 3) from_c.insert(x.id);
+    }
+  }
+  EXPECT_EQ(from_c.size(), lc.size());
+}
+
+INSTANTIATE_TEST_SUITE_P(Patches, DeadPeerAndALaterRelay, ::testing::Range(0, 8));
 
 }  // namespace
 }  // namespace mapmesh

@@ -129,5 +129,70 @@ TEST(SensorSync, RejectsBadInputWithACountedReason) {
   EXPECT_EQ(sync.stats().odom_processed, 2u);
 }
 
+Odometry Seq(std::uint32_t seq, double stamp, double dt = 0.1) { return Odom(seq, stamp, dt, 0); }
+
+// One odometry message stamped 1e9 among genuine ones: held (nothing continues it), refused,
+// and the stream goes on as if it had never come.
+TEST(SensorSync, AForgedStampIsRefusedAndTheStreamGoesOn) {
+  Log log;
+  SensorSync::Options o;
+  o.max_stamp_jump_s = 5.0;
+  SensorSync sync(log, o);
+  for (std::uint32_t k = 0; k < 5; ++k) sync.OnOdometry(Seq(k, 0.1 * (k + 1)));
+  sync.OnOdometry(Seq(5, 1e9));
+  EXPECT_DOUBLE_EQ(sync.processed_until(), 0.5);
+  for (std::uint32_t k = 5; k < 10; ++k) sync.OnOdometry(Seq(k, 0.1 * (k + 1)));
+  EXPECT_DOUBLE_EQ(sync.processed_until(), 1.0);
+  EXPECT_EQ(sync.stats().odom_processed, 10u);
+  EXPECT_EQ(sync.stats().odom_implausible, 1u);
+  EXPECT_EQ(sync.stats().odom_lost, 0u);
+  EXPECT_EQ(sync.stats().odom_received, 11u);
+  // With the run's end known, such a stamp is refused at once; so is a scan beyond the window.
+  o.max_stamp_s = 100.0;
+  SensorSync bounded(log, o);
+  bounded.OnOdometry(Seq(0, 0.1));
+  bounded.OnOdometry(Seq(1, 1e9));
+  EXPECT_EQ(bounded.stats().odom_implausible, 1u);
+  bounded.OnScan(ScanAt(50.0));
+  bounded.OnScan(ScanAt(-1.0));
+  EXPECT_EQ(bounded.stats().scans_implausible, 2u);
+  bounded.OnOdometry(Seq(2, 0.2));
+  EXPECT_DOUBLE_EQ(bounded.processed_until(), 0.2);
+}
+
+// A stream that stalled (its reader paused, messages lost) resumes seconds later: the first
+// message after the gap is held until the next one continues it, then both are taken, and the
+// gap in sequence numbers is counted as lost.
+TEST(SensorSync, AStreamThatResumesAfterAGapIsTakenAndItsLossCounted) {
+  Log log;
+  SensorSync::Options o;
+  o.max_stamp_jump_s = 2.0;
+  SensorSync sync(log, o);
+  for (std::uint32_t k = 0; k < 4; ++k) sync.OnOdometry(Seq(k, 0.1 * (k + 1)));
+  sync.OnOdometry(Seq(40, 4.1));
+  EXPECT_DOUBLE_EQ(sync.processed_until(), 0.4);  // held
+  sync.OnOdometry(Seq(41, 4.2));
+  EXPECT_DOUBLE_EQ(sync.processed_until(), 4.2);
+  EXPECT_EQ(sync.stats().odom_processed, 6u);
+  EXPECT_EQ(sync.stats().odom_lost, 36u);
+  EXPECT_EQ(sync.stats().odom_implausible, 0u);
+  // Within the window a gap is taken at once (and counted the same way).
+  sync.OnOdometry(Seq(45, 4.6));
+  EXPECT_DOUBLE_EQ(sync.processed_until(), 4.6);
+  EXPECT_EQ(sync.stats().odom_lost, 39u);
+}
+
+TEST(SensorSync, ScanSequenceGapsAreCountedAsLost) {
+  Log log;
+  SensorSync sync(log);
+  for (std::uint32_t seq : {0u, 1u, 4u, 5u, 9u}) {
+    Scan s = ScanAt(0.05 * (seq + 1));
+    s.seq = seq;
+    sync.OnScan(s);
+  }
+  EXPECT_EQ(sync.stats().scans_received, 5u);
+  EXPECT_EQ(sync.stats().scans_lost, 5u);  // 2, 3, 6, 7, 8
+}
+
 }  // namespace
 }  // namespace mapmesh
