@@ -12,6 +12,7 @@
 
 #include "agent/agent_node.h"
 #include "common/app/process.h"
+#include "common/io/checkpoint.h"
 #include "common/io/run_files.h"
 #include "common/transport/session.h"
 #include "common/transport/shutdown.h"
@@ -153,34 +154,6 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
   return j;
 }
 
-json CheckpointToJson(const AgentCheckpoint& c) {
-  json earlier = json::array();
-  for (const AgentCheckpoint& e : c.earlier) earlier.push_back(CheckpointToJson(e));
-  return {{"robot", c.robot},
-          {"incarnation", c.incarnation},
-          {"origin_stamp", c.origin_stamp},
-          {"processed_until", c.processed_until},
-          {"local", io::MapToJson(c.local)},
-          {"global", io::MapToJson(c.global)},
-          {"earlier", earlier}};
-}
-
-AgentCheckpoint CheckpointFromJson(const json& j) {
-  AgentCheckpoint c;
-  try {
-    c.robot = j.at("robot").get<RobotId>();
-    c.incarnation = j.at("incarnation").get<std::uint32_t>();
-    c.origin_stamp = j.at("origin_stamp").get<double>();
-    c.processed_until = j.at("processed_until").get<double>();
-  } catch (const json::exception& e) {
-    throw std::runtime_error(std::string("malformed checkpoint: ") + e.what());
-  }
-  c.local = io::MapFromJson(j.at("local"));
-  c.global = io::MapFromJson(j.at("global"));
-  for (const json& e : j.value("earlier", json::array())) c.earlier.push_back(CheckpointFromJson(e));
-  return c;
-}
-
 // The agent's maps, statistics and trajectory. Written at every checkpoint too (final false),
 // so that an agent killed without warning leaves its last state behind.
 void WriteOutputs(const AgentNode& node, const std::string& dir, const std::map<RobotId, double>& lost_wall,
@@ -245,26 +218,36 @@ int Run(int argc, char** argv) {
     return 2;
   }
 
+  // The checkpoint is validated before any DDS entity exists: a bad one ends the process at
+  // once with one line, and a missing one is a fresh start.
+  const RobotId self = static_cast<RobotId>(id);
+  const std::string checkpoint_path = out_dir + "/checkpoint.json";
+  std::optional<AgentCheckpoint> checkpoint;
+  if (resume) {
+    io::CheckpointLoad loaded_checkpoint = io::LoadCheckpoint(checkpoint_path, self, incarnation);
+    if (loaded_checkpoint.missing) {
+      spdlog::warn("--resume: no checkpoint at {}; starting afresh", checkpoint_path);
+    } else if (!loaded_checkpoint.ok()) {
+      std::fprintf(stderr, "mapmesh-agent: %s\n", loaded_checkpoint.error.c_str());
+      return 2;
+    }
+    checkpoint = std::move(loaded_checkpoint.checkpoint);
+  }
+
   tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
   const tp::Participant& p = session.participant();
-  const RobotId self = static_cast<RobotId>(id);
   tp::Reader<Odometry> odom(p, tp::OdomTopic(self), tp::SensorQos());
   tp::Reader<Scan> scans(p, tp::ScanTopic(self), tp::SensorQos());
   tp::Reader<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
   tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos());
   DdsOutput output(p);
   AgentNode node(scenario, self, incarnation, output);
-  const std::string checkpoint_path = out_dir + "/checkpoint.json";
-  if (resume) {
-    if (!std::filesystem::exists(checkpoint_path)) {
-      spdlog::warn("--resume: no checkpoint at {}; starting afresh", checkpoint_path);
-    } else {
-      const AgentCheckpoint c = CheckpointFromJson(io::ReadJson(checkpoint_path));
-      if (c.robot != self) throw std::runtime_error(checkpoint_path + ": a checkpoint of robot " + std::to_string(c.robot));
-      node.Resume(c);
-      spdlog::info("resumed incarnation {} (t={:.1f}s, {} local and {} global landmarks)", c.incarnation,
-                   c.processed_until, c.local.size(), c.global.size());
-    }
+  if (checkpoint) {
+    node.Resume(*checkpoint);
+    spdlog::info("resumed incarnation {} (t={:.1f}s, {} local and {} global landmarks, {} earlier incarnations)",
+                 checkpoint->incarnation, checkpoint->processed_until, checkpoint->local.size(),
+                 checkpoint->global.size(), checkpoint->earlier.size());
+    checkpoint.reset();
   }
   const double checkpoint_period = scenario.agent.checkpoint_period_s;
   double next_checkpoint = checkpoint_period;
@@ -312,7 +295,7 @@ int Run(int argc, char** argv) {
     }
     LogPeerEvents(node, peer_events);
     if (checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {
-      io::WriteJsonAtomic(checkpoint_path, CheckpointToJson(node.Checkpoint()));
+      io::WriteJsonAtomic(checkpoint_path, io::CheckpointToJson(node.Checkpoint()));
       WriteOutputs(node, out_dir, lost_wall, /*final=*/false);
       next_checkpoint = node.processed_until() + checkpoint_period;
     }
@@ -323,7 +306,7 @@ int Run(int argc, char** argv) {
   }
   spdlog::info("signal {}: writing outputs to {}", shutdown.signal(), out_dir);
   WriteOutputs(node, out_dir, lost_wall, /*final=*/true);
-  if (checkpoint_period > 0) io::WriteJsonAtomic(checkpoint_path, CheckpointToJson(node.Checkpoint()));
+  if (checkpoint_period > 0) io::WriteJsonAtomic(checkpoint_path, io::CheckpointToJson(node.Checkpoint()));
   const AgentStats& st = node.stats();
   spdlog::info("done: t={:.1f}s odom={} scans={} landmarks={} global={} maps_received={} maps_dropped={}",
                node.processed_until(), node.sync_stats().odom_processed, node.sync_stats().scans_processed,
