@@ -12,6 +12,7 @@
 
 #include "agent/agent_node.h"
 #include "common/app/process.h"
+#include "common/io/checkpoint.h"
 #include "common/io/run_files.h"
 #include "common/transport/session.h"
 #include "common/transport/shutdown.h"
@@ -53,10 +54,13 @@ json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
                      {"dropped", p.dropped},
                      {"stale", p.stale},
                      {"stale_since", p.stale_since},
+                     {"frozen", p.frozen},
+                     {"last_heard", p.last_heard},
                      {"relayed", p.relayed},
                      {"relay_conflicts", p.relay_conflicts},
                      {"refuted", p.refuted},
                      {"refuted_by", p.refuted_by},
+                     {"replaced", p.replaced},
                      {"refuted_answers", p.refuted_answers},
                      {"transform", {p.to_own.x, p.to_own.y, p.to_own.theta}},
                      {"transform_cov", {c(0, 0), c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2)}},
@@ -85,7 +89,9 @@ void LogPeerEvents(const AgentNode& node, std::map<PeerKey, PeerReport>& last) {
     last[p.key] = p;
     const double t = node.processed_until();
     const std::string who = fmt::format("peer {}.{}{}", p.key.robot, p.key.incarnation, p.own_checkpoint ? " (own checkpoint)" : "");
-    if (p.refuted > before.refuted) {
+    if (p.replaced > before.replaced) {
+      spdlog::info("t={:.1f}s {}: frozen; re-placed where peer {}'s relay puts its landmarks", t, who, p.refuted_by);
+    } else if (p.refuted > before.refuted) {
       spdlog::info("t={:.1f}s {}: our alignment refuted by peer {}'s relay; dropped", t, who, p.refuted_by);
     } else if (p.drops > before.drops) {
       spdlog::info("t={:.1f}s {}: alignment dropped after {} failed verifications", t, who, before.failures + 1);
@@ -97,6 +103,37 @@ void LogPeerEvents(const AgentNode& node, std::map<PeerKey, PeerReport>& last) {
   }
 }
 
+// A warning line when the agent refuses input or cannot send its map (what and how many since
+// the last line), at most one every 5 wall seconds: a flood of bad input must not flood the log.
+class InputWatch {
+ public:
+  void Check(const AgentNode& node) {
+    const auto now = std::chrono::steady_clock::now();
+    if (now < next_) return;
+    const AgentStats& s = node.stats();
+    const SyncStats& y = node.sync_stats();
+    const std::map<std::string, std::uint64_t> counts = {
+        {"peer maps refused", s.MapsRefused()},      {"peer maps malformed", s.MapsRejected()},
+        {"link tables refused", s.links_refused},    {"odometry implausible", y.odom_implausible},
+        {"scans implausible", y.scans_implausible},  {"odometry lost", y.odom_lost},
+        {"scans lost", y.scans_lost},                {"own maps not encodable", s.maps_encode_failed}};
+    std::string what;
+    for (const auto& [name, n] : counts) {
+      const std::uint64_t before = last_.count(name) ? last_[name] : 0;
+      if (n > before) what += fmt::format("{}{} {}", what.empty() ? "" : ", ", n - before, name);
+      last_[name] = n;
+    }
+    if (what.empty()) return;
+    if (s.maps_encode_failed > 0) what += fmt::format(" (last encoding error: {})", ToString(s.last_encode_error));
+    spdlog::warn("t={:.1f}s input refused or lost: {}", node.processed_until(), what);
+    next_ = now + std::chrono::seconds(5);
+  }
+
+ private:
+  std::map<std::string, std::uint64_t> last_;
+  std::chrono::steady_clock::time_point next_{};
+};
+
 json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall) {
   const AgentStats& s = node.stats();
   const SyncStats& sync = node.sync_stats();
@@ -105,6 +142,8 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
   for (int i = 1; i < kMapDecodeErrorCount; ++i) {
     rejected[std::string(ToString(static_cast<MapDecodeError>(i)))] = s.maps_rejected[i];
   }
+  json refused = json::object();
+  for (int i = 0; i < kMapRefusalCount; ++i) refused[std::string(ToString(static_cast<MapRefusal>(i)))] = s.maps_refused[i];
   json from = json::object();
   for (const auto& [id, n] : s.maps_received_from) from[std::to_string(id)] = n;
   const Pose2 pose = node.Pose();
@@ -117,7 +156,13 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
             {"local_landmarks", node.LocalMap().size()},
             {"global_landmarks", node.global().map.size()},
             {"odom_processed", sync.odom_processed},
+            {"odom_received", sync.odom_received},
             {"odom_rejected", sync.odom_rejected},
+            {"odom_implausible", sync.odom_implausible},
+            {"odometry_lost", sync.odom_lost},
+            {"scans_received", sync.scans_received},
+            {"scans_implausible", sync.scans_implausible},
+            {"scans_lost", sync.scans_lost},
             {"scans_processed", sync.scans_processed},
             {"scans_empty", sync.scans_empty},
             {"scans_rejected", sync.scans_rejected},
@@ -145,40 +190,15 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
             {"maps_unknown_sender", s.maps_unknown_sender},
             {"maps_stale_version", s.maps_stale_version},
             {"maps_encode_failed", s.maps_encode_failed},
+            {"maps_encode_trimmed", s.maps_encode_trimmed},
             {"maps_rejected", rejected},
+            {"maps_refused", refused},
+            {"links_refused", s.links_refused},
             {"maps_received_from", from},
             {"peers_aligned", status.peers_aligned},
             {"peers_stale", status.peers_stale}};
   j.update(PeersJson(node, lost_wall));
   return j;
-}
-
-json CheckpointToJson(const AgentCheckpoint& c) {
-  json earlier = json::array();
-  for (const AgentCheckpoint& e : c.earlier) earlier.push_back(CheckpointToJson(e));
-  return {{"robot", c.robot},
-          {"incarnation", c.incarnation},
-          {"origin_stamp", c.origin_stamp},
-          {"processed_until", c.processed_until},
-          {"local", io::MapToJson(c.local)},
-          {"global", io::MapToJson(c.global)},
-          {"earlier", earlier}};
-}
-
-AgentCheckpoint CheckpointFromJson(const json& j) {
-  AgentCheckpoint c;
-  try {
-    c.robot = j.at("robot").get<RobotId>();
-    c.incarnation = j.at("incarnation").get<std::uint32_t>();
-    c.origin_stamp = j.at("origin_stamp").get<double>();
-    c.processed_until = j.at("processed_until").get<double>();
-  } catch (const json::exception& e) {
-    throw std::runtime_error(std::string("malformed checkpoint: ") + e.what());
-  }
-  c.local = io::MapFromJson(j.at("local"));
-  c.global = io::MapFromJson(j.at("global"));
-  for (const json& e : j.value("earlier", json::array())) c.earlier.push_back(CheckpointFromJson(e));
-  return c;
 }
 
 // The agent's maps, statistics and trajectory. Written at every checkpoint too (final false),
@@ -245,26 +265,36 @@ int Run(int argc, char** argv) {
     return 2;
   }
 
+  // The checkpoint is validated before any DDS entity exists: a bad one ends the process at
+  // once with one line, and a missing one is a fresh start.
+  const RobotId self = static_cast<RobotId>(id);
+  const std::string checkpoint_path = out_dir + "/checkpoint.json";
+  std::optional<AgentCheckpoint> checkpoint;
+  if (resume) {
+    io::CheckpointLoad loaded_checkpoint = io::LoadCheckpoint(checkpoint_path, self, incarnation);
+    if (loaded_checkpoint.missing) {
+      spdlog::warn("--resume: no checkpoint at {}; starting afresh", checkpoint_path);
+    } else if (!loaded_checkpoint.ok()) {
+      std::fprintf(stderr, "mapmesh-agent: %s\n", loaded_checkpoint.error.c_str());
+      return 2;
+    }
+    checkpoint = std::move(loaded_checkpoint.checkpoint);
+  }
+
   tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
   const tp::Participant& p = session.participant();
-  const RobotId self = static_cast<RobotId>(id);
   tp::Reader<Odometry> odom(p, tp::OdomTopic(self), tp::SensorQos());
   tp::Reader<Scan> scans(p, tp::ScanTopic(self), tp::SensorQos());
   tp::Reader<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
   tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos());
   DdsOutput output(p);
   AgentNode node(scenario, self, incarnation, output);
-  const std::string checkpoint_path = out_dir + "/checkpoint.json";
-  if (resume) {
-    if (!std::filesystem::exists(checkpoint_path)) {
-      spdlog::warn("--resume: no checkpoint at {}; starting afresh", checkpoint_path);
-    } else {
-      const AgentCheckpoint c = CheckpointFromJson(io::ReadJson(checkpoint_path));
-      if (c.robot != self) throw std::runtime_error(checkpoint_path + ": a checkpoint of robot " + std::to_string(c.robot));
-      node.Resume(c);
-      spdlog::info("resumed incarnation {} (t={:.1f}s, {} local and {} global landmarks)", c.incarnation,
-                   c.processed_until, c.local.size(), c.global.size());
-    }
+  if (checkpoint) {
+    node.Resume(*checkpoint);
+    spdlog::info("resumed incarnation {} (t={:.1f}s, {} local and {} global landmarks, {} earlier incarnations)",
+                 checkpoint->incarnation, checkpoint->processed_until, checkpoint->local.size(),
+                 checkpoint->global.size(), checkpoint->earlier.size());
+    checkpoint.reset();
   }
   const double checkpoint_period = scenario.agent.checkpoint_period_s;
   double next_checkpoint = checkpoint_period;
@@ -288,6 +318,7 @@ int Run(int argc, char** argv) {
   output.PublishStatus(node.Status());
   auto next_beat = Clock::now() + kStatusBeat;
   std::map<PeerKey, PeerReport> peer_events;
+  InputWatch input_watch;
   while (!shutdown.requested()) {
     waitset.Wait(0.1);
     for (const auto& s : links.Take()) {
@@ -311,8 +342,9 @@ int Run(int argc, char** argv) {
       }
     }
     LogPeerEvents(node, peer_events);
+    input_watch.Check(node);
     if (checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {
-      io::WriteJsonAtomic(checkpoint_path, CheckpointToJson(node.Checkpoint()));
+      io::WriteJsonAtomic(checkpoint_path, io::CheckpointToJson(node.Checkpoint()));
       WriteOutputs(node, out_dir, lost_wall, /*final=*/false);
       next_checkpoint = node.processed_until() + checkpoint_period;
     }
@@ -323,7 +355,7 @@ int Run(int argc, char** argv) {
   }
   spdlog::info("signal {}: writing outputs to {}", shutdown.signal(), out_dir);
   WriteOutputs(node, out_dir, lost_wall, /*final=*/true);
-  if (checkpoint_period > 0) io::WriteJsonAtomic(checkpoint_path, CheckpointToJson(node.Checkpoint()));
+  if (checkpoint_period > 0) io::WriteJsonAtomic(checkpoint_path, io::CheckpointToJson(node.Checkpoint()));
   const AgentStats& st = node.stats();
   spdlog::info("done: t={:.1f}s odom={} scans={} landmarks={} global={} maps_received={} maps_dropped={}",
                node.processed_until(), node.sync_stats().odom_processed, node.sync_stats().scans_processed,

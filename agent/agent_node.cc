@@ -278,9 +278,12 @@ bool AgentNode::OnPeerLiveliness(RobotId robot, bool alive) {
 }
 
 void AgentNode::Resume(const AgentCheckpoint& c) {
-  MAPMESH_CHECK(c.robot == self_, "a checkpoint of another robot");
-  exchange_.AddOwnCheckpoint(c.incarnation, c.origin_stamp, c.local, c.global);
-  for (const AgentCheckpoint& e : c.earlier) Resume(e);
+  const auto add = [this](const IncarnationSnapshot& s) {
+    MAPMESH_CHECK(s.robot == self_ && s.incarnation != incarnation_, "a checkpoint not validated by io::LoadCheckpoint");
+    exchange_.AddOwnCheckpoint(s.incarnation, s.origin_stamp, s.local, s.global);
+  };
+  add(c);
+  for (const IncarnationSnapshot& e : c.earlier) add(e);
 }
 
 AgentCheckpoint AgentNode::Checkpoint() const {
@@ -292,7 +295,7 @@ AgentCheckpoint AgentNode::Checkpoint() const {
   c.local = mapper_->Map();
   c.global = exchange_.global().map;
   for (const auto& e : exchange_.UnalignedOwnCheckpoints()) {
-    AgentCheckpoint old;
+    IncarnationSnapshot old;
     old.robot = self_;
     old.incarnation = e.incarnation;
     old.origin_stamp = e.origin_stamp;

@@ -15,6 +15,7 @@
 #include "agent/radio_gate.h"
 #include "agent/sensor_sync.h"
 #include "common/config/scenario.h"
+#include "common/io/checkpoint.h"
 #include "common/map/landmark_map.h"
 #include "common/map/map_codec.h"
 #include "common/map/map_limits.h"
@@ -39,18 +40,6 @@ std::size_t WireBytes(const MapMessage& msg);
 
 // The map-exchange options a scenario gives its agents.
 ExchangeOptions ExchangeOptionsFor(const Scenario& scenario);
-
-// What an agent saves to survive a kill: enough to re-merge everything it knew, through the
-// same alignment path, after a restart (the restarted process starts a new map frame).
-struct AgentCheckpoint {
-  RobotId robot = 0;
-  std::uint32_t incarnation = 0;
-  double origin_stamp = 0.0;      // when that incarnation's frame was fixed
-  double processed_until = 0.0;
-  LandmarkMap local, global;      // in that incarnation's frame
-  // Earlier incarnations that had not been re-merged yet when this one was saved.
-  std::vector<AgentCheckpoint> earlier;
-};
 
 // Why a well-formed map from a robot of this run was refused before it was used; each refusal
 // changes nothing.
@@ -105,7 +94,9 @@ class AgentNode : private SensorSync::Sink {
   // A peer's map writer came back (alive) or went away (liveliness lost or disposed).
   // Returns false, and does nothing, for the agent itself and robots not in the scenario.
   bool OnPeerLiveliness(RobotId robot, bool alive);
-  // Re-merges what an earlier incarnation of this agent knew (from its checkpoint).
+  // Re-merges what earlier incarnations of this agent knew (from its checkpoint). The
+  // checkpoint must be this robot's, from other incarnations than this one: io::LoadCheckpoint
+  // refuses any other, so a violation is a programming error (checked).
   void Resume(const AgentCheckpoint& checkpoint);
   AgentCheckpoint Checkpoint() const;
 

@@ -72,7 +72,7 @@ def parse_schedule(items, what):
 
 
 class Proc:
-    """One started process and what it cost."""
+    """One started process, what it cost, and how the launcher ended it (if it did)."""
 
     def __init__(self, popen):
         self.popen = popen
@@ -80,6 +80,16 @@ class Proc:
         self.returncode = None
         self.cpu_s = 0.0
         self.max_rss_mb = 0.0
+        self.killed = False   # SIGKILLed by the --kill schedule: a fault we caused, not a failure
+        self.stopped = False  # still running when the run ended, and asked to stop
+
+    @property
+    def failed(self):
+        """True unless the process was killed by the schedule or, stopped at the end, exited 0:
+        a non-zero exit, a signal we did not send, or an end on its own while the run went on."""
+        if self.killed:
+            return False
+        return not self.stopped or self.returncode != 0
 
     def _reaped(self, status, usage):
         self.returncode = os.waitstatus_to_exitcode(status)
@@ -255,6 +265,7 @@ class SwarmRun:
                 slot = self.agents[rid]
                 if slot.current and slot.current.poll() is None:
                     self.kill_wall[(when, rid)] = time.time()  # for liveliness timing
+                    slot.current.killed = True
                     slot.current.signal(signal.SIGKILL)
                     slot.current.wait(5.0)
                     slot.killed_at.append(t)
@@ -341,6 +352,7 @@ class SwarmRun:
             self.injector.stop(10.0)
         for slot in self.agents.values():
             if slot.current is not None and slot.current.poll() is None:
+                slot.current.stopped = True
                 slot.current.signal(signal.SIGTERM)
         for slot in self.agents.values():
             if slot.current is not None:
@@ -402,9 +414,22 @@ class SwarmRun:
                 "scans_processed": stats.get("scans_processed"),
                 "odom_sent": sent.get("odom_sent"),
                 "scans_sent": sent.get("scans_sent"),
+                # Sensor messages the (last) agent process received, and those it never got: gaps in
+                # their sequence numbers (sent = received + lost, but for a tail lost after the last).
+                "odom_received": stats.get("odom_received"),
+                "odometry_lost": stats.get("odometry_lost"),
+                "scans_received": stats.get("scans_received"),
+                "scans_lost": stats.get("scans_lost"),
+                "odom_implausible": stats.get("odom_implausible"),
+                "scans_implausible": stats.get("scans_implausible"),
+                "links_refused": stats.get("links_refused"),
+                "maps_refused": stats.get("maps_refused", {}),
                 "frame_in_world": score.get("frame_in_world"),
                 "cpu_s": round(sum(p.cpu_s for p in slot.procs), 3),
                 "max_rss_mb": round(max((p.max_rss_mb for p in slot.procs), default=0.0), 1),
+                "incarnations": [{"incarnation": i, "exit_code": p.returncode, "killed": p.killed, "failed": p.failed}
+                                 for i, p in enumerate(slot.procs, start=1)],
+                "failed": any(p.failed for p in slot.procs),
             })
         duration = self.info["duration"]
         summary = {
@@ -421,6 +446,7 @@ class SwarmRun:
                        "cpu_s": round(self.feeder.cpu_s, 3) if self.feeder else None,
                        "max_rss_mb": round(self.feeder.max_rss_mb, 1) if self.feeder else None},
             "agents": agents,
+            "failed_agents": [a["id"] for a in agents if a["failed"]],
         }
         if self.args.inject:
             ipath = self.out / "inject.json"
@@ -464,7 +490,7 @@ def write_report(run_dir):
 def _maps_dropped(stats):
     if not stats:
         return None
-    rejected = sum(stats.get("maps_rejected", {}).values())
+    rejected = sum(stats.get("maps_rejected", {}).values()) + sum(stats.get("maps_refused", {}).values())
     return (stats.get("maps_out_of_range", 0) + stats.get("maps_lost", 0) + stats.get("maps_over_bandwidth", 0)
             + stats.get("maps_unknown_sender", 0) + stats.get("maps_stale_version", 0) + rejected)
 
@@ -502,13 +528,36 @@ def cmd_run(args):
             print(f"report:  {report}")
     if summary["interrupted"]:
         return 130
-    killed = {k["id"] for k in summary["kills"]}
-    bad = [a["id"] for a in summary["agents"]
-           if a["alive_at_end"] and a["exit_code"] != 0 or (not a["alive_at_end"] and a["id"] not in killed)]
-    if bad:
-        print(f"swarm: agents {bad} did not end cleanly (see their agent.log)", file=sys.stderr)
+    if summary["failed_agents"]:
+        print(failure_message(summary, args.out), file=sys.stderr)
         return 1
     return 0
+
+
+def failure_message(summary, out):
+    """One line naming each failed agent, how each failed incarnation ended, and its log."""
+    parts = []
+    for a in summary["agents"]:
+        if not a["failed"]:
+            continue
+        how = ", ".join(f"incarnation {i['incarnation']} {describe_end(i['exit_code'])}"
+                        for i in a["incarnations"] if i["failed"])
+        log = Path(out) / f"agent_{a['id']}" / "agent.log"
+        parts.append(f"agent {a['id']} ({how}; see {log})")
+    return f"swarm: agents {summary['failed_agents']} failed: " + "; ".join(parts)
+
+
+def describe_end(code):
+    if code is None:
+        return "did not end"
+    if code < 0:
+        try:
+            return f"died of {signal.Signals(-code).name}"
+        except ValueError:
+            return f"died of signal {-code}"
+    if code == 0:
+        return "exited 0 before the end of the run"
+    return f"exited with code {code}"
 
 
 def cmd_report(args):

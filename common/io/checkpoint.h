@@ -1,0 +1,82 @@
+#pragma once
+// An agent's checkpoint file (agent_<id>/checkpoint.json): what a restarted agent resumes
+// from. Writing, and loading with validation: a checkpoint is input like a received map, so
+// it is refused with a one-line reason, never trusted, and the loader never throws, aborts
+// or recurses on any file.
+//
+// Format: {"robot", "incarnation", "origin_stamp", "processed_until", "local": MAP,
+// "global": MAP, "earlier": [{the same keys but "earlier"}...]} with MAP as in run_files.h.
+// Older files nest earlier[] inside earlier entries; the loader flattens them in document
+// order (an entry, then what it nests).
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "common/map/landmark_map.h"
+#include "common/types/messages.h"
+
+namespace mapmesh {
+
+// One incarnation of an agent as it was saved: its maps in its own frame.
+struct IncarnationSnapshot {
+  RobotId robot = 0;
+  std::uint32_t incarnation = 0;
+  double origin_stamp = 0.0;      // s, when that incarnation's frame was fixed
+  double processed_until = 0.0;   // s
+  LandmarkMap local, global;      // in that incarnation's frame
+};
+
+// What an agent saves to survive a kill: enough to re-merge everything it knew, through the
+// same alignment path, after a restart (the restarted process starts a new map frame).
+struct AgentCheckpoint : IncarnationSnapshot {
+  // Earlier incarnations that had not been re-merged yet when this one was saved (flat).
+  std::vector<IncarnationSnapshot> earlier;
+};
+
+namespace io {
+
+// Bounds on what a checkpoint file may hold; anything beyond is refused before or while
+// parsing.
+struct CheckpointLimits {
+  std::uint64_t max_file_bytes = 256ull << 20;  // bytes; checked before the file is read
+  std::size_t max_earlier = 64;                 // earlier incarnations in all, nested or not
+  std::size_t max_landmarks = 100000;           // per map (as the wire codec's limit)
+  double max_abs_coordinate_m = 1e5;            // m, world bound on every landmark coordinate
+  // Deepest JSON nesting accepted: a checkpoint whose earlier[] entries nest max_earlier deep
+  // reaches 2 * max_earlier + 5 levels; deeper text is refused before it is parsed.
+  std::size_t MaxJsonDepth() const { return 2 * max_earlier + 8; }
+};
+
+// A checkpoint loaded and validated, or why not.
+struct CheckpointLoad {
+  std::optional<AgentCheckpoint> checkpoint;  // set when valid
+  bool missing = false;                       // no file at the path (nothing else is wrong)
+  std::string error;                          // one line naming the file and what is wrong
+  bool ok() const { return checkpoint.has_value(); }
+};
+
+// The checkpoint as JSON, earlier incarnations as a flat array (each without "earlier").
+nlohmann::json CheckpointToJson(const AgentCheckpoint& checkpoint);
+
+// Parses and validates checkpoint text, naming it `name` in the reason. Valid means: the
+// checkpoint and every earlier entry are robot `robot`'s; incarnations are distinct and none
+// is `incarnation` (the resuming process's); stamps are finite and >= 0; every landmark has a
+// unique id in its map, a finite mean within limits.max_abs_coordinate_m and a finite,
+// symmetric PSD covariance; and the limits hold. Never throws, never aborts; work and stack
+// are bounded by the text's size, not its nesting.
+CheckpointLoad ParseCheckpoint(std::string_view text, std::string_view name, RobotId robot,
+                               std::uint32_t incarnation, const CheckpointLimits& limits = {});
+
+// Reads and parses the file at path as ParseCheckpoint does. A missing file gives `missing`;
+// an unreadable one, a directory or one larger than limits.max_file_bytes an error (the size
+// is checked before reading).
+CheckpointLoad LoadCheckpoint(const std::string& path, RobotId robot, std::uint32_t incarnation,
+                              const CheckpointLimits& limits = {});
+
+}  // namespace io
+}  // namespace mapmesh
