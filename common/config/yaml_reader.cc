@@ -1,6 +1,7 @@
 #include "common/config/yaml_reader.h"
 
 #include <cmath>
+#include <map>
 #include <sstream>
 
 namespace mapmesh {
@@ -9,6 +10,18 @@ YamlReader::YamlReader(YAML::Node node, std::string path, std::shared_ptr<const 
     : node_(std::move(node)), path_(std::move(path)), source_(std::move(source)) {
   if (node_ && !node_.IsNull() && !node_.IsMap()) {
     FailAt(node_, path_, "expected a mapping of keys");
+  }
+  if (!node_ || !node_.IsMap()) return;
+  std::map<std::string, int> first_line;
+  for (const auto& kv : node_) {
+    if (!kv.first.IsScalar()) {
+      FailInFile(kv.first, path_, "a key must be a plain name, not a list, a mapping or null");
+    }
+    const std::string& key = kv.first.Scalar();
+    const auto [it, inserted] = first_line.emplace(key, LineOf(kv.first));
+    if (!inserted) {
+      FailInFile(kv.first, KeyPath(key), "duplicate key (first given on line " + std::to_string(it->second) + ")");
+    }
   }
 }
 
@@ -27,6 +40,12 @@ void YamlReader::FailAt(const YAML::Node& node, const std::string& key_path,
       throw ConfigError(source_->file + ": --set " + shown + ": " + reason);
     }
   }
+  FailInFile(node, key_path, reason);
+}
+
+void YamlReader::FailInFile(const YAML::Node& node, const std::string& key_path,
+                            const std::string& reason) const {
+  const std::string shown = key_path.empty() ? "(top level)" : key_path;
   throw ConfigError(source_->file + ":" + std::to_string(LineOf(node)) + ": " + shown + ": " +
                     reason);
 }
@@ -154,7 +173,7 @@ YamlReader YamlReader::Element(const YAML::Node& node, const std::string& path) 
 void YamlReader::Finish() const {
   if (!node_ || !node_.IsMap()) return;
   for (const auto& kv : node_) {
-    const std::string key = kv.first.as<std::string>();
+    const std::string& key = kv.first.Scalar();  // the constructor checked every key is a scalar
     if (!read_.count(key)) FailAt(kv.first, KeyPath(key), "unknown key");
   }
 }

@@ -23,7 +23,8 @@ struct YamlSource {
 
 class YamlReader {
  public:
-  // node must be a mapping (or null, treated as empty); path is its dotted key path.
+  // node must be a mapping (or null, treated as empty); path is its dotted key path. Its keys
+  // must be plain scalars, each given once (yaml-cpp would keep the first of duplicates).
   YamlReader(YAML::Node node, std::string path, std::shared_ptr<const YamlSource> source);
 
   // Throws ConfigError for `key` (relative to this mapping) with `reason`.
@@ -87,6 +88,9 @@ class YamlReader {
  private:
   template <typename T>
   void GetScalar(const std::string& key, T& out, const char* type_name);
+  // Throws ConfigError at node's line in the file, even below a key given with --set.
+  [[noreturn]] void FailInFile(const YAML::Node& node, const std::string& key_path,
+                               const std::string& reason) const;
 
   YAML::Node node_;
   std::string path_;
