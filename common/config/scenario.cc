@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -11,6 +12,7 @@
 #include <set>
 #include <sstream>
 
+#include "common/config/scenario_limits.h"
 #include "common/config/scenario_sections.h"
 #include "common/config/yaml_reader.h"
 
@@ -203,6 +205,10 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
     source->overridden.insert(o.key_path);
   }
 
+  if (agents < 0 || agents > limits::kMaxRobots) {
+    throw ConfigError(file + ": --agents " + std::to_string(agents) + ": must be in [0, " +
+                      std::to_string(limits::kMaxRobots) + "] (0: the scenario's robots)");
+  }
   YamlReader top(root, "", source);
   Scenario sc;
   sc.path = file;
@@ -216,13 +222,18 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
   const bool dataset = sc.source.IsDataset();
   sc.duration_given = top.Has("duration_s");
   if (dataset) sc.duration_s = 0.0;  // the whole dataset, unless given
-  if (sc.duration_given || !dataset) top.GetPositive("duration_s", sc.duration_s);
+  if (sc.duration_given || !dataset) top.GetPositiveUpTo("duration_s", sc.duration_s, limits::kMaxDurationS);
 
   const std::string dir = std::filesystem::path(file).parent_path().string();
   sc.world = ReadWorld(top.Child("world"), dir.empty() ? "." : dir, dataset);
   sc.radio = ReadRadio(top.Child("radio"));
   sc.agent = ReadAgent(top.Child("agent"));
   sc.feeder = ReadFeeder(top.Child("feeder"));
+  if (!dataset && sc.duration_s / sc.world.control_period_s > limits::kMaxSimulationSteps) {
+    top.Fail("duration_s", "the run would take " + std::to_string(std::llround(sc.duration_s / sc.world.control_period_s)) +
+                               " steps of world.control_period_s (at most " +
+                               std::to_string(static_cast<long long>(limits::kMaxSimulationSteps)) + ")");
+  }
 
   // Robots: defaults, then the listed ones (each overriding defaults key by key).
   YamlReader robots = top.Child("robots");
@@ -231,38 +242,44 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
   robots.Get("count", count);
   if (robots.Has("count")) {
     if (dataset) robots.Fail("count", "a dataset scenario's robots come from the dataset (use --agents)");
-    robots.CheckNonNegative("count", count);
+    robots.CheckRange("count", count, 0, limits::kMaxRobots);
   }
   {
     YamlReader d = robots.Child("defaults");
     ReadPreset(d, defaults);
     ReadMotion(d.Child("motion"), defaults.motion);
     ReadSensor(d.Child("sensor"), defaults.sensor);
-    ReadPath(d.Child("path"), defaults.path);
+    ReadPath(d.Child("path"), defaults.path, sc.world.bounds_m);
     d.Finish();
   }
   std::vector<RobotSpec> listed;
   std::set<RobotId> ids;
-  robots.ForEach("list", [&](const YAML::Node& node, const std::string& path) {
+  robots.ForEach("list", limits::kMaxRobots, [&](const YAML::Node& node, const std::string& path) {
     YamlReader r = robots.Element(node, path);
     RobotSpec spec = defaults;
     int id = 0;
     r.Get("id", id);
     if (!r.Has("id")) r.FailAt(node, path + ".id", "missing required key");
     if (id < 1) r.Fail("id", "must be a positive integer");
+    r.CheckRange("id", id, 1, limits::kMaxRobotId);
     if (!ids.insert(static_cast<RobotId>(id)).second) r.Fail("id", "duplicate robot id");
     spec.id = static_cast<RobotId>(id);
     std::vector<double> start;
     r.GetVector("start", start, 3);
     if (!start.empty()) {
       if (dataset) r.Fail("start", "a dataset robot starts where the data says");
+      scenario_internal::CheckCoordinates(r, "start", {start[0], start[1]});
+      if (!(std::abs(start[2]) <= limits::kMaxAngleDeg)) {
+        r.Fail("start", "the heading must be within +-" + FormatNumber(limits::kMaxAngleDeg) +
+                            " degrees (got " + FormatNumber(start[2]) + ")");
+      }
       spec.start = {start[0], start[1], WrapAngle(DegToRad(start[2]))};
       spec.start_given = true;
     }
     ReadPreset(r, spec);
     ReadMotion(r.Child("motion"), spec.motion);
     ReadSensor(r.Child("sensor"), spec.sensor);
-    ReadPath(r.Child("path"), spec.path);
+    ReadPath(r.Child("path"), spec.path, sc.world.bounds_m);
     r.Finish();
     listed.push_back(spec);
   });
@@ -330,8 +347,11 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
 
 Scenario LoadScenario(const std::string& file, const std::vector<ConfigOverride>& overrides,
                       int agents) {
+  if (auto problem = scenario_internal::RegularFileProblem(file, limits::kMaxScenarioBytes)) {
+    throw ConfigError(file + ": cannot open scenario file: " + *problem);
+  }
   std::ifstream in(file);
-  if (!in) throw ConfigError(file + ": cannot open scenario file");
+  if (!in) throw ConfigError(file + ": cannot open scenario file: not readable");
   std::stringstream text;
   text << in.rdbuf();
   return ParseScenario(text.str(), file, overrides, agents);
