@@ -37,6 +37,10 @@ void ApplyOverride(YAML::Node root, const ConfigOverride& o, const std::string& 
   } catch (const YAML::Exception& e) {
     throw ConfigError(file + ": --set " + o.key_path + ": cannot parse value '" + o.value + "'");
   }
+  // An empty (or null) value would leave the key at its default without a word.
+  if (!value.IsDefined() || value.IsNull()) {
+    throw ConfigError(file + ": --set " + o.key_path + ": empty value (give key.path=VALUE)");
+  }
   YAML::Node cur;
   cur.reset(root);
   std::stringstream ss(o.key_path);
@@ -184,6 +188,9 @@ ConfigOverride ParseOverride(const std::string& text) {
   const auto eq = text.find('=');
   if (eq == std::string::npos || eq == 0) {
     throw ConfigError("--set " + text + ": expected key.path=value");
+  }
+  if (text.find_first_not_of(" \t", eq + 1) == std::string::npos) {
+    throw ConfigError("--set " + text.substr(0, eq) + ": empty value (give key.path=VALUE)");
   }
   return {text.substr(0, eq), text.substr(eq + 1)};
 }

@@ -221,6 +221,20 @@ TEST(ScenarioLimits, StartPosesAndInlinePoints) {
             "s.yaml:4: robots.list[0].path.points: at most 10000 points (got 10001)");
 }
 
+TEST(ScenarioLimits, AnEmptyOverrideIsAnError) {
+  try {
+    ParseOverride("duration_s=");
+    ADD_FAILURE() << "accepted an empty value";
+  } catch (const ConfigError& e) {
+    EXPECT_STREQ(e.what(), "--set duration_s: empty value (give key.path=VALUE)");
+  }
+  EXPECT_THROW(ParseOverride("radio.range_m=  "), ConfigError);
+  // A YAML null would also leave the key at its default.
+  EXPECT_EQ(ErrorOf(kSimulation, {"duration_s=~"}), "s.yaml: --set duration_s: empty value (give key.path=VALUE)");
+  EXPECT_EQ(ErrorOf(kSimulation, {"radio.range_m=null"}), "s.yaml: --set radio.range_m: empty value (give key.path=VALUE)");
+  EXPECT_EQ(ErrorOf(kSimulation, {"name=''"}), "");  // an empty string, said so
+}
+
 class ScenarioFilesTest : public ::testing::Test {
  protected:
   void SetUp() override {
