@@ -17,6 +17,7 @@
 
 #include "common/app/process.h"
 #include "common/config/config_error.h"
+#include "common/config/scenario_limits.h"
 #include "common/io/run_files.h"
 #include "common/transport/session.h"
 #include "common/transport/shutdown.h"
@@ -323,7 +324,8 @@ int Run(int argc, char** argv) {
   cli.add_option("--datasets", datasets,
                  "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets beside the sources)");
   cli.add_option("--pace", pace, "override feeder.pace")->check(CLI::IsMember({"lockstep", "realtime"}));
-  cli.add_option("--rate", rate, "override feeder.realtime_factor")->check(CLI::PositiveNumber);
+  cli.add_option("--rate", rate, "override feeder.realtime_factor")
+      ->check(CLI::Range(limits::kMinRealtimeFactor, limits::kMaxRealtimeFactor));
   cli.add_option("--hold-at", holds, "with --control: pause at these scenario times until 'continue'");
   cli.add_option("--stall-timeout", stall_timeout_s, "lockstep: give up on an agent stuck this many wall seconds");
   cli.add_option("--record", record_path, "also write the whole stream to this file (see recording.h)");

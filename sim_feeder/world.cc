@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <unordered_map>
 
 #include "common/config/config_error.h"
@@ -9,11 +11,23 @@
 namespace mapmesh {
 namespace {
 
-// Accepts points at least `spacing` from every accepted point (grid of cell size spacing).
+// Accepts points at least `spacing` from every accepted point. A hash grid holds them: its cells
+// are at least `spacing` wide, so a point's rivals lie in the 3 x 3 cells around its own, and at
+// least sqrt(area / count) wide, so that a spacing far below the landmarks' mean distance still
+// leaves about one landmark per cell. A test then computes a few distances, never one to every
+// accepted point (as when a tiny spacing's huge cell indices were cast into a single cell).
 class SpacedSet {
  public:
-  SpacedSet(double spacing, Eigen::Vector2d origin) : d_(spacing), origin_(origin) {}
+  SpacedSet(double spacing, const Rect& area, int count, GenerationStats* stats)
+      : d_(spacing), origin_(area.xmin, area.ymin), stats_(stats ? stats : &own_stats_) {
+    const double per_point = std::sqrt(std::max(area.Width() * area.Height(), 0.0) / std::max(count, 1));
+    cell_ = std::max(d_, per_point);
+    if (!(cell_ > 0.0) || !std::isfinite(cell_)) cell_ = 1.0;
+  }
+  SpacedSet(const SpacedSet&) = delete;
+  SpacedSet& operator=(const SpacedSet&) = delete;
   bool TryAdd(const Eigen::Vector2d& p) {
+    ++stats_->attempts;
     if (d_ <= 0.0) {
       pts_.push_back(p);
       return true;
@@ -24,11 +38,13 @@ class SpacedSet {
         auto it = grid_.find(Key(cx + dx, cy + dy));
         if (it == grid_.end()) continue;
         for (int j : it->second) {
+          ++stats_->distance_checks;
           if ((pts_[j] - p).norm() < d_) return false;
         }
       }
     }
     grid_[Key(cx, cy)].push_back(static_cast<int>(pts_.size()));
+    stats_->cells = grid_.size();
     pts_.push_back(p);
     return true;
   }
@@ -36,18 +52,36 @@ class SpacedSet {
   std::vector<Eigen::Vector2d> Take() { return std::move(pts_); }
 
  private:
-  std::pair<std::int64_t, std::int64_t> Cell(const Eigen::Vector2d& p) const {
-    return {static_cast<std::int64_t>(std::floor((p.x() - origin_.x()) / d_)),
-            static_cast<std::int64_t>(std::floor((p.y() - origin_.y()) / d_))};
+  // Cell indices are clamped before the cast (a double out of int64's range has no defined
+  // cast); points beyond the clamp share the edge cells, which stays correct, only slower.
+  static std::int64_t CellIndex(double offset, double cell) {
+    constexpr double kMaxIndex = 1 << 30;
+    return static_cast<std::int64_t>(std::clamp(std::floor(offset / cell), -kMaxIndex, kMaxIndex));
   }
-  static std::int64_t Key(std::int64_t x, std::int64_t y) { return x * 2000003 + y; }
+  std::pair<std::int64_t, std::int64_t> Cell(const Eigen::Vector2d& p) const {
+    return {CellIndex(p.x() - origin_.x(), cell_), CellIndex(p.y() - origin_.y(), cell_)};
+  }
+  // Distinct for every pair of indices within the clamp.
+  static std::uint64_t Key(std::int64_t x, std::int64_t y) {
+    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(x)) << 32) | static_cast<std::uint32_t>(y);
+  }
   double d_;
+  double cell_ = 1.0;
   Eigen::Vector2d origin_;
+  GenerationStats own_stats_;
+  GenerationStats* stats_;
   std::vector<Eigen::Vector2d> pts_;
-  std::unordered_map<std::int64_t, std::vector<int>> grid_;
+  std::unordered_map<std::uint64_t, std::vector<int>> grid_;
 };
 
-long MaxAttempts(int count) { return 1000L * count + 1000; }
+// Candidates drawn before a generator gives up: 1000 per landmark (plus 1000), but no more
+// than 50 per landmark or 2,000,000, whichever is more. The cap leaves worlds of up to 1999
+// landmarks as they always were, and keeps a jammed park path or a world the paths cover from
+// taking minutes; near the jam limit of the load check uniform placement needs a few per landmark.
+long MaxAttempts(int count) {
+  const long legacy = 1000L * count + 1000;
+  return std::min(legacy, std::max(2000000L, 50L * count));
+}
 
 // A point on the rectangle's boundary at perimeter parameter u in [0, 1).
 Eigen::Vector2d OnBoundary(const Rect& a, double u) {
@@ -77,10 +111,10 @@ double DistanceToPolyline(const Eigen::Vector2d& p, const Polyline& line) {
 }
 
 std::optional<std::vector<Eigen::Vector2d>> GenerateUniformLandmarks(
-    const LandmarkGeneratorOptions& options, std::mt19937_64& rng) {
+    const LandmarkGeneratorOptions& options, std::mt19937_64& rng, GenerationStats* stats) {
   const Rect& a = options.area_m;
   std::uniform_real_distribution<double> ux(a.xmin, a.xmax), uy(a.ymin, a.ymax);
-  SpacedSet set(options.min_spacing_m, {a.xmin, a.ymin});
+  SpacedSet set(options.min_spacing_m, a, options.count, stats);
   for (long k = 0; k < MaxAttempts(options.count) && static_cast<int>(set.size()) < options.count; ++k) {
     const double x = ux(rng);
     set.TryAdd({x, uy(rng)});
@@ -90,9 +124,12 @@ std::optional<std::vector<Eigen::Vector2d>> GenerateUniformLandmarks(
 }
 
 std::optional<std::vector<Eigen::Vector2d>> GenerateDiscLandmarks(
-    const LandmarkGeneratorOptions& options, std::mt19937_64& rng) {
+    const LandmarkGeneratorOptions& options, std::mt19937_64& rng, GenerationStats* stats) {
   std::uniform_real_distribution<double> ur(0.0, options.radius_m), ub(0.0, 2.0 * std::numbers::pi);
-  SpacedSet set(options.min_spacing_m, options.center_m - Eigen::Vector2d::Constant(options.radius_m));
+  const Eigen::Vector2d& c = options.center_m;
+  const double radius = options.radius_m;
+  SpacedSet set(options.min_spacing_m, Rect{c.x() - radius, c.y() - radius, c.x() + radius, c.y() + radius},
+                options.count, stats);
   for (long k = 0; k < MaxAttempts(options.count) && static_cast<int>(set.size()) < options.count; ++k) {
     const double r = ur(rng), b = ub(rng);
     set.TryAdd(options.center_m + r * Eigen::Vector2d(std::cos(b), std::sin(b)));
@@ -101,7 +138,8 @@ std::optional<std::vector<Eigen::Vector2d>> GenerateDiscLandmarks(
   return set.Take();
 }
 
-std::optional<World> GeneratePark(const LandmarkGeneratorOptions& o, std::mt19937_64& rng) {
+std::optional<World> GeneratePark(const LandmarkGeneratorOptions& o, std::mt19937_64& rng,
+                                  GenerationStats* stats) {
   const Rect& a = o.area_m;
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::normal_distribution<double> n01(0.0, 1.0);
@@ -138,7 +176,7 @@ std::optional<World> GeneratePark(const LandmarkGeneratorOptions& o, std::mt1993
     }
     return true;
   };
-  SpacedSet set(o.min_spacing_m, {a.xmin, a.ymin});
+  SpacedSet set(o.min_spacing_m, a, o.count, stats);
   const int along = static_cast<int>(std::lround((1.0 - o.scatter_fraction) * o.count));
   for (long k = 0; k < MaxAttempts(along) && static_cast<int>(set.size()) < along; ++k) {
     // A point along a random segment (weighted by length), on a random side, near the edge.

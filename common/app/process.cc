@@ -45,9 +45,14 @@ void SetupLogging(const std::string& tag, const std::string& level) {
 }
 
 std::optional<Scenario> LoadScenarioOrReport(const char* prog, const ProcessOptions& o) {
+  std::vector<ConfigOverride> overrides;
   try {
-    std::vector<ConfigOverride> overrides;
     for (const auto& s : o.sets) overrides.push_back(ParseOverride(s));
+  } catch (const ConfigError& e) {  // "--set key: reason", reported like the overrides' other errors
+    std::fprintf(stderr, "%s: %s: %s\n", prog, o.scenario_path.c_str(), e.what());
+    return std::nullopt;
+  }
+  try {
     return LoadScenario(o.scenario_path, overrides, o.agents);
   } catch (const ConfigError& e) {
     std::fprintf(stderr, "%s: %s\n", prog, e.what());

@@ -1,14 +1,34 @@
 #include "common/config/yaml_reader.h"
 
 #include <cmath>
+#include <iomanip>
+#include <map>
 #include <sstream>
 
 namespace mapmesh {
+
+std::string FormatNumber(double v) {
+  std::ostringstream s;
+  s << std::setprecision(15) << v;
+  return s.str();
+}
 
 YamlReader::YamlReader(YAML::Node node, std::string path, std::shared_ptr<const YamlSource> source)
     : node_(std::move(node)), path_(std::move(path)), source_(std::move(source)) {
   if (node_ && !node_.IsNull() && !node_.IsMap()) {
     FailAt(node_, path_, "expected a mapping of keys");
+  }
+  if (!node_ || !node_.IsMap()) return;
+  std::map<std::string, int> first_line;
+  for (const auto& kv : node_) {
+    if (!kv.first.IsScalar()) {
+      FailInFile(kv.first, path_, "a key must be a plain name, not a list, a mapping or null");
+    }
+    const std::string& key = kv.first.Scalar();
+    const auto [it, inserted] = first_line.emplace(key, LineOf(kv.first));
+    if (!inserted) {
+      FailInFile(kv.first, KeyPath(key), "duplicate key (first given on line " + std::to_string(it->second) + ")");
+    }
   }
 }
 
@@ -27,6 +47,12 @@ void YamlReader::FailAt(const YAML::Node& node, const std::string& key_path,
       throw ConfigError(source_->file + ": --set " + shown + ": " + reason);
     }
   }
+  FailInFile(node, key_path, reason);
+}
+
+void YamlReader::FailInFile(const YAML::Node& node, const std::string& key_path,
+                            const std::string& reason) const {
+  const std::string shown = key_path.empty() ? "(top level)" : key_path;
   throw ConfigError(source_->file + ":" + std::to_string(LineOf(node)) + ": " + shown + ": " +
                     reason);
 }
@@ -106,26 +132,33 @@ void YamlReader::GetChoice(const std::string& key, std::string& out,
   Fail(key, "must be one of " + list + " (got '" + out + "')");
 }
 
-void YamlReader::CheckPositive(const std::string& key, double v) const {
-  if (!(v > 0.0)) {
-    std::ostringstream s;
-    s << "must be > 0 (got " << v << ")";
-    Fail(key, s.str());
-  }
+void YamlReader::GetInRange(const std::string& key, double& out, double lo, double hi) {
+  Get(key, out);
+  CheckRange(key, out, lo, hi);
 }
-void YamlReader::CheckNonNegative(const std::string& key, double v) const {
-  if (!(v >= 0.0)) {
-    std::ostringstream s;
-    s << "must be >= 0 (got " << v << ")";
-    Fail(key, s.str());
-  }
+void YamlReader::GetInRange(const std::string& key, int& out, int lo, int hi) {
+  Get(key, out);
+  CheckRange(key, out, lo, hi);
 }
+void YamlReader::GetPositiveUpTo(const std::string& key, double& out, double hi) {
+  Get(key, out);
+  CheckPositiveUpTo(key, out, hi);
+}
+void YamlReader::GetZeroOrInRange(const std::string& key, double& out, double lo, double hi) {
+  Get(key, out);
+  if (out == 0.0) return;
+  if (out < 0.0) Fail(key, "must be >= 0 (got " + FormatNumber(out) + ")");
+  if (out < lo) Fail(key, "must be 0 (off) or >= " + FormatNumber(lo) + " (got " + FormatNumber(out) + ")");
+  if (out > hi) Fail(key, "must be <= " + FormatNumber(hi) + " (got " + FormatNumber(out) + ")");
+}
+
 void YamlReader::CheckRange(const std::string& key, double v, double lo, double hi) const {
-  if (!(v >= lo && v <= hi)) {
-    std::ostringstream s;
-    s << "must be in [" << lo << ", " << hi << "] (got " << v << ")";
-    Fail(key, s.str());
-  }
+  if (!(v >= lo)) Fail(key, "must be >= " + FormatNumber(lo) + " (got " + FormatNumber(v) + ")");
+  if (!(v <= hi)) Fail(key, "must be <= " + FormatNumber(hi) + " (got " + FormatNumber(v) + ")");
+}
+void YamlReader::CheckPositiveUpTo(const std::string& key, double v, double hi) const {
+  if (!(v > 0.0)) Fail(key, "must be > 0 (got " + FormatNumber(v) + ")");
+  if (!(v <= hi)) Fail(key, "must be <= " + FormatNumber(hi) + " (got " + FormatNumber(v) + ")");
 }
 
 YamlReader YamlReader::Child(const std::string& key) {
@@ -136,12 +169,15 @@ YamlReader YamlReader::Child(const std::string& key) {
   return YamlReader(n, KeyPath(key), source_);
 }
 
-void YamlReader::ForEach(const std::string& key,
+void YamlReader::ForEach(const std::string& key, std::size_t max_len,
                          const std::function<void(const YAML::Node&, const std::string&)>& fn) {
   read_.insert(key);
   if (!Has(key)) return;
   const YAML::Node n = node_[key];
   if (!n.IsSequence()) Fail(key, "expected a list");
+  if (n.size() > max_len) {
+    Fail(key, "at most " + std::to_string(max_len) + " entries (got " + std::to_string(n.size()) + ")");
+  }
   for (std::size_t i = 0; i < n.size(); ++i) {
     fn(n[i], KeyPath(key) + "[" + std::to_string(i) + "]");
   }
@@ -154,7 +190,7 @@ YamlReader YamlReader::Element(const YAML::Node& node, const std::string& path) 
 void YamlReader::Finish() const {
   if (!node_ || !node_.IsMap()) return;
   for (const auto& kv : node_) {
-    const std::string key = kv.first.as<std::string>();
+    const std::string& key = kv.first.Scalar();  // the constructor checked every key is a scalar
     if (!read_.count(key)) FailAt(kv.first, KeyPath(key), "unknown key");
   }
 }

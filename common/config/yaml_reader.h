@@ -4,6 +4,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -21,9 +22,13 @@ struct YamlSource {
   std::set<std::string> overridden;  // key paths given with --set
 };
 
+// A number as error messages show it (1000000, 0.0524, 1e+300).
+std::string FormatNumber(double v);
+
 class YamlReader {
  public:
-  // node must be a mapping (or null, treated as empty); path is its dotted key path.
+  // node must be a mapping (or null, treated as empty); path is its dotted key path. Its keys
+  // must be plain scalars, each given once (yaml-cpp would keep the first of duplicates).
   YamlReader(YAML::Node node, std::string path, std::shared_ptr<const YamlSource> source);
 
   // Throws ConfigError for `key` (relative to this mapping) with `reason`.
@@ -48,31 +53,22 @@ class YamlReader {
   // Reads a string that must be one of `choices`.
   void GetChoice(const std::string& key, std::string& out, const std::vector<std::string>& choices);
 
-  // Read an optional number and check its range (failing with the key's line).
-  template <typename T>
-  void GetPositive(const std::string& key, T& out) {
-    Get(key, out);
-    CheckPositive(key, out);
-  }
-  template <typename T>
-  void GetNonNegative(const std::string& key, T& out) {
-    Get(key, out);
-    CheckNonNegative(key, out);
-  }
-  void GetInRange(const std::string& key, double& out, double lo, double hi) {
-    Get(key, out);
-    CheckRange(key, out, lo, hi);
-  }
+  // Read an optional number and check its range, failing with the key's line: in [lo, hi];
+  // in (0, hi]; 0 (off) or in [lo, hi]. A value out of range names the bound it breaks.
+  void GetInRange(const std::string& key, double& out, double lo, double hi);
+  void GetInRange(const std::string& key, int& out, int lo, int hi);
+  void GetPositiveUpTo(const std::string& key, double& out, double hi);
+  void GetZeroOrInRange(const std::string& key, double& out, double lo, double hi);
 
-  // Range checks on a value already read; they fail with the key's line.
-  void CheckPositive(const std::string& key, double v) const;
-  void CheckNonNegative(const std::string& key, double v) const;
+  // The same checks on a value already read (or computed from several keys).
   void CheckRange(const std::string& key, double v, double lo, double hi) const;
+  void CheckPositiveUpTo(const std::string& key, double v, double hi) const;
 
   // A child mapping (an empty one when absent).
   YamlReader Child(const std::string& key);
-  // A child sequence; each element is passed to fn with its index path.
-  void ForEach(const std::string& key, const std::function<void(const YAML::Node&, const std::string&)>& fn);
+  // A child sequence of at most max_len elements; each is passed to fn with its index path.
+  void ForEach(const std::string& key, std::size_t max_len,
+               const std::function<void(const YAML::Node&, const std::string&)>& fn);
   // Reader for an element of a sequence obtained with ForEach.
   YamlReader Element(const YAML::Node& node, const std::string& path) const;
 
@@ -87,6 +83,9 @@ class YamlReader {
  private:
   template <typename T>
   void GetScalar(const std::string& key, T& out, const char* type_name);
+  // Throws ConfigError at node's line in the file, even below a key given with --set.
+  [[noreturn]] void FailInFile(const YAML::Node& node, const std::string& key_path,
+                               const std::string& reason) const;
 
   YAML::Node node_;
   std::string path_;

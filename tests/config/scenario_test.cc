@@ -136,7 +136,7 @@ TEST_F(ScenarioTest, OtherBadValues) {
   EXPECT_NE(ErrorOf(std::string(kMinimal) + "    - id: 1\n").find("s.yaml:9: robots.list[1].id: duplicate robot id"),
             std::string::npos);
   EXPECT_NE(ErrorOf(std::string(kMinimal) + "radio: {loss_probability: 1.5}\n")
-                .find("radio.loss_probability: must be in [0, 1]"),
+                .find("radio.loss_probability: must be <= 1 (got 1.5)"),
             std::string::npos);
   EXPECT_NE(ErrorOf(std::string(kMinimal) + "feeder: {pace: warp}\n").find("feeder.pace: must be one of lockstep, realtime"),
             std::string::npos);

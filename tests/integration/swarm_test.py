@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import unittest
 from pathlib import Path
@@ -16,6 +17,25 @@ BIN = Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
 DATASETS = Path(os.environ.get("MAPMESH_DATASETS", REPO.parent / "shared" / "datasets"))
 SWARM = [sys.executable, str(REPO / "scripts" / "swarm")]
 DATA = Path(__file__).resolve().parent / "data"
+
+
+def run_measured(cmd, timeout=30):
+    """Runs cmd; returns (exit code, stdout, stderr, wall seconds, peak RSS in MB) of that process,
+    the RSS from wait4 (the child and the children it waited for)."""
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        start = time.monotonic()
+        p = subprocess.Popen(cmd, stdout=out, stderr=err)
+        timer = threading.Timer(timeout, p.kill)
+        timer.start()
+        try:
+            _, status, usage = os.wait4(p.pid, 0)
+        finally:
+            timer.cancel()
+        wall = time.monotonic() - start
+        p.returncode = os.waitstatus_to_exitcode(status)  # reaped here, not by Popen
+        out.seek(0)
+        err.seek(0)
+        return p.returncode, out.read().decode(), err.read().decode(), wall, usage.ru_maxrss / 1024.0
 
 
 def leftover_processes(marker):
@@ -191,6 +211,56 @@ class BadInputTest(unittest.TestCase):
                 lines = r.stderr.strip().splitlines()
                 self.assertEqual(len(lines), 1, r.stderr)
                 self.assertIn(str(path) + expected, lines[0])
+
+    # Scenarios users reported hanging, allocating until std::bad_alloc, running nothing or running
+    # with NaN covariances and exiting 0: each now fails at load, quickly and small.
+    REPORTED = {
+        "bad_tiny_spacing.yaml": [":5: world.landmarks.generator.count: must be <= 100000 (got 1000000)"],
+        "bad_huge_count.yaml": [":5: world.landmarks.generator.count: must be <= 100000 (got 1000000000)"],
+        "bad_float_count.yaml": [":5: world.landmarks.generator.count: expected an integer, got '1e9'"],
+        "bad_path_count.yaml": [":9: robots.defaults.path.count: must be <= 10000 (got 2000000000)"],
+        "bad_duration.yaml": [":3: duration_s: must be <= 1000000 (got 1e+300)"],
+        "bad_sigma_range.yaml": [":10: robots.defaults.sensor.sigma_range_m: must be <= 100 (got 1e+300)"],
+        "bad_duplicate_key.yaml": [":10: radio.range_m: duplicate key (first given on line 9)"],
+        "bad_list_key.yaml": [":8: (top level): a key must be a plain name"],
+        "bad_map_key.yaml": [":8: robots: a key must be a plain name"],
+        "bad_csv_directory.yaml": [":5: world.landmarks.csv: cannot open landmarks file", "it is a directory"],
+        "bad_csv_empty.yaml": [":5: world.landmarks.csv: landmarks file", "empty.csv' holds no landmarks"],
+    }
+    MAX_WALL_S = 5.0
+    MAX_RSS_MB = 200.0
+
+    def assert_fails_fast_with_one_line(self, cmd, path, expected, exit_code=None):
+        code, _, err, wall, rss_mb = run_measured(cmd)
+        if exit_code is None:
+            self.assertNotEqual(code, 0, err)
+        else:
+            self.assertEqual(code, exit_code, err)
+        lines = err.strip().splitlines()
+        self.assertEqual(len(lines), 1, err)
+        self.assertIn(str(path) + expected[0], lines[0])
+        for part in expected[1:]:
+            self.assertIn(part, lines[0])
+        # ru_maxrss is at least the forking test's own size at the fork: an upper bound.
+        self.assertLess(wall, self.MAX_WALL_S)
+        self.assertLess(rss_mb, self.MAX_RSS_MB)
+
+    def test_reported_bad_scenarios_fail_fast_with_one_line(self):
+        cases = [(DATA / name, [], expected) for name, expected in self.REPORTED.items()]
+        cases.append((DATA / "three.yaml", ["--set", "duration_s="], [": --set duration_s: empty value"]))
+        for path, extra, expected in cases:
+            with self.subTest(name=path.name, tool="feeder --check"):
+                self.assert_fails_fast_with_one_line(
+                    [str(BIN / "mapmesh-feeder"), "--scenario", str(path), "--check"] + extra, path, expected, 2)
+            with self.subTest(name=path.name, tool="feeder"):
+                self.assert_fails_fast_with_one_line(
+                    [str(BIN / "mapmesh-feeder"), "--scenario", str(path), "--domain", "1"] + extra, path, expected, 2)
+            with self.subTest(name=path.name, tool="agent"):
+                self.assert_fails_fast_with_one_line(
+                    [str(BIN / "mapmesh-agent"), "--scenario", str(path), "--id", "1", "--domain", "1"] + extra,
+                    path, expected)
+            with tempfile.TemporaryDirectory() as tmp, self.subTest(name=path.name, tool="swarm"):
+                self.assert_fails_fast_with_one_line(SWARM + ["run", str(path), "--out", tmp] + extra, path, expected, 2)
 
     def test_bad_arguments(self):
         r = subprocess.run(SWARM + ["run", str(DATA / "three.yaml"), "--out", "/tmp/x", "--kill", "nine@ten"],

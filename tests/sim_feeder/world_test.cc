@@ -111,3 +111,59 @@ TEST(DiscLandmarks, StayInTheDiscWithTheSpacing) {
 
 }  // namespace
 }  // namespace mapmesh
+
+namespace mapmesh {
+namespace {
+
+// A spacing far below the landmarks' mean distance once gave every point the same grid cell
+// (its index cast from a huge quotient), so each test compared against every accepted point:
+// 10^5 landmarks took 5·10^9 distances. The grid's cells now follow the area per landmark.
+class TinySpacingTest : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(TinySpacingTest, EachCandidateIsTestedAgainstAFewNeighboursOnly) {
+  LandmarkGeneratorOptions o;
+  o.type = GetParam();
+  o.count = 100000;
+  o.area_m = {0, 0, 50, 50};
+  o.center_m = {25, 25};
+  o.radius_m = 25;
+  o.min_spacing_m = 1e-300;
+  std::mt19937_64 rng(3);
+  GenerationStats stats;
+  std::size_t placed = 0;
+  if (o.type == "park") {
+    const auto park = GeneratePark(o, rng, &stats);
+    ASSERT_TRUE(park.has_value());
+    placed = park->landmarks.size();
+  } else {
+    const auto pts = o.type == "disc" ? GenerateDiscLandmarks(o, rng, &stats) : GenerateUniformLandmarks(o, rng, &stats);
+    ASSERT_TRUE(pts.has_value());
+    placed = pts->size();
+  }
+  EXPECT_EQ(placed, 100000u);
+  EXPECT_EQ(stats.attempts, 100000);  // no two candidates are 1e-300 m apart
+  // About one landmark per cell, and 9 cells per test (the disc, denser at its centre, a few more).
+  EXPECT_GT(stats.cells, 100000u / 4);
+  EXPECT_LT(stats.distance_checks, 30L * 100000);
+}
+
+INSTANTIATE_TEST_SUITE_P(Types, TinySpacingTest, ::testing::Values("uniform", "disc", "park"));
+
+// The densest world the scenario check lets through (0.5 landmarks per spacing²) is placed
+// well within the generators' attempt budget, without testing many distances.
+TEST(UniformLandmarks, DensestAllowedWorldIsPlacedWithinTheBudget) {
+  LandmarkGeneratorOptions o;
+  o.count = 20000;
+  o.area_m = {0, 0, 100, 100};
+  o.min_spacing_m = 0.5;  // 0.5 * 100 * 100 / 0.5² = 20000
+  std::mt19937_64 rng(5);
+  GenerationStats stats;
+  const auto pts = GenerateUniformLandmarks(o, rng, &stats);
+  ASSERT_TRUE(pts.has_value());
+  EXPECT_EQ(pts->size(), 20000u);
+  EXPECT_LT(stats.attempts, 50L * 20000);
+  EXPECT_LT(stats.distance_checks, 30 * stats.attempts);
+}
+
+}  // namespace
+}  // namespace mapmesh

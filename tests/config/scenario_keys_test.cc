@@ -1,0 +1,56 @@
+// Scenario loading's checks of keys: each bad case fails with one line naming the file, the
+// line and the key.
+
+#include <gtest/gtest.h>
+
+#include "common/config/config_error.h"
+#include "common/config/scenario.h"
+
+namespace mapmesh {
+namespace {
+
+// The ConfigError message of parsing text as "s.yaml", or "" when it loads.
+std::string ErrorOf(const std::string& text, const std::vector<std::string>& sets = {}, int agents = 0) {
+  try {
+    std::vector<ConfigOverride> overrides;
+    for (const auto& s : sets) overrides.push_back(ParseOverride(s));
+    ParseScenario(text, "s.yaml", overrides, agents);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+constexpr const char* kSimulation = R"(version: 1
+world:
+  landmarks:
+    generator: {count: 10, area_m: [0, 0, 50, 50]}
+robots:
+  count: 2
+)";
+
+TEST(ScenarioKeys, DuplicateKeysNameTheSecondOccurrence) {
+  EXPECT_EQ(ErrorOf(std::string(kSimulation) + "radio: {range_m: 5}\nseed: 3\nradio: {range_m: 9}\n"),
+            "s.yaml:9: radio: duplicate key (first given on line 7)");
+  EXPECT_EQ(ErrorOf(std::string(kSimulation) + "  defaults:\n    sensor:\n      max_range_m: 5\n      max_range_m: 6\n"),
+            "s.yaml:10: robots.defaults.sensor.max_range_m: duplicate key (first given on line 9)");
+  EXPECT_EQ(ErrorOf("world: {landmarks: {generator: {count: 5, count: 6}}}\nrobots: {count: 1}\n"),
+            "s.yaml:1: world.landmarks.generator.count: duplicate key (first given on line 1)");
+  EXPECT_EQ(ErrorOf("world: {landmarks: {list: [[0, 0]]}}\nrobots:\n  list:\n    - {id: 1, id: 2}\n"),
+            "s.yaml:4: robots.list[0].id: duplicate key (first given on line 4)");
+  // An override sets the first occurrence; the duplicate is still the file's error, at its line.
+  EXPECT_EQ(ErrorOf(std::string(kSimulation) + "seed: 1\nseed: 2\n", {"seed=4"}),
+            "s.yaml:8: seed: duplicate key (first given on line 7)");
+}
+
+TEST(ScenarioKeys, KeysMustBePlainNames) {
+  EXPECT_EQ(ErrorOf(std::string(kSimulation) + "? [a, b]\n: 1\n"),
+            "s.yaml:7: (top level): a key must be a plain name, not a list, a mapping or null");
+  EXPECT_EQ(ErrorOf(std::string(kSimulation) + "radio:\n  {a: 1}: 2\n"),
+            "s.yaml:8: radio: a key must be a plain name, not a list, a mapping or null");
+  EXPECT_EQ(ErrorOf(std::string(kSimulation) + "radio: {~: 2}\n"),
+            "s.yaml:7: radio: a key must be a plain name, not a list, a mapping or null");
+}
+
+}  // namespace
+}  // namespace mapmesh
