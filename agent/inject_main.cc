@@ -1,13 +1,16 @@
 // mapmesh-inject: a fault injector for experiments and tests. It joins a run's DDS domain and
-// publishes bad map messages made by MapInjector (map_injector.h lists the cases), one per
-// --period-s of wall time. Each message is written and its instance unregistered at once, so
-// the injector never keeps a dead agent's map instance alive. On SIGINT/SIGTERM (or after
+// publishes bad map messages and forged sensor data and links made by MapInjector
+// (map_injector.h lists the cases): every --period-s of wall time, one message of each chosen
+// case (its claimed robot in turn). Each map is written and its instance unregistered at once,
+// so the injector never keeps a dead agent's map instance alive. On SIGINT/SIGTERM (or after
 // --duration-s) it writes --report: what it sent, per case and claimed sender.
 
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
+#include <map>
+#include <memory>
 
 #include "agent/map_injector.h"
 #include "common/app/process.h"
@@ -52,7 +55,10 @@ int Run(int argc, char** argv) {
       "Cases: truncated, oversized, count_above_limit, bad_magic, unknown_version, non_finite, bad_covariance, "
       "duplicate_id, bad_header, out_of_bounds (payloads every agent must refuse, one reason each), stale_version (an older "
       "version of a robot's map), unknown_sender (a map from a robot not in the run), shuffled (a robot's map "
-      "with its coordinates shuffled, as its next version: alignment verification must refuse it). "
+      "with its coordinates shuffled, as its next version: alignment verification must refuse it), "
+      "odometry_stamp (odometry stamped 1e9 s), far_reading (a scan reading 30 km away), links_stamp (a links table "
+      "stamped 1e300 s), version_jump (a robot's map under version 0xFFFFFFF0), huge_map (a valid map of 100 000 "
+      "landmarks, one turn in ten). "
       "scripts/swarm run --inject CASES starts it alongside a run.");
   app::ProcessOptions po;
   std::string cases_text = "all", report_path;
@@ -104,6 +110,13 @@ int Run(int argc, char** argv) {
   tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos());
   tp::Reader<AgentStatus> status(p, tp::kStatusTopic, tp::StatusQos());
   tp::Writer<MapMessage> out(p, tp::kMapTopic, tp::MapQos());
+  tp::Writer<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
+  std::map<RobotId, std::unique_ptr<tp::Writer<Odometry>>> odom;
+  std::map<RobotId, std::unique_ptr<tp::Writer<Scan>>> scans;
+  for (const RobotSpec& r : loaded->robots) {
+    odom.emplace(r.id, std::make_unique<tp::Writer<Odometry>>(p, tp::OdomTopic(r.id), tp::SensorQos()));
+    scans.emplace(r.id, std::make_unique<tp::Writer<Scan>>(p, tp::ScanTopic(r.id), tp::SensorQos()));
+  }
   std::vector<RobotId> robots;
   for (const RobotSpec& r : loaded->robots) robots.push_back(r.id);
   MapInjector injector(robots, *cases, unknown_id, seed.value_or(loaded->seed));
@@ -131,8 +144,24 @@ int Run(int argc, char** argv) {
     }
     if (Clock::now() < next) continue;
     next += period;
-    if (std::optional<MapMessage> m = injector.Next()) {
-      out.WriteAndUnregister(*m);
+    // One message of each case per period: a case's pace does not depend on how many others run.
+    for (std::size_t k = 0; k < cases->size(); ++k) {
+      const std::optional<InjectedMessage> m = injector.Next();
+      if (!m) break;
+      std::visit(
+          [&](const auto& x) {
+            using T = std::decay_t<decltype(x)>;
+            if constexpr (std::is_same_v<T, MapMessage>) {
+              out.WriteAndUnregister(x);
+            } else if constexpr (std::is_same_v<T, Odometry>) {
+              odom.at(x.robot_id)->Write(x);
+            } else if constexpr (std::is_same_v<T, Scan>) {
+              scans.at(x.robot_id)->Write(x);
+            } else {
+              links.Write(x);
+            }
+          },
+          *m);
       ++sent;
     }
   }

@@ -12,7 +12,10 @@ namespace mapmesh {
 std::vector<std::string> AllInjectCases() {
   std::vector<std::string> cases;
   for (int i = 0; i < kPayloadFaultCount; ++i) cases.emplace_back(ToString(static_cast<PayloadFault>(i)));
-  for (const char* c : {kInjectStaleVersion, kInjectUnknownSender, kInjectShuffled}) cases.emplace_back(c);
+  for (const char* c : {kInjectStaleVersion, kInjectUnknownSender, kInjectShuffled, kInjectOdometryStamp,
+                        kInjectFarReading, kInjectLinksStamp, kInjectVersionJump, kInjectHugeMap}) {
+    cases.emplace_back(c);
+  }
   return cases;
 }
 
@@ -49,20 +52,69 @@ void MapInjector::OnMap(const MapMessage& m) {
   heard_[m.robot_id] = {m, std::move(d.map)};
 }
 
-void MapInjector::OnStatus(const AgentStatus& s) { aligned_.insert(s.peers_aligned.begin(), s.peers_aligned.end()); }
+void MapInjector::OnStatus(const AgentStatus& s) {
+  aligned_.insert(s.peers_aligned.begin(), s.peers_aligned.end());
+  processed_until_[s.robot_id] = std::max(processed_until_[s.robot_id], s.processed_until);
+}
 
-std::optional<MapMessage> MapInjector::Next() {
+std::optional<InjectedMessage> MapInjector::Next() {
   const std::size_t slots = cases_.size() * robots_.size();
   for (std::size_t k = 0; k < slots; ++k) {
     const std::size_t t = tick_++;
     const std::string& c = cases_[(t / robots_.size()) % cases_.size()];
-    if (std::optional<MapMessage> m = Make(c, robots_[t % robots_.size()])) {
-      injected_.insert(Key(*m));
-      if (!IsHonest(*m)) ++sent_[c][m->robot_id];
+    const RobotId robot = robots_[t % robots_.size()];
+    if (std::optional<InjectedMessage> m = Make(c, robot)) {
+      if (const MapMessage* map = std::get_if<MapMessage>(&*m)) {
+        injected_.insert(Key(*map));
+        if (!IsHonest(*map)) ++sent_[c][map->robot_id];
+      } else {
+        ++sent_[c][robot];
+      }
       return m;
     }
   }
   return std::nullopt;
+}
+
+std::optional<InjectedMessage> MapInjector::MakeHostile(const std::string& c, RobotId target) {
+  const auto reported = processed_until_.find(target);
+  if (c == kInjectOdometryStamp) {
+    Odometry o;
+    o.robot_id = target;
+    o.seq = 0xFFFFFF00u;
+    o.stamp = 1e9;
+    o.dt = 0.1;
+    o.v = 1.0;
+    return o;
+  }
+  if (c == kInjectFarReading) {
+    if (reported == processed_until_.end()) return std::nullopt;  // its time is not known yet
+    Scan s;
+    s.robot_id = target;
+    s.seq = 0xFFFFFF00u;
+    s.stamp = reported->second + 0.05;
+    s.obs.push_back({30000.0, 0.0, -1, ObservationKind::kLandmark});
+    return s;
+  }
+  if (c == kInjectLinksStamp) return RadioLinks{1e300, {}};
+  const auto it = heard_.find(target);
+  if (c == kInjectVersionJump) {
+    if (it == heard_.end()) return std::nullopt;
+    MapMessage m = it->second.msg;
+    m.version = 0xFFFFFFF0u;
+    return m;
+  }
+  // huge_map
+  if (huge_turns_++ % kInjectHugeEvery != 0) return std::nullopt;
+  if (huge_payload_.empty()) huge_payload_ = EncodeMap(RandomMap(static_cast<int>(kMapCodecMaxLandmarks)));
+  MapMessage m;
+  m.robot_id = target;
+  m.kind = MapKind::kLocal;
+  m.incarnation = kInjectHugeIncarnation;
+  m.version = ++huge_version_[target];
+  if (it != heard_.end()) m.stamp = it->second.msg.stamp;
+  m.payload = huge_payload_;
+  return m;
 }
 
 LandmarkMap MapInjector::RandomMap(int n) {
@@ -78,7 +130,11 @@ LandmarkMap MapInjector::RandomMap(int n) {
   return m;
 }
 
-std::optional<MapMessage> MapInjector::Make(const std::string& c, RobotId sender) {
+std::optional<InjectedMessage> MapInjector::Make(const std::string& c, RobotId sender) {
+  if (c == kInjectOdometryStamp || c == kInjectFarReading || c == kInjectLinksStamp || c == kInjectVersionJump ||
+      c == kInjectHugeMap) {
+    return MakeHostile(c, sender);
+  }
   MapMessage m;
   m.robot_id = sender;
   const auto it = heard_.find(sender);

@@ -15,6 +15,15 @@
 //                            the alignment), and so on. It starts once
 //                            some agent reports the sender aligned, and its map has at least 6
 //                            landmarks.
+// and hostile input the agents must refuse, each counted, without changing what they do:
+//   odometry_stamp           an odometry message for the robot stamped 1e9 s (on its odom topic);
+//   far_reading              a scan with one reading 30 km away, stamped just after the time the
+//                            robot's agent last reported (on its scan topic);
+//   links_stamp              a radio-links table stamped 1e300 s that links nobody;
+//   version_jump             a copy of the robot's latest local map under version 0xFFFFFFF0;
+//   huge_map                 a well-formed map of kMapCodecMaxLandmarks landmarks (1.6 MB) from
+//                            a further incarnation of the robot (kInjectHugeIncarnation), one
+//                            in every kInjectHugeEvery turns of the case.
 
 #include <cstdint>
 #include <map>
@@ -23,6 +32,7 @@
 #include <set>
 #include <string>
 #include <tuple>
+#include <variant>
 #include <vector>
 
 #include "common/map/landmark_map.h"
@@ -33,8 +43,18 @@ namespace mapmesh {
 inline constexpr const char* kInjectStaleVersion = "stale_version";
 inline constexpr const char* kInjectUnknownSender = "unknown_sender";
 inline constexpr const char* kInjectShuffled = "shuffled";
+inline constexpr const char* kInjectOdometryStamp = "odometry_stamp";
+inline constexpr const char* kInjectFarReading = "far_reading";
+inline constexpr const char* kInjectLinksStamp = "links_stamp";
+inline constexpr const char* kInjectVersionJump = "version_jump";
+inline constexpr const char* kInjectHugeMap = "huge_map";
+inline constexpr std::uint32_t kInjectHugeIncarnation = 3000000001u;
+inline constexpr int kInjectHugeEvery = 10;
 // The incarnation the faulty peer of the shuffled case claims (real agents count from 1).
 inline constexpr std::uint32_t kInjectFaultyIncarnation = 3000000000u;
+
+// One injected message: a map, or forged sensor data or links.
+using InjectedMessage = std::variant<MapMessage, Odometry, Scan, RadioLinks>;
 
 // Every case, in the order they are sent.
 std::vector<std::string> AllInjectCases();
@@ -52,7 +72,7 @@ class MapInjector {
 
   // The next message that can be made now, trying every (case, sender) slot once in turn,
   // or nothing when no case is ready.
-  std::optional<MapMessage> Next();
+  std::optional<InjectedMessage> Next();
 
   // Messages made so far: case -> claimed sender -> count (shuffled: the shuffled maps only).
   const std::map<std::string, std::map<RobotId, int>>& sent() const { return sent_; }
@@ -70,7 +90,8 @@ class MapInjector {
   static MsgKey Key(const MapMessage& m) { return {m.robot_id, m.incarnation, m.version}; }
   // The faulty peer's maps 1, 2, 5, 6, 9, 10, ... are honest copies.
   static bool IsHonest(const MapMessage& m) { return m.incarnation == kInjectFaultyIncarnation && m.version % 4 != 3 && m.version % 4 != 0; }
-  std::optional<MapMessage> Make(const std::string& c, RobotId sender);
+  std::optional<InjectedMessage> Make(const std::string& c, RobotId sender);
+  std::optional<InjectedMessage> MakeHostile(const std::string& c, RobotId target);
   LandmarkMap RandomMap(int n);
 
   std::vector<RobotId> robots_;
@@ -85,6 +106,10 @@ class MapInjector {
   std::uint32_t unknown_version_ = 0;
   std::map<RobotId, std::uint32_t> faulty_version_;  // per claimed sender
   int honest_sent_ = 0;
+  std::map<RobotId, double> processed_until_;  // what each robot's agent last reported
+  std::vector<std::uint8_t> huge_payload_;     // made once
+  std::map<RobotId, std::uint32_t> huge_version_;
+  int huge_turns_ = 0;
 };
 
 }  // namespace mapmesh

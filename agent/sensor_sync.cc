@@ -16,6 +16,10 @@ void SensorSync::OnOdometry(const Odometry& odom) {
   ++stats_.odom_received;
   const bool finite = std::isfinite(odom.stamp) && std::isfinite(odom.dt) && std::isfinite(odom.v) &&
                       std::isfinite(odom.w) && std::isfinite(odom.steering);
+  if (std::find(recent_odom_.begin(), recent_odom_.end(), std::make_pair(odom.seq, odom.stamp)) != recent_odom_.end()) {
+    ++stats_.odom_duplicate;  // sent again (after a stall): one of the last ones taken
+    return;
+  }
   if (!finite || odom.dt <= 0.0 || (has_odom_ && odom.stamp <= last_odom_stamp_)) {
     ++stats_.odom_rejected;
     return;
@@ -48,6 +52,8 @@ void SensorSync::Accept(const Odometry& odom) {
     stats_.odom_lost += odom.seq - last_odom_seq_ - 1;
   }
   has_odom_ = true;
+  recent_odom_.emplace_back(odom.seq, odom.stamp);
+  if (recent_odom_.size() > kRecent) recent_odom_.pop_front();
   last_odom_seq_ = odom.seq;
   last_odom_stamp_ = odom.stamp;
   pending_odom_.emplace(odom.stamp, odom);
@@ -56,6 +62,14 @@ void SensorSync::Accept(const Odometry& odom) {
 
 void SensorSync::OnScan(const Scan& scan) {
   ++stats_.scans_received;
+  // Sent again (after a stall): one of the last scans received, the very same one.
+  const std::pair<std::uint32_t, double> key{scan.seq, scan.stamp};
+  if (std::find(recent_scans_.begin(), recent_scans_.end(), key) != recent_scans_.end()) {
+    ++stats_.scans_duplicate;
+    return;
+  }
+  recent_scans_.push_back(key);
+  if (recent_scans_.size() > kRecent) recent_scans_.pop_front();
   if (has_scan_seq_ && scan.seq > last_scan_seq_ && scan.seq - last_scan_seq_ < kMaxSeqGap) {
     stats_.scans_lost += scan.seq - last_scan_seq_ - 1;
     last_scan_seq_ = scan.seq;

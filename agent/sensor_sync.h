@@ -20,6 +20,7 @@
 // then the robot's pose at that scan, the convention of keyframe SLAM (the first keyframe).
 
 #include <cstdint>
+#include <deque>
 #include <limits>
 #include <map>
 #include <optional>
@@ -35,9 +36,11 @@ struct SyncStats {
   std::uint32_t odom_rejected = 0;      // non-finite values, dt <= 0, or stamp going backwards
   std::uint32_t odom_implausible = 0;   // stamp beyond the run's end, or a jump nothing continued
   std::uint32_t odom_lost = 0;          // never arrived: gaps in the sequence numbers
+  std::uint32_t odom_duplicate = 0;     // arrived again (sent again after a stall): ignored
   std::uint32_t scans_received = 0;     // every scan handed in
   std::uint32_t scans_implausible = 0;  // stamp beyond the run's end or the plausible window
   std::uint32_t scans_lost = 0;         // never arrived: gaps in the sequence numbers
+  std::uint32_t scans_duplicate = 0;    // arrived again: ignored
   std::uint32_t scans_processed = 0;    // applied (empty ones included: they are consumed)
   std::uint32_t scans_empty = 0;        // of which carried no observation: nothing to apply
   std::uint32_t scans_rejected = 0;     // non-finite stamp
@@ -104,6 +107,10 @@ class SensorSync {
   std::optional<Odometry> jump_;     // a jump beyond the window, until the next message tells
   bool has_scan_seq_ = false;
   std::uint32_t last_scan_seq_ = 0;
+  // The last odometry messages taken and scans received (sequence number, stamp), to know one
+  // sent again.
+  static constexpr std::size_t kRecent = 512;
+  std::deque<std::pair<std::uint32_t, double>> recent_odom_, recent_scans_;
   bool started_ = false;
   double processed_until_ = 0.0;
   std::optional<double> frame_origin_stamp_;

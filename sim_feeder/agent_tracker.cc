@@ -1,5 +1,6 @@
 #include "sim_feeder/agent_tracker.h"
 
+#include <limits>
 #include <sstream>
 
 namespace mapmesh {
@@ -19,17 +20,54 @@ void AgentTracker::OnStatus(const AgentStatus& status) {
     s.subscribed = false;
   }
   s.dead = false;
+  s.silent = false;  // speaking again
   s.seen = true;
   s.incarnation = status.incarnation;
   s.last = status;
 }
 
-void AgentTracker::OnGone(RobotId id) {
+void AgentTracker::OnGone(RobotId id, bool process_exists) {
   auto it = agents_.find(id);
   if (it == agents_.end() || !it->second.seen) return;
-  it->second.dead = true;
-  it->second.stale_incarnation = it->second.incarnation;
-  it->second.seen = false;
+  State& s = it->second;
+  if (process_exists) {
+    s.silent = true;
+    return;
+  }
+  s.dead = true;
+  s.silent = false;
+  s.stale_incarnation = s.incarnation;
+  s.seen = false;
+}
+
+void AgentTracker::SetProcess(RobotId id, int pid) {
+  auto it = agents_.find(id);
+  if (it != agents_.end()) it->second.pid = pid;
+}
+
+std::optional<int> AgentTracker::process(RobotId id) const {
+  auto it = agents_.find(id);
+  return it == agents_.end() ? std::nullopt : it->second.pid;
+}
+
+void AgentTracker::OnProcessGone(RobotId id) {
+  auto it = agents_.find(id);
+  if (it == agents_.end()) return;
+  it->second.pid.reset();
+  if (it->second.silent) OnGone(id, false);
+}
+
+bool AgentTracker::IsSilent(RobotId id) const {
+  auto it = agents_.find(id);
+  return it != agents_.end() && it->second.silent;
+}
+
+std::vector<RobotId> AgentTracker::Silent() const {
+  std::vector<RobotId> out;
+  for (const auto& [id, s] : agents_) {
+    if (s.silent) out.push_back(id);
+  }
+  return out;
 }
 
 void AgentTracker::SetSubscribed(RobotId id, bool subscribed) {
@@ -42,8 +80,10 @@ void AgentTracker::MarkDead(RobotId id) {
   if (it == agents_.end()) return;
   State& s = it->second;
   s.dead = true;
+  s.silent = false;
   s.seen = false;
   s.subscribed = false;
+  s.pid.reset();
   if (s.incarnation) s.stale_incarnation = s.incarnation;
 }
 
@@ -53,13 +93,15 @@ void AgentTracker::ExpectRestart(RobotId id) {
   State& s = it->second;
   if (s.incarnation) s.stale_incarnation = s.incarnation;
   s.dead = false;
+  s.silent = false;
   s.seen = false;
   s.subscribed = false;
+  s.pid.reset();
 }
 
 bool AgentTracker::IsUp(RobotId id) const {
   auto it = agents_.find(id);
-  return it != agents_.end() && !it->second.dead && it->second.seen && it->second.subscribed;
+  return it != agents_.end() && !it->second.dead && !it->second.silent && it->second.seen && it->second.subscribed;
 }
 
 bool AgentTracker::IsSubscribed(RobotId id) const {
@@ -84,7 +126,9 @@ std::vector<RobotId> AgentTracker::Lagging(const std::map<RobotId, double>& targ
   std::vector<RobotId> out;
   for (const auto& [id, target] : targets) {
     auto it = agents_.find(id);
-    if (it != agents_.end() && IsUp(id) && it->second.last.processed_until + 1e-9 < target) out.push_back(id);
+    if (it != agents_.end() && (IsUp(id) || it->second.silent) && it->second.last.processed_until + 1e-9 < target) {
+      out.push_back(id);
+    }
   }
   return out;
 }
@@ -120,6 +164,10 @@ std::optional<ControlCommand> ParseControl(const std::string& line) {
   if (!(s >> id) || id <= 0) return std::nullopt;
   if (word == "dead") return ControlCommand{ControlCommand::Kind::kDead, static_cast<RobotId>(id)};
   if (word == "expect") return ControlCommand{ControlCommand::Kind::kExpect, static_cast<RobotId>(id)};
+  long pid = 0;
+  if (word == "pid" && (s >> pid) && pid > 0 && pid <= std::numeric_limits<int>::max()) {
+    return ControlCommand{ControlCommand::Kind::kPid, static_cast<RobotId>(id), static_cast<int>(pid)};
+  }
   return std::nullopt;
 }
 

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <deque>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <thread>
 
@@ -25,6 +26,7 @@
 #include "common/transport/typed.h"
 #include "sim_feeder/agent_tracker.h"
 #include "sim_feeder/recording.h"
+#include "sim_feeder/sent_log.h"
 #include "sim_feeder/sources.h"
 
 namespace mapmesh {
@@ -38,6 +40,22 @@ using Clock = std::chrono::steady_clock;
 // start, 130 interrupted.
 constexpr int kExitStartup = 3;
 constexpr int kExitInterrupted = 130;
+
+// The state of a process on this host, from /proc: gone (or a zombie), stopped (SIGSTOP,
+// traced), or anything else.
+enum class ProcessState { kGone, kStopped, kRunning };
+ProcessState StateOf(int pid) {
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  if (!stat || !std::getline(stat, line)) return ProcessState::kGone;
+  // "pid (comm) S ...": the state follows the last ')' (comm may hold anything).
+  const auto close = line.rfind(')');
+  if (close == std::string::npos || close + 2 >= line.size()) return ProcessState::kGone;
+  const char state = line[close + 2];
+  if (state == 'Z' || state == 'X') return ProcessState::kGone;
+  if (state == 'T' || state == 't') return ProcessState::kStopped;
+  return ProcessState::kRunning;
+}
 
 class Interrupted : public std::runtime_error {
  public:
@@ -111,43 +129,69 @@ class Feeder {
   Feeder(const Scenario& sc, Channels& ch, AgentTracker& tracker, ControlInput& control,
          tp::ShutdownSignal& shutdown, bool events, double stall_timeout_s)
       : sc_(sc), ch_(ch), tracker_(tracker), control_(control), shutdown_(shutdown),
-        events_(events), stall_timeout_s_(stall_timeout_s) {
+        events_(events), stall_timeout_s_(stall_timeout_s), keep_sent_(sc.feeder.pace == "lockstep") {
     for (const RobotSpec& r : sc.robots) matches_at_restart_[r.id] = 0;
   }
 
-  // Reads statuses, liveliness changes, subscriptions and launcher commands.
+  // Reads statuses, liveliness changes, subscriptions, the processes of silent agents and
+  // launcher commands.
   void Pump() {
     if (shutdown_.requested()) throw Interrupted();
     for (const auto& s : ch_.status.Take()) {
+      const RobotId id = s.value.robot_id;
       if (s.valid) {
-        spdlog::trace("status {} inc {} t {:.2f}", s.value.robot_id, s.value.incarnation, s.value.processed_until);
+        spdlog::trace("status {} inc {} t {:.2f}", id, s.value.incarnation, s.value.processed_until);
+        const bool was_silent = tracker_.IsSilent(id);
         tracker_.OnStatus(s.value);
+        if (was_silent && !tracker_.IsSilent(id)) spdlog::info("agent {} speaks again", id);
+        if (tracker_.IsUp(id) || tracker_.IsSilent(id)) sent_.Processed(id, s.value.processed_until);
       }
-      if (!s.alive) {
+      if (!s.alive && !tracker_.IsDead(id) && !tracker_.IsSilent(id)) {
         // The writer of that status instance is gone (liveliness expired or it was disposed):
-        // an invalid sample says so, or the state of a last sample still unread.
-        if (!tracker_.IsDead(s.value.robot_id)) {
-          spdlog::warn("agent {} lost (DDS liveliness)", s.value.robot_id);
-          tracker_.OnGone(s.value.robot_id);
-        }
+        // an invalid sample says so, or the state of a last sample still unread. While its
+        // process exists the agent is only silent (paused, say): still waited for.
+        const std::optional<int> pid = tracker_.process(id);
+        const bool exists = pid && StateOf(*pid) != ProcessState::kGone;
+        spdlog::warn("agent {} lost (DDS liveliness){}", id, exists ? "; its process exists: waiting for it" : "");
+        tracker_.OnGone(id, exists);
+      }
+    }
+    for (RobotId id : tracker_.Silent()) {
+      const std::optional<int> pid = tracker_.process(id);
+      if (!pid || StateOf(*pid) == ProcessState::kGone) {
+        spdlog::warn("agent {}'s process is gone", id);
+        tracker_.OnProcessGone(id);
+        sent_.Forget(id);
       }
     }
     for (const auto& [id, base] : matches_at_restart_) {
-      const bool sub = ch_.TotalMatches(id) > base;
+      const std::uint32_t total = ch_.TotalMatches(id);
+      const bool sub = total > base;
       if (sub != tracker_.IsSubscribed(id)) spdlog::debug("agent {} subscribed={}", id, sub);
       tracker_.SetSubscribed(id, sub);
+      // Matched anew without a restart: the agent's participant lapsed (it was paused) and is
+      // back. Whatever it had not processed may have been lost with the old match: send it again.
+      std::uint32_t& last = last_matches_[id];
+      if (total > last && last > base && !tracker_.IsDead(id)) Resend(id);
+      last = total;
     }
     for (const ControlCommand& c : control_.Poll()) {
       switch (c.kind) {
         case ControlCommand::Kind::kDead:
           tracker_.MarkDead(c.id);
+          sent_.Forget(c.id);
           spdlog::info("agent {} killed", c.id);
           break;
         case ControlCommand::Kind::kExpect:
-          if (matches_at_restart_.count(c.id)) matches_at_restart_[c.id] = ch_.TotalMatches(c.id);
+          if (matches_at_restart_.count(c.id)) {
+            matches_at_restart_[c.id] = ch_.TotalMatches(c.id);
+            last_matches_[c.id] = matches_at_restart_[c.id];
+          }
           tracker_.ExpectRestart(c.id);
+          sent_.Forget(c.id);
           spdlog::info("agent {} restarting", c.id);
           break;
+        case ControlCommand::Kind::kPid: tracker_.SetProcess(c.id, c.pid); break;
         case ControlCommand::Kind::kContinue: continue_ = true; break;
         case ControlCommand::Kind::kStop: throw Interrupted();
       }
@@ -178,8 +222,13 @@ class Feeder {
       for (const AgentStatus& s : tracker_.Statuses()) {
         if (std::find(lagging.begin(), lagging.end(), s.robot_id) != lagging.end()) sum += s.processed_until;
       }
-      if (sum > best) {
-        best = sum;
+      // A stopped (SIGSTOPped) agent is not stalled: it is waited for as long as it is stopped.
+      const bool stopped = std::any_of(lagging.begin(), lagging.end(), [&](RobotId id) {
+        const std::optional<int> pid = tracker_.process(id);
+        return pid && StateOf(*pid) == ProcessState::kStopped;
+      });
+      if (sum > best || stopped) {
+        best = std::max(best, sum);
         last_progress = Clock::now();
       } else if (Clock::now() - last_progress > std::chrono::duration<double>(stall_timeout_s_)) {
         for (RobotId id : lagging) {
@@ -207,6 +256,18 @@ class Feeder {
       tracker_.MarkDead(id);
     }
   }
+
+  // Publishes a sensor message; in lockstep it is kept until the agent reports it processed.
+  void Publish(const Odometry& o) {
+    ch_.odom.at(o.robot_id)->Write(o);
+    if (keep_sent_) sent_.Record(o);
+  }
+  void Publish(const Scan& s) {
+    ch_.scan.at(s.robot_id)->Write(s);
+    if (keep_sent_) sent_.Record(s);
+  }
+  // Sensor messages sent again to agents whose readers came back (see Pump).
+  std::uint64_t resent() const { return resent_; }
 
   void Emit(const json& event) {
     if (!events_) return;
@@ -237,8 +298,29 @@ class Feeder {
   tp::ShutdownSignal& shutdown_;
   bool events_;
   double stall_timeout_s_;
+  void Resend(RobotId id) {
+    const std::vector<SentLog::Message> again = sent_.Unprocessed(id);
+    if (again.empty()) return;
+    spdlog::info("agent {} matched again: sending the {} sensor messages it has not processed", id, again.size());
+    for (const SentLog::Message& m : again) {
+      std::visit([&](const auto& x) {
+        using T = std::decay_t<decltype(x)>;
+        if constexpr (std::is_same_v<T, Odometry>) {
+          ch_.odom.at(id)->Write(x);
+        } else {
+          ch_.scan.at(id)->Write(x);
+        }
+      }, m);
+    }
+    resent_ += again.size();
+  }
+
   bool continue_ = false;
+  bool keep_sent_;
+  SentLog sent_;
+  std::uint64_t resent_ = 0;
   std::map<RobotId, std::uint32_t> matches_at_restart_;
+  std::map<RobotId, std::uint32_t> last_matches_;
 };
 
 // What the feeder played: truth.json (the world and true trajectories) and feeder.json
@@ -272,7 +354,8 @@ class PlayRecord {
   }
   void CountSent(const Scan& s) { ++scans_sent_[s.robot_id]; }
   void CountSent(const Odometry& o) { ++odom_sent_[o.robot_id]; }
-  void Write(const std::string& dir, const FeedSource& source, double wall_s, bool interrupted) {
+  void Write(const std::string& dir, const FeedSource& source, double wall_s, bool interrupted,
+             std::uint64_t resent = 0) {
     const auto& seen = source.Truth().seen;
     truth_.seen.clear();
     for (std::size_t i = 0; i < seen.size(); ++i) {
@@ -298,6 +381,7 @@ class PlayRecord {
                                                {"wall_s", wall_s},
                                                {"pace", sc_.feeder.pace},
                                                {"interrupted", interrupted},
+                                               {"sensor_messages_resent", resent},
                                                {"robots", robots}});
   }
 
@@ -429,7 +513,7 @@ int Run(int argc, char** argv) {
     std::map<RobotId, Odometry> held;
     std::map<RobotId, double> published_until;
     auto publish_odom = [&](const Odometry& o) {
-      ch.odom.at(o.robot_id)->Write(o);
+      feeder.Publish(o);
       record.CountSent(o);
       published_until[o.robot_id] = o.stamp;
     };
@@ -450,7 +534,7 @@ int Run(int argc, char** argv) {
       }
       if (b.links) ch.links.Write(*b.links);
       for (const Scan& s : b.scans) {
-        ch.scan.at(s.robot_id)->Write(s);
+        feeder.Publish(s);
         record.CountSent(s);
       }
       for (const GroundTruth& g : b.truth) ch.truth.Write(g);
@@ -493,7 +577,7 @@ int Run(int argc, char** argv) {
   }
   if (recording) recording->Close();
   const double wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
-  record.Write(out_dir, source, wall_s, exit_code != 0);
+  record.Write(out_dir, source, wall_s, exit_code != 0, feeder.resent());
   feeder.Emit({{"event", "done"}, {"wall_s", wall_s}, {"interrupted", exit_code != 0}});
   spdlog::info("done in {:.1f} s wall", wall_s);
   return exit_code;

@@ -71,6 +71,23 @@ def parse_schedule(items, what):
     return out
 
 
+def parse_pauses(items):
+    """['2@30:10'] -> [(30.0, 2, 10.0)]: agent ID stopped (SIGSTOP) at scenario time T for SECONDS of wall time."""
+    out = []
+    for item in items or []:
+        try:
+            rid, rest = item.split("@")
+            t, seconds = rest.split(":")
+            rid, t, seconds = int(rid), float(t), float(seconds)
+            if rid <= 0 or t < 0 or not seconds > 0 or seconds > 86400:
+                raise ValueError
+        except ValueError:
+            raise RunError(f"--pause {item}: expected ID@T:SECONDS with a robot id, a time in scenario seconds "
+                           "and a pause in wall seconds (0 < SECONDS <= 86400)", 2)
+        out.append((t, rid, seconds))
+    return out
+
+
 class Proc:
     """One started process, what it cost, and how the launcher ended it (if it did)."""
 
@@ -139,6 +156,7 @@ class AgentSlot:
         self.procs = []
         self.killed_at = []
         self.restarted_at = []
+        self.paused_at = []
         self.alive_at_end = False
 
     @property
@@ -153,6 +171,9 @@ class SwarmRun:
         self.out = Path(args.out)
         self.kills = parse_schedule(args.kill, "kill")
         self.restarts = parse_schedule(args.restart, "restart")
+        self.pauses = parse_pauses(getattr(args, "pause", None))
+        self.paused = []  # pauses under way: [resume at (monotonic), record]
+        self.pause_log = []  # what happened: {"id", "t", "seconds", "wall_start", "wall_end"}
         self.common = []  # arguments every process gets
         if args.agents:
             self.common += ["--agents", str(args.agents)]
@@ -173,11 +194,11 @@ class SwarmRun:
             raise RunError(last_line(r.stderr, "scenario check failed").removeprefix("mapmesh-feeder: "), 2)
         self.info = json.loads(r.stdout.strip().splitlines()[-1])
         ids = set(self.info["robots"])
-        for t, rid in self.kills + self.restarts:
+        for t, rid in self.kills + self.restarts + [(t, rid) for t, rid, _ in self.pauses]:
             if rid not in ids:
-                raise RunError(f"--kill/--restart {rid}@{t}: no robot {rid} in this run (robots {sorted(ids)})", 2)
+                raise RunError(f"--kill/--restart/--pause {rid}@{t}: no robot {rid} in this run (robots {sorted(ids)})", 2)
             if t > self.info["duration"]:
-                raise RunError(f"--kill/--restart {rid}@{t}: after the end of the run ({self.info['duration']} s)", 2)
+                raise RunError(f"--kill/--restart/--pause {rid}@{t}: after the end of the run ({self.info['duration']} s)", 2)
 
         if self.args.inject:
             cmd = [binary("mapmesh-inject"), "--scenario", self.scenario, "--cases", self.args.inject,
@@ -232,7 +253,7 @@ class SwarmRun:
                 self.start_agent(rid)
             if self.args.inject:
                 self.start_injector()
-            holds = sorted({t for t, _ in self.kills + self.restarts})
+            holds = sorted({t for t, _ in self.kills + self.restarts} | {t for t, _, _ in self.pauses})
             cmd = [binary("mapmesh-feeder"), "--scenario", self.scenario, "--domain", str(self.lease.id),
                    "--out", str(self.out), "--events", "--control"] + self.common
             if self.args.pace:
@@ -242,6 +263,9 @@ class SwarmRun:
             for t in holds:
                 cmd += ["--hold-at", str(t)]
             self.feeder = self.spawn(cmd, self.out / "feeder.log", stdout=subprocess.PIPE, stdin=subprocess.PIPE)
+            # The feeder tells a paused agent (its process exists) from a dead one by its process.
+            for rid, slot in self.agents.items():
+                self.send(f"pid {rid} {slot.current.pid}")
             self.loop(wall_start)
         except Interrupted:
             interrupted = True
@@ -281,12 +305,38 @@ class SwarmRun:
                     continue
                 self.send(f"expect {rid}")
                 self.start_agent(rid)
+                self.send(f"pid {rid} {slot.current.pid}")
                 slot.restarted_at.append(t)
                 self.progress.note(f"t={t:.1f}s restarted agent {rid}")
+        for when, rid, seconds in sorted(self.pauses):
+            if when <= t + 1e-9 and (when, rid) not in self.done_pauses:
+                self.done_pauses.add((when, rid))
+                slot = self.agents[rid]
+                if not (slot.current and slot.current.poll() is None):
+                    self.progress.note(f"t={t:.1f}s --pause {rid}: agent {rid} is not running; not paused")
+                    continue
+                slot.current.signal(signal.SIGSTOP)
+                record = {"id": rid, "t": when, "seconds": seconds, "wall_start": time.time(), "wall_end": None}
+                self.pause_log.append(record)
+                slot.paused_at.append(t)
+                self.paused.append([time.monotonic() + seconds, record, slot.current])
+                self.progress.note(f"t={t:.1f}s paused agent {rid} for {seconds:g} s")
         self.send("continue")
 
+    def resume_paused(self, everyone=False):
+        """SIGCONT to the paused agents whose pause is over (or to all of them)."""
+        now = time.monotonic()
+        for entry in list(self.paused):
+            resume_at, record, proc = entry
+            if everyone or now >= resume_at:
+                proc.signal(signal.SIGCONT)
+                record["wall_end"] = time.time()
+                self.paused.remove(entry)
+                if not everyone:
+                    self.progress.note(f"agent {record['id']} resumed after {record['seconds']:g} s")
+
     def loop(self, wall_start):
-        self.done_kills, self.done_restarts = {}, {}
+        self.done_kills, self.done_restarts, self.done_pauses = {}, {}, set()
         self.reported_dead = set()  # pids whose end the feeder has been told about
         self.progress = Progress(self.info["duration"], quiet=self.args.quiet)
         deadline = wall_start + self.args.timeout
@@ -301,7 +351,9 @@ class SwarmRun:
                 if time.monotonic() > deadline:
                     raise RunError(f"run exceeded --timeout {self.args.timeout:.0f} s; stopped", 1)
                 eof = False
-                for _key, _ in sel.select(timeout=0.25):
+                self.resume_paused()
+                wait = min([0.25] + [max(0.0, at - time.monotonic()) for at, _, _ in self.paused])
+                for _key, _ in sel.select(timeout=wait):
                     chunk = out.read()
                     if chunk == b"":
                         eof = True
@@ -348,6 +400,7 @@ class SwarmRun:
         """Stops every process this run started: agents politely (they write their maps),
         then the feeder; anything that does not stop in time is killed. A fault injector stops
         first, so that the agents' final maps are written with no injection under way."""
+        self.resume_paused(everyone=True)  # a stopped process would not hear SIGTERM
         if self.injector is not None:
             self.injector.stop(10.0)
         for slot in self.agents.values():
@@ -398,6 +451,7 @@ class SwarmRun:
                 "restarts": len(slot.restarted_at),
                 "killed_at": slot.killed_at,
                 "restarted_at": slot.restarted_at,
+                "paused_at": slot.paused_at,
                 "final_state": bool(stats.get("final", False)),
                 "local": score.get("local"),
                 "global": score.get("global"),
@@ -442,6 +496,7 @@ class SwarmRun:
             "interrupted": interrupted,
             "kills": [{"id": r, "t": t, "wall": self.kill_wall.get((t, r))} for t, r in self.kills],
             "restarts": [{"id": r, "t": t} for t, r in self.restarts],
+            "pauses": self.pause_log,
             "feeder": {"exit_code": self.feeder.returncode if self.feeder else None,
                        "cpu_s": round(self.feeder.cpu_s, 3) if self.feeder else None,
                        "max_rss_mb": round(self.feeder.max_rss_mb, 1) if self.feeder else None},
@@ -454,7 +509,7 @@ class SwarmRun:
             summary["injector_exit_code"] = self.injector.returncode if self.injector else None
         write_json(self.out / "summary.json", summary)
         # Each agent's counters and scored maps over time, for the report's time plots.
-        timeline = {"kills": summary["kills"], "restarts": summary["restarts"],
+        timeline = {"kills": summary["kills"], "restarts": summary["restarts"], "pauses": summary["pauses"],
                     "agents": {str(rid): scores.get(str(rid), {}).get("history", []) for rid in self.agents}}
         write_json(self.out / "timeline.json", timeline)
         return summary

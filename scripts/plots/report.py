@@ -8,7 +8,7 @@ relative paths, so the run directory can be copied or served as it is; the page 
 script and no external URL). Prints the page's path on stdout.
 
 The page shows:
-  - the run: scenario, simulated duration, wall time, real-time factor, kills and restarts;
+  - the run: scenario, simulated duration, wall time, real-time factor, kills, restarts and pauses;
   - the summary table (table#summary: one row per agent, cells data-key="<summary path>" with
     the exact JSON value in data-value) and a table of peers and events;
   - per agent, its maps in the world frame: true landmarks (grey, darker when some robot saw
@@ -190,6 +190,7 @@ class Run:
         # Kills and restarts as the summary and the timeline list them (the same, normally).
         self.kills = events(self.summary.get("kills"), (self.timeline or {}).get("kills"))
         self.restarts = events(self.summary.get("restarts"), (self.timeline or {}).get("restarts"))
+        self.pauses = events(self.summary.get("pauses"), (self.timeline or {}).get("pauses"))
         self.duration = self.summary.get("sim_duration_s") or (self.truth or {}).get("duration_s")
 
     def load(self, name, required=False, quiet=False):
@@ -220,6 +221,12 @@ class Run:
             back = [r for i, r in self.restarts if i == rid and r >= t]
             out.append((t, min(back) if back else (self.duration or t)))
         return out
+
+
+def pauses_text(pauses):
+    """'agent 2 at 30 s for 10 s (wall)' for each pause of summary.json."""
+    return "; ".join(f"agent {p.get('id')} at {format_number(p.get('t'))} s for {format_number(p.get('seconds'))} s (wall)"
+                     for p in pauses if isinstance(p, dict)) or DASH
 
 
 def events(*lists):
@@ -393,7 +400,11 @@ def series(entries, value, cumulative=False):
 
 
 def mark_events(ax, run):
-    """Kills (red) and restarts (green) as vertical lines across a time axis."""
+    """Kills (red), restarts (green) and pauses (orange) as vertical lines across a time axis."""
+    for rid, t in run.pauses:
+        ax.axvline(t, color="darkorange", lw=1.0, ls="--", alpha=0.8)
+        ax.text(t, 1.0, f" \u2016{rid}", color="darkorange", fontsize=8, transform=ax.get_xaxis_transform(),
+                va="bottom")
     for rid, t in run.kills:
         ax.axvline(t, color="red", lw=1.0, ls=":", alpha=0.8)
         ax.text(t, 1.0, f" \u00d7{rid}", color="red", fontsize=8, transform=ax.get_xaxis_transform(), va="bottom")
@@ -483,6 +494,10 @@ def exchanges_figure(run, tl, period, path):
             if kid == r:
                 ax.vlines(t, lo, hi, color="green", lw=1.5)
                 ax.plot([t] * n, range(y, y + n), "^", color="green", ms=6)
+        for kid, t in run.pauses:
+            if kid == r:
+                ax.vlines(t, lo, hi, color="darkorange", lw=1.5, ls="--")
+                ax.plot([t] * n, range(y, y + n), "|", color="darkorange", ms=10, mew=2)
         ax.axhline(hi, color="grey", lw=0.6)
         y += n
     ax.set_yticks(range(len(rows)))
@@ -494,7 +509,7 @@ def exchanges_figure(run, tl, period, path):
         ax.set_xlim(0, run.duration)
     ax.grid(axis="x", alpha=0.3)
     ax.set_title("maps received: a bar over each checkpoint period in which the receiver got maps from the sender"
-                 "\n(red \u00d7: killed, shaded until restarted; green \u25b2: restarted)", fontsize=10)
+                 "\n(red \u00d7: killed, shaded until restarted; green \u25b2: restarted; orange |: paused)", fontsize=10)
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
 
@@ -592,7 +607,7 @@ def summary_table(run):
 
 
 def peers_table(run, frames):
-    head = ["agent", "map frame", "killed at (s)", "restarted at (s)", "peers aligned", "peers stale",
+    head = ["agent", "map frame", "killed at (s)", "restarted at (s)", "paused at (s)", "peers aligned", "peers stale",
             "maps dropped", "bytes received", "local trajectory RMSE (m)", "global RMSE own landmarks (m)",
             "worst alignment error (m)"]
     out = ['<table id="peers">', "<tr>" + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr>"]
@@ -602,6 +617,7 @@ def peers_table(run, frames):
         cells = [a.get("id"), frames.get(a.get("id"), DASH),
                  ", ".join(format_number(t) for t in a.get("killed_at") or []) or DASH,
                  ", ".join(format_number(t) for t in a.get("restarted_at") or []) or DASH,
+                 ", ".join(format_number(t) for t in a.get("paused_at") or []) or DASH,
                  ", ".join(str(p) for p in a.get("peers_aligned") or []) or DASH,
                  ", ".join(str(p) for p in a.get("peers_stale") or []) or DASH,
                  format_number(a.get("maps_dropped")), format_number(a.get("bytes_received")),
@@ -666,6 +682,7 @@ def write_report(d):
              + (f", pace {esc(s['pace'])}" if s.get("pace") else "")
              + f"; {len(run.agents)} agents."
              + f" Kills: {esc(events_text(run.kills))}. Restarts: {esc(events_text(run.restarts))}."
+             + (f" Pauses: {esc(pauses_text(s.get('pauses')))}." if s.get("pauses") else "")
              + (" <b>The run was interrupted.</b>" if s.get("interrupted") else ""))
     notes = "".join(f"<li>{esc(n)}</li>" for n in dict.fromkeys(run.notes))
     page = f"""<!DOCTYPE html>

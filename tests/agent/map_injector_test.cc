@@ -32,9 +32,16 @@ MapMessage RobotMap(RobotId robot, std::uint32_t version, int landmarks) {
   return msg;
 }
 
+// The next message, which these cases make maps only.
+std::optional<MapMessage> NextMap(MapInjector& inj) {
+  const std::optional<InjectedMessage> m = inj.Next();
+  if (!m) return std::nullopt;
+  return std::get<MapMessage>(*m);
+}
+
 TEST(InjectCases, ParsesAllAListAndRefusesUnknownOnes) {
   EXPECT_EQ(ParseInjectCases("all"), AllInjectCases());
-  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 3));
+  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 8));
   EXPECT_EQ(ParseInjectCases("shuffled,truncated,shuffled"), (std::vector<std::string>{"shuffled", "truncated"}));
   EXPECT_FALSE(ParseInjectCases("shuffle").has_value());
   EXPECT_FALSE(ParseInjectCases("").has_value());
@@ -42,10 +49,13 @@ TEST(InjectCases, ParsesAllAListAndRefusesUnknownOnes) {
 }
 
 TEST(MapInjector, BeforeHearingAnyMapOnlyMalformedAndForeignMapsAreMade) {
-  MapInjector inj({1, 2}, AllInjectCases(), 99, 3);
+  std::vector<std::string> map_cases;
+  for (int i = 0; i < kPayloadFaultCount; ++i) map_cases.emplace_back(ToString(static_cast<PayloadFault>(i)));
+  for (const char* c : {"stale_version", "unknown_sender", "shuffled"}) map_cases.emplace_back(c);
+  MapInjector inj({1, 2}, map_cases, 99, 3);
   std::map<std::string, int> made;
   for (int i = 0; i < 3 * kPayloadFaultCount * 2; ++i) {
-    const std::optional<MapMessage> m = inj.Next();
+    const std::optional<MapMessage> m = NextMap(inj);
     ASSERT_TRUE(m.has_value());
     const MapDecodeResult d = DecodeMap(m->payload);
     if (m->robot_id == 99) {
@@ -70,19 +80,19 @@ TEST(MapInjector, BeforeHearingAnyMapOnlyMalformedAndForeignMapsAreMade) {
 
 TEST(MapInjector, StaleAndShuffledMapsFollowWhatTheRobotPublished) {
   MapInjector inj({2}, {"stale_version", "shuffled"}, 99, 5);
-  EXPECT_FALSE(inj.Next().has_value());
+  EXPECT_FALSE(NextMap(inj).has_value());
   inj.OnMap(RobotMap(2, 1, 10));
-  EXPECT_FALSE(inj.Next().has_value());  // no older version than 1 to claim
+  EXPECT_FALSE(NextMap(inj).has_value());  // no older version than 1 to claim
   const MapMessage v3 = RobotMap(2, 3, 10);
   inj.OnMap(v3);
   inj.OnMap(RobotMap(2, 2, 10));  // an older one arriving late changes nothing
-  std::optional<MapMessage> stale = inj.Next();
+  std::optional<MapMessage> stale = NextMap(inj);
   ASSERT_TRUE(stale.has_value());
   EXPECT_EQ(stale->version, 2u);
   EXPECT_EQ(stale->incarnation, 7u);
   EXPECT_EQ(stale->payload, v3.payload);
   // shuffled waits until an agent reports robot 2 aligned.
-  EXPECT_EQ(inj.Next()->version, 2u);
+  EXPECT_EQ(NextMap(inj)->version, 2u);
   AgentStatus s;
   s.robot_id = 1;
   s.peers_aligned = {2};
@@ -91,7 +101,7 @@ TEST(MapInjector, StaleAndShuffledMapsFollowWhatTheRobotPublished) {
   // shuffled maps, then honest again.
   std::vector<MapMessage> faulty;
   while (faulty.size() < 5) {
-    std::optional<MapMessage> m = inj.Next();
+    std::optional<MapMessage> m = NextMap(inj);
     ASSERT_TRUE(m.has_value());
     if (m->incarnation == kInjectFaultyIncarnation) faulty.push_back(*m);
   }
@@ -119,7 +129,7 @@ TEST(MapInjector, StaleAndShuffledMapsFollowWhatTheRobotPublished) {
   // Its own maps coming back are not taken for the robot's: the stale case still copies v3.
   for (const MapMessage& m : faulty) inj.OnMap(m);
   std::optional<MapMessage> again;
-  while (!again || again->incarnation == kInjectFaultyIncarnation) again = inj.Next();
+  while (!again || again->incarnation == kInjectFaultyIncarnation) again = NextMap(inj);
   EXPECT_EQ(again->version, 2u);
   EXPECT_EQ(again->payload, v3.payload);
 }
@@ -134,7 +144,68 @@ TEST(MapInjector, MalformedOwnMapsAndOtherRobotsAreNotHeard) {
   MapMessage global = RobotMap(2, 5, 10);
   global.kind = MapKind::kGlobal;
   inj.OnMap(global);
-  EXPECT_FALSE(inj.Next().has_value());
+  EXPECT_FALSE(NextMap(inj).has_value());
+}
+
+// The hostile cases: forged odometry, a far reading at the time the agent reported, a links
+// table from the far future, a version jump on the robot's own map, and the huge map one turn in
+// kInjectHugeEvery.
+TEST(MapInjector, HostileInputFollowsWhatTheRobotsReported) {
+  MapInjector inj({2}, {"odometry_stamp", "far_reading", "links_stamp", "version_jump", "huge_map"}, 99, 5);
+  auto drain = [&] {
+    std::vector<InjectedMessage> out;
+    for (int i = 0; i < 5; ++i) {
+      if (auto m = inj.Next()) out.push_back(*m);
+    }
+    return out;
+  };
+  // Nothing heard yet: only what needs no robot state, and the huge map on its first turn.
+  std::vector<InjectedMessage> first = drain();
+  int odom = 0, links = 0, huge = 0;
+  for (const auto& m : first) {
+    if (const auto* o = std::get_if<Odometry>(&m)) {
+      ++odom;
+      EXPECT_EQ(o->robot_id, 2u);
+      EXPECT_EQ(o->stamp, 1e9);
+    } else if (const auto* l = std::get_if<RadioLinks>(&m)) {
+      ++links;
+      EXPECT_EQ(l->stamp, 1e300);
+      EXPECT_TRUE(l->links.empty());
+    } else if (const auto* h = std::get_if<MapMessage>(&m)) {
+      ++huge;
+      EXPECT_EQ(h->incarnation, kInjectHugeIncarnation);
+      EXPECT_EQ(MapPayloadCount(h->payload), kMapCodecMaxLandmarks);
+      EXPECT_TRUE(DecodeMap(h->payload).ok());
+    } else {
+      ADD_FAILURE() << "a scan before the robot's time is known";
+    }
+  }
+  EXPECT_GT(odom, 0);
+  EXPECT_GT(links, 0);
+  EXPECT_EQ(huge, 1);
+  AgentStatus s;
+  s.robot_id = 2;
+  s.processed_until = 42.0;
+  inj.OnStatus(s);
+  inj.OnMap(RobotMap(2, 3, 10));
+  bool scan = false, jump = false;
+  for (int round = 0; round < 4; ++round) {
+    for (const auto& m : drain()) {
+      if (const auto* sc = std::get_if<Scan>(&m)) {
+        scan = true;
+        EXPECT_NEAR(sc->stamp, 42.05, 1e-9);
+        ASSERT_EQ(sc->obs.size(), 1u);
+        EXPECT_EQ(sc->obs[0].range, 30000.0);
+      } else if (const auto* v = std::get_if<MapMessage>(&m); v && v->incarnation == 7) {
+        jump = true;
+        EXPECT_EQ(v->version, 0xFFFFFFF0u);
+        EXPECT_EQ(v->payload, RobotMap(2, 3, 10).payload);
+      }
+    }
+  }
+  EXPECT_TRUE(scan);
+  EXPECT_TRUE(jump);
+  EXPECT_GT(inj.sent().at("far_reading").at(2), 0);
 }
 
 }  // namespace

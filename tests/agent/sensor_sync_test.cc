@@ -194,5 +194,31 @@ TEST(SensorSync, ScanSequenceGapsAreCountedAsLost) {
   EXPECT_EQ(sync.stats().scans_lost, 5u);  // 2, 3, 6, 7, 8
 }
 
+// After a stall the feeder sends again what the agent had not reported processed: what the
+// agent had already (applied, or waiting) is ignored and counted as duplicate, the rest goes
+// on as if nothing had happened.
+TEST(SensorSync, MessagesSentAgainAreIgnoredOnce) {
+  Log log;
+  SensorSync sync(log);
+  Scan s1 = ScanAt(0.15), s2 = ScanAt(0.35);
+  s1.seq = 0;
+  s2.seq = 1;
+  sync.OnScan(s1);
+  sync.OnOdometry(Odom(0, 0.2, 0.2, 1));
+  sync.OnScan(s2);  // waiting for its odometry
+  const std::vector<std::string> before = log.events;
+  sync.OnScan(s1);
+  sync.OnOdometry(Odom(0, 0.2, 0.2, 1));
+  sync.OnScan(s2);
+  EXPECT_EQ(log.events, before);
+  EXPECT_EQ(sync.stats().scans_duplicate, 2u);
+  EXPECT_EQ(sync.stats().odom_duplicate, 1u);
+  EXPECT_EQ(sync.stats().odom_rejected + sync.stats().scans_late, 0u);
+  sync.OnOdometry(Odom(1, 0.4, 0.2, 1));
+  EXPECT_DOUBLE_EQ(sync.processed_until(), 0.4);
+  EXPECT_EQ(sync.stats().scans_processed, 2u);
+  EXPECT_EQ(sync.stats().odom_lost + sync.stats().scans_lost, 0u);
+}
+
 }  // namespace
 }  // namespace mapmesh

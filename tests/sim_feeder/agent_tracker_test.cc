@@ -79,12 +79,46 @@ TEST(AgentTracker, LivelinessLossMarksDead) {
   EXPECT_TRUE(t.IsUp(1));
 }
 
+// A paused agent's writers go quiet, but its process is still there: it is silent, still
+// waited for at every barrier, and up again with its next status (same incarnation). Only when
+// its process is gone is it dead.
+TEST(AgentTracker, LivelinessLossOfAnExistingProcessIsSilenceNotDeath) {
+  AgentTracker t({1, 2});
+  for (RobotId id : {1u, 2u}) {
+    t.OnStatus(St(id, id, 1.0));
+    t.SetSubscribed(id, true);
+  }
+  t.SetProcess(2, 4242);
+  EXPECT_EQ(t.process(2), 4242);
+  t.OnGone(2, /*process_exists=*/true);
+  EXPECT_TRUE(t.IsSilent(2));
+  EXPECT_FALSE(t.IsDead(2));
+  EXPECT_FALSE(t.IsUp(2));
+  EXPECT_EQ(t.Silent(), std::vector<RobotId>{2});
+  EXPECT_EQ(t.Lagging({{1, 2.0}, {2, 2.0}}), (std::vector<RobotId>{1, 2}));  // still waited for
+  EXPECT_TRUE(t.Pending().empty());
+  t.OnStatus(St(2, 2, 2.0));  // SIGCONT: the same process speaks again
+  EXPECT_TRUE(t.IsUp(2));
+  EXPECT_FALSE(t.IsSilent(2));
+  EXPECT_EQ(t.Lagging({{1, 2.0}, {2, 2.0}}), std::vector<RobotId>{1});
+  // Quiet again, and this time the process is gone: dead, and no longer waited for.
+  t.OnGone(2, true);
+  t.OnProcessGone(2);
+  EXPECT_TRUE(t.IsDead(2));
+  EXPECT_FALSE(t.IsSilent(2));
+  EXPECT_EQ(t.Lagging({{1, 2.0}, {2, 3.0}}), std::vector<RobotId>{1});
+}
+
 TEST(ParseControl, Commands) {
   EXPECT_EQ(ParseControl("dead 3")->kind, ControlCommand::Kind::kDead);
   EXPECT_EQ(ParseControl("dead 3")->id, 3u);
   EXPECT_EQ(ParseControl("expect 12")->kind, ControlCommand::Kind::kExpect);
   EXPECT_EQ(ParseControl("continue")->kind, ControlCommand::Kind::kContinue);
   EXPECT_EQ(ParseControl("stop")->kind, ControlCommand::Kind::kStop);
+  EXPECT_EQ(ParseControl("pid 2 31337")->kind, ControlCommand::Kind::kPid);
+  EXPECT_EQ(ParseControl("pid 2 31337")->pid, 31337);
+  EXPECT_FALSE(ParseControl("pid 2").has_value());
+  EXPECT_FALSE(ParseControl("pid 2 -5").has_value());
   EXPECT_FALSE(ParseControl("dead").has_value());
   EXPECT_FALSE(ParseControl("dead -1").has_value());
   EXPECT_FALSE(ParseControl("launch 2").has_value());
