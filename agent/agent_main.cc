@@ -227,6 +227,15 @@ void WriteOutputs(const AgentNode& node, const std::string& dir, const std::map<
   }
   std::ofstream history(dir + "/history.jsonl", std::ios::app);
   history << line.dump() << '\n';
+  if (final) {
+    // The last maps received from each peer, in the peer's frame: what a dead peer left us.
+    std::filesystem::create_directories(dir + "/peers");
+    for (const MapExchange::Received& r : node.exchange().ReceivedMaps()) {
+      const std::string base = fmt::format("{}/peers/{}_{}", dir, r.key.robot, r.key.incarnation);
+      if (r.local) io::WriteJsonAtomic(base + "_local.json", io::MapToJson(*r.local));
+      if (r.global) io::WriteJsonAtomic(base + "_global.json", io::MapToJson(*r.global));
+    }
+  }
   json poses = json::array();
   for (const auto& p : node.trajectory()) poses.push_back({p.t, p.pose.x, p.pose.y, p.pose.theta});
   io::WriteJsonAtomic(dir + "/trajectory.json",

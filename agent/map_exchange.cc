@@ -438,6 +438,15 @@ std::vector<PeerReport> MapExchange::Peers() const {
   return out;
 }
 
+std::vector<MapExchange::Received> MapExchange::ReceivedMaps() const {
+  std::vector<Received> out;
+  for (const auto& [key, p] : peers_) {
+    if (p.report.own_checkpoint) continue;
+    out.push_back({key, p.has_local ? &p.local : nullptr, p.has_global ? &p.global : nullptr});
+  }
+  return out;
+}
+
 std::vector<MapExchange::OwnEarlier> MapExchange::UnalignedOwnCheckpoints() const {
   std::vector<OwnEarlier> out;
   for (const auto& [key, p] : peers_) {

@@ -170,6 +170,13 @@ class MapExchange {
   };
   std::vector<OwnEarlier> UnalignedOwnCheckpoints() const;
   std::vector<PeerReport> Peers() const;
+  // The last maps received from each peer incarnation (null where none), for the record.
+  struct Received {
+    PeerKey key;
+    const LandmarkMap* local = nullptr;
+    const LandmarkMap* global = nullptr;
+  };
+  std::vector<Received> ReceivedMaps() const;
   // Robots with at least one aligned incarnation, and robots whose writer is gone.
   std::vector<RobotId> AlignedRobots() const;
   std::vector<RobotId> StaleRobots() const;

@@ -15,6 +15,7 @@
 #include "common/metrics/landmark_metrics.h"
 #include "common/metrics/reference_metrics.h"
 #include "common/metrics/trajectory_metrics.h"
+#include "eval/dead_peers.h"
 
 namespace mapmesh {
 namespace {
@@ -99,6 +100,32 @@ json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::
     }
     line.erase("snapshot");
     out.push_back(line);
+  }
+  return out;
+}
+
+// For each peer incarnation the agent saw go silent for good (its writer gone), what its global
+// map holds of the last map received from it (dead_peers.h), in simulated worlds.
+json DeadPeersJson(const json& stats, const LandmarkMap& global, const std::string& dir, const io::RunTruth& truth,
+                   const std::optional<Pose2>& origin, double gate_m) {
+  json out = json::array();
+  if (!stats.contains("peers") || !origin || !truth.headings_known || !std::filesystem::exists(dir + "/local_map.json")) {
+    return out;
+  }
+  const LandmarkMap own = io::MapFromJson(io::ReadJson(dir + "/local_map.json"));
+  for (const json& p : stats.at("peers")) {
+    if (!p.value("stale", false) || p.value("own_checkpoint", false)) continue;
+    const RobotId robot = p.at("robot").get<RobotId>();
+    const std::uint32_t inc = p.at("incarnation").get<std::uint32_t>();
+    const std::string path = dir + "/peers/" + std::to_string(robot) + "_" + std::to_string(inc) + "_local.json";
+    const io::RobotTruth* rt = truth.Find(robot);
+    if (!rt || !std::filesystem::exists(path)) continue;
+    const std::optional<Pose2> peer_origin = rt->PoseAt(p.at("origin_stamp").get<double>());
+    if (!peer_origin) continue;
+    const HeldFromPeer h =
+        CheckHeld(own, global, *origin, io::MapFromJson(io::ReadJson(path)), *peer_origin, truth.landmarks, gate_m);
+    out.push_back({{"robot", robot}, {"incarnation", inc}, {"landmarks", h.landmarks}, {"overlaps", h.overlaps},
+                   {"verdict", h.verdict}, {"held", h.held}, {"aligned", p.value("aligned", false)}});
   }
   return out;
 }
@@ -197,6 +224,7 @@ int Run(int argc, char** argv) {
                                                ? MapFrameInWorld(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks)
                                                : std::nullopt;
       entry["alignment_errors"] = AlignmentErrors(stats, truth, origin, own_fit, run_dir);
+      entry["dead_peers"] = DeadPeersJson(stats, map, dir, truth, origin, gate_m);
     }
     // The estimated trajectory against the true one: in the true frame when the origin is
     // known, else after a rigid fit (GPS glitches dropped).

@@ -458,6 +458,9 @@ class SwarmRun:
                 "peers_aligned": stats.get("peers_aligned", []),
                 "peers_stale": stats.get("peers_stale", []),
                 "alignment_errors": score.get("alignment_errors", {}),
+                # Per peer that can no longer speak: the last map received of it, whether it overlaps
+                # this agent's final local map, and how many of its landmarks the global map holds.
+                "dead_peers": score.get("dead_peers", []),
                 "maps_received": stats.get("maps_received"),
                 "maps_dropped": _maps_dropped(stats),
                 "maps_rejected": stats.get("maps_rejected", {}),

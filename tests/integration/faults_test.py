@@ -1,0 +1,99 @@
+"""Faults a fault-injection tool must survive itself (R1), through real processes: a paused
+agent (lockstep waits for it and loses nothing; realtime counts exactly what it lost), and
+hostile input published over DDS during a run (each refusal counted, the maps unaffected)."""
+
+import json
+import unittest
+
+from swarm_test import REPO, SwarmCase
+
+PARK4 = REPO / "scenarios" / "park4.yaml"
+
+
+class FaultRunCase(SwarmCase):
+    def run_ok(self, *args, out=None):
+        if out is not None:
+            self.out = out
+        r = self.swarm(*args, "--no-report")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        return {a["id"]: a for a in self.summary()["agents"]}
+
+
+class PauseTest(FaultRunCase):
+    def test_lockstep_waits_for_a_paused_agent_and_loses_nothing(self):
+        base = self.out
+        clean = self.run_ok(PARK4, out=base.parent / "clean")
+        paused = self.run_ok(PARK4, "--pause", "2@30:3", out=base.parent / "paused")
+        pauses = self.summary()["pauses"]
+        self.assertEqual(len(pauses), 1)
+        self.assertGreaterEqual(pauses[0]["wall_end"] - pauses[0]["wall_start"], 3.0)
+        self.assertEqual(paused[2]["paused_at"], [30.0])
+        for rid, a in paused.items():
+            # Every sensor message the feeder sent was processed, none lost.
+            self.assertEqual(a["odom_processed"], a["odom_sent"], a)
+            self.assertEqual(a["scans_processed"], a["scans_sent"], a)
+            self.assertEqual(a["odometry_lost"], 0)
+            self.assertEqual(a["scans_lost"], 0)
+        # The same stream, the same local map.
+        self.assertAlmostEqual(paused[2]["local"]["rmse_m"], clean[2]["local"]["rmse_m"],
+                               delta=0.1 * clean[2]["local"]["rmse_m"])
+        self.assertEqual(paused[2]["local"]["landmarks"], clean[2]["local"]["landmarks"])
+        # The feeder waited for it rather than declaring it dead.
+        log = (self.out / "feeder.log").read_text()
+        self.assertIn("agent 2 lost (DDS liveliness); its process exists", log)
+        self.assertNotIn("no longer waiting for it", log)
+
+    def test_realtime_counts_exactly_what_a_paused_agent_lost(self):
+        agents = self.run_ok(PARK4, "--pace", "realtime", "--rate", "20", "--pause", "2@30:3")
+        for rid, a in agents.items():
+            with self.subTest(agent=rid):
+                # Sent = received + lost, for both streams (nothing is lost after the last message).
+                self.assertEqual(a["odom_sent"], a["odom_received"] + a["odometry_lost"], a)
+                self.assertEqual(a["scans_sent"], a["scans_received"] + a["scans_lost"], a)
+                if rid != 2:
+                    self.assertEqual(a["odometry_lost"], 0)
+        self.assertGreater(agents[2]["odometry_lost"], 0)  # the pause did lose data, and it shows
+        self.assertGreater(agents[2]["scans_lost"], 0)
+
+
+class HostileInputTest(FaultRunCase):
+    CASES = "odometry_stamp,far_reading,links_stamp,version_jump,huge_map,out_of_bounds"
+
+    def test_each_hostile_message_is_refused_counted_and_changes_nothing(self):
+        base = self.out
+        clean = self.run_ok(PARK4, out=base.parent / "clean")
+        hostile = self.run_ok(PARK4, "--inject", self.CASES, "--inject-period", "0.05", out=base.parent / "hostile")
+        summary = self.summary()
+        self.assertEqual(summary["injector_exit_code"], 0)
+        cases = summary["injected"]["cases"]
+        for case in self.CASES.split(","):
+            self.assertGreater(cases[case]["sent"], 0, case)
+        huge_receivers = 0
+        for rid, a in hostile.items():
+            with self.subTest(agent=rid):
+                c = clean[rid]
+                self.assertEqual(a["exit_code"], 0)
+                stats = json.loads((self.out / f"agent_{rid}" / "stats.json").read_text())
+                # Each kind refused and counted.
+                self.assertGreater(stats["odom_implausible"], 0)
+                self.assertGreater(stats["observations"]["out_of_range"], 0)
+                self.assertGreater(stats["links_refused"], 0)
+                self.assertGreater(stats["maps_refused"]["version_jump"], 0)
+                self.assertGreater(stats["maps_rejected"]["out_of_bounds"], 0)
+                self.assertEqual(stats["maps_encode_failed"], 0)
+                # It kept mapping and publishing: its maps are as good as in the clean run.
+                self.assertEqual(a["odom_processed"], c["odom_processed"])
+                self.assertGreater(stats["maps_sent"], 0.9 * json.loads(
+                    (base.parent / "clean" / f"agent_{rid}" / "stats.json").read_text())["maps_sent"])
+                self.assertLessEqual(a["local"]["rmse_m"], 1.1 * c["local"]["rmse_m"])
+                self.assertLessEqual(a["global"]["rmse_m"], 1.1 * c["global"]["rmse_m"])
+                self.assertGreaterEqual(a["global"]["coverage"], 0.9 * c["global"]["coverage"])
+                if stats["maps_refused"]["too_many_landmarks"] > 0:
+                    huge_receivers += 1
+                    # 1.6 MB maps refused unread: at most twice the clean run's CPU.
+                    self.assertLessEqual(a["cpu_s"], 2.0 * c["cpu_s"] + 0.5, (a["cpu_s"], c["cpu_s"]))
+        self.assertGreater(huge_receivers, 0)
+
+
+if __name__ == "__main__":
+    unittest.main()
