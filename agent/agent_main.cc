@@ -330,8 +330,8 @@ int Run(int argc, char** argv) {
   auto next_beat = Clock::now() + kStatusBeat;
   std::map<PeerKey, PeerReport> peer_events;
   InputWatch input_watch;
-  while (!shutdown.requested()) {
-    waitset.Wait(0.1);
+  // Everything the readers hold, into the node.
+  auto pump = [&] {
     for (const auto& s : links.Take()) {
       if (s.valid) node.OnLinks(s.value);
     }
@@ -352,6 +352,10 @@ int Run(int argc, char** argv) {
         }
       }
     }
+  };
+  while (!shutdown.requested()) {
+    waitset.Wait(0.1);
+    pump();
     LogPeerEvents(node, peer_events);
     input_watch.Check(node);
     if (checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {
@@ -364,6 +368,9 @@ int Run(int argc, char** argv) {
       next_beat = Clock::now() + kStatusBeat;
     }
   }
+  // What was delivered before the signal is counted too (a realtime run's tail), so that the
+  // feeder's count of what it sent equals what arrived plus what was lost.
+  pump();
   spdlog::info("signal {}: writing outputs to {}", shutdown.signal(), out_dir);
   WriteOutputs(node, out_dir, lost_wall, /*final=*/true);
   if (checkpoint_period > 0) io::WriteJsonAtomic(checkpoint_path, io::CheckpointToJson(node.Checkpoint()));

@@ -124,8 +124,10 @@ json DeadPeersJson(const json& stats, const LandmarkMap& global, const std::stri
     if (!peer_origin) continue;
     const HeldFromPeer h =
         CheckHeld(own, global, *origin, io::MapFromJson(io::ReadJson(path)), *peer_origin, truth.landmarks, gate_m);
-    out.push_back({{"robot", robot}, {"incarnation", inc}, {"landmarks", h.landmarks}, {"overlaps", h.overlaps},
-                   {"verdict", h.verdict}, {"held", h.held}, {"aligned", p.value("aligned", false)}});
+    out.push_back({{"robot", robot}, {"incarnation", inc}, {"landmarks", h.landmarks}, {"alignable", h.alignable()},
+                   {"aligned_tries", h.aligned_tries}, {"overlaps", h.overlaps},
+                   {"verdict", h.verdict}, {"covered", h.covered}, {"inliers", h.inliers}, {"held", h.held},
+                   {"aligned", p.value("aligned", false)}});
   }
   return out;
 }

@@ -86,26 +86,27 @@ class ExchangeTest(SwarmCase):
         self.assertGreater(checked, 0)  # some survivor had received landmarks from the killed ones
 
     def test_eight_agents_four_killed_later_hold_every_overlapping_dead_map(self):
-        # Other kill times than above, some before any alignment in the park (about 100 s): a
-        # dead robot's last map keeps being tried against the survivor's growing map. Whatever
-        # of it overlaps the survivor's final local map by the alignment's own criteria must be
-        # in its global map (eval's dead_peers: true landmarks held, by any route).
-        kills = {2: 40.0, 4: 70.0, 5: 100.0, 7: 130.0}
+        # Other robots and kill times than above, most before any alignment in the park (about
+        # 100 s; survivors' coverage was 0.35-0.58 when a dead robot's map was tried only while
+        # it spoke): a dead robot's last map keeps being tried against the survivor's growing
+        # map. Every one that the exchange's alignment places on the survivor's final local map
+        # (eval's dead_peers: the true transform found on most seeded tries) must be held whole.
+        kills = {1: 40.0, 3: 70.0, 5: 100.0, 7: 130.0}
         args = [SCENARIOS / "park4.yaml", "--agents", "8"]
         for rid, t in kills.items():
             args += ["--kill", f"{rid}@{t}"]
         agents = self.run_ok(*args)
-        overlapping = 0
+        alignable = 0
         for rid, a in agents.items():
             if rid in kills:
                 continue
             self.assertEqual(a["exit_code"], 0)
             for d in a["dead_peers"]:
                 self.assertIn(d["robot"], kills)
-                if d["overlaps"]:
-                    overlapping += 1
+                if d["alignable"]:
+                    alignable += 1
                     self.assertEqual(d["held"], d["landmarks"], f"agent {rid} lost landmarks of dead robot {d}")
-        self.assertGreaterEqual(overlapping, 4)  # the survivors did overlap the dead
+        self.assertGreaterEqual(alignable, 4)  # the survivors could place the dead
 
     def test_restarted_agent_ends_with_at_least_its_coverage_before_the_kill(self):
         agents = self.run_ok(SCENARIOS / "park4.yaml", "--kill", "3@60", "--restart", "3@80")

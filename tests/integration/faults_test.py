@@ -88,10 +88,8 @@ class HostileInputTest(FaultRunCase):
                 self.assertLessEqual(a["local"]["rmse_m"], 1.1 * c["local"]["rmse_m"])
                 self.assertLessEqual(a["global"]["rmse_m"], 1.1 * c["global"]["rmse_m"])
                 self.assertGreaterEqual(a["global"]["coverage"], 0.9 * c["global"]["coverage"])
-                if stats["maps_refused"]["too_many_landmarks"] > 0:
-                    huge_receivers += 1
-                    # 1.6 MB maps refused unread: at most twice the clean run's CPU.
-                    self.assertLessEqual(a["cpu_s"], 2.0 * c["cpu_s"] + 0.5, (a["cpu_s"], c["cpu_s"]))
+                # 1.6 MB maps refused unread (their cost is a benchmark: BM_AgentReceivesPeerMap).
+                huge_receivers += stats["maps_refused"]["too_many_landmarks"] > 0
         self.assertGreater(huge_receivers, 0)
 
 
