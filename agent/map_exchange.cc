@@ -59,7 +59,9 @@ MapExchange::Receipt MapExchange::OnPeerMap(RobotId robot, std::uint32_t incarna
   p.report.origin_stamp = origin_stamp;
   p.report.last_heard = now;
   p.changed = true;
-  p.report.stale = false;  // heard again
+  p.report.stale = false;  // heard again: it speaks for itself
+  p.superseded_by.reset();
+  p.report.superseded = false;
   return Receipt::kAccepted;
 }
 
@@ -72,7 +74,7 @@ bool MapExchange::MakeRoomFor(RobotId robot) {
   auto victim = peers_.end();
   for (auto it : kept) {
     const Peer& p = it->second;
-    if (p.report.ever_aligned || p.report.own_checkpoint || !Frozen(p)) continue;
+    if (p.report.ever_aligned || p.report.own_checkpoint || !Silent(p)) continue;
     if (victim == peers_.end() || p.report.last_heard < victim->second.report.last_heard) victim = it;
   }
   if (victim == peers_.end()) return false;
@@ -90,6 +92,7 @@ void MapExchange::OnPeerLiveliness(RobotId robot, bool alive, double now) {
       p.report.stale = false;
     }
     p.report.frozen = Frozen(p);
+    p.report.silent = Silent(p);
   }
 }
 
@@ -127,6 +130,8 @@ MapExchange::Overlap MapExchange::Compare(const LandmarkMap& witness, const Land
 
 void MapExchange::Drop(Peer& p, double now) {
   ++p.report.drops;
+  p.superseded_by.reset();
+  p.report.superseded = false;
   p.report.aligned = false;
   p.report.dropped = true;
   p.source.reset();
@@ -140,16 +145,18 @@ bool MapExchange::Spend() {
   return true;
 }
 
-bool MapExchange::Frozen(const Peer& p) const {
-  return p.report.stale || p.report.own_checkpoint || now_ - p.report.last_heard > options_.silent_after_s;
+bool MapExchange::Frozen(const Peer& p) const { return p.report.stale || p.report.own_checkpoint; }
+
+bool MapExchange::Silent(const Peer& p) const {
+  return Frozen(p) || now_ - p.report.last_heard > options_.silent_after_s;
 }
 
 bool MapExchange::AttemptDue(const Peer& p, const LandmarkMap& own_local, double now) const {
   if (now - p.last_attempt < options_.align_period_s) return false;
   if (p.changed || Grew(own_local.size(), p.own_size_at_attempt)) return true;
-  // A peer that can no longer speak will send no better map: what it sent is tried whenever
-  // ours has changed, for the rest of the run.
-  return p.report.frozen && own_local.size() != p.own_size_at_attempt;
+  // A peer that is silent (or can no longer speak) sends no better map: what it sent is tried
+  // whenever ours has changed, for the rest of the run.
+  return p.report.silent && own_local.size() != p.own_size_at_attempt;
 }
 
 bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool reconsider_relay) {
@@ -194,8 +201,9 @@ bool MapExchange::Grew(std::size_t size, std::size_t at_attempt) const {
 }
 
 bool MapExchange::RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const {
-  // A frozen peer's contribution stays as it was verified (nothing already learned is lost).
-  if (!options_.realign_on_growth || p.report.frozen || now - p.last_attempt < options_.align_period_s) return false;
+  // A stale peer's contribution stays as it was verified (its map will not change). A silent
+  // one's may still be corrected, by a confirmed answer (a move, never a removal).
+  if (!options_.realign_on_growth || p.report.stale || now - p.last_attempt < options_.align_period_s) return false;
   // A realignment that disagreed with the transform in use waits for a second, later answer to
   // confirm it: that one is due as soon as either map has changed, as for a first alignment, not
   // only after the next fifth of growth (which may never come).
@@ -223,6 +231,8 @@ void MapExchange::Refine(Peer& p, const LandmarkMap& own_local) {
 bool MapExchange::RelayAgrees(const Peer& p, const Pose2& to_own, Peer** conflict) {
   for (auto& [key, q] : peers_) {
     if (&q == &p || !q.direct || q.direct->map.empty()) continue;
+    // A frozen peer this relay re-placed is the relay's to bring: its own copy is no witness.
+    if (q.superseded_by == p.report.key) continue;
     // q's map as we placed it, against p's global map where p placed it: where they overlap,
     // p's map must verify there, at the same transform.
     if (Compare(TransformMap(q.direct->map, q.direct->to_own), p.global, to_own) == Overlap::kDisagrees) {
@@ -279,7 +289,8 @@ bool MapExchange::RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, con
                                                      (relay.against == held.against && relay.inliers > held.inliers));
   if (!relay_better && held.against <= held.supporters) return false;
   // A frozen q cannot speak for itself any more: its landmarks stay, moved to where the live
-  // relay (holding them) places them, and only if another map we hold supports that placement.
+  // relay (holding them) places them, and only if another map we hold supports that placement;
+  // while that relay is used it brings them, and q's own copy stays out (see Update).
   if (q.report.frozen && relay.supporters == 0) return false;
 
   q.refuted.push_back(ours);
@@ -288,6 +299,7 @@ bool MapExchange::RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, con
   q.candidate.reset();
   if (q.report.frozen) {
     ++q.report.replaced;
+    q.superseded_by = p.report.key;
     AlignmentResult placed = r;
     placed.cov = r.cov + p.report.to_own_cov;  // the relay's frame is placed with that uncertainty
     Use(q, placed, own_local, /*reconsider_relay=*/false);
@@ -341,7 +353,10 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
   budget_ = options_.max_alignments_per_update;
   bool changed = false;
   std::set<PeerKey> chosen;  // peers whose map was chosen in this round
-  for (auto& [key, p] : peers_) p.report.frozen = Frozen(p);
+  for (auto& [key, p] : peers_) {
+    p.report.frozen = Frozen(p);
+    p.report.silent = Silent(p);
+  }
   // Round robin: the first peer left without an alignment it was due last time goes first.
   std::vector<std::map<PeerKey, Peer>::iterator> order;
   const auto turn = peers_.lower_bound(next_turn_);
@@ -423,9 +438,18 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     }
   }
   std::vector<MapSource> sources, direct;
-  for (const auto& [key, p] : peers_) {
-    if (p.source) sources.push_back(*p.source);
+  for (auto& [key, p] : peers_) {
     if (p.direct) direct.push_back(*p.direct);
+    if (!p.source) continue;
+    // A frozen peer re-placed by a relay: while that relay is used, it brings the same
+    // landmarks placed the same way; two copies of a bent map would not coincide. When the
+    // relay is not used, the peer's own copy is (nothing learned is lost).
+    if (p.superseded_by && p.report.aligned) {
+      const auto relay = peers_.find(*p.superseded_by);
+      p.report.superseded = relay != peers_.end() && relay->second.source && relay->second.report.relayed;
+      if (p.report.superseded) continue;
+    }
+    sources.push_back(*p.source);
   }
   global_ = BuildGlobalMap(own_local, self_, sources, options_.global, incarnation_);
   published_ = BuildGlobalMap(own_local, self_, direct, options_.global, incarnation_);

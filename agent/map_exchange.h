@@ -25,13 +25,16 @@
 //   contradict our placement than support it, our direct alignment is the false one (in a park,
 //   rows of trees allow a 90-degree match where two paths cross): it is refuted, never accepted
 //   again, and the relay is used instead.
-// - Nothing learned is lost: a peer that can no longer speak (its writer is gone, or it sent
-//   no map for silent_after_s: killed, stalled or out of radio range) is frozen. Its last
-//   verified map stays in the global map, and no decision taken on other evidence removes it:
-//   it is neither verified nor realigned, and a relay that refutes its placement re-places it
-//   (moves it to where that live relay, holding the same landmarks, puts them) instead of
-//   dropping it. Only the peer itself, speaking again, can withdraw what it said. A frozen
-//   peer's last map that was never aligned keeps being tried against our growing map.
+// - Nothing learned is lost: a peer that can no longer speak (its writer is gone: killed, or
+//   stalled beyond its lease) is frozen. Its last verified map stays in the global map, and no
+//   decision taken on other evidence removes it: it is neither verified nor realigned, and a relay that
+//   refutes its placement re-places it (moves it to where that live relay, holding the same
+//   landmarks, puts them) instead of dropping it; while that relay is used, the relay brings
+//   those landmarks and the peer's own copy stays out of the global map (two copies of a bent
+//   map would not coincide), and whenever it is not, the peer's copy is back. Only the peer
+//   itself, speaking again, can withdraw what it said. The last map of a frozen peer, or of one
+//   that sent none for silent_after_s (out of range, say), that was never aligned keeps being
+//   tried against our growing map.
 // - Bounded work: at most max_alignments_per_update full alignments per Update, handed out
 //   round robin so that every peer's turn comes (the agent refuses maps larger than it will
 //   align before they get here: agent.max_peer_landmarks); a peer's map version may run ahead
@@ -87,7 +90,7 @@ struct ExchangeOptions {
                                         // as of Victoria Park's bent maps, 3-5 m and 2-3 degrees apart) ...
   double refute_min_share = 0.5;        // ... and the relay's placement matches this share of the peer's map
                                         // (the relay holds that map, not a stretch of it by coincidence)
-  double silent_after_s = 6.0;          // a peer that sent no map for this long (scenario s) is frozen (see above)
+  double silent_after_s = 6.0;          // a peer that sent no map for this long (scenario s) is silent (see above)
   int max_alignments_per_update = 4;    // full alignments (first, retried and fresh ones) per Update, round robin
   double max_versions_per_s = 2.0;      // a map's version may exceed the last one received by version_slack plus this
   std::uint32_t version_slack = 64;     // rate times the scenario seconds since (and any version by this rate times now)
@@ -114,7 +117,8 @@ struct PeerReport {
   bool dropped = false;            // was aligned, stopped verifying
   bool stale = false;              // its writer is gone (liveliness)
   double stale_since = 0.0;
-  bool frozen = false;             // can no longer speak (stale, or silent for silent_after_s): kept as it is
+  bool frozen = false;             // can no longer speak (stale, or an own checkpoint): kept as it is
+  bool silent = false;             // frozen, or no map for silent_after_s
   double last_heard = 0.0;         // scenario time of its last map (ours, when it arrived)
   double aligned_since = 0.0;      // scenario time of the first acceptance
   Pose2 to_own;                    // the peer's frame in ours
@@ -122,7 +126,8 @@ struct PeerReport {
   bool relayed = false;            // its global map is fused (not its local map)
   int relay_conflicts = 0;         // times its global map disagreed with another peer's map (not relayed then)
   int refuted = 0;                 // times our alignment of it lost to a relay's placement (then dropped, or re-placed when frozen) ...
-  int replaced = 0;                // ... of which it was frozen and moved to the relay's placement
+  int replaced = 0;                // ... of which it was frozen and moved to the relay's placement ...
+  bool superseded = false;         // ... and that relay, used now, brings its landmarks (its own copy is left out)
   RobotId refuted_by = 0;          // ... the last time, to this peer's relay
   int refuted_answers = 0;         // alignments refused for agreeing with a refuted one
   Eigen::Vector2d centroid = Eigen::Vector2d::Zero();  // of the peer map aligned last, in its frame
@@ -197,6 +202,7 @@ class MapExchange {
     std::optional<MapSource> direct;  // ... and the one-hop map (never a relayed global map)
     std::optional<Pose2> candidate;   // an accepted alignment awaiting confirmation
     std::vector<Pose2> refuted;       // alignments that lost to a relay's placement
+    std::optional<PeerKey> superseded_by;  // frozen, re-placed by this relay (see Update)
     std::map<PeerKey, double> last_refute_check;  // by relay: when its placement of this peer was last weighed
   };
   // Aligns the peer's map to the own local map; when the answer is confirmed (confirm_alignments)
@@ -207,8 +213,10 @@ class MapExchange {
   bool MakeRoomFor(RobotId robot);
   // Takes one alignment from this Update's budget; false when none is left.
   bool Spend();
-  // The peer can no longer speak (stale, own checkpoint, or silent for silent_after_s).
+  // The peer can no longer speak (stale, or an own checkpoint).
   bool Frozen(const Peer& p) const;
+  // ... or sent no map for silent_after_s.
+  bool Silent(const Peer& p) const;
   // An unaligned peer's alignment is due: after align_period_s, when its map changed or ours
   // grew by retry_growth (a frozen peer's map cannot change: whenever ours did).
   bool AttemptDue(const Peer& p, const LandmarkMap& own_local, double now) const;
@@ -244,7 +252,8 @@ class MapExchange {
   // p's relay (at to_own) places q elsewhere than q's alignment: refutes q's alignment and
   // returns true when the relay's placement is better supported. A live q is dropped (the relay
   // then brings its landmarks); a frozen q is re-placed at the relay's placement, and only when
-  // another map we hold supports it, so that its landmarks stay.
+  // another map we hold supports it, so that its landmarks stay (superseded by the relay while
+  // it is used).
   bool RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, const LandmarkMap& own_local);
   // What the maps we hold independently of q (our local map and the other aligned peers' one-hop
   // maps) say of a placement of q's map.

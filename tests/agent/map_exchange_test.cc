@@ -428,14 +428,16 @@ TEST(MapExchange, ARelayBetterSupportedThanOurAlignmentRefutesIt) {
   const std::size_t union_size = w.r1.size() + w.r2.size() + w.s.size() + w.v.size() + w.t.size();
   EXPECT_EQ(placed(a.global().map), static_cast<int>(a.global().map.size()));
   EXPECT_EQ(a.global().map.size(), union_size);
-  // Every landmark robot 3 sent is in the global map, under its own origin.
-  std::set<std::uint32_t> from_c;
-  for (const auto& o : a.global().origins) {
-    for (const LandmarkOrigin& x : o) {
-      if (x.robot == 3) from_c.insert(x.id);
-    }
+  // Every landmark robot 3 sent is in the global map, where it belongs: the relay, used now,
+  // brings them (robot 3's own copy stays out while it does).
+  EXPECT_TRUE(rc.superseded);
+  std::vector<Eigen::Vector2d> c_points = w.r1;
+  c_points.insert(c_points.end(), w.s.begin(), w.s.end());
+  for (const auto& q : c_points) {
+    const Eigen::Vector2d in_a = kFrameA.Inverse().Apply(q);
+    EXPECT_TRUE(std::any_of(a.global().map.landmarks.begin(), a.global().map.landmarks.end(),
+                            [&](const Landmark& l) { return (l.mean - in_a).norm() < 0.2; }));
   }
-  EXPECT_EQ(from_c.size(), lc.size());
 }
 
 // Robot 1 maps R2, and landmarks 1 m from where the copy's turn takes S (each in a random
@@ -611,6 +613,8 @@ TEST_P(FrozenPeers, KeepEverythingTheyContributed) {
   std::map<RobotId, std::uint32_t> version;
   std::map<RobotId, bool> dead;
   std::map<RobotId, std::set<std::uint32_t>> kept;  // what each frozen peer gave when it froze
+  // The true landmarks (a map's ids are the world's indices) that r contributed to the global
+  // map, and whether the global map holds a true landmark where it is (by whatever route).
   auto origins_of = [&](RobotId r) {
     std::set<std::uint32_t> ids;
     for (const auto& o : a.global().origins) {
@@ -619,6 +623,11 @@ TEST_P(FrozenPeers, KeepEverythingTheyContributed) {
       }
     }
     return ids;
+  };
+  auto held = [&](std::uint32_t id) {
+    const Eigen::Vector2d at = kFrameA.Inverse().Apply(w.points[id]);
+    return std::any_of(a.global().map.landmarks.begin(), a.global().map.landmarks.end(),
+                       [&](const Landmark& l) { return (l.mean - at).norm() < 0.5; });
   };
   std::uniform_real_distribution<double> u(0.0, 1.0);
   double own_end = strips[0].second;
@@ -644,10 +653,13 @@ TEST_P(FrozenPeers, KeepEverythingTheyContributed) {
     own_end = std::min(40.0, own_end + 0.5);
     a.Update(w.Map(0, own_end, kFrameA, kSigma, rng), now);
     for (RobotId r = 2; r <= 5; ++r) {
-      const std::set<std::uint32_t> now_held = origins_of(r);
-      if (dead[r] && !kept.count(r)) kept[r] = now_held;
+      if (dead[r] && !kept.count(r)) {
+        for (std::uint32_t id : origins_of(r)) {
+          if (held(id)) kept[r].insert(id);  // placed right when it froze
+        }
+      }
       if (!kept.count(r)) continue;
-      for (std::uint32_t id : kept[r]) ASSERT_TRUE(now_held.count(id)) << "robot " << r << " landmark " << id << " step " << step;
+      for (std::uint32_t id : kept[r]) ASSERT_TRUE(held(id)) << "robot " << r << " landmark " << id << " step " << step;
     }
   }
   // The case is not empty: some peer froze while it contributed.
@@ -679,7 +691,33 @@ TEST_P(DeadPeerAndALaterRelay, KeepsTheDeadPeersLandmarks) {
   a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, lb, 20.0);
   a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, b.published().map, 20.0);
   a.Update(la, 20.0);
+  // Each of robot 3's landmarks is in the global map: its own copy, or the relay's when that is
+  // used (then robot 3's copy stays out, placed where the relay puts it).
   std::set<std::uint32_t> from_c;
+  for (const auto& o : a.global().origins) {
+    for (const LandmarkOrigin& x : o) {
+      if (x.robot == 3) from_c.insert(x.id);
+    }
+  }
+  const PeerReport rc = a.Peers()[1];
+  ASSERT_TRUE(rc.aligned);
+  if (!rc.superseded) {
+    EXPECT_EQ(from_c.size(), lc.size());
+    return;
+  }
+  EXPECT_TRUE(a.Peers()[0].relayed);
+  for (const Landmark& l : lc.landmarks) {
+    const Eigen::Vector2d at = rc.to_own.Apply(l.mean);
+    EXPECT_TRUE(std::any_of(a.global().map.landmarks.begin(), a.global().map.landmarks.end(),
+                            [&](const Landmark& g) { return (g.mean - at).norm() < 0.3; }));
+  }
+  // Robot 2's next global map is turned: no longer relayed. Robot 3's own copy is back.
+  a.OnPeerMap(2, 1, MapKind::kLocal, 2, 0.0, lb, 30.0);
+  a.OnPeerMap(2, 1, MapKind::kGlobal, 2, 0.0, TransformMap(b.published().map, Pose2{0.0, 0.0, 0.5}), 30.0);
+  a.Update(la, 30.0);
+  ASSERT_FALSE(a.Peers()[0].relayed);
+  EXPECT_FALSE(a.Peers()[1].superseded);
+  from_c.clear();
   for (const auto& o : a.global().origins) {
     for (const LandmarkOrigin& x : o) {
       if (x.robot == 3) from_c.insert(x.id);
