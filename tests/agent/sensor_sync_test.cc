@@ -131,17 +131,27 @@ TEST(SensorSync, RejectsBadInputWithACountedReason) {
 
 Odometry Seq(std::uint32_t seq, double stamp, double dt = 0.1) { return Odom(seq, stamp, dt, 0); }
 
+// Odometry every 0.1 s, sequence numbers first to end - 1.
+void Feed(SensorSync& sync, std::uint32_t first, std::uint32_t end) {
+  for (std::uint32_t k = first; k < end; ++k) sync.OnOdometry(Seq(k, 0.1 * (k + 1)));
+}
+
+SensorSync::Options WithJump(double max_stamp_jump_s) {
+  SensorSync::Options o;
+  o.max_stamp_jump_s = max_stamp_jump_s;
+  return o;
+}
+
 // One odometry message stamped 1e9 among genuine ones: held (nothing continues it), refused,
 // and the stream goes on as if it had never come.
 TEST(SensorSync, AForgedStampIsRefusedAndTheStreamGoesOn) {
   Log log;
-  SensorSync::Options o;
-  o.max_stamp_jump_s = 5.0;
+  SensorSync::Options o = WithJump(5.0);
   SensorSync sync(log, o);
-  for (std::uint32_t k = 0; k < 5; ++k) sync.OnOdometry(Seq(k, 0.1 * (k + 1)));
+  Feed(sync, 0, 5);
   sync.OnOdometry(Seq(5, 1e9));
   EXPECT_DOUBLE_EQ(sync.processed_until(), 0.5);
-  for (std::uint32_t k = 5; k < 10; ++k) sync.OnOdometry(Seq(k, 0.1 * (k + 1)));
+  Feed(sync, 5, 10);
   EXPECT_DOUBLE_EQ(sync.processed_until(), 1.0);
   EXPECT_EQ(sync.stats().odom_processed, 10u);
   EXPECT_EQ(sync.stats().odom_implausible, 1u);
@@ -165,10 +175,8 @@ TEST(SensorSync, AForgedStampIsRefusedAndTheStreamGoesOn) {
 // gap in sequence numbers is counted as lost.
 TEST(SensorSync, AStreamThatResumesAfterAGapIsTakenAndItsLossCounted) {
   Log log;
-  SensorSync::Options o;
-  o.max_stamp_jump_s = 2.0;
-  SensorSync sync(log, o);
-  for (std::uint32_t k = 0; k < 4; ++k) sync.OnOdometry(Seq(k, 0.1 * (k + 1)));
+  SensorSync sync(log, WithJump(2.0));
+  Feed(sync, 0, 4);
   sync.OnOdometry(Seq(40, 4.1));
   EXPECT_DOUBLE_EQ(sync.processed_until(), 0.4);  // held
   sync.OnOdometry(Seq(41, 4.2));

@@ -5,29 +5,13 @@
 
 #include "common/config/config_error.h"
 #include "common/config/scenario.h"
+#include "tests/config/scenario_testing.h"
 
 namespace mapmesh {
 namespace {
 
-// The ConfigError message of parsing text as "s.yaml", or "" when it loads.
-std::string ErrorOf(const std::string& text, const std::vector<std::string>& sets = {}, int agents = 0) {
-  try {
-    std::vector<ConfigOverride> overrides;
-    for (const auto& s : sets) overrides.push_back(ParseOverride(s));
-    ParseScenario(text, "s.yaml", overrides, agents);
-  } catch (const ConfigError& e) {
-    return e.what();
-  }
-  return "";
-}
-
-constexpr const char* kSimulation = R"(version: 1
-world:
-  landmarks:
-    generator: {count: 10, area_m: [0, 0, 50, 50]}
-robots:
-  count: 2
-)";
+using testing::ErrorOf;
+using testing::kSimulation;
 
 TEST(ScenarioKeys, DuplicateKeysNameTheSecondOccurrence) {
   EXPECT_EQ(ErrorOf(std::string(kSimulation) + "radio: {range_m: 5}\nseed: 3\nradio: {range_m: 9}\n"),

@@ -10,6 +10,7 @@
 
 #include "common/config/config_error.h"
 #include "common/config/scenario.h"
+#include "tests/config/scenario_testing.h"
 #include "common/config/scenario_limits.h"
 
 namespace mapmesh {
@@ -17,25 +18,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The ConfigError message of parsing text as "s.yaml", or "" when it loads.
-std::string ErrorOf(const std::string& text, const std::vector<std::string>& sets = {}, int agents = 0) {
-  try {
-    std::vector<ConfigOverride> overrides;
-    for (const auto& s : sets) overrides.push_back(ParseOverride(s));
-    ParseScenario(text, "s.yaml", overrides, agents);
-  } catch (const ConfigError& e) {
-    return e.what();
-  }
-  return "";
-}
-
-constexpr const char* kSimulation = R"(version: 1
-world:
-  landmarks:
-    generator: {count: 10, area_m: [0, 0, 50, 50]}
-robots:
-  count: 2
-)";
+using testing::ErrorOf;
+using testing::kSimulation;
 constexpr const char* kDiscWorld = "world: {landmarks: {generator: {type: disc, count: 10}}}\nrobots: {count: 1}\n";
 constexpr const char* kMrclam = "source: {type: mrclam}\n";
 constexpr const char* kVictoria = "source: {type: victoria_park}\nrobots: {defaults: {motion: {model: ackermann}}}\n";

@@ -30,6 +30,13 @@ class ExchangeTest(SwarmCase):
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         return {a["id"]: a for a in self.summary()["agents"]}
 
+    def run_eight_killing(self, kills):
+        """park4 with 8 agents, killing {robot: scenario time}; the agents by id."""
+        args = [SCENARIOS / "park4.yaml", "--agents", "8"]
+        for rid, t in kills.items():
+            args += ["--kill", f"{rid}@{t}"]
+        return self.run_ok(*args)
+
     def test_circle_pair_align_and_both_hold_the_union(self):
         agents = self.run_ok(SCENARIOS / "thesis_circle_pair.yaml")
         for rid, other in ((1, 2), (2, 1)):
@@ -61,10 +68,7 @@ class ExchangeTest(SwarmCase):
 
     def test_eight_agents_four_killed_keep_what_the_dead_sent(self):
         kills = {2: 40.0, 4: 75.0, 5: 110.0, 7: 150.0}
-        args = [SCENARIOS / "park4.yaml", "--agents", "8"]
-        for rid, t in kills.items():
-            args += ["--kill", f"{rid}@{t}"]
-        agents = self.run_ok(*args)
+        agents = self.run_eight_killing(kills)
         survivors = [rid for rid in agents if rid not in kills]
         self.assertEqual(len(survivors), 4)
         checked = 0
@@ -92,10 +96,7 @@ class ExchangeTest(SwarmCase):
         # map. Every one that the exchange's alignment places on the survivor's final local map
         # (eval's dead_peers: the true transform found on most seeded tries) must be held whole.
         kills = {1: 40.0, 3: 70.0, 5: 100.0, 7: 130.0}
-        args = [SCENARIOS / "park4.yaml", "--agents", "8"]
-        for rid, t in kills.items():
-            args += ["--kill", f"{rid}@{t}"]
-        agents = self.run_ok(*args)
+        agents = self.run_eight_killing(kills)
         alignable = 0
         for rid, a in agents.items():
             if rid in kills:

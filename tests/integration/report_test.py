@@ -130,6 +130,7 @@ def make_fake_run(d):
         agents.append({
             "id": rid, "alive_at_end": True, "exit_code": 0, "restarts": 1 if rid == 3 else 0,
             "killed_at": [20.0] if rid == 3 else [], "restarted_at": [30.0] if rid == 3 else [],
+            "paused_at": [40.0] if rid == 1 else [],
             "final_state": True,
             "frame_in_world": None if rid == 2 else frame,
             "local": {"landmarks": len(local), "matched": len(local), "rmse_m": 0.123456789 * rid,
@@ -148,6 +149,7 @@ def make_fake_run(d):
     summary = {"scenario": "fake3", "scenario_file": "scenarios/fake3.yaml", "sim_duration_s": duration,
                "wall_s": 2.5, "real_time_factor": 24.0, "pace": "lockstep", "interrupted": False,
                "kills": [{"id": 3, "t": 20.0}], "restarts": [{"id": 3, "t": 30.0}],
+               "pauses": [{"id": 1, "t": 40.0, "seconds": 3.0, "wall_start": 1.0e9, "wall_end": 1.0e9 + 3.0}],
                "feeder": {"exit_code": 0, "cpu_s": 0.1, "max_rss_mb": 10.0}, "agents": agents}
     _write(d / "summary.json", summary)
 
@@ -181,7 +183,7 @@ def make_fake_run(d):
             t += period
         timeline[str(rid)] = entries
     _write(d / "timeline.json", {"agents": timeline, "kills": summary["kills"], "restarts": summary["restarts"],
-                                 "period_s": period})
+                                 "pauses": summary["pauses"], "period_s": period})
     return summary
 
 
@@ -386,6 +388,8 @@ class ReportTest(unittest.TestCase):
             text = (Path(tmp) / "report.html").read_text()
             self.assertIn("agent 3 at 20.0 s", text)  # the kill
             self.assertIn("agent 3 at 30.0 s", text)  # the restart
+            self.assertIn("Pauses: agent 1 at 40.0 s for 3.00 s (wall)", text)  # the pause
+            self.assertIn("paused at (s)", text)
             self.assertIn("own frame (pose unknown)", text)  # agent 2's frame_in_world is null
 
     def test_report_without_timeline_or_agent_files(self):
