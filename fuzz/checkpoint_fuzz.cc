@@ -1,0 +1,113 @@
+// libFuzzer target for the checkpoint loader (common/io/checkpoint.h): ParseCheckpoint on
+// arbitrary text, under the default limits and under small ones. It must not throw (nothing is
+// caught here), a refusal is one line naming the file, and an accepted checkpoint satisfies
+// the documented validation and round-trips through CheckpointToJson.
+
+#include <cmath>
+#include <cstdint>
+#include <set>
+#include <string>
+#include <string_view>
+#include <unordered_set>
+
+#include <nlohmann/json.hpp>
+
+#include "common/io/checkpoint.h"
+#include "common/map/landmark_map.h"
+#include "fuzz/fuzz_check.h"
+
+namespace mapmesh {
+namespace {
+
+// The resuming process the seeds are written for (fuzz/corpus_main.cc uses the same).
+constexpr RobotId kRobot = 3;
+constexpr std::uint32_t kIncarnation = 7;
+constexpr std::string_view kName = "fuzz/agent_3/checkpoint.json";
+
+bool SameMap(const LandmarkMap& a, const LandmarkMap& b) {
+  if (a.size() != b.size() || a.shape_sigma_m != b.shape_sigma_m) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const Landmark& x = a.landmarks[i];
+    const Landmark& y = b.landmarks[i];
+    if (x.id != y.id || x.signature != y.signature || x.mean != y.mean || x.cov != y.cov) return false;
+  }
+  return true;
+}
+
+bool SameSnapshot(const IncarnationSnapshot& a, const IncarnationSnapshot& b) {
+  return a.robot == b.robot && a.incarnation == b.incarnation && a.origin_stamp == b.origin_stamp &&
+         a.processed_until == b.processed_until && SameMap(a.local, b.local) && SameMap(a.global, b.global);
+}
+
+bool SameCheckpoint(const AgentCheckpoint& a, const AgentCheckpoint& b) {
+  if (!SameSnapshot(a, b) || a.earlier.size() != b.earlier.size()) return false;
+  for (std::size_t i = 0; i < a.earlier.size(); ++i) {
+    if (!SameSnapshot(a.earlier[i], b.earlier[i])) return false;
+  }
+  return true;
+}
+
+// The documented validation of a map: within the limit, unique ids, finite means within the
+// world bound, valid covariances, a finite non-negative shape precision.
+void CheckMap(const LandmarkMap& map, const io::CheckpointLimits& limits) {
+  MAPMESH_FUZZ_CHECK(map.size() <= limits.max_landmarks);
+  MAPMESH_FUZZ_CHECK(std::isfinite(map.shape_sigma_m) && map.shape_sigma_m >= 0);
+  std::unordered_set<std::uint32_t> ids;
+  for (const Landmark& l : map.landmarks) {
+    MAPMESH_FUZZ_CHECK(ids.insert(l.id).second);
+    MAPMESH_FUZZ_CHECK(l.mean.allFinite());
+    MAPMESH_FUZZ_CHECK(std::abs(l.mean.x()) <= limits.max_abs_coordinate_m);
+    MAPMESH_FUZZ_CHECK(std::abs(l.mean.y()) <= limits.max_abs_coordinate_m);
+    MAPMESH_FUZZ_CHECK(IsValidCovariance(l.cov));
+  }
+}
+
+void CheckSnapshot(const IncarnationSnapshot& s, const io::CheckpointLimits& limits,
+                   std::set<std::uint32_t>* incarnations) {
+  MAPMESH_FUZZ_CHECK(s.robot == kRobot);
+  MAPMESH_FUZZ_CHECK(s.incarnation != kIncarnation);
+  MAPMESH_FUZZ_CHECK(incarnations->insert(s.incarnation).second);
+  MAPMESH_FUZZ_CHECK(std::isfinite(s.origin_stamp) && s.origin_stamp >= 0);
+  MAPMESH_FUZZ_CHECK(std::isfinite(s.processed_until) && s.processed_until >= 0);
+  CheckMap(s.local, limits);
+  CheckMap(s.global, limits);
+}
+
+void FuzzOne(std::string_view text, const io::CheckpointLimits& limits) {
+  const io::CheckpointLoad load = io::ParseCheckpoint(text, kName, kRobot, kIncarnation, limits);
+  MAPMESH_FUZZ_CHECK(!load.missing);
+  if (!load.ok()) {
+    // One line that names the file.
+    MAPMESH_FUZZ_CHECK_SHOWING(load.error.starts_with(std::string(kName) + ": "), load.error.c_str());
+    MAPMESH_FUZZ_CHECK_SHOWING(load.error.find_first_of("\n\r") == std::string::npos, load.error.c_str());
+    MAPMESH_FUZZ_CHECK_SHOWING(load.error.size() <= 1024, load.error.c_str());
+    return;
+  }
+  MAPMESH_FUZZ_CHECK(load.error.empty());
+  const AgentCheckpoint& c = *load.checkpoint;
+  std::set<std::uint32_t> incarnations;
+  CheckSnapshot(c, limits, &incarnations);
+  MAPMESH_FUZZ_CHECK(c.earlier.size() <= limits.max_earlier);
+  for (const IncarnationSnapshot& e : c.earlier) CheckSnapshot(e, limits, &incarnations);
+
+  // What a checkpoint writes, it reads back unchanged.
+  const std::string written = io::CheckpointToJson(c).dump();
+  const io::CheckpointLoad again = io::ParseCheckpoint(written, kName, kRobot, kIncarnation, limits);
+  MAPMESH_FUZZ_CHECK(again.ok());
+  MAPMESH_FUZZ_CHECK(SameCheckpoint(c, *again.checkpoint));
+  MAPMESH_FUZZ_CHECK(io::CheckpointToJson(*again.checkpoint).dump() == written);
+}
+
+}  // namespace
+}  // namespace mapmesh
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string_view text(reinterpret_cast<const char*>(data), size);
+  mapmesh::FuzzOne(text, mapmesh::io::CheckpointLimits{});
+  mapmesh::io::CheckpointLimits small;
+  small.max_earlier = 2;
+  small.max_landmarks = 4;
+  small.max_abs_coordinate_m = 100.0;
+  mapmesh::FuzzOne(text, small);
+  return 0;
+}
