@@ -36,5 +36,14 @@ TEST(ScenarioKeys, KeysMustBePlainNames) {
             "s.yaml:7: radio: a key must be a plain name, not a list, a mapping or null");
 }
 
+// A quoted key or value may hold control characters; the message shows them escaped, on one
+// line (found by the scenario fuzz target: a NUL and a newline in an unknown key).
+TEST(ScenarioKeys, ControlCharactersInKeysAndValuesAreEscaped) {
+  EXPECT_EQ(ErrorOf(std::string(kSimulation) + "  defaults:\n    \"sen\\nso\\0r\": 1\n"),
+            "s.yaml:8: robots.defaults.sen\\nso\\x00r: unknown key");
+  EXPECT_EQ(ErrorOf(std::string(kSimulation) + "seed: \"1\\r\\t2\"\n"),
+            "s.yaml:7: seed: expected a non-negative integer, got '1\\r\\t2'");
+}
+
 }  // namespace
 }  // namespace mapmesh
