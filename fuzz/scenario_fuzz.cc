@@ -106,7 +106,15 @@ bool ReadDirectives(const std::string& text, std::vector<ConfigOverride>* overri
       if (eq == std::string::npos || eq == 0 || overrides->size() == kMaxOverrides) continue;
       // A value that could spell a path (a '/' or an escape) might point landmarks.csv away.
       if (set.find_first_of("/\\", eq) != std::string::npos) return false;
-      overrides->push_back(ParseOverride(set));
+      try {
+        overrides->push_back(ParseOverride(set));
+      } catch (const ConfigError& e) {
+        // An empty value is refused by ParseOverride itself, in one line naming the option.
+        const std::string what = e.what();
+        MAPMESH_FUZZ_CHECK_SHOWING(what.starts_with("--set "), what.c_str());
+        MAPMESH_FUZZ_CHECK_SHOWING(what.find_first_of("\n\r") == std::string::npos, what.c_str());
+        return false;
+      }
     } else if (line.starts_with("#--agents ")) {
       const std::string n(line.substr(10));
       char* stop = nullptr;
