@@ -219,15 +219,8 @@ TEST(ScenarioLimits, AnEmptyOverrideIsAnError) {
   EXPECT_EQ(ErrorOf(kSimulation, {"name=''"}), "");  // an empty string, said so
 }
 
-class ScenarioFilesTest : public ::testing::Test {
+class ScenarioFilesTest : public testing::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("mapmesh_limits_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string Path(const std::string& name) const { return (dir_ / name).string(); }
   // Loads a scenario whose landmarks come from csv (relative to the scenario's folder).
   std::string CsvError(const std::string& csv) {
@@ -240,7 +233,6 @@ class ScenarioFilesTest : public ::testing::Test {
     }
     return "";
   }
-  fs::path dir_;
 };
 
 TEST_F(ScenarioFilesTest, TheLandmarksCsvMustBeARegularFileWithLandmarks) {

@@ -7,22 +7,15 @@
 #include <fstream>
 
 #include "common/config/config_error.h"
+#include "tests/config/scenario_testing.h"
 
 namespace mapmesh {
 namespace {
 
 namespace fs = std::filesystem;
 
-class ScenarioTest : public ::testing::Test {
+class ScenarioTest : public testing::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("mapmesh_scenario_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   std::string Write(const std::string& name, const std::string& text) {
     const fs::path p = dir_ / name;
     std::ofstream(p) << text;
@@ -38,7 +31,6 @@ class ScenarioTest : public ::testing::Test {
     }
     return "";
   }
-  fs::path dir_;
 };
 
 constexpr const char* kMinimal = R"(version: 1

@@ -1,7 +1,11 @@
 #pragma once
-// What the scenario-loading tests share: the one-line error of a scenario text, and a minimal
-// simulation to add keys to.
+// What the scenario-loading tests share: the one-line error of a scenario text, a minimal
+// simulation to add keys to, and a fixture with its own temporary folder.
 
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -9,6 +13,19 @@
 #include "common/config/scenario.h"
 
 namespace mapmesh::testing {
+
+// A fixture owning a fresh folder per test (named after the test and the process), removed after.
+class TempDirTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("mapmesh_" + std::string(::testing::UnitTest::GetInstance()->current_test_suite()->name()) + "_" +
+            std::to_string(::getpid()) + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::filesystem::path dir_;
+};
 
 // The ConfigError message of parsing text as "s.yaml", or "" when it loads.
 inline std::string ErrorOf(const std::string& text, const std::vector<std::string>& sets = {}, int agents = 0) {
