@@ -355,13 +355,23 @@ int Run(int argc, char** argv) {
       }
     }
   };
+  bool warned_left_out = false;
+  const auto save_checkpoint = [&] {
+    std::size_t left_out = 0;
+    io::WriteJsonAtomic(checkpoint_path, io::CheckpointToJson(node.Checkpoint(&left_out)));
+    if (left_out > 0 && !warned_left_out) {
+      spdlog::warn("checkpoint: {} oldest earlier incarnations never re-merged are left out (a checkpoint holds {} at most)",
+                   left_out, io::CheckpointLimits{}.max_earlier);
+      warned_left_out = true;
+    }
+  };
   while (!shutdown.requested()) {
     waitset.Wait(0.1);
     pump();
     LogPeerEvents(node, peer_events);
     input_watch.Check(node);
     if (checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {
-      io::WriteJsonAtomic(checkpoint_path, io::CheckpointToJson(node.Checkpoint()));
+      save_checkpoint();
       WriteOutputs(node, out_dir, lost_wall, /*final=*/false);
       next_checkpoint = node.processed_until() + checkpoint_period;
     }
@@ -375,7 +385,7 @@ int Run(int argc, char** argv) {
   pump();
   spdlog::info("signal {}: writing outputs to {}", shutdown.signal(), out_dir);
   WriteOutputs(node, out_dir, lost_wall, /*final=*/true);
-  if (checkpoint_period > 0) io::WriteJsonAtomic(checkpoint_path, io::CheckpointToJson(node.Checkpoint()));
+  if (checkpoint_period > 0) save_checkpoint();
   const AgentStats& st = node.stats();
   spdlog::info("done: t={:.1f}s odom={} scans={} landmarks={} global={} maps_received={} maps_dropped={}",
                node.processed_until(), node.sync_stats().odom_processed, node.sync_stats().scans_processed,

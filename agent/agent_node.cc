@@ -286,7 +286,7 @@ void AgentNode::Resume(const AgentCheckpoint& c) {
   for (const IncarnationSnapshot& e : c.earlier) add(e);
 }
 
-AgentCheckpoint AgentNode::Checkpoint() const {
+AgentCheckpoint AgentNode::Checkpoint(std::size_t* left_out) const {
   AgentCheckpoint c;
   c.robot = self_;
   c.incarnation = incarnation_;
@@ -303,6 +303,12 @@ AgentCheckpoint AgentNode::Checkpoint() const {
     old.global = e.global;
     c.earlier.push_back(std::move(old));
   }
+  // A checkpoint with more earlier incarnations than the loader accepts could not be resumed
+  // from at all: keep the newest (UnalignedOwnCheckpoints is in incarnation order).
+  const std::size_t cap = io::CheckpointLimits{}.max_earlier;
+  const std::size_t extra = c.earlier.size() > cap ? c.earlier.size() - cap : 0;
+  c.earlier.erase(c.earlier.begin(), c.earlier.begin() + static_cast<std::ptrdiff_t>(extra));
+  if (left_out != nullptr) *left_out = extra;
   return c;
 }
 

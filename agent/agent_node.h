@@ -98,7 +98,10 @@ class AgentNode : private SensorSync::Sink {
   // checkpoint must be this robot's, from other incarnations than this one: io::LoadCheckpoint
   // refuses any other, so a violation is a programming error (checked).
   void Resume(const AgentCheckpoint& checkpoint);
-  AgentCheckpoint Checkpoint() const;
+  // What to save: this incarnation's maps and the earlier ones not yet re-merged, at most
+  // io::CheckpointLimits::max_earlier of them (the newest), so that the file always loads; how
+  // many older ones were left out goes to *left_out.
+  AgentCheckpoint Checkpoint(std::size_t* left_out = nullptr) const;
 
   RobotId id() const { return self_; }
   AgentStatus Status() const;

@@ -3,8 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <nlohmann/json.hpp>
 
 #include "common/config/scenario.h"
+#include "common/io/checkpoint.h"
 
 namespace mapmesh {
 namespace {
@@ -247,6 +249,42 @@ TEST_F(AgentNodeTest, LivelinessMarksEveryIncarnationOfAPeerStale) {
   EXPECT_FALSE(node_.OnPeerLiveliness(9, false));
   EXPECT_FALSE(node_.OnPeerLiveliness(1, false));
   EXPECT_TRUE(node_.Status().peers_stale.empty());
+}
+
+// An agent restarted more often than a checkpoint may hold, none of its incarnations ever
+// re-merged, still writes a checkpoint its next incarnation can load: the newest ones.
+TEST(AgentNodeCheckpoint, HoldsAtMostTheLoadersLimitOfEarlierIncarnationsTheNewest) {
+  const Scenario sc = TwoRobots();
+  const std::size_t cap = io::CheckpointLimits{}.max_earlier;
+  AgentCheckpoint saved;  // as incarnation cap + 1 left it: cap earlier ones and its own
+  saved.robot = 1;
+  saved.incarnation = static_cast<std::uint32_t>(cap + 1);
+  for (std::uint32_t inc = 1; inc <= cap; ++inc) {
+    IncarnationSnapshot e;
+    e.robot = 1;
+    e.incarnation = inc;
+    saved.earlier.push_back(e);
+  }
+  Capture out;
+  AgentNode node(sc, 1, static_cast<std::uint32_t>(cap + 2), out);
+  node.Resume(saved);
+  std::size_t left_out = 99;
+  const AgentCheckpoint c = node.Checkpoint(&left_out);
+  EXPECT_EQ(left_out, 1u);
+  ASSERT_EQ(c.earlier.size(), cap);
+  EXPECT_EQ(c.earlier.front().incarnation, 2u);  // incarnation 1, the oldest, is left out
+  EXPECT_EQ(c.earlier.back().incarnation, cap + 1);
+  const io::CheckpointLoad load =
+      io::ParseCheckpoint(io::CheckpointToJson(c).dump(), "c.json", 1, static_cast<std::uint32_t>(cap + 3));
+  EXPECT_TRUE(load.ok()) << load.error;
+  // Within the limit nothing is left out.
+  AgentNode fresh(sc, 1, 2, out);
+  AgentCheckpoint one;
+  one.robot = 1;
+  one.incarnation = 1;
+  fresh.Resume(one);
+  EXPECT_EQ(fresh.Checkpoint(&left_out).earlier.size(), 1u);
+  EXPECT_EQ(left_out, 0u);
 }
 
 // Each bound an agent keeps on peers' maps is its own counted reason, and a refused map
