@@ -336,6 +336,9 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
   // from its own generator, seeded from the scenario seed and its position in the list, so
   // robot k is the same whatever N is and whatever the other robots are.
   RobotId next_id = ids.empty() ? 1 : *ids.rbegin() + 1;
+  // Every process of a run loads every robot's path: their waypoints together are bounded
+  // (1024 robots of 10000 waypoints each would take 330 MB in each process).
+  std::size_t total_waypoints = 0;
   for (int i = 0; i < wanted; ++i) {
     RobotSpec spec;
     if (i < static_cast<int>(listed.size())) {
@@ -351,7 +354,15 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
     }
     std::mt19937_64 rng(sc.seed * 0x9E3779B97F4A7C15ULL + 0x6d61706d657368ULL + static_cast<std::uint64_t>(i));
     ResolvePath(spec, sc.world.bounds_m, rng);
-    sc.robots.push_back(spec);
+    total_waypoints += spec.path.points.size();
+    if (total_waypoints > static_cast<std::size_t>(limits::kMaxTotalWaypoints)) {
+      robots.Fail(robots.Has("list") && !robots.Has("count") ? "list" : "count",
+                  "the first " + std::to_string(i + 1) + " of the run's " + std::to_string(wanted) +
+                      " robots already have " + std::to_string(total_waypoints) +
+                      " path waypoints (at most " + std::to_string(limits::kMaxTotalWaypoints) +
+                      " in all: fewer robots or shorter paths)");
+    }
+    sc.robots.push_back(std::move(spec));
   }
   return sc;
 }

@@ -13,6 +13,7 @@ inline constexpr int kMaxRobots = 1024;                  // robots.count, --agen
 inline constexpr int kMaxRobotId = 1000000;              // robots.list[].id
 inline constexpr int kMaxLandmarks = 100000;             // generator count, landmarks.list, CSV rows
 inline constexpr int kMaxWaypoints = 10000;              // path.points, path.count, lawnmower waypoints
+inline constexpr int kMaxTotalWaypoints = 1000000;       // all robots' waypoints together (16 MB)
 inline constexpr int kMaxParkPaths = 20;                 // generator.paths
 inline constexpr int kMaxScanEverySteps = 100000;        // sensor.scan_every_steps
 inline constexpr int kMaxDropAfterFailures = 1000;       // agent.drop_after_failures

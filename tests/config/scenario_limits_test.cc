@@ -205,6 +205,21 @@ TEST(ScenarioLimits, StartPosesAndInlinePoints) {
             "s.yaml:4: robots.list[0].path.points: at most 10000 points (got 10001)");
 }
 
+// Every process loads every robot's path, so all robots' waypoints together are bounded too.
+TEST(ScenarioLimits, AllRobotsWaypointsTogetherAreBounded) {
+  const std::string world = "version: 1\nworld: {landmarks: {list: [[0, 0], [3, 4]]}}\n";
+  // A lawnmower over 100 m with lanes 0.0201 m apart: 4976 lanes, 9952 waypoints per robot.
+  const std::string robots = "robots:\n  count: 1024\n  defaults:\n    path: {type: lawnmower, "
+                             "area_m: [0, 0, 100, 100], spacing_m: 0.0201}\n";
+  EXPECT_EQ(ErrorOf(world + robots),
+            "s.yaml:4: robots.count: the first 101 of the run's 1024 robots already have 1005152 path "
+            "waypoints (at most 1000000 in all: fewer robots or shorter paths)");
+  // 100 such robots are 995200 waypoints: within the bound.
+  EXPECT_EQ(ErrorOf(world + robots, {"robots.count=100"}), "");
+  // With --agents the key is still robots.count (the robots come from there).
+  EXPECT_EQ(ErrorOf(world + robots, {}, 200).substr(0, 22), "s.yaml:4: robots.count");
+}
+
 TEST(ScenarioLimits, AnEmptyOverrideIsAnError) {
   try {
     ParseOverride("duration_s=");
