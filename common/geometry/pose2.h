@@ -24,9 +24,16 @@ struct Pose2 {
   double y = 0.0;
   double theta = 0.0;
 
-  // Maps a point given in this pose's frame into the parent frame.
-  Eigen::Vector2d Apply(const Eigen::Vector2d& p) const {
+  // Maps a point given in this pose's frame into the parent frame. When asked, also the
+  // Jacobians of the result with respect to this pose (x, y, theta) and to the point.
+  Eigen::Vector2d Apply(const Eigen::Vector2d& p, Eigen::Matrix<double, 2, 3>* j_pose = nullptr,
+                        Eigen::Matrix2d* j_point = nullptr) const {
     const double c = std::cos(theta), s = std::sin(theta);
+    if (j_pose) {
+      *j_pose << 1.0, 0.0, -s * p.x() - c * p.y(),  //
+          0.0, 1.0, c * p.x() - s * p.y();
+    }
+    if (j_point) *j_point << c, -s, s, c;
     return {x + c * p.x() - s * p.y(), y + s * p.x() + c * p.y()};
   }
   // Composition: (this * other) maps other's frame into this pose's parent frame.
@@ -57,16 +64,17 @@ inline Pose2 Interpolate(const Pose2& p, const Pose2& q, double a) {
 
 // a * b with the Jacobians of the result with respect to a and to b.
 inline Pose2 Compose(const Pose2& a, const Pose2& b, Eigen::Matrix3d* j_a, Eigen::Matrix3d* j_b) {
-  const double c = std::cos(a.theta), s = std::sin(a.theta);
   if (j_a) {
-    *j_a << 1, 0, -s * b.x - c * b.y,  //
-        0, 1, c * b.x - s * b.y,       //
-        0, 0, 1;
+    Eigen::Matrix<double, 2, 3> j_t;
+    a.Apply({b.x, b.y}, &j_t);
+    j_a->topRows<2>() = j_t;
+    j_a->row(2) << 0, 0, 1;
   }
   if (j_b) {
-    *j_b << c, -s, 0,  //
-        s, c, 0,       //
-        0, 0, 1;
+    Eigen::Matrix2d r;
+    a.Apply({b.x, b.y}, nullptr, &r);
+    j_b->setIdentity();
+    j_b->topLeftCorner<2, 2>() = r;
   }
   return a * b;
 }

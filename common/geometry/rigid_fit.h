@@ -14,4 +14,10 @@ namespace mapmesh {
 std::optional<Pose2> FitRigid2D(const std::vector<Eigen::Vector2d>& src,
                                 const std::vector<Eigen::Vector2d>& dst);
 
+// The same for exactly two pairs, in closed form (thesis eq. 57-59) and without allocating:
+// the pose mapping src1, src2 onto dst1, dst2 in the least-squares sense (the rotation of the
+// segments, the translation of their midpoints). nullopt when src1 and src2 (nearly) coincide.
+std::optional<Pose2> FitRigid2D(const Eigen::Vector2d& src1, const Eigen::Vector2d& src2,
+                                const Eigen::Vector2d& dst1, const Eigen::Vector2d& dst2);
+
 }  // namespace mapmesh

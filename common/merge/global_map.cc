@@ -20,15 +20,6 @@ double LargestEigen(const Eigen::Matrix2d& c) {
   return 0.5 * tr + std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
 }
 
-// d(T(m))/d(x, y, theta).
-Eigen::Matrix<double, 2, 3> TransformJacobian(const Eigen::Vector2d& m, const Pose2& t) {
-  const double c = std::cos(t.theta), s = std::sin(t.theta);
-  Eigen::Matrix<double, 2, 3> j;
-  j << 1.0, 0.0, -s * m.x() - c * m.y(),  //
-      0.0, 1.0, c * m.x() - s * m.y();
-  return j;
-}
-
 struct Cluster {
   Gaussian2 anchor;                  // the estimate candidates are gated against
   std::vector<Gaussian2> inputs;     // everything fused into it, anchor first
@@ -156,8 +147,8 @@ bool ValidTransform(const MapSource& s) {
 Landmark TransformLandmark(const Landmark& l, const Pose2& t, const Eigen::Matrix3d& t_cov) {
   Landmark out = l;
   const Eigen::Matrix2d r = t.Rotation();
-  const Eigen::Matrix<double, 2, 3> j = TransformJacobian(l.mean, t);
-  out.mean = t.Apply(l.mean);
+  Eigen::Matrix<double, 2, 3> j;
+  out.mean = t.Apply(l.mean, &j);
   out.cov = r * l.cov * r.transpose() + j * t_cov * j.transpose();
   out.cov = 0.5 * (out.cov + out.cov.transpose()).eval();
   return out;
@@ -188,7 +179,7 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
     for (const Landmark& l : src.map.landmarks) {
       if (!Usable(l, g.stats)) continue;
       moved.push_back(TransformLandmark(l, src.to_own, src.to_own_cov));
-      jac.push_back(TransformJacobian(l.mean, src.to_own));
+      src.to_own.Apply(l.mean, &jac.emplace_back());
     }
     // Gated candidates: a radius search on the anchors, then the Mahalanobis test.
     std::vector<std::vector<Edge>> edges_of(moved.size());

@@ -105,12 +105,6 @@ struct AlignmentResult {
   double residual_bound = 0.0;                      // the chi-square bound it was tested against
 };
 
-// Closed-form rigid transform taking b1, b2 onto a1, a2 (thesis eq. 57-59: solved for
-// [cos, sin], then projected onto a rotation, the translation fitting both pairs' midpoint).
-// nullopt when b1 and b2 coincide.
-std::optional<Pose2> TwoPointTransform(const Eigen::Vector2d& a1, const Eigen::Vector2d& a2,
-                                       const Eigen::Vector2d& b1, const Eigen::Vector2d& b2);
-
 // Candidate landmark pairs from matched Delaunay triangles. Indices refer to the maps'
 // landmark vectors; unusable landmarks (non-finite, invalid covariance) never appear. rng
 // orders the seed triangles (sorted sides).

@@ -43,5 +43,24 @@ TEST(RigidFit, DegenerateInputs) {
   EXPECT_FALSE(FitRigid2D({{1, 1}, {2, 2}}, {{2, 2}}).has_value());
 }
 
+// The two-pair closed form agrees with the general fit, and both recover the planted pose.
+TEST(RigidFit, TwoPairClosedFormMatchesTheGeneralFit) {
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> u(-50, 50), ua(-M_PI, M_PI);
+  for (int i = 0; i < 200; ++i) {
+    const Pose2 t{u(rng), u(rng), ua(rng)};
+    const Eigen::Vector2d b1(u(rng), u(rng)), b2(u(rng), u(rng));
+    const auto closed = FitRigid2D(b1, b2, t.Apply(b1), t.Apply(b2));
+    const auto general = FitRigid2D({b1, b2}, {t.Apply(b1), t.Apply(b2)});
+    ASSERT_TRUE(closed && general);
+    EXPECT_NEAR(closed->x, general->x, 1e-9);
+    EXPECT_NEAR(closed->y, general->y, 1e-9);
+    EXPECT_NEAR(WrapAngle(closed->theta - general->theta), 0.0, 1e-12);
+    EXPECT_NEAR(WrapAngle(closed->theta - t.theta), 0.0, 1e-9);
+  }
+  EXPECT_FALSE(
+      FitRigid2D(Eigen::Vector2d(2, 2), Eigen::Vector2d(2, 2), Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 0)).has_value());
+}
+
 }  // namespace
 }  // namespace mapmesh

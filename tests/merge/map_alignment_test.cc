@@ -28,23 +28,6 @@ Eigen::Vector2d Centroid(const LandmarkMap& m) {
   return m.empty() ? c : Eigen::Vector2d(c / static_cast<double>(m.size()));
 }
 
-TEST(TwoPointTransform, MatchesADirectLeastSquaresSolve) {
-  std::mt19937_64 rng(1);
-  std::uniform_real_distribution<double> u(-50, 50), ua(-M_PI, M_PI);
-  for (int i = 0; i < 200; ++i) {
-    const Pose2 t{u(rng), u(rng), ua(rng)};
-    const Eigen::Vector2d b1(u(rng), u(rng)), b2(u(rng), u(rng));
-    const auto closed = TwoPointTransform(t.Apply(b1), t.Apply(b2), b1, b2);
-    const auto direct = FitRigid2D({b1, b2}, {t.Apply(b1), t.Apply(b2)});
-    ASSERT_TRUE(closed && direct);
-    EXPECT_NEAR(closed->x, direct->x, 1e-9);
-    EXPECT_NEAR(closed->y, direct->y, 1e-9);
-    EXPECT_NEAR(WrapAngle(closed->theta - direct->theta), 0.0, 1e-12);
-    EXPECT_NEAR(WrapAngle(closed->theta - t.theta), 0.0, 1e-9);
-  }
-  EXPECT_FALSE(TwoPointTransform({0, 0}, {1, 0}, {2, 2}, {2, 2}).has_value());
-}
-
 class PlantedTransformTest : public ::testing::TestWithParam<int> {};
 
 TEST_P(PlantedTransformTest, IsRecoveredFromNoisyOverlappingMaps) {

@@ -1,0 +1,198 @@
+#include "common/merge/alignment_fit.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+
+#include "common/merge/spatial.h"
+#include "common/metrics/chi2.h"
+
+namespace mapmesh::alignment_detail {
+namespace {
+
+// The information matrix of (x, y, theta) from the pairs at t, and the gradient of the
+// weighted squared residuals.
+Eigen::Matrix3d Information(const LandmarkMap& a, const LandmarkMap& b, const std::vector<std::pair<int, int>>& pairs,
+                            const Pose2& t, Eigen::Vector3d* gradient) {
+  Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d g = Eigen::Vector3d::Zero();
+  const Eigen::Matrix2d rot = t.Rotation();
+  for (const auto& [ia, ib] : pairs) {
+    const Landmark &la = a.landmarks[ia], &lb = b.landmarks[ib];
+    Eigen::Matrix<double, 2, 3> j_apply;
+    const Eigen::Vector2d r = la.mean - t.Apply(lb.mean, &j_apply);
+    const Eigen::Matrix2d c = la.cov + rot * lb.cov * rot.transpose();
+    const Eigen::LDLT<Eigen::Matrix2d> ldlt(c);
+    if (ldlt.info() != Eigen::Success || !(c.determinant() > 0)) continue;
+    const Eigen::Matrix<double, 2, 3> j = -j_apply;  // of the residual
+    const Eigen::Matrix<double, 3, 2> jt_cinv = ldlt.solve(j).transpose();
+    info += jt_cinv * j;
+    g += jt_cinv * r;
+  }
+  if (gradient) *gradient = g;
+  return info;
+}
+
+// Weighted least squares (Gauss-Newton) of the transform over pairs; returns the
+// information matrix of (x, y, theta) at the solution.
+Eigen::Matrix3d Refine(const LandmarkMap& a, const LandmarkMap& b, const std::vector<std::pair<int, int>>& pairs,
+                       Pose2* t) {
+  Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+  for (int it = 0; it < 6; ++it) {
+    Eigen::Vector3d g;
+    info = Information(a, b, pairs, *t, &g);
+    const Eigen::FullPivLU<Eigen::Matrix3d> lu(info);
+    if (!lu.isInvertible()) break;
+    const Eigen::Vector3d step = -lu.solve(g);
+    t->x += step(0);
+    t->y += step(1);
+    t->theta = WrapAngle(t->theta + step(2));
+    if (step.head<2>().norm() < 1e-9 && std::abs(step(2)) < 1e-12) break;
+  }
+  return info;
+}
+
+}  // namespace
+
+double LargestSigma(const Eigen::Matrix2d& c) {
+  const double tr = c.trace(), det = c.determinant();
+  const double disc = std::sqrt(std::max(0.0, tr * tr / 4.0 - det));
+  return std::sqrt(std::max(0.0, tr / 2.0 + disc));
+}
+
+Usable UsableLandmarks(const LandmarkMap& m) {
+  Usable u;
+  for (std::size_t i = 0; i < m.landmarks.size(); ++i) {
+    const Landmark& l = m.landmarks[i];
+    if (!l.mean.allFinite() || !IsValidCovariance(l.cov)) continue;
+    u.index.push_back(static_cast<int>(i));
+    u.points.push_back(l.mean);
+    u.sigma.push_back(LargestSigma(l.cov));
+    u.max_sigma = std::max(u.max_sigma, u.sigma.back());
+  }
+  return u;
+}
+
+double PairD2(const Landmark& la, const Landmark& lb, const Pose2& t, Eigen::Vector2d* r) {
+  const Eigen::Matrix2d rot = t.Rotation();
+  const Eigen::Vector2d res = la.mean - t.Apply(lb.mean);
+  const Eigen::Matrix2d c = la.cov + rot * lb.cov * rot.transpose();
+  if (r) *r = res;
+  const double det = c.determinant();
+  if (!(det > 0.0)) return std::numeric_limits<double>::infinity();
+  return res.dot(c.inverse() * res);
+}
+
+LandmarkMap ForAlignment(const LandmarkMap& m, double floor_m, bool every_landmark) {
+  if (!(m.shape_sigma_m > 0.0) || !std::isfinite(m.shape_sigma_m)) return m;
+  LandmarkMap out = m;
+  const double s = std::max(m.shape_sigma_m, floor_m), v = s * s;
+  for (Landmark& l : out.landmarks) {
+    if (l.mean.allFinite() && IsValidCovariance(l.cov) && (every_landmark || LargestSigma(l.cov) * LargestSigma(l.cov) > v)) {
+      l.cov = v * Eigen::Matrix2d::Identity();
+    }
+  }
+  return out;
+}
+
+std::vector<std::pair<int, int>> OneToOne(std::vector<std::tuple<double, int, int>> scored) {
+  std::sort(scored.begin(), scored.end());
+  std::unordered_map<int, bool> used_a, used_b;
+  std::vector<std::pair<int, int>> out;
+  for (const auto& [d2, ia, ib] : scored) {
+    if (used_a[ia] || used_b[ib]) continue;
+    used_a[ia] = used_b[ib] = true;
+    out.emplace_back(ia, ib);
+  }
+  return out;
+}
+
+double GatedD2(const Landmark& la, const Landmark& lb, const Pose2& t, const AlignmentOptions& o, double gate) {
+  if (o.distance == ConsensusDistance::kEuclidean) {
+    const double e = (la.mean - t.Apply(lb.mean)).norm();
+    return e < o.euclidean_gate_m ? e * e : std::numeric_limits<double>::infinity();
+  }
+  const double d2 = PairD2(la, lb, t);
+  return d2 < gate ? d2 : std::numeric_limits<double>::infinity();
+}
+
+void Conclude(const LandmarkMap& a_in, const LandmarkMap& b_in, const LandmarkMap& a, const LandmarkMap& b, Pose2 t,
+              std::vector<std::pair<int, int>> inliers, const AlignmentOptions& o, bool guided, AlignmentResult& r) {
+  const double gate = Chi2Quantile(o.gate_probability, 2);
+  const LandmarkMap fit_a = ForAlignment(a_in, o.min_shape_sigma_m, /*every_landmark=*/true);
+  const LandmarkMap fit_b = ForAlignment(b_in, o.min_shape_sigma_m, /*every_landmark=*/true);
+  if (!inliers.empty()) Refine(fit_a, fit_b, inliers, &t);
+  if (guided) {
+    const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
+    if (!ua.points.empty() && !ub.points.empty()) {
+      const KdTree2 tree(ua.points);
+      for (int round = 0; round < 2; ++round) {
+        std::vector<std::tuple<double, int, int>> scored;
+        const double radius_scale = o.distance == ConsensusDistance::kEuclidean ? 0.0 : std::sqrt(gate);
+        for (std::size_t j = 0; j < ub.points.size(); ++j) {
+          const Eigen::Vector2d p = t.Apply(ub.points[j]);
+          const double radius = o.distance == ConsensusDistance::kEuclidean
+                                    ? o.euclidean_gate_m
+                                    : radius_scale * std::sqrt(ua.max_sigma * ua.max_sigma + ub.sigma[j] * ub.sigma[j]);
+          for (int i : tree.InRadius(p, radius)) {
+            const double d2 = GatedD2(a.landmarks[ua.index[i]], b.landmarks[ub.index[j]], t, o, gate);
+            if (std::isfinite(d2)) scored.emplace_back(d2, ua.index[i], ub.index[j]);
+          }
+        }
+        inliers = OneToOne(std::move(scored));
+        Refine(fit_a, fit_b, inliers, &t);
+      }
+    }
+  }
+
+  // Where the transform lays B over ground A has mapped, B's landmarks should find partners.
+  {
+    const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
+    if (!ua.points.empty()) {
+      const KdTree2 tree(ua.points);
+      for (const Eigen::Vector2d& p : ub.points) {
+        if (!tree.InRadius(t.Apply(p), o.coverage_radius_m).empty()) ++r.covered;
+      }
+    }
+  }
+  r.transform = t;
+  r.inliers = inliers;
+  for (const auto& [ia, ib] : inliers) r.residual_chi2 += PairD2(a.landmarks[ia], b.landmarks[ib], t);
+  const int ni = static_cast<int>(inliers.size());
+  if (ni < o.min_inliers) {
+    r.verdict = AlignmentVerdict::kTooFewInliers;
+    return;
+  }
+  const Eigen::Matrix3d info = Information(a_in, b_in, inliers, t, nullptr);
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(info);
+  if (!lu.isInvertible() || lu.rcond() < 1e-12) {
+    r.verdict = AlignmentVerdict::kDegenerate;
+    return;
+  }
+  // Refine sums the inliers' information as if their errors were independent; with unknown
+  // correlation, CI with equal weights keeps the average instead.
+  const double scale = o.landmark_errors == LandmarkErrors::kIndependent ? 1.0 : static_cast<double>(ni);
+  r.cov = scale * info.inverse();
+  r.cov = 0.5 * (r.cov + r.cov.transpose()).eval();
+  // 2 residual dimensions per inlier, 3 parameters fitted: chi-square with 2n - 4 dof (the
+  // even number just below) bounds the sum.
+  r.residual_bound = o.residual_tolerance * Chi2Quantile(o.residual_probability, std::max(2, 2 * ni - 4));
+  if (!std::isfinite(r.residual_chi2) || r.residual_chi2 > r.residual_bound) {
+    r.verdict = AlignmentVerdict::kResidualsTooLarge;
+    return;
+  }
+  if (ni < o.min_overlap_ratio * r.covered) {
+    r.verdict = AlignmentVerdict::kInconsistentOverlap;
+    return;
+  }
+  if (r.runner_up_support >= o.ambiguity_ratio * r.best_support && r.best_support > 0) {
+    r.verdict = AlignmentVerdict::kAmbiguous;
+    return;
+  }
+  r.verdict = AlignmentVerdict::kAccepted;
+}
+
+}  // namespace mapmesh::alignment_detail
