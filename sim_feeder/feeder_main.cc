@@ -112,10 +112,7 @@ struct Channels {
   }
   // Cumulative number of readers ever matched by both sensor writers of a robot.
   std::uint32_t TotalMatches(RobotId id) const {
-    dds_publication_matched_status_t a, b;
-    tp::Check(dds_get_publication_matched_status(odom.at(id)->raw().get(), &a), "matched status");
-    tp::Check(dds_get_publication_matched_status(scan.at(id)->raw().get(), &b), "matched status");
-    return std::min(a.total_count, b.total_count);
+    return std::min(odom.at(id)->raw().TotalMatchedReaders(), scan.at(id)->raw().TotalMatchedReaders());
   }
   std::map<RobotId, std::unique_ptr<tp::Writer<Odometry>>> odom;
   std::map<RobotId, std::unique_ptr<tp::Writer<Scan>>> scan;

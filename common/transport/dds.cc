@@ -80,11 +80,17 @@ void RawWriter::Unregister(const void* sample) const {
   Check(dds_unregister_instance(e_, sample), "dds_unregister_instance");
 }
 
-std::uint32_t RawWriter::MatchedReaders() const {
+namespace {
+dds_publication_matched_status_t PublicationMatched(dds_entity_t writer) {
   dds_publication_matched_status_t st;
-  Check(dds_get_publication_matched_status(e_, &st), "dds_get_publication_matched_status");
-  return st.current_count;
+  Check(dds_get_publication_matched_status(writer, &st), "dds_get_publication_matched_status");
+  return st;
 }
+}  // namespace
+
+std::uint32_t RawWriter::MatchedReaders() const { return PublicationMatched(e_).current_count; }
+
+std::uint32_t RawWriter::TotalMatchedReaders() const { return PublicationMatched(e_).total_count; }
 
 bool RawWriter::WaitForAcks(double timeout_s) const {
   const dds_return_t rc = dds_wait_for_acks(e_, ToDuration(timeout_s));

@@ -108,6 +108,9 @@ class RawWriter : public Entity {
   void Unregister(const void* sample) const;
   // Number of readers currently matched.
   std::uint32_t MatchedReaders() const;
+  // Number of readers ever matched (counts a reader again when it re-matches, e.g. after a
+  // lapsed lease).
+  std::uint32_t TotalMatchedReaders() const;
   // Waits until every reliable reader acknowledged; false on timeout.
   bool WaitForAcks(double timeout_s) const;
 };

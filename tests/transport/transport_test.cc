@@ -76,6 +76,28 @@ TEST_F(TransportTest, SensorStreamsRoundTrip) {
   EXPECT_EQ(scans[0].obs[1].kind, ObservationKind::kRobot);
 }
 
+// A reader that leaves and comes back is one current match but two in total: the feeder uses
+// the total to notice an agent that re-subscribed.
+TEST_F(TransportTest, WriterCountsCurrentAndTotalMatchedReaders) {
+  Writer<Odometry> w(p(), OdomTopic(5), SensorQos());
+  EXPECT_EQ(w.raw().MatchedReaders(), 0u);
+  EXPECT_EQ(w.raw().TotalMatchedReaders(), 0u);
+  {
+    Reader<Odometry> r(p(), OdomTopic(5), SensorQos());
+    WaitMatched(w);
+    EXPECT_EQ(w.raw().TotalMatchedReaders(), 1u);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (w.raw().MatchedReaders() != 0 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_EQ(w.raw().MatchedReaders(), 0u);
+  Reader<Odometry> again(p(), OdomTopic(5), SensorQos());
+  WaitMatched(w);
+  EXPECT_EQ(w.raw().MatchedReaders(), 1u);
+  EXPECT_EQ(w.raw().TotalMatchedReaders(), 2u);
+}
+
 TEST_F(TransportTest, LinksTruthStatusRoundTrip) {
   Writer<RadioLinks> wl(p(), kLinksTopic, LinksQos());
   Reader<RadioLinks> rl(p(), kLinksTopic, LinksQos());
