@@ -175,7 +175,7 @@ bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool 
     return false;
   }
   // An answer is used once a second, later one agrees with it (or with the transform in use).
-  const bool confirmed = !options_.confirm_alignments || (p.report.aligned && Agree(p.report.to_own, r.transform, at)) ||
+  const bool confirmed = !options_.test_only.confirm_alignments || (p.report.aligned && Agree(p.report.to_own, r.transform, at)) ||
                          (p.candidate && Agree(*p.candidate, r.transform, at));
   if (!confirmed) {
     p.candidate = r.transform;
@@ -203,7 +203,7 @@ bool MapExchange::Grew(std::size_t size, std::size_t at_attempt) const {
 bool MapExchange::RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const {
   // A stale peer's contribution stays as it was verified (its map will not change). A silent
   // one's may still be corrected, by a confirmed answer (a move, never a removal).
-  if (!options_.realign_on_growth || p.report.stale || now - p.last_attempt < options_.align_period_s) return false;
+  if (!options_.test_only.realign_on_growth || p.report.stale || now - p.last_attempt < options_.align_period_s) return false;
   // A realignment that disagreed with the transform in use waits for a second, later answer to
   // confirm it: that one is due as soon as either map has changed, as for a first alignment, not
   // only after the next fifth of growth (which may never come).
@@ -268,7 +268,7 @@ MapExchange::Evidence MapExchange::Weigh(const Peer& q, const Pose2& placement, 
 bool MapExchange::RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, const LandmarkMap& own_local) {
   // At most once per align period for each relay: one that does not hold q's map must not keep
   // another, which does, from being heard.
-  if (!options_.refute_by_relay || !q.report.aligned || !q.direct) return false;
+  if (!options_.test_only.refute_by_relay || !q.report.aligned || !q.direct) return false;
   const auto checked = q.last_refute_check.find(p.report.key);
   if (checked != q.last_refute_check.end() && now_ - checked->second < options_.align_period_s) return false;
   q.last_refute_check[p.report.key] = now_;
@@ -328,7 +328,7 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local, bool recon
       const AlignmentResult g = VerifyAlignment(own_local, p.global, s.to_own, options_.align);
       if (g.accepted() && Agree(g.transform, s.to_own, Centroid(p.global))) {
         Peer* conflict = nullptr;
-        if (!options_.relay_must_agree || RelayAgrees(p, s.to_own, &conflict)) {
+        if (!options_.test_only.relay_must_agree || RelayAgrees(p, s.to_own, &conflict)) {
           p.report.relayed = true;
         } else if (RefuteByRelay(p, s.to_own, *conflict, own_local)) {
           // Our alignment of the other peer was the false one; the relay may now agree.
@@ -432,7 +432,7 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
   // (A peer that sent nothing new keeps its choice: until its liveliness is lost, a dead peer
   // is not known to be dead, and what it gave must stay as it was.)
   changed = changed || refuted_;
-  if (changed && options_.relay_must_agree) {
+  if (changed && options_.test_only.relay_must_agree) {
     for (auto& [key, p] : peers_) {
       if (p.source && chosen.count(key)) ChooseSource(p, own_local, true);
     }

@@ -9,38 +9,8 @@
 // aligns afresh as the maps grow (a false alignment accepted on small maps is replaced), uses
 // an alignment only once a second, later one agrees with it, and
 // rebuilds the cloned global map (global_map.h) from its local map and every aligned peer's
-// latest verified map.
-//
-// - Relay: when a peer's global map agrees with the peer's alignment, and with every other
-//   aligned peer's map it overlaps, it is fused instead of the peer's local map, which brings in
-//   what the peer learned from robots out of our range.
-//   What an agent publishes as its global map is its one-hop map (published()): its local map
-//   fused with its aligned peers' local maps only. A relayed map therefore never carries back
-//   what the receiver itself sent, nor anything of a source once that source is dropped, so
-//   no loop can keep a wrong landmark alive; the price is that relays reach two hops.
-// - Conflicts: when a peer's relay places another peer elsewhere than our own alignment does,
-//   both placements are tested against every map we hold that is independent of the placed
-//   peer (our local map and the other aligned peers' local maps). If the relay's placement is
-//   supported by one and contradicts fewer of them (then has more support), or if more of them
-//   contradict our placement than support it, our direct alignment is the false one (in a park,
-//   rows of trees allow a 90-degree match where two paths cross): it is refuted, never accepted
-//   again, and the relay is used instead.
-// - Nothing learned is lost: a peer that can no longer speak (its writer is gone: killed, or
-//   stalled beyond its lease) is frozen. Its last verified map stays in the global map, and no
-//   decision taken on other evidence removes it: it is neither verified nor realigned, and a relay that
-//   refutes its placement re-places it (moves it to where that live relay, holding the same
-//   landmarks, puts them) instead of dropping it; while that relay is used, the relay brings
-//   those landmarks and the peer's own copy stays out of the global map (two copies of a bent
-//   map would not coincide), and whenever it is not, the peer's copy is back. Only the peer
-//   itself, speaking again, can withdraw what it said. The last map of a frozen peer, or of one
-//   that sent none for silent_after_s (out of range, say), that was never aligned keeps being
-//   tried against our growing map.
-// - Bounded work: at most max_alignments_per_update full alignments per Update, handed out
-//   round robin so that every peer's turn comes (the agent refuses maps larger than it will
-//   align before they get here: agent.max_peer_landmarks); a peer's map version may run ahead
-//   of the last one only as fast as maps can be published, so one forged version cannot make
-//   the peer's genuine maps stale; and a robot keeps at most max_incarnations map frames.
-// - Resume: an earlier incarnation of this agent (from its checkpoint) is one more peer.
+// latest verified map. How relaying, conflicts, frozen peers, bounded work and resume work,
+// and why: docs/EXCHANGE.md.
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -67,24 +37,31 @@ inline AlignmentOptions ExchangeAlignment() {
   return o;
 }
 
+// Parts of the exchange that the unit tests switch off one at a time, to show what each one
+// prevents. They are not settings: a run always has them all on.
+struct ExchangeAblations {
+  bool confirm_alignments = true;  // an alignment is used once a later, independent one agrees with it
+  bool realign_on_growth = true;   // a live aligned peer is aligned afresh when either map grew by retry_growth
+                                   // (at most every align_period_s); an accepted answer replaces the transform
+  bool relay_must_agree = true;    // a relay must agree with the other aligned peers' maps it overlaps
+  bool refute_by_relay = true;     // a better supported relay refutes our direct alignment
+};
+
 struct ExchangeOptions {
   double align_period_s = 5.0;     // an unaligned peer is tried again this often, when its map changed ...
   double retry_growth = 0.2;       // ... or ours grew by this share
   int drop_after_failures = 2;     // consecutive failed verifications drop the alignment
-  bool confirm_alignments = true;  // an alignment is used once a later, independent one agrees with it
-  bool realign_on_growth = true;   // a live aligned peer is aligned afresh when either map grew by retry_growth
-                                   // (at most every align_period_s); an accepted answer replaces the transform
   double refine_period_s = 5.0;    // a live aligned peer that sent nothing new has its transform refined on our
                                    // own map as it is now, this often (0: only when the peer's map changes)
   bool relay_global_maps = true;   // fuse a peer's global map when it agrees with the peer's alignment
   double relay_tolerance_m = 1.0;  // ... within this (at the map's centroid) ...
   double relay_tolerance_deg = 2.0;  // ... and this (two transforms within both agree, for confirmations too)
-  bool relay_must_agree = true;    // ... and where it overlaps another aligned peer's map, verifies against
-                                   // that map too (a relay must not place a robot elsewhere than we do) ...
+  // ... and where it overlaps another aligned peer's map, verifies against that map too (a
+  // relay must not place a robot elsewhere than we do; ExchangeAblations::relay_must_agree) ...
   double relay_min_agreement = 0.6;  // ... with this share of the overlapping landmarks as inliers (in
                                      // the unit test a relay partly 3 m off scores 0.49, a true one 0.97)
-  bool refute_by_relay = true;     // a relay that places a peer elsewhere than our alignment does, and is better
-                                   // supported by the maps we hold, refutes our alignment (at most every align_period_s) ...
+  // A relay that places a peer elsewhere than our alignment does, and is better supported by the
+  // maps we hold, refutes our alignment (at most every align_period_s) ...
   double refute_min_offset_m = 10.0;    // ... when the two place the peer's map centroid this far apart ...
   double refute_min_offset_deg = 10.0;  // ... or turned by this much (closer, they are two fits of one alignment,
                                         // as of Victoria Park's bent maps, 3-5 m and 2-3 degrees apart) ...
@@ -97,6 +74,7 @@ struct ExchangeOptions {
   int max_incarnations = 8;             // incarnations kept per robot; a newer one evicts one never aligned and frozen
   AlignmentOptions align = ExchangeAlignment();
   GlobalMapOptions global;
+  ExchangeAblations test_only;  // all on outside unit tests
 };
 
 // A peer's map frame: one incarnation of one robot.

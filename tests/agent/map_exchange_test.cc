@@ -65,7 +65,7 @@ constexpr double kSigma = 0.03;
 // (AlignmentsAreUsedOnceConfirmed covers the confirmation).
 ExchangeOptions Immediate() {
   ExchangeOptions o;
-  o.confirm_alignments = false;
+  o.test_only.confirm_alignments = false;
   return o;
 }
 const Pose2 kFrameA{0.0, 0.0, 0.0}, kFrameB{20.0, 5.0, 1.2}, kFrameC{35.0, 30.0, -2.0};
@@ -203,7 +203,7 @@ TEST(MapExchange, ARelayThatPlacesAPeerElsewhereThanWeDoIsNotUsed) {
   for (bool must_agree : {true, false}) {
     SCOPED_TRACE(must_agree);
     ExchangeOptions o = Immediate();
-    o.relay_must_agree = must_agree;
+    o.test_only.relay_must_agree = must_agree;
     const MapExchange a = HeardBAndC(o, 7, la, lb, lc, bad);
     ASSERT_EQ(a.AlignedRobots(), (std::vector<RobotId>{2, 3}));
     const PeerReport rb = a.Peers().front();
@@ -297,7 +297,7 @@ TEST(MapExchange, AnAlignmentAcceptedOnSmallMapsIsCorrectedAsTheMapsGrow) {
     SCOPED_TRACE(realign);
     const RepeatedPatch w(5);
     ExchangeOptions o = Immediate();
-    o.realign_on_growth = realign;
+    o.test_only.realign_on_growth = realign;
     MapExchange a(1, 1, o, 6);
     a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, RepeatedPatch::Map({w.r1}, kFrameB), 0.0);
     a.Update(RepeatedPatch::Map({w.r2}, kFrameA), 10.0);
@@ -381,7 +381,7 @@ TEST(MapExchange, ARelayBetterSupportedThanOurAlignmentRefutesIt) {
   for (bool refute : {false, true}) {
     SCOPED_TRACE(refute);
     ExchangeOptions o = Immediate();
-    o.refute_by_relay = refute;
+    o.test_only.refute_by_relay = refute;
     MapExchange a = HeardBAndC(o, 4, la, lb, lc, b.published().map);
     const std::vector<PeerReport> peers = a.Peers();
     ASSERT_EQ(peers.size(), 2u);
