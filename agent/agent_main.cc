@@ -11,6 +11,7 @@
 #include <map>
 
 #include "agent/agent_node.h"
+#include "agent/agent_setup.h"
 #include "common/app/process.h"
 #include "common/io/checkpoint.h"
 #include "common/io/run_files.h"
@@ -301,7 +302,7 @@ int Run(int argc, char** argv) {
   tp::Reader<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
   tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos());
   DdsOutput output(p);
-  AgentNode node(scenario, self, incarnation, output);
+  AgentNode node(scenario.agent, AgentRunFor(scenario, self), self, incarnation, output);
   if (checkpoint) {
     node.Resume(*checkpoint);
     spdlog::info("resumed incarnation {} (t={:.1f}s, {} local and {} global landmarks, {} earlier incarnations)",

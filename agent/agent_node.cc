@@ -14,74 +14,18 @@ namespace {
 // MapMessage fields besides the payload: robot_id, kind, version, stamp, sequence length.
 constexpr std::size_t kMapMessageFixedBytes = 4 + 1 + 4 + 4 + 8 + 8 + 4;  // keys, incarnation, version, stamps, payload length
 
-// No stamp of the run comes after this: its end when the scenario says (a dataset replayed
-// whole ends where its data does, which the agent does not read), and a window's slack.
-double RunEnd(const Scenario& sc) {
-  return sc.source.IsDataset() && !sc.duration_given ? std::numeric_limits<double>::infinity()
-                                                     : sc.duration_s + sc.agent.max_stamp_jump_s;
-}
-
 }  // namespace
 
-std::unique_ptr<LocalMapper> MakeLocalMapper(const Scenario& sc, RobotId self) {
-  const RobotSpec* robot = sc.FindRobot(self);
-  MAPMESH_CHECK(robot != nullptr, "agent id not in the scenario");
-  const AgentOptions& a = sc.agent;
-  const MotionModel motion = MotionModelFor(robot->motion);
-  if (a.slam == "dead_reckoning") {
-    DeadReckoningOptions o;
-    o.motion = motion;
-    o.sigma_range_m = robot->sensor.sigma_range_m;
-    o.sigma_bearing_rad = DegToRad(robot->sensor.sigma_bearing_deg);
-    o.association_gate_m = a.association_gate_m;
+std::unique_ptr<LocalMapper> MakeLocalMapper(const AgentOptions& options, const FilterNoise& noise,
+                                             const SensorSpec& sensor) {
+  if (options.slam.filter == SlamMethod::kDeadReckoning) {
+    DeadReckoningOptions o = options.dead_reckoning;
+    o.motion = noise.motion;
+    o.sigma_range_m = sensor.sigma_range_m;
+    o.sigma_bearing_rad = sensor.sigma_bearing_rad;
     return std::make_unique<DeadReckoningMapper>(o);
   }
-  FilterNoise noise;
-  noise.motion = motion;
-  const double sigma_turn = motion.kind == MotionModel::Kind::kAckermann ? robot->motion.sigma_steering_rad
-                                                                         : robot->motion.sigma_w_radps;
-  noise.control_cov = Eigen::Vector2d(std::pow(robot->motion.sigma_v_mps, 2), sigma_turn * sigma_turn).asDiagonal();
-  noise.control_period_s = sc.world.control_period_s;
-  noise.obs_cov = Eigen::Vector2d(std::pow(robot->sensor.sigma_range_m, 2),
-                                  std::pow(DegToRad(robot->sensor.sigma_bearing_deg), 2))
-                      .asDiagonal();
-  LocalSlamOptions o;
-  o.filter = a.slam;
-  std::string method = a.association;
-  if (method == "auto") method = robot->sensor.signatures ? "known" : "jcbb";
-  o.association.method = method == "known" ? AssociationMethod::kKnown
-                         : method == "icnn" ? AssociationMethod::kIcnn
-                                            : AssociationMethod::kJcbb;
-  o.association.gate_probability = a.gate_probability;
-  o.association.new_landmark_chi2 = a.new_landmark_chi2;
-  o.tentative = a.tentative;
-  o.tentative_gate_m = a.tentative_gate_m;
-  o.tentative_timeout_s = a.tentative_timeout_s;
-  o.min_range_m = a.min_range_m;
-  // Readings beyond what the sensor can see (allowing for its noise) are refused: one forged
-  // reading 30 km away must not end up in the map.
-  o.max_range_m = a.max_range_m > 0 ? a.max_range_m : robot->sensor.max_range_m + 5.0 * robot->sensor.sigma_range_m;
-  o.ekf.first_estimates_jacobians = a.first_estimates_jacobians;
-  o.cekf.region_half_m = a.region_half_m;
-  const double range = a.max_range_m > 0 ? a.max_range_m : robot->sensor.max_range_m;
-  o.cekf.reach_m = a.region_reach_m > 0 ? a.region_reach_m : range + 4.0;
-  return std::make_unique<LocalSlam>(noise, o);
-}
-
-ExchangeOptions ExchangeOptionsFor(const Scenario& sc) {
-  const AgentOptions& a = sc.agent;
-  ExchangeOptions o;
-  o.align_period_s = a.align_period_s;
-  o.refine_period_s = a.refine_period_s;
-  o.drop_after_failures = a.drop_after_failures;
-  o.relay_global_maps = a.relay_global_maps;
-  o.silent_after_s = a.silent_after_s > 0 ? a.silent_after_s : 3.0 * a.map_publish_period_s;
-  o.max_alignments_per_update = a.max_alignments_per_update;
-  o.max_versions_per_s = 2.0 / a.map_publish_period_s;  // one of each kind per period, twice over
-  const std::optional<FusionMethod> m = ParseFusionMethod(a.fusion);
-  MAPMESH_CHECK(m.has_value(), "agent.fusion was validated when the scenario was read");
-  o.global.method = *m;
-  return o;
+  return std::make_unique<LocalSlam>(noise, options.slam.ForSensor(sensor));
 }
 
 std::size_t WireBytes(const MapMessage& msg) { return kMapMessageFixedBytes + msg.payload.size(); }
@@ -119,26 +63,22 @@ std::uint32_t AgentStats::MapsDropped() const {
          MapsRefused();
 }
 
-AgentNode::AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incarnation,
+AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId self, std::uint32_t incarnation,
                      AgentOutput& out)
-    : options_(scenario.agent),
-      peer_limits_{static_cast<std::size_t>(scenario.agent.max_peer_landmarks), scenario.agent.world_radius_m,
-                   scenario.agent.max_landmark_sigma_m},
+    : options_(options),
+      robot_ids_(run.robots),
       self_(self),
       incarnation_(incarnation),
       out_(out),
       gate_(self,
-            RadioGateOptions{scenario.radio.loss_probability, scenario.radio.bandwidth_bytes_per_s,
-                             scenario.agent.max_stamp_jump_s, RunEnd(scenario)},
-            scenario.seed * 1000003ULL + self * 7919ULL + incarnation),
-      sync_(*this, SensorSync::Options{scenario.agent.frame_at_first_landmark, scenario.agent.max_stamp_jump_s,
-                                       RunEnd(scenario)}),
-      mapper_(MakeLocalMapper(scenario, self)),
-      trajectory_period_s_(scenario.feeder.truth_period_s),
-      exchange_(self, incarnation, ExchangeOptionsFor(scenario),
-                scenario.seed * 2654435761ULL + self * 40503ULL + incarnation) {
-  for (const auto& r : scenario.robots) robot_ids_.push_back(r.id);
-}
+            RadioGateOptions{run.loss_probability, run.bandwidth_bytes_per_s, options.max_stamp_jump_s,
+                             run.end_s + options.max_stamp_jump_s},
+            run.seed * 1000003ULL + self * 7919ULL + incarnation),
+      sync_(*this, SensorSync::Options{options.sync.frame_at_first_landmark, options.max_stamp_jump_s,
+                                       run.end_s + options.max_stamp_jump_s}),
+      mapper_(MakeLocalMapper(options, run.noise, run.sensor)),
+      trajectory_period_s_(run.trajectory_period_s),
+      exchange_(self, incarnation, options.exchange, run.seed * 2654435761ULL + self * 40503ULL + incarnation) {}
 
 void AgentNode::OnOdometry(const Odometry& odom) { sync_.OnOdometry(odom); }
 
@@ -161,8 +101,8 @@ void AgentNode::AfterInterval(const Odometry& odom) {
   if (sync_.processed_until() + 1e-9 >= next_map_publish_s_) {
     PublishMaps();
     next_map_publish_s_ =
-        (std::floor(sync_.processed_until() / options_.map_publish_period_s + 1e-9) + 1.0) *
-        options_.map_publish_period_s;
+        (std::floor(sync_.processed_until() / options_.exchange.map_publish_period_s + 1e-9) + 1.0) *
+        options_.exchange.map_publish_period_s;
   }
   bool status_due = odom.sync;
   if (sync_.processed_until() + 1e-9 >= next_status_s_) {
@@ -242,7 +182,7 @@ void AgentNode::OnMap(const MapMessage& msg) {
   stats_.bytes_received += WireBytes(msg);
   // A map larger than we will align is refused before it is decoded (kept within the codec's
   // own limit, so that a malformed count is still reported as such).
-  if (const auto n = MapPayloadCount(msg.payload); n && *n <= kMapCodecMaxLandmarks && *n > peer_limits_.max_landmarks) {
+  if (const auto n = MapPayloadCount(msg.payload); n && *n <= kMapCodecMaxLandmarks && *n > options_.peer_limits.max_landmarks) {
     return refuse(MapRefusal::kTooManyLandmarks);
   }
   MapDecodeResult decoded = DecodeMap(msg.payload);
@@ -250,7 +190,7 @@ void AgentNode::OnMap(const MapMessage& msg) {
     ++stats_.maps_rejected[static_cast<int>(decoded.error)];
     return;
   }
-  switch (CheckMapLimits(decoded.map, peer_limits_)) {
+  switch (CheckMapLimits(decoded.map, options_.peer_limits)) {
     case MapLimitViolation::kNone: break;
     case MapLimitViolation::kTooManyLandmarks: return refuse(MapRefusal::kTooManyLandmarks);
     case MapLimitViolation::kOutOfWorld: return refuse(MapRefusal::kOutOfWorld);

@@ -5,16 +5,17 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
 #include <string_view>
 #include <vector>
 
+#include "agent/agent_options.h"
 #include "agent/map_exchange.h"
 #include "agent/radio_gate.h"
 #include "agent/sensor_sync.h"
-#include "common/config/scenario.h"
 #include "common/io/checkpoint.h"
 #include "common/map/landmark_map.h"
 #include "common/map/map_codec.h"
@@ -32,14 +33,26 @@ class AgentOutput {
   virtual void PublishStatus(const AgentStatus& status) = 0;
 };
 
-// The local estimator the scenario asks for, for robot `self` (its motion model and noise).
-std::unique_ptr<LocalMapper> MakeLocalMapper(const Scenario& scenario, RobotId self);
+// What an agent knows of its run besides its own options (agent/agent_setup.h derives it from
+// a scenario).
+struct AgentRun {
+  std::vector<RobotId> robots;         // the robots of this run; maps from others are rejected
+  std::uint64_t seed = 1;              // the run's seed (the agent's generators derive theirs from it)
+  double end_s = std::numeric_limits<double>::infinity();  // no stamp of the run comes after this plus
+                                                           // max_stamp_jump_s (infinite: a dataset replayed whole)
+  double trajectory_period_s = 0.5;    // how often the estimated pose is recorded (feeder.truth_period_s)
+  double loss_probability = 0.0;       // radio.loss_probability
+  double bandwidth_bytes_per_s = 0.0;  // radio.bandwidth_bytes_per_s (0: unlimited)
+  FilterNoise noise;                   // the robot's motion model and its odometry and sensor noise
+  SensorSpec sensor;                   // its sensor's range, noise and signatures
+};
+
+// The local estimator the options ask for, for a robot with this noise and sensor.
+std::unique_ptr<LocalMapper> MakeLocalMapper(const AgentOptions& options, const FilterNoise& noise,
+                                             const SensorSpec& sensor);
 
 // Bytes a map message occupies on the wire: its payload plus the fixed fields.
 std::size_t WireBytes(const MapMessage& msg);
-
-// The map-exchange options a scenario gives its agents.
-ExchangeOptions ExchangeOptionsFor(const Scenario& scenario);
 
 // Why a well-formed map from a robot of this run was refused before it was used; each refusal
 // changes nothing.
@@ -84,8 +97,8 @@ struct AgentStats {
 
 class AgentNode : private SensorSync::Sink {
  public:
-  // scenario must contain a robot with id self.
-  AgentNode(const Scenario& scenario, RobotId self, std::uint32_t incarnation, AgentOutput& out);
+  AgentNode(const AgentOptions& options, const AgentRun& run, RobotId self, std::uint32_t incarnation,
+            AgentOutput& out);
 
   void OnOdometry(const Odometry& odom);
   void OnScan(const Scan& scan);
@@ -140,7 +153,6 @@ class AgentNode : private SensorSync::Sink {
   double Clock() const;
 
   AgentOptions options_;
-  MapLimits peer_limits_;
   std::vector<RobotId> robot_ids_;  // the robots of this run; maps from others are rejected
   RobotId self_;
   std::uint32_t incarnation_;

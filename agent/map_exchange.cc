@@ -29,7 +29,7 @@ MapExchange::Receipt MapExchange::OnPeerMap(RobotId robot, std::uint32_t incarna
   const PeerKey key{robot, incarnation};
   auto it = peers_.find(key);
   // Versions count publications: no publisher can be further ahead than its maps could go out.
-  const double rate = options_.max_versions_per_s;
+  const double rate = options_.MaxVersionsPerS();
   if (version > options_.version_slack + rate * std::max(0.0, now)) return Receipt::kVersionJump;
   if (it != peers_.end()) {
     const Peer& known = it->second;
@@ -148,7 +148,7 @@ bool MapExchange::Spend() {
 bool MapExchange::Frozen(const Peer& p) const { return p.report.stale || p.report.own_checkpoint; }
 
 bool MapExchange::Silent(const Peer& p) const {
-  return Frozen(p) || now_ - p.report.last_heard > options_.silent_after_s;
+  return Frozen(p) || now_ - p.report.last_heard > options_.SilentAfterS();
 }
 
 bool MapExchange::AttemptDue(const Peer& p, const LandmarkMap& own_local, double now) const {

@@ -21,61 +21,12 @@
 
 #include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
+#include "agent/exchange_options.h"
 #include "common/merge/global_map.h"
 #include "common/merge/map_alignment.h"
 #include "common/types/messages.h"
 
 namespace mapmesh {
-
-// The alignment an agent runs on its peers' maps: AlignmentOptions, except that where a
-// transform lays the peer's map over ground we have mapped, half of its landmarks there (not
-// 0.3) must find partners. In the park's rows of trees 1.5 m apart, false alignments passed
-// at 0.3 (6 of 16 matched); true ones match 0.8-1.0 there and in MRCLAM and Victoria Park.
-inline AlignmentOptions ExchangeAlignment() {
-  AlignmentOptions o;
-  o.min_overlap_ratio = 0.5;
-  return o;
-}
-
-// Parts of the exchange that the unit tests switch off one at a time, to show what each one
-// prevents. They are not settings: a run always has them all on.
-struct ExchangeAblations {
-  bool confirm_alignments = true;  // an alignment is used once a later, independent one agrees with it
-  bool realign_on_growth = true;   // a live aligned peer is aligned afresh when either map grew by retry_growth
-                                   // (at most every align_period_s); an accepted answer replaces the transform
-  bool relay_must_agree = true;    // a relay must agree with the other aligned peers' maps it overlaps
-  bool refute_by_relay = true;     // a better supported relay refutes our direct alignment
-};
-
-struct ExchangeOptions {
-  double align_period_s = 5.0;     // an unaligned peer is tried again this often, when its map changed ...
-  double retry_growth = 0.2;       // ... or ours grew by this share
-  int drop_after_failures = 2;     // consecutive failed verifications drop the alignment
-  double refine_period_s = 5.0;    // a live aligned peer that sent nothing new has its transform refined on our
-                                   // own map as it is now, this often (0: only when the peer's map changes)
-  bool relay_global_maps = true;   // fuse a peer's global map when it agrees with the peer's alignment
-  double relay_tolerance_m = 1.0;  // ... within this (at the map's centroid) ...
-  double relay_tolerance_deg = 2.0;  // ... and this (two transforms within both agree, for confirmations too)
-  // ... and where it overlaps another aligned peer's map, verifies against that map too (a
-  // relay must not place a robot elsewhere than we do; ExchangeAblations::relay_must_agree) ...
-  double relay_min_agreement = 0.6;  // ... with this share of the overlapping landmarks as inliers (in
-                                     // the unit test a relay partly 3 m off scores 0.49, a true one 0.97)
-  // A relay that places a peer elsewhere than our alignment does, and is better supported by the
-  // maps we hold, refutes our alignment (at most every align_period_s) ...
-  double refute_min_offset_m = 10.0;    // ... when the two place the peer's map centroid this far apart ...
-  double refute_min_offset_deg = 10.0;  // ... or turned by this much (closer, they are two fits of one alignment,
-                                        // as of Victoria Park's bent maps, 3-5 m and 2-3 degrees apart) ...
-  double refute_min_share = 0.5;        // ... and the relay's placement matches this share of the peer's map
-                                        // (the relay holds that map, not a stretch of it by coincidence)
-  double silent_after_s = 6.0;          // a peer that sent no map for this long (scenario s) is silent (see above)
-  int max_alignments_per_update = 4;    // full alignments (first, retried and fresh ones) per Update, round robin
-  double max_versions_per_s = 2.0;      // a map's version may exceed the last one received by version_slack plus this
-  std::uint32_t version_slack = 64;     // rate times the scenario seconds since (and any version by this rate times now)
-  int max_incarnations = 8;             // incarnations kept per robot; a newer one evicts one never aligned and frozen
-  AlignmentOptions align = ExchangeAlignment();
-  GlobalMapOptions global;
-  ExchangeAblations test_only;  // all on outside unit tests
-};
 
 // A peer's map frame: one incarnation of one robot.
 struct PeerKey {
@@ -127,7 +78,7 @@ class MapExchange {
   enum class Receipt { kAccepted, kStaleVersion, kVersionJump, kTooManyIncarnations };
   // A decoded map from a peer, received at scenario time `now`. Versions must grow within an
   // incarnation and kind (else kStaleVersion), and by no more than a publisher could have
-  // published since (else kVersionJump: see max_versions_per_s). A new incarnation beyond
+  // published since (else kVersionJump: see ExchangeOptions::MaxVersionsPerS). A new incarnation beyond
   // max_incarnations, when no kept one can be evicted, is kTooManyIncarnations. A refused map
   // changes nothing.
   Receipt OnPeerMap(RobotId robot, std::uint32_t incarnation, MapKind kind, std::uint32_t version, double origin_stamp,

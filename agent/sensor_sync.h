@@ -64,9 +64,16 @@ class SensorSync {
   };
 
   struct Options {
-    bool frame_at_first_landmark = false;  // see above
+    bool frame_at_first_landmark = true;   // agent.frame_at_first_landmark: see above
     double max_stamp_jump_s = 20.0;        // stamps this far beyond the odometry received so far are implausible
     double max_stamp_s = std::numeric_limits<double>::infinity();  // and any beyond this (the run's end)
+
+    // Reads its keys of the scenario's agent section (docs/SCENARIOS.md); the stamp bounds
+    // are the agent's (AgentOptions).
+    template <typename Reader>
+    void Read(Reader& r) {
+      r.Get("frame_at_first_landmark", frame_at_first_landmark);
+    }
   };
 
   SensorSync(Sink& sink, const Options& options) : sink_(sink), options_(options), frame_fixed_(!options.frame_at_first_landmark) {}

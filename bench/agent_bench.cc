@@ -7,6 +7,7 @@
 #include <random>
 
 #include "agent/agent_node.h"
+#include "agent/agent_setup.h"
 #include "common/config/scenario.h"
 #include "common/map/map_codec.h"
 
@@ -34,7 +35,7 @@ world: {landmarks: {list: [[5, 0], [0, 5]]}}
 robots: {list: [{id: 1, start: [0, 0, 0]}, {id: 2, start: [1, 0, 0]}]}
 )", "bench.yaml");
   NullOutput out;
-  AgentNode node(sc, 1, 1, out);
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
   node.OnLinks({0.0, {{1, 2}}});
   MapMessage msg;
   msg.robot_id = 2;

@@ -96,14 +96,14 @@ void Fill(LandmarkFilter& f, int n) {
 
 template <>
 std::unique_ptr<EkfSlam> MakeFilledFilter<EkfSlam>(int n) {
-  auto f = std::make_unique<EkfSlam>(BenchNoise());
+  auto f = std::make_unique<EkfSlam>(BenchNoise(), EkfOptions{/*first_estimates_jacobians=*/false});
   Fill(*f, n);
   return f;
 }
 
 template <>
 std::unique_ptr<CekfSlam> MakeFilledFilter<CekfSlam>(int n) {
-  auto f = std::make_unique<CekfSlam>(BenchNoise(), CekfOptions{5.0, 12.0});
+  auto f = std::make_unique<CekfSlam>(BenchNoise(), CekfOptions{5.0, 12.0}, EkfOptions{/*first_estimates_jacobians=*/false});
   Fill(*f, n);
   f->Switch();  // settle, and make only the landmarks around the robot active
   return f;

@@ -90,6 +90,21 @@ std::set<std::string> KeyLiterals(const fs::path& source) {
   return keys;
 }
 
+// The backticked names of docs/SCENARIOS.md (keys, their dotted parts, choices), lower-case
+// identifiers only.
+std::set<std::string> DocumentedNames(const fs::path& docs) {
+  const std::string text = ReadText(docs);
+  const std::regex quoted("`([a-z][a-z0-9_.\\[\\]]*)`"), part("[a-z][a-z0-9_]*");
+  std::set<std::string> names;
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), quoted); it != std::sregex_iterator(); ++it) {
+    const std::string name = (*it)[1].str();
+    for (auto p = std::sregex_iterator(name.begin(), name.end(), part); p != std::sregex_iterator(); ++p) {
+      names.insert(p->str());
+    }
+  }
+  return names;
+}
+
 // A random map: n landmarks within `extent` m of the origin, standard deviations from 10 um to
 // 3 km, any correlation.
 LandmarkMap RandomMap(std::size_t n, double extent, std::mt19937& rng) {
@@ -389,7 +404,9 @@ void ScenarioSeeds(const fs::path& dir, const fs::path& source_dir) {
   Write(dir / "variant-empty.yaml", "");
   Write(dir / "variant-agents-only.yaml", "version: 1\nworld: {landmarks: {list: []}}\n#--agents 2\n");
 
-  std::set<std::string> dict = KeyLiterals(source_dir / "common/config/scenario.cc");
+  // Every key name and choice the docs list (the agent's keys are read in its modules' headers,
+  // the others in the config sources; docs/SCENARIOS.md names them all, as a unit test checks).
+  std::set<std::string> dict = DocumentedNames(source_dir / "docs/SCENARIOS.md");
   for (const char* t : {": ", "- ", "{", "}", "[", "]", ", ", "\n  ", "&a ", "*a", "!!str ", "!!int ", "---\n",
                         "? ", "|\n", ">\n", "~", "null", "true", "1e308", ".inf", ".nan", "-0", "0x7fffffff",
                         "2147483647", "4294967296", "#--set ", "#--agents ", "landmarks.csv", "bad.csv"}) {

@@ -5,6 +5,7 @@
 #include <memory>
 #include <set>
 
+#include "agent/agent_setup.h"
 #include "common/metrics/trajectory_metrics.h"
 #include "sim_feeder/sources.h"
 
@@ -41,7 +42,7 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
   auto launch = [&](Slot& s) {
     ++s.incarnation;
     s.out = std::make_unique<Outbox>();
-    s.node = std::make_unique<AgentNode>(sc, s.id, s.incarnation, *s.out);
+    s.node = std::make_unique<AgentNode>(sc.agent, AgentRunFor(sc, s.id), s.id, s.incarnation, *s.out);
     if (s.checkpoint) s.node->Resume(*s.checkpoint);
     s.alive = true;
     s.next_checkpoint_s = 0.0;

@@ -10,6 +10,7 @@
 #include <unordered_map>
 
 #include "agent/agent_node.h"
+#include "agent/agent_setup.h"
 #include "agent/sensor_sync.h"
 #include "common/metrics/landmark_metrics.h"
 #include "common/metrics/trajectory_metrics.h"
@@ -25,7 +26,7 @@ using PoseSample = SlamRunResult::PoseSample;
 class RobotRun : public SensorSync::Sink {
  public:
   RobotRun(const Scenario& sc, RobotId id, bool hide)
-      : mapper_(MakeLocalMapper(sc, id)), sync_(*this, sc.agent.frame_at_first_landmark), hide_(hide) {}
+      : mapper_(MakeLocalMapper(sc, id)), sync_(*this, sc.agent.sync.frame_at_first_landmark), hide_(hide) {}
 
   void Move(const OdometryControl& u, double dt) override { mapper_->Predict(u, dt); }
   void ApplyScan(const Scan& scan, double stamp) override {

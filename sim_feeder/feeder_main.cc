@@ -126,7 +126,7 @@ class Feeder {
   Feeder(const Scenario& sc, Channels& ch, AgentTracker& tracker, ControlInput& control,
          tp::ShutdownSignal& shutdown, bool events, double stall_timeout_s)
       : sc_(sc), ch_(ch), tracker_(tracker), control_(control), shutdown_(shutdown),
-        events_(events), stall_timeout_s_(stall_timeout_s), keep_sent_(sc.feeder.pace == "lockstep") {
+        events_(events), stall_timeout_s_(stall_timeout_s), keep_sent_(sc.feeder.pace == Pace::kLockstep) {
     for (const RobotSpec& r : sc.robots) matches_at_restart_[r.id] = 0;
   }
 
@@ -373,10 +373,10 @@ class PlayRecord {
       robots.push_back(e);
     }
     io::WriteJsonAtomic(dir + "/feeder.json", {{"scenario", sc_.name},
-                                               {"source", sc_.source.type},
+                                               {"source", std::string(NameOf(kSourceTypes, sc_.source.type))},
                                                {"sim_duration_s", sc_.duration_s},
                                                {"wall_s", wall_s},
-                                               {"pace", sc_.feeder.pace},
+                                               {"pace", std::string(NameOf(kPaces, sc_.feeder.pace))},
                                                {"interrupted", interrupted},
                                                {"sensor_messages_resent", resent},
                                                {"robots", robots}});
@@ -404,7 +404,9 @@ int Run(int argc, char** argv) {
   cli.add_option("--out", out_dir, "directory for truth.json and feeder.json");
   cli.add_option("--datasets", datasets,
                  "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets beside the sources)");
-  cli.add_option("--pace", pace, "override feeder.pace")->check(CLI::IsMember({"lockstep", "realtime"}));
+  std::vector<std::string> paces;
+  for (const auto& c : kPaces) paces.emplace_back(c.name);
+  cli.add_option("--pace", pace, "override feeder.pace")->check(CLI::IsMember(paces));
   cli.add_option("--rate", rate, "override feeder.realtime_factor")
       ->check(CLI::Range(limits::kMinRealtimeFactor, limits::kMaxRealtimeFactor));
   cli.add_option("--hold-at", holds, "with --control: pause at these scenario times until 'continue'");
@@ -420,7 +422,7 @@ int Run(int argc, char** argv) {
   std::optional<Scenario> loaded = app::LoadScenarioOrReport("mapmesh-feeder", po);
   if (!loaded) return 2;
   Scenario& sc = *loaded;
-  if (!pace.empty()) sc.feeder.pace = pace;
+  if (!pace.empty()) sc.feeder.pace = *ParseChoice(kPaces, pace);
   if (rate > 0.0) sc.feeder.realtime_factor = rate;
   Feed feed;
   try {
@@ -436,11 +438,11 @@ int Run(int argc, char** argv) {
     if (events) {
       std::printf("%s\n", json{{"event", "check"},
                                {"name", sc.name},
-                               {"source", sc.source.type},
+                               {"source", std::string(NameOf(kSourceTypes, sc.source.type))},
                                {"robots", ids},
                                {"landmarks", source.Truth().landmarks.size()},
                                {"duration", sc.duration_s},
-                               {"pace", sc.feeder.pace}}
+                               {"pace", std::string(NameOf(kPaces, sc.feeder.pace))}}
                                .dump()
                                .c_str());
     } else {
@@ -482,10 +484,10 @@ int Run(int argc, char** argv) {
   ControlInput control(control_enabled);
   shutdown.Watch(nullptr);
   Feeder feeder(sc, ch, tracker, control, shutdown, events, stall_timeout_s);
-  const bool lockstep = sc.feeder.pace == "lockstep";
+  const bool lockstep = sc.feeder.pace == Pace::kLockstep;
   spdlog::info("scenario {} ({}): {} robots, {} landmarks, {:.1f} s, pace {}, domain {}", sc.name,
-               sc.source.type, sc.robots.size(), source.Truth().landmarks.size(), sc.duration_s,
-               sc.feeder.pace, po.domain);
+               NameOf(kSourceTypes, sc.source.type), sc.robots.size(), source.Truth().landmarks.size(), sc.duration_s,
+               NameOf(kPaces, sc.feeder.pace), po.domain);
 
   int exit_code = 0;
   try {

@@ -24,7 +24,7 @@ UnicycleControl FollowWaypoints(const Pose2& pose, const PathOptions& path,
   const Eigen::Vector2d d = path.points[state.next] - Eigen::Vector2d(pose.x, pose.y);
   const double error = WrapAngle(std::atan2(d.y(), d.x()) - pose.theta);
   const double w_max = DegToRad(motion.max_turn_rate_dps);
-  if (motion.steering == "thesis") {
+  if (motion.steering == Steering::kThesis) {
     // Thesis Fig. 27: turn at the maximum rate while the heading change needed exceeds what
     // one step at that rate gives, otherwise do not turn; the forward speed never changes.
     const double w = std::abs(error) > w_max * dt ? std::copysign(w_max, error) : 0.0;

@@ -9,7 +9,7 @@ namespace mapmesh {
 Simulator::Simulator(const Scenario& scenario, World world)
     : scenario_(scenario), dt_(scenario.world.control_period_s) {
   for (RobotSpec& spec : scenario_.robots) {
-    if (spec.path.type != "park" || world.paths.empty()) continue;
+    if (spec.path.type != PathType::kPark || world.paths.empty()) continue;
     const Polyline& line = world.paths[spec.path.index % world.paths.size()];
     spec.path.points.assign(line.begin() + 1, line.end());
     spec.path.points.insert(spec.path.points.end(), line.rbegin() + 1, line.rend());

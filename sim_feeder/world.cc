@@ -214,10 +214,10 @@ World BuildWorld(const Scenario& scenario) {
   const LandmarkGeneratorOptions& g = *scenario.world.generator;
   std::mt19937_64 rng(scenario.seed * 0x9E3779B97F4A7C15ULL + 17);
   std::optional<World> world;
-  if (g.type == "park") {
+  if (g.type == LandmarkLayout::kPark) {
     world = GeneratePark(g, rng);
   } else {
-    auto pts = g.type == "disc" ? GenerateDiscLandmarks(g, rng) : GenerateUniformLandmarks(g, rng);
+    auto pts = g.type == LandmarkLayout::kDisc ? GenerateDiscLandmarks(g, rng) : GenerateUniformLandmarks(g, rng);
     if (pts) world = World{std::move(*pts), {}};
   }
   if (!world) {
@@ -225,7 +225,7 @@ World BuildWorld(const Scenario& scenario) {
                       std::to_string(g.count) + " landmarks at the minimum spacing");
   }
   for (const RobotSpec& r : scenario.robots) {
-    if (r.path.type == "park" && world->paths.empty()) {
+    if (r.path.type == PathType::kPark && world->paths.empty()) {
       throw ConfigError(scenario.path + ": robots: robot " + std::to_string(r.id) +
                         " has path type park but the world is not a park");
     }

@@ -107,11 +107,11 @@ void ResolvePath(RobotSpec& spec, const Rect& bounds, std::mt19937_64& rng) {
   PathOptions& path = spec.path;
   const auto random_points = RandomPoints(path.count, path.area_m.value_or(bounds), rng);
   Pose2 start = drawn;
-  if (path.type == "random") {
+  if (path.type == PathType::kRandom) {
     path.points = random_points;
-  } else if (path.type == "circle") {
+  } else if (path.type == PathType::kCircle) {
     path.points = CircleWaypoints(path, &start);
-  } else if (path.type == "lawnmower") {
+  } else if (path.type == PathType::kLawnmower) {
     path.points = LawnmowerWaypoints(path.area_m.value_or(bounds), path.spacing_m);
     const Eigen::Vector2d d = path.points[1] - path.points[0];
     start = {path.points[0].x(), path.points[0].y(), std::atan2(d.y(), d.x())};
@@ -133,7 +133,7 @@ MotionOptions MotionOptions::DownsDefaults() {
   MotionOptions m;
   m.speed_mps = 1.0;              // Downs 4.2: up to 1 m/s
   m.max_turn_rate_dps = 90.0;
-  m.steering = "smooth";          // Downs turns towards the waypoint, then drives
+  m.steering = Steering::kSmooth;  // Downs turns towards the waypoint, then drives
   m.sigma_v_mps = 0.01;
   m.sigma_w_radps = 0.01;
   return m;
@@ -151,7 +151,7 @@ SensorOptions SensorOptions::DownsDefaults() {
 
 MotionModel MotionModelFor(const MotionOptions& motion) {
   MotionModel m;
-  m.kind = motion.model == "ackermann" ? MotionModel::Kind::kAckermann : MotionModel::Kind::kUnicycle;
+  m.kind = motion.model;
   m.ackermann = motion.ackermann;
   return m;
 }
@@ -196,9 +196,10 @@ ConfigOverride ParseOverride(const std::string& text) {
 }
 
 Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
-                       const std::vector<ConfigOverride>& overrides, int agents) {
+                       const std::vector<ConfigOverride>& overrides, int agents, std::set<std::string>* keys_read) {
   auto source = std::make_shared<YamlSource>();
   source->file = file;
+  source->keys_read = keys_read;
   YAML::Node root;
   try {
     root = YAML::Load(yaml_text);
@@ -300,7 +301,7 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
   if (dataset) {
     // The dataset decides the robots; listed ones only adjust their settings.
     std::vector<RobotId> dataset_ids = sc.source.robots;
-    if (sc.source.type == "victoria_park") {
+    if (sc.source.type == SourceType::kVictoriaPark) {
       if (agents > 0) sc.source.virtual_robots = agents;
       dataset_ids.clear();
       for (int k = 1; k <= sc.source.virtual_robots; ++k) dataset_ids.push_back(static_cast<RobotId>(k));
@@ -348,9 +349,9 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
       spec.id = next_id++;
       spec.path.index = i;  // generated robots take the park's footpaths in turn
     }
-    if (spec.motion.model != "unicycle") {
-      throw ConfigError(file + ": robots: robot " + std::to_string(spec.id) +
-                        ": motion.model " + spec.motion.model + " is only for dataset replays");
+    if (spec.motion.model != MotionModel::Kind::kUnicycle) {
+      throw ConfigError(file + ": robots: robot " + std::to_string(spec.id) + ": motion.model " +
+                        std::string(NameOf(kMotionModels, spec.motion.model)) + " is only for dataset replays");
     }
     std::mt19937_64 rng(sc.seed * 0x9E3779B97F4A7C15ULL + 0x6d61706d657368ULL + static_cast<std::uint64_t>(i));
     ResolvePath(spec, sc.world.bounds_m, rng);

@@ -6,11 +6,14 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
+#include "agent/agent_options.h"
 #include "common/geometry/pose2.h"
 #include "common/slam/motion_model.h"
+#include "common/types/choice.h"
 #include "common/types/messages.h"
 
 namespace mapmesh {
@@ -26,19 +29,28 @@ struct Rect {
 };
 
 // Where the world's data comes from.
+enum class SourceType { kSimulation, kMrclam, kVictoriaPark };
+inline constexpr ChoiceTable<SourceType, 3> kSourceTypes{
+    {{SourceType::kSimulation, "simulation"}, {SourceType::kMrclam, "mrclam"}, {SourceType::kVictoriaPark, "victoria_park"}}};
+
 struct SourceOptions {
-  std::string type = "simulation";  // simulation | mrclam | victoria_park
+  SourceType type = SourceType::kSimulation;
   std::string dataset;              // folder under the datasets root (mrclam/MRCLAM_Dataset7, victoria_park)
   std::vector<RobotId> robots;      // mrclam: which of robots 1-5 (default all)
   double odometry_delay_s = 0.0;    // mrclam: commanded velocities take effect this much later
   int virtual_robots = 4;           // victoria_park: the run is split into this many robots
   double overlap_s = 60.0;          // victoria_park: time shared by consecutive segments
-  bool IsDataset() const { return type != "simulation"; }
+  bool IsDataset() const { return type != SourceType::kSimulation; }
 };
 
-// How landmarks are generated when the scenario does not list them.
+// How landmarks are generated when the scenario does not list them: uniform (thesis 4.1.1),
+// park (trees along paths) or disc (Downs).
+enum class LandmarkLayout { kUniform, kPark, kDisc };
+inline constexpr ChoiceTable<LandmarkLayout, 3> kLandmarkLayouts{
+    {{LandmarkLayout::kUniform, "uniform"}, {LandmarkLayout::kPark, "park"}, {LandmarkLayout::kDisc, "disc"}}};
+
 struct LandmarkGeneratorOptions {
-  std::string type = "uniform";   // uniform (thesis 4.1.1) | park (trees along paths) | disc (Downs)
+  LandmarkLayout type = LandmarkLayout::kUniform;
   int count = 100;                // number of landmarks
   Rect area_m{0, 0, 50, 50};      // uniform, park: where they are placed
   double min_spacing_m = 1.0;     // minimum distance between any two landmarks
@@ -58,11 +70,19 @@ struct WorldOptions {
   Rect bounds_m;  // area robots may roam; defaults to the landmark area
 };
 
+inline constexpr ChoiceTable<MotionModel::Kind, 2> kMotionModels{
+    {{MotionModel::Kind::kUnicycle, "unicycle"}, {MotionModel::Kind::kAckermann, "ackermann"}}};
+
+// How a simulated robot steers to its next waypoint: thesis (Fig. 27: full turn rate or none)
+// or smooth (proportional).
+enum class Steering { kThesis, kSmooth };
+inline constexpr ChoiceTable<Steering, 2> kSteerings{{{Steering::kThesis, "thesis"}, {Steering::kSmooth, "smooth"}}};
+
 // Motion of a robot: its model, the simulated driving, and the noise on its odometry.
 struct MotionOptions {
-  std::string model = "unicycle";       // unicycle | ackermann (Victoria Park's car)
+  MotionModel::Kind model = MotionModel::Kind::kUnicycle;  // unicycle | ackermann (Victoria Park's car)
   AckermannParams ackermann;            // model ackermann: vehicle geometry
-  std::string steering = "thesis";      // thesis: full turn rate or none (Fig. 27) | smooth
+  Steering steering = Steering::kThesis;
   double speed_mps = 0.3;               // forward speed
   double max_turn_rate_dps = 30.0;      // turn-rate limit, deg/s
   double sigma_v_mps = 0.03;            // odometry noise on v
@@ -88,8 +108,15 @@ struct SensorOptions {
 };
 
 // A robot's path.
+enum class PathType { kWaypoints, kRandom, kCircle, kLawnmower, kPark };
+inline constexpr ChoiceTable<PathType, 5> kPathTypes{{{PathType::kWaypoints, "waypoints"},
+                                                      {PathType::kRandom, "random"},
+                                                      {PathType::kCircle, "circle"},
+                                                      {PathType::kLawnmower, "lawnmower"},
+                                                      {PathType::kPark, "park"}}};
+
 struct PathOptions {
-  std::string type = "random";          // waypoints | random | circle | lawnmower | park
+  PathType type = PathType::kRandom;
   std::vector<Eigen::Vector2d> points;  // waypoints (and the resolved waypoints of other types)
   int count = 8;                        // random: waypoints; circle: points around (default 36)
   std::optional<Rect> area_m;           // random, lawnmower: where (default: world bounds)
@@ -118,41 +145,12 @@ struct RadioOptions {
   double links_period_s = 0.5;          // how often the feeder publishes the link table
 };
 
-struct AgentOptions {
-  std::string slam = "cekf";            // cekf | ekf | dead_reckoning (a baseline)
-  std::string association = "auto";     // known | icnn | jcbb | auto (known when signatures are shared, else jcbb)
-  double gate_probability = 0.99;       // innovation chi-square gate (outliers and compatibility)
-  double new_landmark_chi2 = 13.82;     // farther than this from every landmark: a new one
-  bool tentative = false;               // new landmarks need a second sighting
-  double tentative_gate_m = 1.0;        // where the second sighting must land
-  double tentative_timeout_s = 30.0;    // how long a first sighting waits
-  double min_range_m = 0.0;             // observations nearer than this are dropped
-  double max_range_m = 0.0;             // and farther than this (0: the sensor's max_range_m plus 5 sigma_range_m)
-  double region_half_m = 5.0;           // cekf: region half-size (switch when the robot leaves it)
-  double region_reach_m = 0.0;          // cekf: active landmarks this far beyond the region (0: sensor range + 4 m)
-  bool first_estimates_jacobians = true;  // ekf, cekf: FEJ-EKF (Jacobians at first estimates) for consistency
-  bool frame_at_first_landmark = true;  // the map frame is the robot's pose when it first maps a landmark (else its start)
-  double map_publish_period_s = 2.0;    // scenario seconds between map publications
-  double status_period_s = 1.0;         // scenario seconds between status reports
-  double association_gate_m = 1.0;      // dead reckoning without signatures: merge radius
-  // Map exchange (agent/map_exchange.h).
-  std::string fusion = "ci";           // ml | information | ci | ci_det | ci_trace
-  double align_period_s = 5.0;          // an unaligned peer is tried again this often (when a map changed)
-  double refine_period_s = 5.0;         // an aligned peer's transform is refitted on our newer own map this often (0: off)
-  int drop_after_failures = 2;          // consecutive failed verifications drop an alignment
-  bool relay_global_maps = true;        // fuse peers' global maps (multi-hop), not only their local maps
-  double checkpoint_period_s = 10.0;    // scenario seconds between checkpoints (0: none)
-  double silent_after_s = 0.0;          // a peer that sent no map for this long is frozen (0: 3 map periods)
-  int max_alignments_per_update = 4;    // full alignments per map period, handed out round robin over peers
-  // Input bounds: what an agent refuses (and counts) before it spends work on it.
-  int max_peer_landmarks = 10000;       // a peer's map with more landmarks is refused unread
-  double world_radius_m = 5000.0;       // ... and one with a landmark farther from its frame's origin
-  double max_landmark_sigma_m = 500.0;  // ... or one with a landmark this uncertain along an axis
-  double max_stamp_jump_s = 20.0;       // sensor, link and map stamps this far ahead of ours are implausible
-};
+// How the feeder paces the run: lockstep (as fast as the agents go) or realtime.
+enum class Pace { kLockstep, kRealtime };
+inline constexpr ChoiceTable<Pace, 2> kPaces{{{Pace::kLockstep, "lockstep"}, {Pace::kRealtime, "realtime"}}};
 
 struct FeederOptions {
-  std::string pace = "lockstep";        // lockstep: as fast as agents go | realtime
+  Pace pace = Pace::kLockstep;
   double realtime_factor = 1.0;         // realtime: scenario seconds per wall second
   double lockstep_window_s = 0.5;       // lockstep: data published between barriers (<= 10 s)
   double startup_timeout_s = 30.0;      // wall seconds to wait for every agent to appear
@@ -171,7 +169,7 @@ struct Scenario {
   WorldOptions world;
   std::vector<RobotSpec> robots;        // resolved: exactly the robots of this run
   RadioOptions radio;
-  AgentOptions agent;
+  AgentOptions agent;                   // the agent section: each module's own options (agent/agent_options.h)
   FeederOptions feeder;
 
   // The robot with this id, or nullptr.
@@ -193,9 +191,12 @@ ConfigOverride ParseOverride(const std::string& text);
 Scenario LoadScenario(const std::string& file, const std::vector<ConfigOverride>& overrides = {},
                       int agents = 0);
 
-// Same, from YAML text (file is used only in messages and to resolve relative paths).
+// Same, from YAML text (file is used only in messages and to resolve relative paths). With
+// keys_read, collects the path of every key the loader asked for, present or not (list
+// indices as []): what the docs test compares with docs/SCENARIOS.md.
 Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
-                       const std::vector<ConfigOverride>& overrides = {}, int agents = 0);
+                       const std::vector<ConfigOverride>& overrides = {}, int agents = 0,
+                       std::set<std::string>* keys_read = nullptr);
 
 // The motion model a robot's odometry is interpreted with.
 MotionModel MotionModelFor(const MotionOptions& motion);

@@ -126,11 +126,11 @@ Rect BoundingBox(const std::vector<Eigen::Vector2d>& pts, double margin) {
 
 LandmarkGeneratorOptions ReadGenerator(YamlReader g) {
   LandmarkGeneratorOptions gen;
-  g.GetChoice("type", gen.type, {"uniform", "park", "disc"});
+  g.GetChoice("type", gen.type, kLandmarkLayouts);
   g.GetInRange("count", gen.count, 0, limits::kMaxLandmarks);
   g.GetInRange("min_spacing_m", gen.min_spacing_m, 0.0, kMaxLengthM);
   double area = 0.0;
-  if (gen.type == "disc") {
+  if (gen.type == LandmarkLayout::kDisc) {
     ReadPoint(g, "center_m", gen.center_m);
     g.GetPositiveUpTo("radius_m", gen.radius_m, kMaxLengthM);
     area = std::numbers::pi * gen.radius_m * gen.radius_m;
@@ -138,7 +138,7 @@ LandmarkGeneratorOptions ReadGenerator(YamlReader g) {
     gen.area_m = ReadRect(g, "area_m", gen.area_m);
     area = gen.area_m.Width() * gen.area_m.Height();
   }
-  if (gen.type == "park") {
+  if (gen.type == LandmarkLayout::kPark) {
     g.GetInRange("paths", gen.paths, 1, limits::kMaxParkPaths);
     g.GetInRange("path_width_m", gen.path_width_m, 0.0, kMaxLengthM);
     g.GetInRange("scatter_fraction", gen.scatter_fraction, 0.0, 1.0);
@@ -148,7 +148,7 @@ LandmarkGeneratorOptions ReadGenerator(YamlReader g) {
   const double max_count = 0.5 * area / (gen.min_spacing_m * gen.min_spacing_m);
   if (gen.min_spacing_m > 0 && gen.count > max_count) {
     g.Fail("count", "cannot place " + std::to_string(gen.count) + " landmarks at min_spacing_m in " +
-                        (gen.type == "disc" ? "the disc" : "area_m") + " (at most " +
+                        (gen.type == LandmarkLayout::kDisc ? "the disc" : "area_m") + " (at most " +
                         std::to_string(static_cast<int>(max_count)) + ")");
   }
   g.Finish();
@@ -204,7 +204,7 @@ WorldOptions ReadWorld(YamlReader w, const std::string& scenario_dir, bool datas
     o.generator = ReadGenerator(lm.Child("generator"));
   }
   lm.Finish();
-  if (o.generator && o.generator->type == "disc") {
+  if (o.generator && o.generator->type == LandmarkLayout::kDisc) {
     const auto& g = *o.generator;
     o.bounds_m = {g.center_m.x() - g.radius_m, g.center_m.y() - g.radius_m,
                   g.center_m.x() + g.radius_m, g.center_m.y() + g.radius_m};
@@ -218,14 +218,14 @@ WorldOptions ReadWorld(YamlReader w, const std::string& scenario_dir, bool datas
 
 SourceOptions ReadSource(YamlReader r) {
   SourceOptions o;
-  r.GetChoice("type", o.type, {"simulation", "mrclam", "victoria_park"});
-  if (o.type == "simulation") {
+  r.GetChoice("type", o.type, kSourceTypes);
+  if (o.type == SourceType::kSimulation) {
     r.Finish();
     return o;
   }
-  o.dataset = o.type == "mrclam" ? "mrclam/MRCLAM_Dataset7" : "victoria_park";
+  o.dataset = o.type == SourceType::kMrclam ? "mrclam/MRCLAM_Dataset7" : "victoria_park";
   r.Get("dataset", o.dataset);
-  if (o.type == "mrclam") {
+  if (o.type == SourceType::kMrclam) {
     r.ForEach("robots", 5, [&](const YAML::Node& n, const std::string& path) {
       int id = 0;
       try {
@@ -250,7 +250,7 @@ SourceOptions ReadSource(YamlReader r) {
 }
 
 void ReadMotion(YamlReader m, MotionOptions& o) {
-  m.GetChoice("model", o.model, {"unicycle", "ackermann"});
+  m.GetChoice("model", o.model, kMotionModels);
   {
     YamlReader a = m.Child("ackermann");
     a.GetPositiveUpTo("wheelbase_m", o.ackermann.wheelbase_m, limits::kMaxVehicleM);
@@ -259,7 +259,7 @@ void ReadMotion(YamlReader m, MotionOptions& o) {
     a.GetInRange("laser_b_m", o.ackermann.laser_b_m, -limits::kMaxVehicleM, limits::kMaxVehicleM);
     a.Finish();
   }
-  m.GetChoice("steering", o.steering, {"thesis", "smooth"});
+  m.GetChoice("steering", o.steering, kSteerings);
   m.GetInRange("speed_mps", o.speed_mps, 0.0, limits::kMaxSpeedMps);
   m.GetPositiveUpTo("max_turn_rate_dps", o.max_turn_rate_dps, limits::kMaxTurnRateDps);
   m.GetInRange("sigma_v_mps", o.sigma_v_mps, 0.0, limits::kMaxSigmaVMps);
@@ -294,21 +294,23 @@ void ReadPreset(YamlReader& r, RobotSpec& spec) {
 }
 
 void ReadPath(YamlReader p, PathOptions& o, const Rect& world_bounds) {
-  const std::string before = o.type;
-  p.GetChoice("type", o.type, {"waypoints", "random", "circle", "lawnmower", "park"});
+  const PathType before = o.type;
+  p.GetChoice("type", o.type, kPathTypes);
   // Which keys each type takes besides type and loop.
-  const std::map<std::string, std::set<std::string>> keys = {
-      {"waypoints", {"points"}},
-      {"random", {"count", "area_m"}},
-      {"circle", {"count", "center_m", "radius_m", "start_angle_deg", "clockwise"}},
-      {"lawnmower", {"area_m", "spacing_m"}},
-      {"park", {"index"}}};
+  const std::map<PathType, std::set<std::string>> keys = {
+      {PathType::kWaypoints, {"points"}},
+      {PathType::kRandom, {"count", "area_m"}},
+      {PathType::kCircle, {"count", "center_m", "radius_m", "start_angle_deg", "clockwise"}},
+      {PathType::kLawnmower, {"area_m", "spacing_m"}},
+      {PathType::kPark, {"index"}}};
   for (const char* k : {"points", "count", "area_m", "center_m", "radius_m", "start_angle_deg",
                         "clockwise", "spacing_m", "index"}) {
-    if (p.Has(k) && !keys.at(o.type).count(k)) p.Fail(k, "not used by path type " + o.type);
+    if (p.Has(k) && !keys.at(o.type).count(k)) {
+      p.Fail(k, "not used by path type " + std::string(NameOf(kPathTypes, o.type)));
+    }
   }
-  if (o.type == "circle" && before != "circle" && !p.Has("count")) o.count = 36;
-  if (o.type == "waypoints") {
+  if (o.type == PathType::kCircle && before != PathType::kCircle && !p.Has("count")) o.count = 36;
+  if (o.type == PathType::kWaypoints) {
     o.points = ReadPoints(p, "points", limits::kMaxWaypoints);
     if (o.points.empty()) p.Fail("points", "type waypoints needs at least one point");
   }
@@ -321,7 +323,7 @@ void ReadPath(YamlReader p, PathOptions& o, const Rect& world_bounds) {
   p.GetPositiveUpTo("spacing_m", o.spacing_m, kMaxLengthM);
   p.GetInRange("index", o.index, 0, limits::kMaxRobots - 1);
   p.Get("loop", o.loop);
-  if (o.type == "lawnmower") {
+  if (o.type == PathType::kLawnmower) {
     // LawnmowerWaypoints: two waypoints per lane, lanes spacing_m apart across the area.
     const double lanes = std::floor(o.area_m.value_or(world_bounds).Height() / o.spacing_m) + 1.0;
     if (2.0 * lanes > limits::kMaxWaypoints) {
@@ -344,44 +346,15 @@ RadioOptions ReadRadio(YamlReader r) {
 }
 
 AgentOptions ReadAgent(YamlReader a) {
-  using limits::kMaxPeriodS;
-  using limits::kMinPeriodS;
   AgentOptions o;
-  a.GetChoice("slam", o.slam, {"cekf", "ekf", "dead_reckoning"});
-  a.GetChoice("association", o.association, {"auto", "known", "icnn", "jcbb"});
-  a.GetInRange("gate_probability", o.gate_probability, 0.5, 0.999999);
-  a.GetPositiveUpTo("new_landmark_chi2", o.new_landmark_chi2, limits::kMaxChi2);
-  a.Get("tentative", o.tentative);
-  a.GetPositiveUpTo("tentative_gate_m", o.tentative_gate_m, kMaxLengthM);
-  a.GetPositiveUpTo("tentative_timeout_s", o.tentative_timeout_s, kMaxPeriodS);
-  a.GetInRange("min_range_m", o.min_range_m, 0.0, kMaxLengthM);
-  a.GetInRange("max_range_m", o.max_range_m, 0.0, kMaxLengthM);
-  a.GetPositiveUpTo("region_half_m", o.region_half_m, kMaxLengthM);
-  a.GetInRange("region_reach_m", o.region_reach_m, 0.0, kMaxLengthM);
-  a.Get("first_estimates_jacobians", o.first_estimates_jacobians);
-  a.Get("frame_at_first_landmark", o.frame_at_first_landmark);
-  a.GetInRange("map_publish_period_s", o.map_publish_period_s, kMinPeriodS, kMaxPeriodS);
-  a.GetInRange("status_period_s", o.status_period_s, kMinPeriodS, kMaxPeriodS);
-  a.GetPositiveUpTo("association_gate_m", o.association_gate_m, kMaxLengthM);
-  a.GetChoice("fusion", o.fusion, {"ml", "information", "ci", "ci_det", "ci_trace"});
-  a.GetInRange("align_period_s", o.align_period_s, kMinPeriodS, kMaxPeriodS);
-  a.GetZeroOrInRange("refine_period_s", o.refine_period_s, kMinPeriodS, kMaxPeriodS);
-  a.GetInRange("drop_after_failures", o.drop_after_failures, 1, limits::kMaxDropAfterFailures);
-  a.Get("relay_global_maps", o.relay_global_maps);
-  a.GetZeroOrInRange("checkpoint_period_s", o.checkpoint_period_s, kMinPeriodS, kMaxPeriodS);
-  a.GetZeroOrInRange("silent_after_s", o.silent_after_s, kMinPeriodS, kMaxPeriodS);
-  a.GetInRange("max_alignments_per_update", o.max_alignments_per_update, 1, limits::kMaxAlignmentsPerUpdate);
-  a.GetInRange("max_peer_landmarks", o.max_peer_landmarks, 1, static_cast<int>(kMapCodecMaxLandmarks));
-  a.GetInRange("world_radius_m", o.world_radius_m, 1.0, kMapCodecMaxCoordinateM);
-  a.GetPositiveUpTo("max_landmark_sigma_m", o.max_landmark_sigma_m, kMaxLengthM);
-  a.GetInRange("max_stamp_jump_s", o.max_stamp_jump_s, kMinPeriodS, kMaxPeriodS);
+  o.Read(a);
   a.Finish();
   return o;
 }
 
 FeederOptions ReadFeeder(YamlReader f) {
   FeederOptions o;
-  f.GetChoice("pace", o.pace, {"lockstep", "realtime"});
+  f.GetChoice("pace", o.pace, kPaces);
   f.GetInRange("realtime_factor", o.realtime_factor, limits::kMinRealtimeFactor, limits::kMaxRealtimeFactor);
   f.GetInRange("lockstep_window_s", o.lockstep_window_s, limits::kMinLockstepWindowS, limits::kMaxLockstepWindowS);
   f.GetPositiveUpTo("startup_timeout_s", o.startup_timeout_s, limits::kMaxStartupTimeoutS);

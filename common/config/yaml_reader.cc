@@ -3,6 +3,7 @@
 #include <cmath>
 #include <iomanip>
 #include <map>
+#include <regex>
 #include <sstream>
 
 namespace mapmesh {
@@ -68,7 +69,7 @@ bool YamlReader::Has(const std::string& key) const {
 }
 
 YAML::Node YamlReader::Raw(const std::string& key) {
-  read_.insert(key);
+  MarkRead(key, /*leaf=*/true);
   if (!node_ || !node_.IsMap()) return YAML::Node();
   const YAML::Node n = node_[key];
   return n ? n : YAML::Node();
@@ -76,7 +77,7 @@ YAML::Node YamlReader::Raw(const std::string& key) {
 
 template <typename T>
 void YamlReader::GetScalar(const std::string& key, T& out, const char* type_name) {
-  read_.insert(key);
+  MarkRead(key, /*leaf=*/true);
   if (!Has(key)) return;
   const YAML::Node n = node_[key];
   if (!n.IsScalar()) Fail(key, std::string("expected ") + type_name);
@@ -103,7 +104,7 @@ void YamlReader::Get(const std::string& key, bool& out) { GetScalar(key, out, "t
 void YamlReader::Get(const std::string& key, std::string& out) { GetScalar(key, out, "a string"); }
 
 void YamlReader::GetVector(const std::string& key, std::vector<double>& out, std::size_t expected_len) {
-  read_.insert(key);
+  MarkRead(key, /*leaf=*/true);
   if (!Has(key)) return;
   const YAML::Node n = node_[key];
   if (!n.IsSequence() || n.size() != expected_len) {
@@ -162,7 +163,7 @@ void YamlReader::CheckPositiveUpTo(const std::string& key, double v, double hi) 
 }
 
 YamlReader YamlReader::Child(const std::string& key) {
-  read_.insert(key);
+  MarkRead(key, /*leaf=*/false);
   YAML::Node n;
   if (node_ && node_.IsMap() && node_[key]) n = node_[key];
   if (n && !n.IsNull() && !n.IsMap()) Fail(key, "expected a mapping of keys");
@@ -171,7 +172,7 @@ YamlReader YamlReader::Child(const std::string& key) {
 
 void YamlReader::ForEach(const std::string& key, std::size_t max_len,
                          const std::function<void(const YAML::Node&, const std::string&)>& fn) {
-  read_.insert(key);
+  MarkRead(key, /*leaf=*/true);
   if (!Has(key)) return;
   const YAML::Node n = node_[key];
   if (!n.IsSequence()) Fail(key, "expected a list");
@@ -185,6 +186,14 @@ void YamlReader::ForEach(const std::string& key, std::size_t max_len,
 
 YamlReader YamlReader::Element(const YAML::Node& node, const std::string& path) const {
   return YamlReader(node, path, source_);
+}
+
+void YamlReader::MarkRead(const std::string& key, bool leaf) {
+  read_.insert(key);
+  if (!leaf || !source_->keys_read) return;
+  // Sequence indices become [], so every element of a list records one key path.
+  static const std::regex kIndex(R"(\[[0-9]+\])");
+  source_->keys_read->insert(std::regex_replace(KeyPath(key), kIndex, "[]"));
 }
 
 void YamlReader::Finish() const {

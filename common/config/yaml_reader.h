@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/config/config_error.h"
+#include "common/types/choice.h"
 
 namespace mapmesh {
 
@@ -20,6 +21,8 @@ namespace mapmesh {
 struct YamlSource {
   std::string file;
   std::set<std::string> overridden;  // key paths given with --set
+  std::set<std::string>* keys_read = nullptr;  // when set, collects the path of every value key read
+                                               // (list indices as [], mappings only through their keys)
 };
 
 // A number as error messages show it (1000000, 0.0524, 1e+300).
@@ -52,6 +55,15 @@ class YamlReader {
 
   // Reads a string that must be one of `choices`.
   void GetChoice(const std::string& key, std::string& out, const std::vector<std::string>& choices);
+  // Reads an enum by its name in table (names listed in the table's order on error).
+  template <typename E, std::size_t N>
+  void GetChoice(const std::string& key, E& out, const ChoiceTable<E, N>& table) {
+    std::string name(NameOf(table, out));
+    std::vector<std::string> names;
+    for (const ChoiceName<E>& c : table) names.emplace_back(c.name);
+    GetChoice(key, name, names);
+    out = *ParseChoice(table, name);
+  }
 
   // Read an optional number and check its range, failing with the key's line: in [lo, hi];
   // in (0, hi]; 0 (off) or in [lo, hi]. A value out of range names the bound it breaks.
@@ -83,6 +95,8 @@ class YamlReader {
  private:
   template <typename T>
   void GetScalar(const std::string& key, T& out, const char* type_name);
+  // Remembers key as read (for Finish) and, for a value (leaf), in source().keys_read.
+  void MarkRead(const std::string& key, bool leaf);
   // Throws ConfigError at node's line in the file, even below a key given with --set.
   [[noreturn]] void FailInFile(const YAML::Node& node, const std::string& key_path,
                                const std::string& reason) const;

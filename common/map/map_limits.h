@@ -6,14 +6,26 @@
 #include <cstddef>
 #include <string_view>
 
+#include "common/config/scenario_limits.h"
 #include "common/map/landmark_map.h"
+#include "common/map/map_codec.h"
 
 namespace mapmesh {
 
 struct MapLimits {
-  std::size_t max_landmarks = 10000;  // landmarks in one map
-  double world_radius_m = 5000.0;     // |x| and |y| of every landmark in its map's frame
-  double max_sigma_m = 500.0;         // standard deviation of a landmark along either axis
+  std::size_t max_landmarks = 10000;  // agent.max_peer_landmarks: landmarks in one map
+  double world_radius_m = 5000.0;     // agent.world_radius_m: |x| and |y| of every landmark in its map's frame
+  double max_sigma_m = 500.0;         // agent.max_landmark_sigma_m: standard deviation of a landmark along either axis
+
+  // Reads its keys of the scenario's agent section (docs/SCENARIOS.md), within the codec's bounds.
+  template <typename Reader>
+  void Read(Reader& r) {
+    int n = static_cast<int>(max_landmarks);
+    r.GetInRange("max_peer_landmarks", n, 1, static_cast<int>(kMapCodecMaxLandmarks));
+    max_landmarks = static_cast<std::size_t>(n);
+    r.GetInRange("world_radius_m", world_radius_m, 1.0, kMapCodecMaxCoordinateM);
+    r.GetPositiveUpTo("max_landmark_sigma_m", max_sigma_m, limits::kMaxLengthM);
+  }
 };
 
 // Why a map is refused; kNone when it is within the limits.

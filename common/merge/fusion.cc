@@ -72,25 +72,6 @@ Eigen::Matrix2d Symmetric(const Eigen::Matrix2d& m) { return 0.5 * (m + m.transp
 
 }  // namespace
 
-std::string_view ToString(FusionMethod m) {
-  switch (m) {
-    case FusionMethod::kMaximumLikelihood: return "ml";
-    case FusionMethod::kInformation: return "information";
-    case FusionMethod::kCiConstant: return "ci";
-    case FusionMethod::kCiDeterminant: return "ci_det";
-    case FusionMethod::kCiTrace: return "ci_trace";
-  }
-  return "unknown";
-}
-
-std::optional<FusionMethod> ParseFusionMethod(std::string_view name) {
-  for (FusionMethod m : {FusionMethod::kMaximumLikelihood, FusionMethod::kInformation, FusionMethod::kCiConstant,
-                         FusionMethod::kCiDeterminant, FusionMethod::kCiTrace}) {
-    if (ToString(m) == name) return m;
-  }
-  return std::nullopt;
-}
-
 std::string_view ToString(FusionVerdict v) {
   switch (v) {
     case FusionVerdict::kFused: return "fused";

@@ -23,6 +23,8 @@
 #include <string_view>
 #include <vector>
 
+#include "common/types/choice.h"
+
 namespace mapmesh {
 
 enum class FusionMethod {
@@ -32,9 +34,14 @@ enum class FusionMethod {
   kCiDeterminant,  // weights minimising det of the fused covariance
   kCiTrace,        // weights minimising its trace
 };
-std::string_view ToString(FusionMethod m);
+inline constexpr ChoiceTable<FusionMethod, 5> kFusionMethods{{{FusionMethod::kMaximumLikelihood, "ml"},
+                                                              {FusionMethod::kInformation, "information"},
+                                                              {FusionMethod::kCiConstant, "ci"},
+                                                              {FusionMethod::kCiDeterminant, "ci_det"},
+                                                              {FusionMethod::kCiTrace, "ci_trace"}}};
+inline std::string_view ToString(FusionMethod m) { return NameOf(kFusionMethods, m); }
 // "ml", "information", "ci", "ci_det", "ci_trace"; nullopt for anything else.
-std::optional<FusionMethod> ParseFusionMethod(std::string_view name);
+inline std::optional<FusionMethod> ParseFusionMethod(std::string_view name) { return ParseChoice(kFusionMethods, name); }
 
 // A 2D Gaussian estimate.
 struct Gaussian2 {

@@ -43,12 +43,18 @@ struct MapSource {
 };
 
 struct GlobalMapOptions {
-  FusionMethod method = FusionMethod::kCiConstant;
+  FusionMethod method = FusionMethod::kCiConstant;  // agent.fusion
   double gate_probability = 0.999;  // individual and joint compatibility (chi-square); a missed true
                                     // pair duplicates a landmark, so the gate is wide and JCBB
                                     // settles what it lets through
   int max_jcbb_landmarks = 10;      // larger ambiguous groups are resolved greedily (closest first)
   long max_jcbb_nodes = 20000;      // per group
+
+  // Reads its keys of the scenario's agent section (docs/SCENARIOS.md).
+  template <typename Reader>
+  void Read(Reader& r) {
+    r.GetChoice("fusion", method, kFusionMethods);
+  }
 };
 
 // A source landmark that went into a global landmark.

@@ -16,6 +16,7 @@ CekfSlam::CekfSlam(const FilterNoise& noise, const CekfOptions& options, const E
       gp_(Eigen::MatrixXd::Zero(3, 3)),
       gfe_(Eigen::VectorXd::Zero(3)),
       gn_(3) {
+  MAPMESH_CHECK(options.region_half_m > 0 && options.reach_m > 0, "CekfOptions: region and reach must be positive");
   StartPeriod();
 }
 

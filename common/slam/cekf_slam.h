@@ -10,14 +10,23 @@
 #include <Eigen/Core>
 #include <unordered_map>
 
+#include "common/config/scenario_limits.h"
 #include "common/slam/ekf_state.h"
 #include "common/slam/landmark_filter.h"
 
 namespace mapmesh {
 
 struct CekfOptions {
-  double region_half_m = 5.0;  // a switch happens when the robot is this far (inf-norm) from the region centre
-  double reach_m = 12.0;       // active landmarks lie within region_half_m + reach_m (inf-norm) of it: sensor range plus a margin
+  double region_half_m = 5.0;  // agent.region_half_m: a switch happens when the robot is this far (inf-norm) from the region centre
+  double reach_m = 0.0;        // agent.region_reach_m: active landmarks lie within region_half_m + reach_m (inf-norm) of it;
+                               // 0: the sensor's range plus 4 m (LocalSlamOptions::ForSensor), which CekfSlam requires resolved
+
+  // Reads its keys of the scenario's agent section (docs/SCENARIOS.md).
+  template <typename Reader>
+  void Read(Reader& r) {
+    r.GetPositiveUpTo("region_half_m", region_half_m, limits::kMaxLengthM);
+    r.GetInRange("region_reach_m", reach_m, 0.0, limits::kMaxLengthM);
+  }
 };
 
 class CekfSlam : public LandmarkFilter {

@@ -5,6 +5,7 @@
 #include <limits>
 #include <tuple>
 
+#include "common/check.h"
 #include "common/metrics/chi2.h"
 #include "common/slam/observation_model.h"
 
@@ -140,6 +141,7 @@ double MahalanobisSquared(const AssociationProblem& problem, int i, int j, Eigen
 }
 
 AssociationResult Associate(const AssociationProblem& p, const AssociationOptions& options) {
+  MAPMESH_CHECK(options.method != AssociationMethod::kAuto, "resolve association kAuto before associating");
   AssociationResult r;
   const int n = static_cast<int>(p.z.size()), k = static_cast<int>(p.candidates.size());
   r.match.assign(n, AssociationResult::kNew);

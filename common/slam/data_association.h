@@ -12,18 +12,40 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/config/scenario_limits.h"
 #include "common/geometry/pose2.h"
 #include "common/slam/landmark_filter.h"
+#include "common/types/choice.h"
 
 namespace mapmesh {
 
-enum class AssociationMethod { kKnown, kIcnn, kJcbb };
+// kAuto is a setting, not a method: known when the sensor reports signatures, else JCBB
+// (Resolve); Associate takes the others.
+enum class AssociationMethod { kAuto, kKnown, kIcnn, kJcbb };
+inline constexpr ChoiceTable<AssociationMethod, 4> kAssociationMethods{{{AssociationMethod::kAuto, "auto"},
+                                                                        {AssociationMethod::kKnown, "known"},
+                                                                        {AssociationMethod::kIcnn, "icnn"},
+                                                                        {AssociationMethod::kJcbb, "jcbb"}}};
 
 struct AssociationOptions {
-  AssociationMethod method = AssociationMethod::kKnown;
-  double gate_probability = 0.99;    // individual and joint compatibility: chi-square quantile
-  double new_landmark_chi2 = 13.82;  // farther than this (2 dof, 99.9 %) from every candidate: new
+  AssociationMethod method = AssociationMethod::kAuto;  // agent.association
+  double gate_probability = 0.99;    // agent.gate_probability: individual and joint compatibility, chi-square quantile
+  double new_landmark_chi2 = 13.82;  // agent.new_landmark_chi2: farther than this (2 dof, 99.9 %) from every candidate: new
   long max_jcbb_nodes = 200000;      // JCBB keeps the best hypothesis found within this many nodes
+
+  // The method for a sensor that does (or does not) report signatures: kAuto resolved.
+  AssociationMethod Resolve(bool signatures) const {
+    if (method != AssociationMethod::kAuto) return method;
+    return signatures ? AssociationMethod::kKnown : AssociationMethod::kJcbb;
+  }
+
+  // Reads its keys of the scenario's agent section (docs/SCENARIOS.md).
+  template <typename Reader>
+  void Read(Reader& r) {
+    r.GetChoice("association", method, kAssociationMethods);
+    r.GetInRange("gate_probability", gate_probability, 0.5, 0.999999);
+    r.GetPositiveUpTo("new_landmark_chi2", new_landmark_chi2, limits::kMaxChi2);
+  }
 };
 
 // The map around the robot and the scan, as the filter sees them.

@@ -9,6 +9,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "common/config/scenario_limits.h"
 #include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
 #include "common/slam/local_mapper.h"
@@ -18,10 +19,16 @@
 namespace mapmesh {
 
 struct DeadReckoningOptions {
-  MotionModel motion;                // how odometry moves the pose
-  double sigma_range_m = 0.05;       // sensor range noise, for landmark covariances
-  double sigma_bearing_rad = 0.0175; // sensor bearing noise
-  double association_gate_m = 1.0;   // without signatures: join the nearest landmark within this
+  MotionModel motion;                // how odometry moves the pose (the robot's)
+  double sigma_range_m = 0.05;       // sensor range noise, for landmark covariances (the robot's)
+  double sigma_bearing_rad = 0.0175; // sensor bearing noise (the robot's)
+  double association_gate_m = 1.0;   // agent.association_gate_m: without signatures, join the nearest landmark within this
+
+  // Reads its keys of the scenario's agent section (docs/SCENARIOS.md).
+  template <typename Reader>
+  void Read(Reader& r) {
+    r.GetPositiveUpTo("association_gate_m", association_gate_m, limits::kMaxLengthM);
+  }
 };
 
 class DeadReckoningMapper : public LocalMapper {

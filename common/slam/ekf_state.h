@@ -33,7 +33,13 @@ void GrowStateStorage(Eigen::VectorXd& x, Eigen::MatrixXd& p, int used, int n,
 
 // How the filters (full and compressed EKF) linearise.
 struct EkfOptions {
-  bool first_estimates_jacobians = false;  // FEJ-EKF (see above): Jacobians at first estimates, for consistency
+  bool first_estimates_jacobians = true;  // agent.first_estimates_jacobians: FEJ-EKF (see above), for consistency
+
+  // Reads its keys of the scenario's agent section (docs/SCENARIOS.md).
+  template <typename Reader>
+  void Read(Reader& r) {
+    r.Get("first_estimates_jacobians", first_estimates_jacobians);
+  }
 };
 
 class EkfState {

@@ -10,9 +10,16 @@
 #include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
 #include "common/slam/motion_model.h"
+#include "common/types/choice.h"
 #include "common/types/messages.h"
 
 namespace mapmesh {
+
+// The agent's local estimator (agent.slam): the filters of LocalSlam, or the dead-reckoning
+// baseline.
+enum class SlamMethod { kCekf, kEkf, kDeadReckoning };
+inline constexpr ChoiceTable<SlamMethod, 3> kSlamMethods{
+    {{SlamMethod::kCekf, "cekf"}, {SlamMethod::kEkf, "ekf"}, {SlamMethod::kDeadReckoning, "dead_reckoning"}}};
 
 // What happened to the observations a local mapper was given.
 struct MapperStats {

@@ -5,6 +5,7 @@
 #include <limits>
 #include <unordered_set>
 
+#include "common/check.h"
 #include "common/merge/spatial.h"
 #include "common/slam/ekf_slam.h"
 #include "common/slam/observation_model.h"
@@ -12,7 +13,9 @@
 namespace mapmesh {
 
 LocalSlam::LocalSlam(const FilterNoise& noise, const LocalSlamOptions& options) : noise_(noise), options_(options) {
-  if (options.filter == "ekf") {
+  MAPMESH_CHECK(options.filter != SlamMethod::kDeadReckoning, "LocalSlam runs the ekf or the cekf");
+  MAPMESH_CHECK(options.association.method != AssociationMethod::kAuto, "resolve the association method (ForSensor)");
+  if (options.filter == SlamMethod::kEkf) {
     filter_ = std::make_unique<EkfSlam>(noise, options.ekf);
   } else {
     filter_ = std::make_unique<CekfSlam>(noise, options.cekf, options.ekf);

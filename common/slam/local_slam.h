@@ -13,17 +13,52 @@
 
 namespace mapmesh {
 
+// What a local estimator knows of its robot's range-bearing sensor.
+struct SensorSpec {
+  double max_range_m = 8.0;
+  double sigma_range_m = 0.05;
+  double sigma_bearing_rad = 0.0175;
+  bool signatures = false;  // it reports which landmark it saw
+};
+
 struct LocalSlamOptions {
-  std::string filter = "cekf";          // ekf | cekf
+  SlamMethod filter = SlamMethod::kCekf;  // agent.slam (LocalSlam runs kCekf or kEkf; kDeadReckoning is the baseline mapper)
   AssociationOptions association;
   EkfOptions ekf;                       // linearisation, of either filter
   CekfOptions cekf;
-  bool tentative = false;               // a new landmark enters the map only when seen twice
-  double tentative_gate_m = 1.0;        // a second sighting lands within this of the first
-  double tentative_timeout_s = 30.0;    // tentative landmarks not seen again by then are forgotten
-  double min_range_m = 0.0;             // observations outside [min, max] range are dropped
-  double max_range_m = 0.0;             // (max 0: no limit)
+  bool tentative = false;               // agent.tentative: a new landmark enters the map only when seen twice
+  double tentative_gate_m = 1.0;        // agent.tentative_gate_m: a second sighting lands within this of the first
+  double tentative_timeout_s = 30.0;    // agent.tentative_timeout_s: tentative landmarks not seen again by then are forgotten
+  double min_range_m = 0.0;             // agent.min_range_m: observations outside [min, max] range are dropped
+  double max_range_m = 0.0;             // agent.max_range_m; 0: the sensor's max range plus 5 sigma (ForSensor;
+                                        // LocalSlam given 0 applies no limit)
   double new_landmark_separation_m = 0.5;  // unknown association: new landmarks of one scan closer than this are one
+
+  // These options for a robot with this sensor: the association method and the limits left
+  // to the sensor (0 above) resolved. Readings beyond what the sensor can see, allowing for its
+  // noise, are refused: one forged reading 30 km away must not end up in the map.
+  LocalSlamOptions ForSensor(const SensorSpec& sensor) const {
+    LocalSlamOptions o = *this;
+    o.association.method = association.Resolve(sensor.signatures);
+    o.max_range_m = max_range_m > 0 ? max_range_m : sensor.max_range_m + 5.0 * sensor.sigma_range_m;
+    const double range = max_range_m > 0 ? max_range_m : sensor.max_range_m;
+    if (!(cekf.reach_m > 0)) o.cekf.reach_m = range + 4.0;
+    return o;
+  }
+
+  // Reads its keys of the scenario's agent section (docs/SCENARIOS.md), its parts' included.
+  template <typename Reader>
+  void Read(Reader& r) {
+    r.GetChoice("slam", filter, kSlamMethods);
+    association.Read(r);
+    r.Get("tentative", tentative);
+    r.GetPositiveUpTo("tentative_gate_m", tentative_gate_m, limits::kMaxLengthM);
+    r.GetPositiveUpTo("tentative_timeout_s", tentative_timeout_s, limits::kMaxPeriodS);
+    r.GetInRange("min_range_m", min_range_m, 0.0, limits::kMaxLengthM);
+    r.GetInRange("max_range_m", max_range_m, 0.0, limits::kMaxLengthM);
+    cekf.Read(r);
+    ekf.Read(r);
+  }
 };
 
 // The map's shape precision (LandmarkMap::shape_sigma_m) from the filter's cross-covariances

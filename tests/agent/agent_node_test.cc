@@ -1,4 +1,5 @@
 #include "agent/agent_node.h"
+#include "agent/agent_setup.h"
 
 #include <gtest/gtest.h>
 
@@ -59,7 +60,7 @@ class AgentNodeTest : public ::testing::Test {
  protected:
   Scenario sc_ = TwoRobots();
   Capture out_;
-  AgentNode node_{sc_, 1, 1, out_};
+  AgentNode node_{sc_.agent, AgentRunFor(sc_, 1), 1, 1, out_};
 };
 
 TEST_F(AgentNodeTest, WaitsForTheScansAnIntervalAnnounces) {
@@ -114,7 +115,7 @@ TEST_F(AgentNodeTest, JoiningARunningStreamDiscardsTheFirstIntervalsScans) {
 TEST(AgentNodeFrameTest, TheFrameIsThePoseOfTheFirstScanThatMapsALandmark) {
   const Scenario sc = TwoRobots(/*frame_at_first_landmark=*/true);
   Capture out;
-  AgentNode node(sc, 1, 1, out);
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
   node.OnOdometry(Odom(0.1, 0));
   node.OnOdometry(Odom(0.2, 1));
   node.OnScan(ScanAt(0.15, 4.85, 0.0, 0));  // 4.85 m ahead of the robot at 0.15 s
@@ -266,7 +267,7 @@ TEST(AgentNodeCheckpoint, HoldsAtMostTheLoadersLimitOfEarlierIncarnationsTheNewe
     saved.earlier.push_back(e);
   }
   Capture out;
-  AgentNode node(sc, 1, static_cast<std::uint32_t>(cap + 2), out);
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, static_cast<std::uint32_t>(cap + 2), out);
   node.Resume(saved);
   std::size_t left_out = 99;
   const AgentCheckpoint c = node.Checkpoint(&left_out);
@@ -278,7 +279,7 @@ TEST(AgentNodeCheckpoint, HoldsAtMostTheLoadersLimitOfEarlierIncarnationsTheNewe
       io::ParseCheckpoint(io::CheckpointToJson(c).dump(), "c.json", 1, static_cast<std::uint32_t>(cap + 3));
   EXPECT_TRUE(load.ok()) << load.error;
   // Within the limit nothing is left out.
-  AgentNode fresh(sc, 1, 2, out);
+  AgentNode fresh(sc.agent, AgentRunFor(sc, 1), 1, 2, out);
   AgentCheckpoint one;
   one.robot = 1;
   one.incarnation = 1;
@@ -291,11 +292,9 @@ TEST(AgentNodeCheckpoint, HoldsAtMostTheLoadersLimitOfEarlierIncarnationsTheNewe
 // changes nothing: the peer table stays empty, and a genuine map is still taken after.
 TEST(AgentNodeLimits, RefusesPeerMapsBeyondItsLimitsAndCountsWhy) {
   Scenario sc = TwoRobots();
-  sc.agent.max_peer_landmarks = 5;
-  sc.agent.world_radius_m = 1000.0;
-  sc.agent.max_landmark_sigma_m = 10.0;
+  sc.agent.peer_limits = {/*max_landmarks=*/5, /*world_radius_m=*/1000.0, /*max_sigma_m=*/10.0};
   Capture out;
-  AgentNode node(sc, 1, 1, out);
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
   node.OnLinks({0.0, {{1, 2}}});
   auto map_of = [](int n, double x, double sigma) {
     LandmarkMap m;
@@ -333,7 +332,7 @@ TEST(AgentNodeLimits, RefusesPeerMapsBeyondItsLimitsAndCountsWhy) {
 TEST(AgentNodeLimits, AReadingBeyondTheSensorsRangeIsRefused) {
   Scenario sc = TwoRobots();
   Capture out;
-  AgentNode node(sc, 1, 1, out);
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
   node.OnScan(ScanAt(0.05, 30000.0, 0.0, -1));
   node.OnOdometry(Odom(0.1, 1));
   EXPECT_EQ(node.mapper().stats().out_of_range, 1u);

@@ -535,7 +535,9 @@ TEST(MapExchange, AVersionFarAheadCannotMakeLaterMapsStale) {
   World w(60, 31);
   std::mt19937_64 rng(32);
   const LandmarkMap m = w.Map(0, 40, kFrameB, kSigma, rng);
-  MapExchange a(1, 1, {}, 33);
+  ExchangeOptions o;
+  o.map_publish_period_s = 1.0;  // versions may grow by 2 per second
+  MapExchange a(1, 1, o, 33);
   // First contact: nothing heard yet, but no peer publishes 4e9 maps in 10 s.
   EXPECT_EQ(a.OnPeerMap(2, 1, MapKind::kLocal, 0xFFFFFFF0u, 0.0, m, 10.0), MapExchange::Receipt::kVersionJump);
   EXPECT_TRUE(a.Peers().empty());

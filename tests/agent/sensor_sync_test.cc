@@ -138,6 +138,7 @@ void Feed(SensorSync& sync, std::uint32_t first, std::uint32_t end) {
 
 SensorSync::Options WithJump(double max_stamp_jump_s) {
   SensorSync::Options o;
+  o.frame_at_first_landmark = false;
   o.max_stamp_jump_s = max_stamp_jump_s;
   return o;
 }

@@ -63,7 +63,7 @@ TEST_F(ScenarioTest, MinimalScenarioGetsDefaults) {
   EXPECT_EQ(r.sensor.scan_every_steps, 5);
   EXPECT_FALSE(r.sensor.signatures);
   EXPECT_DOUBLE_EQ(s.world.control_period_s, 0.1);
-  EXPECT_EQ(r.path.type, "random");
+  EXPECT_EQ(r.path.type, PathType::kRandom);
   EXPECT_EQ(r.path.points.size(), 8u);
   for (const auto& p : r.path.points) EXPECT_TRUE(s.world.bounds_m.Contains(p));
 }
@@ -205,7 +205,7 @@ namespace {
 
 TEST(PathWaypoints, CircleStartsOnTheCircleFacingAlongIt) {
   PathOptions p;
-  p.type = "circle";
+  p.type = PathType::kCircle;
   p.center_m = {1, 2};
   p.radius_m = 5;
   p.count = 4;

@@ -81,7 +81,7 @@ TEST(SenseLandmarks, NoSignaturesUnlessShared) {
 
 TEST(FollowWaypoints, ThesisSteeringIsFullRateOrNothingAtConstantSpeed) {
   PathOptions path;
-  path.type = "waypoints";
+  path.type = PathType::kWaypoints;
   path.points = {{0.0, 10.0}};
   MotionOptions m;  // thesis defaults
   FollowerState st;
@@ -101,10 +101,10 @@ TEST(FollowWaypoints, ThesisSteeringIsFullRateOrNothingAtConstantSpeed) {
 
 TEST(FollowWaypoints, SmoothSteeringClosesTheErrorAndTurnsInPlace) {
   PathOptions path;
-  path.type = "waypoints";
+  path.type = PathType::kWaypoints;
   path.points = {{0.0, 10.0}};
   MotionOptions m;
-  m.steering = "smooth";
+  m.steering = Steering::kSmooth;
   FollowerState st;
   UnicycleControl u = FollowWaypoints({0, 0, 0}, path, m, 0.1, st);
   EXPECT_NEAR(u.w_radps, DegToRad(30), 1e-12);
@@ -117,7 +117,7 @@ TEST(FollowWaypoints, SmoothSteeringClosesTheErrorAndTurnsInPlace) {
 
 TEST(FollowWaypoints, SwitchesInsideTheRadiusAndLoops) {
   PathOptions path;
-  path.type = "waypoints";
+  path.type = PathType::kWaypoints;
   path.points = {{1.0, 0.0}, {5.0, 0.0}};
   MotionOptions m;
   FollowerState st;
@@ -134,10 +134,10 @@ TEST(FollowWaypoints, SwitchesInsideTheRadiusAndLoops) {
 }
 
 TEST(FollowWaypoints, ARobotReachesEveryWaypointWithEitherSteering) {
-  for (const char* steering : {"thesis", "smooth"}) {
-    SCOPED_TRACE(steering);
+  for (const Steering steering : {Steering::kThesis, Steering::kSmooth}) {
+    SCOPED_TRACE(NameOf(kSteerings, steering));
     PathOptions path;
-    path.type = "waypoints";
+    path.type = PathType::kWaypoints;
     path.points = {{10, 0}, {10, 10}, {0, 10}, {0, 0}};
     path.loop = false;
     MotionOptions m;

@@ -52,7 +52,7 @@ class ParkTest : public ::testing::TestWithParam<int> {};
 
 TEST_P(ParkTest, TreesLineThePathsAndKeepOffThem) {
   LandmarkGeneratorOptions o;
-  o.type = "park";
+  o.type = LandmarkLayout::kPark;
   o.count = 250;
   o.area_m = {0, 0, 60, 60};
   o.paths = 4;
@@ -91,7 +91,7 @@ INSTANTIATE_TEST_SUITE_P(Seeds, ParkTest, ::testing::Range(1, 4));
 
 TEST(DiscLandmarks, StayInTheDiscWithTheSpacing) {
   LandmarkGeneratorOptions o;
-  o.type = "disc";
+  o.type = LandmarkLayout::kDisc;
   o.count = 100;
   o.center_m = {5, -5};
   o.radius_m = 30;
@@ -118,7 +118,7 @@ namespace {
 // A spacing far below the landmarks' mean distance once gave every point the same grid cell
 // (its index cast from a huge quotient), so each test compared against every accepted point:
 // 10^5 landmarks took 5·10^9 distances. The grid's cells now follow the area per landmark.
-class TinySpacingTest : public ::testing::TestWithParam<std::string> {};
+class TinySpacingTest : public ::testing::TestWithParam<LandmarkLayout> {};
 
 TEST_P(TinySpacingTest, EachCandidateIsTestedAgainstAFewNeighboursOnly) {
   LandmarkGeneratorOptions o;
@@ -131,12 +131,12 @@ TEST_P(TinySpacingTest, EachCandidateIsTestedAgainstAFewNeighboursOnly) {
   std::mt19937_64 rng(3);
   GenerationStats stats;
   std::size_t placed = 0;
-  if (o.type == "park") {
+  if (o.type == LandmarkLayout::kPark) {
     const auto park = GeneratePark(o, rng, &stats);
     ASSERT_TRUE(park.has_value());
     placed = park->landmarks.size();
   } else {
-    const auto pts = o.type == "disc" ? GenerateDiscLandmarks(o, rng, &stats) : GenerateUniformLandmarks(o, rng, &stats);
+    const auto pts = o.type == LandmarkLayout::kDisc ? GenerateDiscLandmarks(o, rng, &stats) : GenerateUniformLandmarks(o, rng, &stats);
     ASSERT_TRUE(pts.has_value());
     placed = pts->size();
   }
@@ -147,7 +147,8 @@ TEST_P(TinySpacingTest, EachCandidateIsTestedAgainstAFewNeighboursOnly) {
   EXPECT_LT(stats.distance_checks, 30L * 100000);
 }
 
-INSTANTIATE_TEST_SUITE_P(Types, TinySpacingTest, ::testing::Values("uniform", "disc", "park"));
+INSTANTIATE_TEST_SUITE_P(Types, TinySpacingTest,
+                         ::testing::Values(LandmarkLayout::kUniform, LandmarkLayout::kDisc, LandmarkLayout::kPark));
 
 // The densest world the scenario check lets through (0.5 landmarks per spacing²) is placed
 // well within the generators' attempt budget, without testing many distances.

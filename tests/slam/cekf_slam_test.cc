@@ -119,7 +119,7 @@ TEST(EkfSlam, CovarianceStaysSymmetricPositiveSemiDefiniteOverALongRun) {
     SCOPED_TRACE(::testing::Message() << "seed " << seed << (fej ? ", first-estimates Jacobians" : ""));
     const Scenario sc = RandomWorld(seed, 900);
     EkfSlam ekf(ThesisNoise(), {fej});
-    CekfSlam cekf(ThesisNoise(), {}, {fej});
+    CekfSlam cekf(ThesisNoise(), {/*region_half_m=*/5.0, /*reach_m=*/12.0}, {fej});
     Feed(sc, {&ekf, &cekf});
     for (const LandmarkFilter* f : {static_cast<const LandmarkFilter*>(&ekf), static_cast<const LandmarkFilter*>(&cekf)}) {
       Eigen::VectorXd x;
@@ -135,7 +135,7 @@ TEST(EkfSlam, CovarianceStaysSymmetricPositiveSemiDefiniteOverALongRun) {
 }
 
 TEST(EkfSlam, PredictDoesNotTouchTheLandmarkBlock) {
-  EkfSlam ekf(ThesisNoise());
+  EkfSlam ekf(ThesisNoise(), EkfOptions{/*first_estimates_jacobians=*/false});
   ekf.Add(1, {5.0, 0.3});
   ekf.Add(2, {7.0, -0.4});
   ekf.Predict({0.3, 0.1, 0.0}, 0.1);

@@ -62,7 +62,8 @@ TEST(DataAssociation, KnownSignaturesAreGatedAgainstOutliers) {
   spurious(0) += 3.0;  // a range 3 m off, as MRCLAM's camera sometimes reports
   p.z = {SeenFrom({0, 0, 0}, {5, 0}), spurious, SeenFrom({0, 0, 0}, {2, 2}), SeenFrom({0, 0, 0}, {1, 1})};
   p.signatures = {10, 11, 42, -1};
-  AssociationOptions o;  // known
+  AssociationOptions o;
+  o.method = AssociationMethod::kKnown;
   const AssociationResult r = Associate(p, o);
   EXPECT_EQ(r.match[0], 0);
   EXPECT_EQ(r.match[1], AssociationResult::kDiscard);

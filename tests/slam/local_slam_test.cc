@@ -15,13 +15,23 @@ FilterNoise Noise() {
   return n;
 }
 
+// The options these tests were written with: known association, no range limit, a 12 m CEKF
+// reach, the standard EKF's Jacobians.
+LocalSlamOptions Options() {
+  LocalSlamOptions o;
+  o.association.method = AssociationMethod::kKnown;
+  o.cekf.reach_m = 12.0;
+  o.ekf.first_estimates_jacobians = false;
+  return o;
+}
+
 Observation See(const Eigen::Vector2d& m, std::int32_t sig, const Pose2& robot = {0, 0, 0}) {
   const Eigen::Vector2d z = ObserveRangeBearing(robot, m);
   return {z(0), z(1), sig, ObservationKind::kLandmark};
 }
 
 TEST(LocalSlam, KnownAssociationInitialisesThenFuses) {
-  LocalSlam slam(Noise(), {});
+  LocalSlam slam(Noise(), Options());
   slam.Observe({See({4, 1}, 3), See({6, -2}, 8), {2.0, 0.1, 5, ObservationKind::kRobot}}, 0.0);
   EXPECT_EQ(slam.size(), 2u);
   EXPECT_EQ(slam.stats().initialised, 2u);
@@ -38,7 +48,7 @@ TEST(LocalSlam, KnownAssociationInitialisesThenFuses) {
 }
 
 TEST(LocalSlam, DropsInvalidAndOutOfRangeObservationsWithCounts) {
-  LocalSlamOptions o;
+  LocalSlamOptions o = Options();
   o.max_range_m = 10.0;
   LocalSlam slam(Noise(), o);
   slam.Observe({{std::nan(""), 0.1, 1, ObservationKind::kLandmark},
@@ -53,7 +63,7 @@ TEST(LocalSlam, DropsInvalidAndOutOfRangeObservationsWithCounts) {
 }
 
 TEST(LocalSlam, TentativeLandmarksNeedASecondSighting) {
-  LocalSlamOptions o;
+  LocalSlamOptions o = Options();
   o.tentative = true;
   o.tentative_timeout_s = 5.0;
   o.association.method = AssociationMethod::kJcbb;
@@ -70,7 +80,7 @@ TEST(LocalSlam, TentativeLandmarksNeedASecondSighting) {
 }
 
 TEST(LocalSlam, OneScanSeeingANewTreeTwiceMakesOneLandmark) {
-  LocalSlamOptions o;
+  LocalSlamOptions o = Options();
   o.association.method = AssociationMethod::kIcnn;
   LocalSlam slam(Noise(), o);
   slam.Observe({See({5, 1}, -1), See({5.1, 1.05}, -1), See({5, -3}, -1)}, 0.0);
@@ -78,7 +88,7 @@ TEST(LocalSlam, OneScanSeeingANewTreeTwiceMakesOneLandmark) {
 }
 
 TEST(LocalSlam, OutliersWithKnownSignaturesDoNotMoveTheMap) {
-  LocalSlam slam(Noise(), {});
+  LocalSlam slam(Noise(), Options());
   for (int k = 0; k < 5; ++k) slam.Observe({See({5, 0}, 1)}, k);
   const Eigen::Vector2d before = slam.Map().landmarks[0].mean;
   Observation bad = See({5, 0}, 1);
@@ -98,8 +108,8 @@ robots:
   defaults: {preset: thesis, path: {type: random, count: 4}, sensor: {signatures: true}}
 )",
                                     "fej.yaml");
-  auto run = [&](const std::string& filter, bool fej) {
-    LocalSlamOptions o;
+  auto run = [&](SlamMethod filter, bool fej) {
+    LocalSlamOptions o = Options();
     o.filter = filter;
     o.cekf = {/*region_half_m=*/3.0, /*reach_m=*/9.0};
     o.ekf.first_estimates_jacobians = fej;
@@ -121,8 +131,8 @@ robots:
     }
     return d;
   };
-  const LandmarkMap ekf = run("ekf", false), cekf = run("cekf", false);
-  const LandmarkMap ekf_fej = run("ekf", true), cekf_fej = run("cekf", true);
+  const LandmarkMap ekf = run(SlamMethod::kEkf, false), cekf = run(SlamMethod::kCekf, false);
+  const LandmarkMap ekf_fej = run(SlamMethod::kEkf, true), cekf_fej = run(SlamMethod::kCekf, true);
   EXPECT_LT(largest_difference(ekf, cekf), 1e-9);
   EXPECT_LT(largest_difference(ekf_fej, cekf_fej), 1e-9);
   EXPECT_GT(largest_difference(ekf, ekf_fej), 1e-6);  // the option reached the filters
