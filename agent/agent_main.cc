@@ -194,6 +194,7 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
             {"maps_over_bandwidth", s.maps_over_bandwidth},
             {"maps_unknown_sender", s.maps_unknown_sender},
             {"maps_stale_version", s.maps_stale_version},
+            {"maps_dropped", s.MapsDropped()},
             {"maps_encode_failed", s.maps_encode_failed},
             {"maps_encode_trimmed", s.maps_encode_trimmed},
             {"maps_rejected", rejected},
