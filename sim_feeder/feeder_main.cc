@@ -10,7 +10,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -24,9 +23,9 @@
 #include "common/transport/shutdown.h"
 #include "common/transport/topics.h"
 #include "common/transport/typed.h"
-#include "sim_feeder/agent_tracker.h"
+#include "sim_feeder/lockstep_pacer.h"
+#include "sim_feeder/play_record.h"
 #include "sim_feeder/recording.h"
-#include "sim_feeder/sent_log.h"
 #include "sim_feeder/sources.h"
 
 namespace mapmesh {
@@ -41,9 +40,7 @@ using Clock = std::chrono::steady_clock;
 constexpr int kExitStartup = 3;
 constexpr int kExitInterrupted = 130;
 
-// The state of a process on this host, from /proc: gone (or a zombie), stopped (SIGSTOP,
-// traced), or anything else.
-enum class ProcessState { kGone, kStopped, kRunning };
+// The state of a process on this host, from /proc.
 ProcessState StateOf(int pid) {
   std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
   std::string line;
@@ -56,6 +53,8 @@ ProcessState StateOf(int pid) {
   if (state == 'T' || state == 't') return ProcessState::kStopped;
   return ProcessState::kRunning;
 }
+
+double WallNow() { return std::chrono::duration<double>(Clock::now().time_since_epoch()).count(); }
 
 class Interrupted : public std::runtime_error {
  public:
@@ -110,8 +109,10 @@ struct Channels {
       scan.emplace(r.id, std::make_unique<tp::Writer<Scan>>(p, tp::ScanTopic(r.id), tp::SensorQos()));
     }
   }
-  // Cumulative number of readers ever matched by both sensor writers of a robot.
+  // Cumulative number of readers ever matched by both sensor writers of a robot (0 for a
+  // robot not in the scenario).
   std::uint32_t TotalMatches(RobotId id) const {
+    if (!odom.count(id)) return 0;
     return std::min(odom.at(id)->raw().TotalMatchedReaders(), scan.at(id)->raw().TotalMatchedReaders());
   }
   std::map<RobotId, std::unique_ptr<tp::Writer<Odometry>>> odom;
@@ -121,14 +122,13 @@ struct Channels {
   tp::Reader<AgentStatus> status;
 };
 
+// The feeder's DDS side around the pacer: reads what the agents and the launcher say, and
+// waits (sleeping) while the pacer says to.
 class Feeder {
  public:
-  Feeder(const Scenario& sc, Channels& ch, AgentTracker& tracker, ControlInput& control,
-         tp::ShutdownSignal& shutdown, bool events, double stall_timeout_s)
-      : sc_(sc), ch_(ch), tracker_(tracker), control_(control), shutdown_(shutdown),
-        events_(events), stall_timeout_s_(stall_timeout_s), keep_sent_(sc.feeder.pace == Pace::kLockstep) {
-    for (const RobotSpec& r : sc.robots) matches_at_restart_[r.id] = 0;
-  }
+  Feeder(const Scenario& sc, Channels& ch, LockstepPacer& pacer, ControlInput& control, tp::ShutdownSignal& shutdown,
+         bool events)
+      : sc_(sc), ch_(ch), pacer_(pacer), control_(control), shutdown_(shutdown), events_(events) {}
 
   // Reads statuses, liveliness changes, subscriptions, the processes of silent agents and
   // launcher commands.
@@ -138,103 +138,46 @@ class Feeder {
       const RobotId id = s.value.robot_id;
       if (s.valid) {
         spdlog::trace("status {} inc {} t {:.2f}", id, s.value.incarnation, s.value.processed_until);
-        const bool was_silent = tracker_.IsSilent(id);
-        tracker_.OnStatus(s.value);
-        if (was_silent && !tracker_.IsSilent(id)) spdlog::info("agent {} speaks again", id);
-        if (tracker_.IsUp(id) || tracker_.IsSilent(id)) sent_.Processed(id, s.value.processed_until);
+        if (pacer_.OnStatus(s.value)) spdlog::info("agent {} speaks again", id);
       }
-      if (!s.alive && !tracker_.IsDead(id) && !tracker_.IsSilent(id)) {
-        // The writer of that status instance is gone (liveliness expired or it was disposed):
-        // an invalid sample says so, or the state of a last sample still unread. While its
-        // process exists the agent is only silent (paused, say): still waited for.
-        const std::optional<int> pid = tracker_.process(id);
-        const bool exists = pid && StateOf(*pid) != ProcessState::kGone;
-        spdlog::warn("agent {} lost (DDS liveliness){}", id, exists ? "; its process exists: waiting for it" : "");
-        tracker_.OnGone(id, exists);
+      // The writer of that status instance is gone (liveliness expired or it was disposed): an
+      // invalid sample says so, or the state of a last sample still unread.
+      if (s.alive) continue;
+      if (const std::optional<bool> exists = pacer_.OnStatusGone(id)) {
+        spdlog::warn("agent {} lost (DDS liveliness){}", id, *exists ? "; its process exists: waiting for it" : "");
       }
     }
-    for (RobotId id : tracker_.Silent()) {
-      const std::optional<int> pid = tracker_.process(id);
-      if (!pid || StateOf(*pid) == ProcessState::kGone) {
-        spdlog::warn("agent {}'s process is gone", id);
-        tracker_.OnProcessGone(id);
-        sent_.Forget(id);
-      }
-    }
-    for (const auto& [id, base] : matches_at_restart_) {
-      const std::uint32_t total = ch_.TotalMatches(id);
-      const bool sub = total > base;
-      if (sub != tracker_.IsSubscribed(id)) spdlog::debug("agent {} subscribed={}", id, sub);
-      tracker_.SetSubscribed(id, sub);
-      // Matched anew without a restart: the agent's participant lapsed (it was paused) and is
-      // back. Whatever it had not processed may have been lost with the old match: send it again.
-      std::uint32_t& last = last_matches_[id];
-      if (total > last && last > base && !tracker_.IsDead(id)) Resend(id);
-      last = total;
-    }
+    for (RobotId id : pacer_.ReapSilent()) spdlog::warn("agent {}'s process is gone", id);
+    for (const auto& [id, writer] : ch_.odom) Resend(id, pacer_.OnMatches(id, ch_.TotalMatches(id)));
     for (const ControlCommand& c : control_.Poll()) {
-      switch (c.kind) {
-        case ControlCommand::Kind::kDead:
-          tracker_.MarkDead(c.id);
-          sent_.Forget(c.id);
-          spdlog::info("agent {} killed", c.id);
-          break;
-        case ControlCommand::Kind::kExpect:
-          if (matches_at_restart_.count(c.id)) {
-            matches_at_restart_[c.id] = ch_.TotalMatches(c.id);
-            last_matches_[c.id] = matches_at_restart_[c.id];
-          }
-          tracker_.ExpectRestart(c.id);
-          sent_.Forget(c.id);
-          spdlog::info("agent {} restarting", c.id);
-          break;
-        case ControlCommand::Kind::kPid: tracker_.SetProcess(c.id, c.pid); break;
-        case ControlCommand::Kind::kContinue: continue_ = true; break;
-        case ControlCommand::Kind::kStop: throw Interrupted();
-      }
+      if (c.kind == ControlCommand::Kind::kStop) throw Interrupted();
+      pacer_.OnControl(c, ch_.TotalMatches(c.id));
+      if (c.kind == ControlCommand::Kind::kDead) spdlog::info("agent {} killed", c.id);
+      if (c.kind == ControlCommand::Kind::kExpect) spdlog::info("agent {} restarting", c.id);
     }
   }
 
-  // Waits until no agent is starting; agents that do not come up in time count as failed.
+  // Waits until no agent is starting; returns the agents that did not come up in time.
   std::vector<RobotId> WaitForAgents(double timeout_s) {
-    const auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
-    while (Clock::now() < deadline) {
+    pacer_.BeginStartup(WallNow(), timeout_s);
+    while (true) {
       Pump();
-      if (tracker_.Pending().empty()) return {};
+      if (auto failed = pacer_.PollStartup(WallNow())) return *failed;
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
-    return tracker_.Pending();
   }
 
   // Lockstep barrier: waits until every up agent has processed what was published to it.
-  void WaitForBarrier(const std::map<RobotId, double>& targets) {
-    auto last_progress = Clock::now();
-    double best = -1.0;
+  void WaitForBarrier() {
+    pacer_.BeginBarrier(WallNow());
     while (true) {
       Pump();
-      const auto lagging = tracker_.Lagging(targets);
-      if (lagging.empty()) return;
-      // Progress: the sum of what the lagging agents have processed grows.
-      double sum = 0.0;
-      for (const AgentStatus& s : tracker_.Statuses()) {
-        if (std::find(lagging.begin(), lagging.end(), s.robot_id) != lagging.end()) sum += s.processed_until;
+      const LockstepPacer::BarrierPoll poll = pacer_.PollBarrier(WallNow());
+      for (RobotId id : poll.stalled) {
+        spdlog::error("agent {} made no progress for {:.0f} s; no longer waiting for it", id,
+                      pacer_.options().stall_timeout_s);
       }
-      // A stopped (SIGSTOPped) agent is not stalled: it is waited for as long as it is stopped.
-      const bool stopped = std::any_of(lagging.begin(), lagging.end(), [&](RobotId id) {
-        const std::optional<int> pid = tracker_.process(id);
-        return pid && StateOf(*pid) == ProcessState::kStopped;
-      });
-      if (sum > best || stopped) {
-        best = std::max(best, sum);
-        last_progress = Clock::now();
-      } else if (Clock::now() - last_progress > std::chrono::duration<double>(stall_timeout_s_)) {
-        for (RobotId id : lagging) {
-          spdlog::error("agent {} made no progress for {:.0f} s; no longer waiting for it", id,
-                        stall_timeout_s_);
-          tracker_.MarkDead(id);
-        }
-        return;
-      }
+      if (poll.done) return;
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
   }
@@ -242,29 +185,25 @@ class Feeder {
   // Stops at a hold point until the launcher says continue, then waits for restarted agents.
   void Hold(double stamp) {
     Emit({{"event", "hold"}, {"t", stamp}});
-    continue_ = false;
-    while (!continue_) {
+    pacer_.BeginHold();
+    while (!pacer_.HoldReleased()) {
       Pump();
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
-    const auto failed = WaitForAgents(sc_.feeder.startup_timeout_s);
-    for (RobotId id : failed) {
+    for (RobotId id : WaitForAgents(sc_.feeder.startup_timeout_s)) {
       spdlog::error("restarted agent {} did not come up within {:.0f} s", id, sc_.feeder.startup_timeout_s);
-      tracker_.MarkDead(id);
+      pacer_.GiveUp(id);
     }
   }
 
-  // Publishes a sensor message; in lockstep it is kept until the agent reports it processed.
   void Publish(const Odometry& o) {
     ch_.odom.at(o.robot_id)->Write(o);
-    if (keep_sent_) sent_.Record(o);
+    pacer_.Published(o);
   }
   void Publish(const Scan& s) {
     ch_.scan.at(s.robot_id)->Write(s);
-    if (keep_sent_) sent_.Record(s);
+    pacer_.Published(s);
   }
-  // Sensor messages sent again to agents whose readers came back (see Pump).
-  std::uint64_t resent() const { return resent_; }
 
   void Emit(const json& event) {
     if (!events_) return;
@@ -276,8 +215,8 @@ class Feeder {
     std::uint64_t maps = 0;
     std::size_t aligned = 0;  // ordered pairs: agent A holds an alignment to B
     json alive = json::array();
-    for (const AgentStatus& s : tracker_.Statuses()) {
-      if (tracker_.IsUp(s.robot_id)) {
+    for (const AgentStatus& s : pacer_.tracker().Statuses()) {
+      if (pacer_.tracker().IsUp(s.robot_id)) {
         alive.push_back(s.robot_id);
         maps += s.maps_received;
         aligned += s.peers_aligned.size();
@@ -288,106 +227,25 @@ class Feeder {
   }
 
  private:
-  const Scenario& sc_;
-  Channels& ch_;
-  AgentTracker& tracker_;
-  ControlInput& control_;
-  tp::ShutdownSignal& shutdown_;
-  bool events_;
-  double stall_timeout_s_;
-  void Resend(RobotId id) {
-    const std::vector<SentLog::Message> again = sent_.Unprocessed(id);
+  // Sensor messages sent again to an agent whose readers came back (see LockstepPacer).
+  void Resend(RobotId id, const std::vector<SentLog::Message>& again) {
     if (again.empty()) return;
     spdlog::info("agent {} matched again: sending the {} sensor messages it has not processed", id, again.size());
     for (const SentLog::Message& m : again) {
-      std::visit([&](const auto& x) {
-        using T = std::decay_t<decltype(x)>;
-        if constexpr (std::is_same_v<T, Odometry>) {
-          ch_.odom.at(id)->Write(x);
-        } else {
-          ch_.scan.at(id)->Write(x);
-        }
-      }, m);
+      if (const auto* o = std::get_if<Odometry>(&m)) {
+        ch_.odom.at(id)->Write(*o);
+      } else {
+        ch_.scan.at(id)->Write(std::get<Scan>(m));
+      }
     }
-    resent_ += again.size();
   }
 
-  bool continue_ = false;
-  bool keep_sent_;
-  SentLog sent_;
-  std::uint64_t resent_ = 0;
-  std::map<RobotId, std::uint32_t> matches_at_restart_;
-  std::map<RobotId, std::uint32_t> last_matches_;
-};
-
-// What the feeder played: truth.json (the world and true trajectories) and feeder.json
-// (what was published per robot, and for datasets what was read).
-class PlayRecord {
- public:
-  PlayRecord(const Scenario& sc, const FeedSource& source, std::vector<ReplayCounts> counts)
-      : sc_(sc), counts_(std::move(counts)) {
-    truth_.scenario = sc.name;
-    truth_.duration_s = sc.duration_s;
-    truth_.landmarks = source.Truth().landmarks;
-    truth_.headings_known = source.Truth().headings_known;
-    for (const RobotSpec& r : sc.robots) {
-      io::RobotTruth rt;
-      rt.id = r.id;
-      for (const auto& [id, start] : source.Truth().starts) {
-        if (id == r.id) rt.start = start;
-      }
-      truth_.robots.push_back(rt);
-    }
-  }
-  void Add(const FeedBatch& b) {
-    for (const GroundTruth& g : b.truth) {
-      double& next = next_sample_[g.robot_id];
-      if (g.stamp + 1e-9 < next) continue;
-      for (auto& r : truth_.robots) {
-        if (r.id == g.robot_id) r.trajectory.push_back({g.stamp, {g.x, g.y, g.theta}});
-      }
-      next = g.stamp + sc_.feeder.truth_period_s;
-    }
-  }
-  void CountSent(const Scan& s) { ++scans_sent_[s.robot_id]; }
-  void CountSent(const Odometry& o) { ++odom_sent_[o.robot_id]; }
-  void Write(const std::string& dir, const FeedSource& source, double wall_s, bool interrupted,
-             std::uint64_t resent = 0) {
-    const auto& seen = source.Truth().seen;
-    truth_.seen.clear();
-    for (std::size_t i = 0; i < seen.size(); ++i) {
-      if (seen[i]) truth_.seen.push_back(static_cast<int>(i));
-    }
-    io::WriteJsonAtomic(dir + "/truth.json", io::TruthToJson(truth_));
-    json robots = json::array();
-    for (const RobotSpec& r : sc_.robots) {
-      json e = {{"id", r.id}, {"odom_sent", odom_sent_[r.id]}, {"scans_sent", scans_sent_[r.id]}};
-      for (const ReplayCounts& c : counts_) {
-        if (c.id != r.id) continue;
-        e["odom_rows"] = c.odom_rows;
-        e["odom_duplicate_rows"] = c.odom_duplicate_rows;
-        e["measurement_rows"] = c.measurement_rows;
-        e["measurement_unknown_barcode"] = c.measurement_unknown;
-        e["robot_sightings"] = c.robot_sightings;
-      }
-      robots.push_back(e);
-    }
-    io::WriteJsonAtomic(dir + "/feeder.json", {{"scenario", sc_.name},
-                                               {"source", std::string(NameOf(kSourceTypes, sc_.source.type))},
-                                               {"sim_duration_s", sc_.duration_s},
-                                               {"wall_s", wall_s},
-                                               {"pace", std::string(NameOf(kPaces, sc_.feeder.pace))},
-                                               {"interrupted", interrupted},
-                                               {"sensor_messages_resent", resent},
-                                               {"robots", robots}});
-  }
-
- private:
   const Scenario& sc_;
-  std::vector<ReplayCounts> counts_;
-  io::RunTruth truth_;
-  std::map<RobotId, double> next_sample_;
-  std::map<RobotId, std::uint32_t> odom_sent_, scans_sent_;
+  Channels& ch_;
+  LockstepPacer& pacer_;
+  ControlInput& control_;
+  tp::ShutdownSignal& shutdown_;
+  bool events_;
 };
 
 int Run(int argc, char** argv) {
@@ -480,11 +338,11 @@ int Run(int argc, char** argv) {
 
   tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
   Channels ch(session.participant(), sc);
-  AgentTracker tracker(ids);
+  const bool lockstep = sc.feeder.pace == Pace::kLockstep;
+  LockstepPacer pacer(ids, {lockstep, sc.feeder.lockstep_window_s, stall_timeout_s, holds}, StateOf);
   ControlInput control(control_enabled);
   shutdown.Watch(nullptr);
-  Feeder feeder(sc, ch, tracker, control, shutdown, events, stall_timeout_s);
-  const bool lockstep = sc.feeder.pace == Pace::kLockstep;
+  Feeder feeder(sc, ch, pacer, control, shutdown, events);
   spdlog::info("scenario {} ({}): {} robots, {} landmarks, {:.1f} s, pace {}, domain {}", sc.name,
                NameOf(kSourceTypes, sc.source.type), sc.robots.size(), source.Truth().landmarks.size(), sc.duration_s,
                NameOf(kPaces, sc.feeder.pace), po.domain);
@@ -500,29 +358,17 @@ int Run(int argc, char** argv) {
       return kExitStartup;
     }
     feeder.Emit({{"event", "start"}, {"robots", ids}, {"duration", sc.duration_s}});
-    std::sort(holds.begin(), holds.end());
-    std::deque<double> hold_queue(holds.begin(), holds.end());
-    const double window = sc.feeder.lockstep_window_s;
-    double next_barrier = window;
     auto last_progress = Clock::now() - std::chrono::seconds(10);
     const auto play_start = Clock::now();
-    // Lockstep holds back each robot's latest odometry until it is known whether a barrier
-    // comes before that robot's next one: the held message then carries the sync flag, and
-    // the barrier waits for exactly the stamps published per robot.
-    std::map<RobotId, Odometry> held;
-    std::map<RobotId, double> published_until;
     auto publish_odom = [&](const Odometry& o) {
       feeder.Publish(o);
       record.CountSent(o);
-      published_until[o.robot_id] = o.stamp;
     };
     while (!source.Done()) {
       const FeedBatch b = source.Next();
       if (recording) recording->Write(b);
       record.Add(b);
       const bool last = source.Done();
-      const bool barrier = b.stamp + 1e-9 >= next_barrier || last ||
-                           (!hold_queue.empty() && b.stamp + 1e-9 >= hold_queue.front());
       if (!lockstep) {
         const auto due = play_start + std::chrono::duration_cast<Clock::duration>(
                                           std::chrono::duration<double>(b.stamp / sc.feeder.realtime_factor));
@@ -538,28 +384,17 @@ int Run(int argc, char** argv) {
       }
       for (const GroundTruth& g : b.truth) ch.truth.Write(g);
       for (const Odometry& o : b.odom) {
-        if (!lockstep) {
-          publish_odom(o);
-          continue;
-        }
-        if (auto it = held.find(o.robot_id); it != held.end()) publish_odom(it->second);
-        held[o.robot_id] = o;
+        if (const std::optional<Odometry> now = pacer.Admit(o)) publish_odom(*now);
       }
-      if (!barrier) continue;
-      for (auto& [id, o] : held) {
-        o.sync = true;
-        publish_odom(o);
-      }
-      held.clear();
-      if (lockstep) feeder.WaitForBarrier(published_until);
+      if (!pacer.IsBarrier(b.stamp, last)) continue;
+      for (const Odometry& o : pacer.CloseWindow(b.stamp)) publish_odom(o);
+      if (lockstep) feeder.WaitForBarrier();
       feeder.Pump();
-      while (next_barrier <= b.stamp + 1e-9) next_barrier += window;
       if (Clock::now() - last_progress > std::chrono::milliseconds(500) || last) {
         feeder.Emit(feeder.Progress(b.stamp));
         last_progress = Clock::now();
       }
-      while (!hold_queue.empty() && b.stamp + 1e-9 >= hold_queue.front()) {
-        hold_queue.pop_front();
+      for (int n = pacer.TakeHolds(b.stamp); n > 0; --n) {
         if (control.enabled()) feeder.Hold(b.stamp);
       }
     }
@@ -570,13 +405,13 @@ int Run(int argc, char** argv) {
 
   // Let the agents that are up acknowledge the tail of their streams before the writers go
   // away (a killed agent's reader stays matched until its lease ends; do not wait for it).
-  for (RobotId id : tracker.Up()) {
+  for (RobotId id : pacer.tracker().Up()) {
     ch.odom.at(id)->raw().WaitForAcks(2.0);
     ch.scan.at(id)->raw().WaitForAcks(2.0);
   }
   if (recording) recording->Close();
   const double wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
-  record.Write(out_dir, source, wall_s, exit_code != 0, feeder.resent());
+  record.Write(out_dir, source, wall_s, exit_code != 0, pacer.resent());
   feeder.Emit({{"event", "done"}, {"wall_s", wall_s}, {"interrupted", exit_code != 0}});
   spdlog::info("done in {:.1f} s wall", wall_s);
   return exit_code;

@@ -1,0 +1,177 @@
+#include "sim_feeder/lockstep_pacer.h"
+
+#include <algorithm>
+#include <utility>
+
+namespace mapmesh {
+namespace {
+constexpr double kStampEps = 1e-9;
+}  // namespace
+
+LockstepPacer::LockstepPacer(const std::vector<RobotId>& ids, Options options, ProcessProbe probe)
+    : options_(std::move(options)),
+      probe_(std::move(probe)),
+      tracker_(ids),
+      holds_(options_.holds),
+      next_barrier_(options_.window_s) {
+  std::sort(holds_.begin(), holds_.end());
+  for (RobotId id : ids) matches_at_restart_[id] = 0;
+}
+
+bool LockstepPacer::OnStatus(const AgentStatus& status) {
+  const RobotId id = status.robot_id;
+  const bool was_silent = tracker_.IsSilent(id);
+  tracker_.OnStatus(status);
+  if (tracker_.IsUp(id) || tracker_.IsSilent(id)) sent_.Processed(id, status.processed_until);
+  return was_silent && !tracker_.IsSilent(id);
+}
+
+std::optional<bool> LockstepPacer::OnStatusGone(RobotId id) {
+  if (!matches_at_restart_.count(id) || tracker_.IsDead(id) || tracker_.IsSilent(id)) return std::nullopt;
+  // While its process exists the agent is only silent (paused, say): still waited for.
+  const std::optional<int> pid = tracker_.process(id);
+  const bool exists = pid && probe_(*pid) != ProcessState::kGone;
+  tracker_.OnGone(id, exists);
+  if (!exists) sent_.Forget(id);
+  return exists;
+}
+
+std::vector<RobotId> LockstepPacer::ReapSilent() {
+  std::vector<RobotId> gone;
+  for (RobotId id : tracker_.Silent()) {
+    const std::optional<int> pid = tracker_.process(id);
+    if (pid && probe_(*pid) != ProcessState::kGone) continue;
+    tracker_.OnProcessGone(id);
+    sent_.Forget(id);
+    gone.push_back(id);
+  }
+  return gone;
+}
+
+std::vector<SentLog::Message> LockstepPacer::OnMatches(RobotId id, std::uint32_t total) {
+  auto base = matches_at_restart_.find(id);
+  if (base == matches_at_restart_.end()) return {};
+  tracker_.SetSubscribed(id, total > base->second);
+  // Matched anew without a restart: the agent's participant lapsed (it was paused) and is
+  // back. Whatever it had not processed may have been lost with the old match.
+  std::uint32_t& last = last_matches_[id];
+  const bool again = total > last && last > base->second && !tracker_.IsDead(id);
+  last = total;
+  if (!again) return {};
+  std::vector<SentLog::Message> out = sent_.Unprocessed(id);
+  resent_ += out.size();
+  return out;
+}
+
+void LockstepPacer::OnControl(const ControlCommand& c, std::uint32_t total_matches) {
+  switch (c.kind) {
+    case ControlCommand::Kind::kDead:
+      GiveUp(c.id);
+      break;
+    case ControlCommand::Kind::kExpect:
+      if (matches_at_restart_.count(c.id)) {
+        matches_at_restart_[c.id] = total_matches;
+        last_matches_[c.id] = total_matches;
+      }
+      tracker_.ExpectRestart(c.id);
+      sent_.Forget(c.id);
+      break;
+    case ControlCommand::Kind::kPid:
+      tracker_.SetProcess(c.id, c.pid);
+      break;
+    case ControlCommand::Kind::kContinue:
+      continue_ = true;
+      break;
+    case ControlCommand::Kind::kStop:
+      break;
+  }
+}
+
+void LockstepPacer::GiveUp(RobotId id) {
+  tracker_.MarkDead(id);
+  sent_.Forget(id);
+}
+
+std::optional<Odometry> LockstepPacer::Admit(const Odometry& o) {
+  if (!options_.lockstep) return o;
+  std::optional<Odometry> out;
+  if (auto it = held_.find(o.robot_id); it != held_.end()) out = it->second;
+  held_[o.robot_id] = o;
+  return out;
+}
+
+bool LockstepPacer::IsBarrier(double stamp, bool last) const {
+  return last || stamp + kStampEps >= next_barrier_ || (!holds_.empty() && stamp + kStampEps >= holds_.front());
+}
+
+std::vector<Odometry> LockstepPacer::CloseWindow(double stamp) {
+  std::vector<Odometry> out;
+  for (auto& [id, o] : held_) {
+    o.sync = true;
+    out.push_back(o);
+  }
+  held_.clear();
+  while (next_barrier_ <= stamp + kStampEps) next_barrier_ += options_.window_s;
+  return out;
+}
+
+void LockstepPacer::Published(const Odometry& o) {
+  published_until_[o.robot_id] = o.stamp;
+  if (options_.lockstep) sent_.Record(o);
+}
+
+void LockstepPacer::Published(const Scan& s) {
+  if (options_.lockstep) sent_.Record(s);
+}
+
+int LockstepPacer::TakeHolds(double stamp) {
+  int n = 0;
+  while (!holds_.empty() && stamp + kStampEps >= holds_.front()) {
+    holds_.erase(holds_.begin());
+    ++n;
+  }
+  return n;
+}
+
+void LockstepPacer::BeginStartup(double wall_now, double timeout_s) { startup_deadline_ = wall_now + timeout_s; }
+
+std::optional<std::vector<RobotId>> LockstepPacer::PollStartup(double wall_now) const {
+  std::vector<RobotId> pending = tracker_.Pending();
+  if (pending.empty() || wall_now >= startup_deadline_) return pending;
+  return std::nullopt;
+}
+
+void LockstepPacer::BeginBarrier(double wall_now) {
+  barrier_best_ = -1.0;
+  barrier_progress_at_ = wall_now;
+}
+
+LockstepPacer::BarrierPoll LockstepPacer::PollBarrier(double wall_now) {
+  BarrierPoll poll;
+  const std::vector<RobotId> lagging = tracker_.Lagging(published_until_);
+  if (lagging.empty()) {
+    poll.done = true;
+    return poll;
+  }
+  // Progress: the sum of what the lagging agents have processed grows. A stopped agent is
+  // not stalled: it is waited for as long as it is stopped.
+  double sum = 0.0;
+  for (const AgentStatus& s : tracker_.Statuses()) {
+    if (std::find(lagging.begin(), lagging.end(), s.robot_id) != lagging.end()) sum += s.processed_until;
+  }
+  const bool stopped = std::any_of(lagging.begin(), lagging.end(), [&](RobotId id) {
+    const std::optional<int> pid = tracker_.process(id);
+    return pid && probe_(*pid) == ProcessState::kStopped;
+  });
+  if (sum > barrier_best_ || stopped) {
+    barrier_best_ = std::max(barrier_best_, sum);
+    barrier_progress_at_ = wall_now;
+  } else if (wall_now - barrier_progress_at_ > options_.stall_timeout_s) {
+    for (RobotId id : lagging) GiveUp(id);
+    poll.stalled = lagging;
+    poll.done = true;
+  }
+  return poll;
+}
+
+}  // namespace mapmesh

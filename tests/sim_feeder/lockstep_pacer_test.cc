@@ -1,0 +1,228 @@
+#include "sim_feeder/lockstep_pacer.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+
+namespace mapmesh {
+namespace {
+
+AgentStatus St(RobotId id, std::uint32_t inc, double t) {
+  AgentStatus s;
+  s.robot_id = id;
+  s.incarnation = inc;
+  s.processed_until = t;
+  return s;
+}
+
+Odometry Od(RobotId id, double stamp) {
+  Odometry o;
+  o.robot_id = id;
+  o.stamp = stamp;
+  return o;
+}
+
+Scan Sc(RobotId id, double stamp) {
+  Scan s;
+  s.robot_id = id;
+  s.stamp = stamp;
+  return s;
+}
+
+// A pacer over robots 1 and 2 whose processes (pids 101, 102) are in `procs`.
+class LockstepPacerTest : public ::testing::Test {
+ protected:
+  LockstepPacer Make(bool lockstep = true, std::vector<double> holds = {}) {
+    LockstepPacer::Options o;
+    o.lockstep = lockstep;
+    o.window_s = 1.0;
+    o.stall_timeout_s = 10.0;
+    o.holds = std::move(holds);
+    return LockstepPacer({1, 2}, o, [this](int pid) { return procs_.count(pid) ? procs_.at(pid) : ProcessState::kGone; });
+  }
+  // Both agents report, are subscribed and have told their processes.
+  void BringUp(LockstepPacer& p) {
+    for (RobotId id : {1u, 2u}) {
+      procs_[100 + static_cast<int>(id)] = ProcessState::kRunning;
+      p.OnControl({ControlCommand::Kind::kPid, id, 100 + static_cast<int>(id)}, 0);
+      p.OnStatus(St(id, id, 0.0));
+      EXPECT_TRUE(p.OnMatches(id, 1).empty());
+    }
+  }
+  std::map<int, ProcessState> procs_;
+};
+
+TEST_F(LockstepPacerTest, StartupEndsWhenEveryAgentIsUpOrTheTimeoutPasses) {
+  LockstepPacer p = Make();
+  p.BeginStartup(100.0, 5.0);
+  EXPECT_FALSE(p.PollStartup(101.0));
+  p.OnStatus(St(1, 1, 0.0));
+  p.OnMatches(1, 1);
+  EXPECT_FALSE(p.PollStartup(104.0));  // 2 still pending
+  const auto failed = p.PollStartup(105.0);
+  ASSERT_TRUE(failed);
+  EXPECT_EQ(*failed, std::vector<RobotId>{2});
+  p.OnStatus(St(2, 2, 0.0));
+  p.OnMatches(2, 1);
+  ASSERT_TRUE(p.PollStartup(105.0));
+  EXPECT_TRUE(p.PollStartup(105.0)->empty());
+}
+
+TEST_F(LockstepPacerTest, LockstepHoldsBackEachRobotsLatestOdometryUntilTheWindowCloses) {
+  LockstepPacer p = Make();
+  EXPECT_FALSE(p.Admit(Od(1, 0.25)));
+  EXPECT_FALSE(p.Admit(Od(2, 0.25)));
+  const std::optional<Odometry> first = p.Admit(Od(1, 0.5));
+  ASSERT_TRUE(first);
+  EXPECT_DOUBLE_EQ(first->stamp, 0.25);
+  EXPECT_FALSE(first->sync);
+  EXPECT_FALSE(p.IsBarrier(0.5, false));
+  EXPECT_TRUE(p.IsBarrier(1.0, false));
+  p.Admit(Od(1, 1.0));
+  const std::vector<Odometry> closing = p.CloseWindow(1.0);
+  ASSERT_EQ(closing.size(), 2u);  // each robot's last message before the barrier, flagged
+  for (const Odometry& o : closing) EXPECT_TRUE(o.sync);
+  EXPECT_DOUBLE_EQ(closing[0].stamp, 1.0);
+  EXPECT_DOUBLE_EQ(closing[1].stamp, 0.25);
+  EXPECT_TRUE(p.CloseWindow(1.0).empty());
+  EXPECT_FALSE(p.IsBarrier(1.5, false));  // the next window ends at 2
+  EXPECT_TRUE(p.IsBarrier(1.5, true));    // the last batch always closes one
+  EXPECT_TRUE(p.IsBarrier(2.0, false));
+}
+
+TEST_F(LockstepPacerTest, RealTimePublishesOdometryAtOnce) {
+  LockstepPacer p = Make(/*lockstep=*/false);
+  const std::optional<Odometry> now = p.Admit(Od(1, 0.25));
+  ASSERT_TRUE(now);
+  EXPECT_FALSE(now->sync);
+  EXPECT_TRUE(p.CloseWindow(1.0).empty());
+}
+
+TEST_F(LockstepPacerTest, HoldPointsCloseAWindowAndAreTakenOnce) {
+  LockstepPacer p = Make(true, {2.5, 0.5, 0.5});
+  EXPECT_TRUE(p.IsBarrier(0.5, false));
+  EXPECT_EQ(p.TakeHolds(0.5), 2);
+  EXPECT_FALSE(p.IsBarrier(0.75, false));
+  EXPECT_EQ(p.TakeHolds(0.75), 0);
+  EXPECT_TRUE(p.IsBarrier(2.5, false));
+  p.BeginHold();
+  EXPECT_FALSE(p.HoldReleased());
+  p.OnControl({ControlCommand::Kind::kContinue}, 0);
+  EXPECT_TRUE(p.HoldReleased());
+}
+
+TEST_F(LockstepPacerTest, BarrierWaitsForWhatWasPublishedToEachAgent) {
+  LockstepPacer p = Make();
+  BringUp(p);
+  p.Published(Od(1, 1.0));
+  p.Published(Od(2, 0.75));
+  p.BeginBarrier(0.0);
+  EXPECT_FALSE(p.PollBarrier(0.1).done);
+  p.OnStatus(St(1, 1, 1.0));
+  EXPECT_FALSE(p.PollBarrier(0.2).done);
+  p.OnStatus(St(2, 2, 0.75));
+  const LockstepPacer::BarrierPoll poll = p.PollBarrier(0.3);
+  EXPECT_TRUE(poll.done);
+  EXPECT_TRUE(poll.stalled.empty());
+}
+
+TEST_F(LockstepPacerTest, AnAgentWithoutProgressIsGivenUpAndForgotten) {
+  LockstepPacer p = Make();
+  BringUp(p);
+  p.Published(Od(1, 1.0));
+  p.Published(Od(2, 1.0));
+  p.OnStatus(St(1, 1, 1.0));
+  p.BeginBarrier(0.0);
+  EXPECT_FALSE(p.PollBarrier(5.0).done);
+  p.OnStatus(St(2, 2, 0.5));  // progress restarts the clock
+  EXPECT_FALSE(p.PollBarrier(8.0).done);
+  EXPECT_FALSE(p.PollBarrier(17.9).done);
+  const LockstepPacer::BarrierPoll poll = p.PollBarrier(18.1);
+  EXPECT_TRUE(poll.done);
+  EXPECT_EQ(poll.stalled, std::vector<RobotId>{2});
+  EXPECT_TRUE(p.tracker().IsDead(2));
+  // What was sent to it is forgotten: a late re-match sends nothing.
+  EXPECT_TRUE(p.OnMatches(2, 2).empty());
+  EXPECT_EQ(p.resent(), 0u);
+}
+
+TEST_F(LockstepPacerTest, AStoppedAgentIsWaitedForAsLongAsItIsStopped) {
+  LockstepPacer p = Make();
+  BringUp(p);
+  p.Published(Od(2, 1.0));
+  procs_[102] = ProcessState::kStopped;
+  p.BeginBarrier(0.0);
+  EXPECT_FALSE(p.PollBarrier(100.0).done);
+  procs_[102] = ProcessState::kRunning;
+  EXPECT_FALSE(p.PollBarrier(105.0).done);
+  EXPECT_EQ(p.PollBarrier(110.5).stalled, std::vector<RobotId>{2});
+}
+
+TEST_F(LockstepPacerTest, AnAgentMatchedAnewWithoutRestartGetsWhatItHasNotProcessed) {
+  LockstepPacer p = Make();
+  BringUp(p);
+  p.Published(Od(1, 0.5));
+  p.Published(Sc(1, 0.75));
+  p.Published(Od(1, 1.0));
+  p.OnStatus(St(1, 1, 0.5));  // processed the first
+  EXPECT_TRUE(p.OnMatches(1, 1).empty());  // same match count: nothing
+  const std::vector<SentLog::Message> again = p.OnMatches(1, 2);
+  ASSERT_EQ(again.size(), 2u);
+  EXPECT_TRUE(std::holds_alternative<Scan>(again[0]));
+  EXPECT_DOUBLE_EQ(std::get<Odometry>(again[1]).stamp, 1.0);
+  EXPECT_EQ(p.resent(), 2u);
+}
+
+TEST_F(LockstepPacerTest, ARestartedAgentIsNotResentWhatItsPredecessorMissed) {
+  LockstepPacer p = Make();
+  BringUp(p);
+  p.Published(Od(1, 1.0));
+  p.OnControl({ControlCommand::Kind::kDead, 1}, 1);
+  p.OnControl({ControlCommand::Kind::kExpect, 1}, 1);
+  EXPECT_EQ(p.tracker().Pending(), std::vector<RobotId>{1});
+  p.OnStatus(St(1, 7, 0.0));
+  EXPECT_TRUE(p.OnMatches(1, 2).empty());  // the new incarnation's first match
+  EXPECT_TRUE(p.tracker().IsUp(1));
+  EXPECT_EQ(p.resent(), 0u);
+}
+
+TEST_F(LockstepPacerTest, RealTimeKeepsNothingToResend) {
+  LockstepPacer p = Make(/*lockstep=*/false);
+  BringUp(p);
+  p.Published(Od(1, 1.0));
+  EXPECT_TRUE(p.OnMatches(1, 2).empty());
+}
+
+TEST_F(LockstepPacerTest, LostLivelinessIsSilenceWhileTheProcessExistsThenDeath) {
+  LockstepPacer p = Make();
+  BringUp(p);
+  p.Published(Od(2, 1.0));
+  const std::optional<bool> exists = p.OnStatusGone(2);
+  ASSERT_TRUE(exists);
+  EXPECT_TRUE(*exists);
+  EXPECT_TRUE(p.tracker().IsSilent(2));
+  EXPECT_FALSE(p.OnStatusGone(2));  // nothing new
+  EXPECT_TRUE(p.ReapSilent().empty());
+  EXPECT_TRUE(p.OnStatus(St(2, 2, 0.5)));  // speaks again
+  EXPECT_FALSE(p.tracker().IsSilent(2));
+  ASSERT_TRUE(p.OnStatusGone(2));
+  procs_.erase(102);
+  EXPECT_EQ(p.ReapSilent(), std::vector<RobotId>{2});
+  EXPECT_TRUE(p.tracker().IsDead(2));
+  p.BeginBarrier(0.0);
+  EXPECT_TRUE(p.PollBarrier(0.0).done);  // a dead agent is not waited for
+}
+
+TEST_F(LockstepPacerTest, LostLivelinessWithoutAProcessIsDeath) {
+  LockstepPacer p = Make();
+  p.OnStatus(St(1, 1, 0.0));
+  p.OnMatches(1, 1);
+  const std::optional<bool> exists = p.OnStatusGone(1);
+  ASSERT_TRUE(exists);
+  EXPECT_FALSE(*exists);
+  EXPECT_TRUE(p.tracker().IsDead(1));
+  EXPECT_FALSE(p.OnStatusGone(7));  // not in the run
+}
+
+}  // namespace
+}  // namespace mapmesh
