@@ -12,6 +12,7 @@
 
 #include "common/app/process.h"
 #include "common/io/run_files.h"
+#include "common/metrics/agent_evaluation.h"
 #include "common/metrics/landmark_metrics.h"
 #include "common/metrics/reference_metrics.h"
 #include "common/metrics/trajectory_metrics.h"
@@ -48,33 +49,37 @@ json AlignmentErrors(const json& stats, const io::RunTruth& truth, const std::op
       latest[r] = std::max(latest[r], p.at("incarnation").get<std::uint32_t>());
     }
   }
+  const TruePoseAt true_pose = [&](RobotId robot, double t) -> std::optional<Pose2> {
+    const io::RobotTruth* rt = truth.Find(robot);
+    return rt ? rt->PoseAt(t) : std::nullopt;
+  };
   for (const json& p : stats.at("peers")) {
     if (!p.value("aligned", false)) continue;
-    const RobotId robot = p.at("robot").get<RobotId>();
-    const std::uint32_t inc = p.at("incarnation").get<std::uint32_t>();
-    const io::RobotTruth* rt = truth.Find(robot);
-    if (!rt) continue;
-    const std::optional<Pose2> peer_origin = rt->PoseAt(p.at("origin_stamp").get<double>());
-    if (!peer_origin) continue;
-    const Pose2 est{p.at("transform").at(0).get<double>(), p.at("transform").at(1).get<double>(),
-                    p.at("transform").at(2).get<double>()};
-    const Eigen::Vector2d at(p.at("centroid").at(0).get<double>(), p.at("centroid").at(1).get<double>());
-    const TransformError e = CompareTransforms(est, origin->Inverse() * *peer_origin, at);
-    json entry = {{"trans_m", e.translation_m}, {"rot_rad", e.rotation_rad}, {"incarnation", inc},
-                  {"own_checkpoint", p.value("own_checkpoint", false)}};
+    PlacedPeer peer;
+    peer.robot = p.at("robot").get<RobotId>();
+    peer.incarnation = p.at("incarnation").get<std::uint32_t>();
+    peer.origin_stamp = p.at("origin_stamp").get<double>();
+    peer.to_own = {p.at("transform").at(0).get<double>(), p.at("transform").at(1).get<double>(),
+                   p.at("transform").at(2).get<double>()};
+    peer.centroid = {p.at("centroid").at(0).get<double>(), p.at("centroid").at(1).get<double>()};
     // The peer's map as the run ended, when it is this incarnation's.
-    const std::string peer_dir = run_dir + "/agent_" + std::to_string(robot);
+    std::optional<Pose2> peer_fit;
+    const std::string peer_dir = run_dir + "/agent_" + std::to_string(peer.robot);
     if (own_fit && std::filesystem::exists(peer_dir + "/local_map.json") &&
         std::filesystem::exists(peer_dir + "/stats.json") &&
-        io::ReadJson(peer_dir + "/stats.json").value("incarnation", 0u) == inc) {
-      if (const auto peer_fit = MapFrameInWorld(io::MapFromJson(io::ReadJson(peer_dir + "/local_map.json")), truth.landmarks)) {
-        const TransformError f = CompareTransforms(est, own_fit->Inverse() * *peer_fit, at);
-        entry["trans_fit_m"] = f.translation_m;
-        entry["rot_fit_rad"] = f.rotation_rad;
-      }
+        io::ReadJson(peer_dir + "/stats.json").value("incarnation", 0u) == peer.incarnation) {
+      peer_fit = MapFrameInWorld(io::MapFromJson(io::ReadJson(peer_dir + "/local_map.json")), truth.landmarks);
     }
-    const std::string key = inc == latest[robot] ? std::to_string(robot) : std::to_string(robot) + "@" + std::to_string(inc);
-    out[key] = entry;
+    const std::optional<PlacementError> e = ScorePlacement(peer, *origin, true_pose, own_fit, peer_fit);
+    if (!e) continue;
+    json entry = {{"trans_m", e->from_start.translation_m}, {"rot_rad", e->from_start.rotation_rad},
+                  {"incarnation", peer.incarnation}, {"own_checkpoint", p.value("own_checkpoint", false)}};
+    if (e->from_fit) {
+      entry["trans_fit_m"] = e->from_fit->translation_m;
+      entry["rot_fit_rad"] = e->from_fit->rotation_rad;
+    }
+    const std::string robot = std::to_string(peer.robot);
+    out[peer.incarnation == latest[peer.robot] ? robot : robot + "@" + std::to_string(peer.incarnation)] = entry;
   }
   return out;
 }

@@ -6,6 +6,7 @@
 #include <set>
 
 #include "agent/agent_setup.h"
+#include "common/metrics/agent_evaluation.h"
 #include "common/metrics/trajectory_metrics.h"
 #include "sim_feeder/sources.h"
 
@@ -148,21 +149,25 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
       r.local_quality = EvaluateOwnFrameMap(r.local, world.landmarks, result.seen, r.origin_truth);
       r.global_quality = EvaluateOwnFrameMap(r.global.map, world.landmarks, result.seen, r.origin_truth);
     }
+    const TruePoseAt true_pose = [&](RobotId robot, double t) { return TruthAt(truth[robot], t); };
+    const std::optional<Pose2> own_fit =
+        world.landmarks.empty() ? std::nullopt : MapFrameInWorld(r.local, world.landmarks);
     for (const PeerReport& p : r.peers) {
       if (!p.aligned || !r.origin_truth || !world.headings_known) continue;
-      const std::optional<Pose2> peer_origin = TruthAt(truth[p.key.robot], p.origin_stamp);
-      if (!peer_origin) continue;
-      const Pose2 true_transform = r.origin_truth->Inverse() * *peer_origin;
-      const TransformError e = CompareTransforms(p.to_own, true_transform, p.centroid);
-      BusAgentResult::AlignmentError err{p.key, e.translation_m, e.rotation_rad};
+      // The peer's map as the run ended, when it is this incarnation's.
+      std::optional<Pose2> peer_fit;
       const Slot& peer = slots.at(p.key.robot);
-      if (peer.alive && peer.incarnation == p.key.incarnation) {
-        const auto fa = MapFrameInWorld(r.local, world.landmarks), fb = MapFrameInWorld(peer.node->LocalMap(), world.landmarks);
-        if (fa && fb) {
-          const TransformError f = CompareTransforms(p.to_own, fa->Inverse() * *fb, p.centroid);
-          err.fit_translation_m = f.translation_m;
-          err.fit_rotation_rad = f.rotation_rad;
-        }
+      if (own_fit && peer.alive && peer.incarnation == p.key.incarnation) {
+        peer_fit = MapFrameInWorld(peer.node->LocalMap(), world.landmarks);
+      }
+      const std::optional<PlacementError> e = ScorePlacement(
+          {p.key.robot, p.key.incarnation, p.to_own, p.centroid, p.origin_stamp}, *r.origin_truth, true_pose, own_fit,
+          peer_fit);
+      if (!e) continue;
+      BusAgentResult::AlignmentError err{p.key, e->from_start.translation_m, e->from_start.rotation_rad};
+      if (e->from_fit) {
+        err.fit_translation_m = e->from_fit->translation_m;
+        err.fit_rotation_rad = e->from_fit->rotation_rad;
       }
       r.alignment_errors.push_back(err);
     }

@@ -6,6 +6,7 @@
 #include <limits>
 #include <map>
 
+#include "common/geometry/pose_track.h"
 #include "sim_feeder/dataset_table.h"
 
 namespace mapmesh {
@@ -19,14 +20,10 @@ std::string RobotFile(const std::string& dir, RobotId id, const char* what) {
   return dir + "/Robot" + std::to_string(id) + "_" + what + ".dat";
 }
 
-Pose2 InterpolatePose(const std::vector<TableRow>& gt, double t) {
-  auto hi = std::lower_bound(gt.begin(), gt.end(), t, [](const TableRow& r, double v) { return r.v[0] < v; });
-  if (hi == gt.begin()) return {hi->v[1], hi->v[2], hi->v[3]};
-  if (hi == gt.end()) return {gt.back().v[1], gt.back().v[2], gt.back().v[3]};
-  const auto lo = hi - 1;
-  const double a = (t - lo->v[0]) / (hi->v[0] - lo->v[0]);
-  return {lo->v[1] + a * (hi->v[1] - lo->v[1]), lo->v[2] + a * (hi->v[2] - lo->v[2]),
-          WrapAngle(lo->v[3] + a * WrapAngle(hi->v[3] - lo->v[3]))};
+// The ground truth (rows t, x, y, theta) at time t.
+std::optional<Pose2> InterpolatePose(const std::vector<TableRow>& gt, double t) {
+  return PoseAlong(gt, t, [](const TableRow& r) { return r.v[0]; },
+                   [](const TableRow& r) { return Pose2{r.v[1], r.v[2], r.v[3]}; });
 }
 
 }  // namespace

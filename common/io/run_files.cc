@@ -5,6 +5,8 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "common/geometry/pose_track.h"
+
 namespace mapmesh::io {
 
 json MapToJson(const LandmarkMap& map) {
@@ -59,13 +61,7 @@ LandmarkMap MapFromJson(const json& j) {
 }
 
 std::optional<Pose2> RobotTruth::PoseAt(double t) const {
-  if (trajectory.empty()) return std::nullopt;
-  if (t <= trajectory.front().t) return trajectory.front().pose;
-  if (t >= trajectory.back().t) return trajectory.back().pose;
-  auto hi = std::lower_bound(trajectory.begin(), trajectory.end(), t,
-                             [](const TruthSample& s, double v) { return s.t < v; });
-  auto lo = hi - 1;
-  return Interpolate(lo->pose, hi->pose, (t - lo->t) / (hi->t - lo->t));
+  return PoseAlong(trajectory, t, [](const TruthSample& s) { return s.t; }, [](const TruthSample& s) { return s.pose; });
 }
 
 const RobotTruth* RunTruth::Find(RobotId id) const {

@@ -11,6 +11,7 @@
 
 #include "common/merge/spatial.h"
 #include "common/metrics/chi2.h"
+#include "common/slam/jcbb.h"
 
 namespace mapmesh {
 namespace {
@@ -34,94 +35,29 @@ struct Edge {
   double d2 = 0.0;  // individual squared Mahalanobis distance
 };
 
-// Joint compatibility branch and bound over one connected group of candidate edges.
-class Jcbb {
- public:
-  Jcbb(const std::vector<Landmark>& moved, const std::vector<Eigen::Matrix<double, 2, 3>>& jac,
-       const Eigen::Matrix3d& t_cov, const std::vector<Cluster>& clusters, double gate_probability, long max_nodes)
-      : moved_(moved), jac_(jac), t_cov_(t_cov), clusters_(clusters), p_(gate_probability), max_nodes_(max_nodes) {}
-
-  // The best assignment (per source landmark of the group: a cluster or -1): most pairings,
-  // then the lowest joint distance.
-  std::vector<int> Solve(const std::vector<int>& group, const std::vector<std::vector<Edge>>& edges_of) {
-    group_ = &group;
-    edges_of_ = &edges_of;
-    current_.assign(group.size(), -1);
-    best_ = current_;
-    best_pairs_ = 0;
-    best_d2_ = std::numeric_limits<double>::infinity();
-    nodes_ = 0;
-    Search(0, 0);
-    return best_;
+// Joint squared distance of pairings of source landmarks (group[item]) with clusters (target).
+// The shared alignment error correlates the source landmarks.
+double GroupJointD2(const std::vector<Landmark>& moved, const std::vector<Eigen::Matrix<double, 2, 3>>& jac,
+                    const Eigen::Matrix3d& t_cov, const std::vector<Cluster>& clusters, const std::vector<int>& group,
+                    std::span<const JcbbPairing> pairs) {
+  const int n = static_cast<int>(pairs.size());
+  Eigen::VectorXd nu(2 * n);
+  Eigen::MatrixXd s = Eigen::MatrixXd::Zero(2 * n, 2 * n);
+  for (int a = 0; a < n; ++a) {
+    const int si = group[pairs[a].item];
+    const Cluster& ca = clusters[pairs[a].target];
+    nu.segment<2>(2 * a) = ca.anchor.mean - moved[si].mean;
+    s.block<2, 2>(2 * a, 2 * a) = ca.anchor.cov + moved[si].cov;
+    for (int b = a + 1; b < n; ++b) {
+      const Eigen::Matrix2d cross = jac[si] * t_cov * jac[group[pairs[b].item]].transpose();
+      s.block<2, 2>(2 * a, 2 * b) = cross;
+      s.block<2, 2>(2 * b, 2 * a) = cross.transpose();
+    }
   }
-
- private:
-  // Joint squared distance of the pairings in current_ (first k of the group), or infinity
-  // when they fail the joint gate.
-  double JointD2(std::size_t k, int pairs) const {
-    if (pairs == 0) return 0.0;
-    Eigen::VectorXd nu(2 * pairs);
-    Eigen::MatrixXd s = Eigen::MatrixXd::Zero(2 * pairs, 2 * pairs);
-    std::vector<int> idx;
-    for (std::size_t i = 0; i < k; ++i) {
-      if (current_[i] >= 0) idx.push_back(static_cast<int>(i));
-    }
-    for (int a = 0; a < pairs; ++a) {
-      const int si = (*group_)[idx[a]];
-      const Cluster& ca = clusters_[current_[idx[a]]];
-      nu.segment<2>(2 * a) = ca.anchor.mean - moved_[si].mean;
-      s.block<2, 2>(2 * a, 2 * a) = ca.anchor.cov + moved_[si].cov;
-      for (int b = a + 1; b < pairs; ++b) {
-        const int sj = (*group_)[idx[b]];
-        // The shared alignment error correlates the two source landmarks.
-        const Eigen::Matrix2d cross = jac_[si] * t_cov_ * jac_[sj].transpose();
-        s.block<2, 2>(2 * a, 2 * b) = cross;
-        s.block<2, 2>(2 * b, 2 * a) = cross.transpose();
-      }
-    }
-    const Eigen::LLT<Eigen::MatrixXd> llt(s);
-    if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
-    const double d2 = nu.dot(llt.solve(nu));
-    return d2 < Chi2Quantile(p_, 2 * pairs) ? d2 : std::numeric_limits<double>::infinity();
-  }
-
-  void Search(std::size_t k, int pairs) {
-    if (++nodes_ > max_nodes_) return;
-    const std::size_t n = group_->size();
-    if (pairs + static_cast<int>(n - k) < best_pairs_) return;
-    if (k == n) {
-      const double d2 = JointD2(n, pairs);
-      if (pairs > best_pairs_ || (pairs == best_pairs_ && d2 < best_d2_)) {
-        best_pairs_ = pairs;
-        best_d2_ = d2;
-        best_ = current_;
-      }
-      return;
-    }
-    for (const Edge& e : (*edges_of_)[(*group_)[k]]) {
-      if (std::find(current_.begin(), current_.begin() + static_cast<long>(k), e.c) != current_.begin() + static_cast<long>(k)) {
-        continue;  // one source landmark per cluster
-      }
-      current_[k] = e.c;
-      if (std::isfinite(JointD2(k + 1, pairs + 1))) Search(k + 1, pairs + 1);
-      current_[k] = -1;
-    }
-    Search(k + 1, pairs);
-  }
-
-  const std::vector<Landmark>& moved_;
-  const std::vector<Eigen::Matrix<double, 2, 3>>& jac_;
-  const Eigen::Matrix3d& t_cov_;
-  const std::vector<Cluster>& clusters_;
-  double p_;
-  long max_nodes_;
-  const std::vector<int>* group_ = nullptr;
-  const std::vector<std::vector<Edge>>* edges_of_ = nullptr;
-  std::vector<int> current_, best_;
-  int best_pairs_ = 0;
-  double best_d2_ = 0.0;
-  long nodes_ = 0;
-};
+  const Eigen::LLT<Eigen::MatrixXd> llt(s);
+  if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+  return nu.dot(llt.solve(nu));
+}
 
 bool Usable(const Landmark& l, GlobalMapStats& stats) {
   switch (CheckEstimate({l.mean, l.cov})) {
@@ -209,7 +145,6 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
     }
     // Connected groups of source landmarks through shared candidate clusters.
     std::vector<int> assign(moved.size(), -1), group_of(moved.size(), -1);
-    Jcbb jcbb(moved, jac, src.to_own_cov, clusters, o.gate_probability, o.max_jcbb_nodes);
     for (std::size_t s0 = 0; s0 < moved.size(); ++s0) {
       if (group_of[s0] >= 0 || edges_of[s0].empty()) continue;
       std::vector<int> group{static_cast<int>(s0)};
@@ -231,8 +166,20 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
       std::sort(group.begin(), group.end());
       if (static_cast<int>(group.size()) <= o.max_jcbb_landmarks) {
         ++g.stats.ambiguous_groups;
-        const std::vector<int> best = jcbb.Solve(group, edges_of);
-        for (std::size_t i = 0; i < group.size(); ++i) assign[group[i]] = best[i];
+        std::vector<std::vector<int>> candidates;
+        for (int s : group) {
+          candidates.emplace_back();
+          for (const Edge& e : edges_of[s]) candidates.back().push_back(e.c);
+        }
+        const JcbbResult best = JointCompatibility(
+            candidates,
+            [&](std::span<const JcbbPairing> pairs) {
+              return GroupJointD2(moved, jac, src.to_own_cov, clusters, group, pairs);
+            },
+            o.gate_probability, o.max_jcbb_nodes);
+        for (std::size_t i = 0; i < group.size(); ++i) {
+          if (best.option[i] >= 0) assign[group[i]] = candidates[i][best.option[i]];
+        }
       } else {
         ++g.stats.greedy_groups;
         std::vector<Edge> all;

@@ -63,6 +63,7 @@ std::vector<TimedPosition> DropImplausibleFixes(const std::vector<TimedPosition>
 }  // namespace mapmesh
 
 #include "common/geometry/pose2.h"
+#include "common/geometry/pose_track.h"
 
 namespace mapmesh {
 
@@ -71,12 +72,8 @@ TransformError CompareTransforms(const Pose2& estimate, const Pose2& truth, cons
 }
 
 std::optional<Pose2> TruthAt(const std::vector<GroundTruth>& g, double t) {
-  if (g.empty()) return std::nullopt;
-  auto hi = std::lower_bound(g.begin(), g.end(), t, [](const GroundTruth& a, double v) { return a.stamp < v; });
-  if (hi == g.begin()) return Pose2{hi->x, hi->y, hi->theta};
-  if (hi == g.end()) return Pose2{g.back().x, g.back().y, g.back().theta};
-  const auto lo = hi - 1;
-  return Interpolate({lo->x, lo->y, lo->theta}, {hi->x, hi->y, hi->theta}, (t - lo->stamp) / (hi->stamp - lo->stamp));
+  return PoseAlong(g, t, [](const GroundTruth& s) { return s.stamp; },
+                   [](const GroundTruth& s) { return Pose2{s.x, s.y, s.theta}; });
 }
 
 }  // namespace mapmesh

@@ -7,6 +7,7 @@
 
 #include "common/check.h"
 #include "common/metrics/chi2.h"
+#include "common/slam/jcbb.h"
 #include "common/slam/observation_model.h"
 
 namespace mapmesh {
@@ -55,68 +56,6 @@ double JointD2(const AssociationProblem& p, const std::vector<const Pairing*>& h
   if (ldlt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
   return nu.dot(ldlt.solve(nu));
 }
-
-class Jcbb {
- public:
-  Jcbb(const AssociationProblem& p, const std::vector<std::vector<Pairing>>& compatible, double prob, long max_nodes)
-      : p_(p), compatible_(compatible), prob_(prob), max_nodes_(max_nodes),
-        used_(p.candidates.size(), false), best_(p.z.size(), nullptr), current_(p.z.size(), nullptr) {}
-
-  std::vector<const Pairing*> Run() {
-    Search(0, 0);
-    return best_;
-  }
-  long nodes() const { return nodes_; }
-
- private:
-  void Search(std::size_t i, int pairings) {
-    if (++nodes_ > max_nodes_) return;
-    if (i == p_.z.size()) {
-      const double d2 = Joint();
-      if (pairings > best_pairings_ || (pairings == best_pairings_ && d2 < best_d2_)) {
-        best_pairings_ = pairings;
-        best_d2_ = d2;
-        best_ = current_;
-      }
-      return;
-    }
-    for (const Pairing& q : compatible_[i]) {
-      if (used_[q.cand]) continue;
-      current_[i] = &q;
-      if (Joint() < Threshold(pairings + 1)) {
-        used_[q.cand] = true;
-        Search(i + 1, pairings + 1);
-        used_[q.cand] = false;
-      }
-      current_[i] = nullptr;
-    }
-    // Leave observation i unpaired, if that can still beat the best.
-    if (pairings + static_cast<int>(p_.z.size() - i - 1) >= best_pairings_) Search(i + 1, pairings);
-  }
-  double Joint() const {
-    std::vector<const Pairing*> h;
-    for (const Pairing* q : current_) {
-      if (q) h.push_back(q);
-    }
-    return h.empty() ? 0.0 : JointD2(p_, h);
-  }
-  double Threshold(int pairings) {
-    if (thresholds_.size() <= static_cast<std::size_t>(pairings)) thresholds_.resize(pairings + 1, -1.0);
-    if (thresholds_[pairings] < 0) thresholds_[pairings] = Chi2Quantile(prob_, 2 * pairings);
-    return thresholds_[pairings];
-  }
-
-  const AssociationProblem& p_;
-  const std::vector<std::vector<Pairing>>& compatible_;
-  double prob_;
-  long max_nodes_;
-  long nodes_ = 0;
-  std::vector<bool> used_;
-  std::vector<const Pairing*> best_, current_;
-  int best_pairings_ = 0;
-  double best_d2_ = std::numeric_limits<double>::infinity();
-  std::vector<double> thresholds_;
-};
 
 }  // namespace
 
@@ -197,9 +136,23 @@ AssociationResult Associate(const AssociationProblem& p, const AssociationOption
       used[q->cand] = true;
     }
   } else {
-    Jcbb jcbb(p, compatible, options.gate_probability, options.max_jcbb_nodes);
-    chosen = jcbb.Run();
-    r.jcbb_nodes = jcbb.nodes();
+    std::vector<std::vector<int>> candidates(n);
+    for (int i = 0; i < n; ++i) {
+      for (const Pairing& q : compatible[i]) candidates[i].push_back(q.cand);
+    }
+    std::vector<const Pairing*> h;
+    const JcbbResult jcbb = JointCompatibility(
+        candidates,
+        [&](std::span<const JcbbPairing> pairs) {
+          h.clear();
+          for (const JcbbPairing& q : pairs) h.push_back(&compatible[q.item][q.option]);
+          return JointD2(p, h);
+        },
+        options.gate_probability, options.max_jcbb_nodes);
+    for (int i = 0; i < n; ++i) {
+      if (jcbb.option[i] >= 0) chosen[i] = &compatible[i][jcbb.option[i]];
+    }
+    r.jcbb_nodes = jcbb.nodes;
   }
   for (int i = 0; i < n; ++i) {
     if (chosen[i]) {
