@@ -29,5 +29,17 @@ TEST(Chi2, LargeDegreesOfFreedom) {
   EXPECT_LT(Chi2Cdf(100.0, 1000), 1e-100);
 }
 
+TEST(Chi2, OddDegreesOfFreedom) {
+  // The residual of a rigid 2D fit to n pairs has 2n - 3. Reference values from
+  // scipy.stats.chi2.
+  EXPECT_NEAR(Chi2Quantile(0.95, 1), 3.841459, 1e-6);
+  EXPECT_NEAR(Chi2Quantile(0.99, 3), 11.344867, 1e-6);
+  EXPECT_NEAR(Chi2Quantile(0.999, 17), 40.790215, 1e-5);
+  EXPECT_NEAR(Chi2Cdf(7.814728, 3), 0.95, 1e-6);
+  // Between its even neighbours.
+  EXPECT_GT(Chi2Quantile(0.99, 5), Chi2Quantile(0.99, 4));
+  EXPECT_LT(Chi2Quantile(0.99, 5), Chi2Quantile(0.99, 6));
+}
+
 }  // namespace
 }  // namespace mapmesh
