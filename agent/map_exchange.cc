@@ -1,26 +1,9 @@
 #include "agent/map_exchange.h"
 
 #include <algorithm>
-#include <cmath>
 #include <set>
 
 namespace mapmesh {
-namespace {
-
-Eigen::Vector2d Centroid(const LandmarkMap& m) {
-  Eigen::Vector2d c = Eigen::Vector2d::Zero();
-  for (const Landmark& l : m.landmarks) c += l.mean;
-  return m.empty() ? c : Eigen::Vector2d(c / static_cast<double>(m.size()));
-}
-
-// Whether two transforms of a frame place the point `at` of it within tol_m of each other and
-// turn it within tol_deg.
-bool Within(const Pose2& a, const Pose2& b, const Eigen::Vector2d& at, double tol_m, double tol_deg) {
-  return (a.Apply(at) - b.Apply(at)).norm() <= tol_m && std::abs(WrapAngle(a.theta - b.theta)) <= DegToRad(tol_deg);
-}
-
-}  // namespace
-
 MapExchange::MapExchange(RobotId self, std::uint32_t incarnation, const ExchangeOptions& options, std::uint64_t seed)
     : self_(self), incarnation_(incarnation), options_(options), rng_(seed) {}
 
@@ -32,16 +15,16 @@ MapExchange::Receipt MapExchange::OnPeerMap(RobotId robot, std::uint32_t incarna
   const double rate = options_.MaxVersionsPerS();
   if (version > options_.version_slack + rate * std::max(0.0, now)) return Receipt::kVersionJump;
   if (it != peers_.end()) {
-    const Peer& known = it->second;
+    const PeerState& known = it->second;
     const bool has = kind == MapKind::kLocal ? known.has_local : known.has_global;
     const std::uint32_t last = kind == MapKind::kLocal ? known.local_version : known.global_version;
     const double heard = kind == MapKind::kLocal ? known.local_heard : known.global_heard;
     if (has && version <= last) return Receipt::kStaleVersion;
     if (has && version - last > options_.version_slack + rate * std::max(0.0, now - heard)) return Receipt::kVersionJump;
-  } else if (!MakeRoomFor(robot)) {
+  } else if (!MakeRoomFor(robot, now)) {
     return Receipt::kTooManyIncarnations;
   }
-  Peer& p = peers_[key];
+  PeerState& p = peers_[key];
   p.report.key = key;
   if (kind == MapKind::kLocal) {
     p.local_version = version;
@@ -65,16 +48,16 @@ MapExchange::Receipt MapExchange::OnPeerMap(RobotId robot, std::uint32_t incarna
   return Receipt::kAccepted;
 }
 
-bool MapExchange::MakeRoomFor(RobotId robot) {
-  std::vector<std::map<PeerKey, Peer>::iterator> kept;
+bool MapExchange::MakeRoomFor(RobotId robot, double now) {
+  std::vector<PeerStates::iterator> kept;
   for (auto it = peers_.lower_bound({robot, 0}); it != peers_.end() && it->first.robot == robot; ++it) kept.push_back(it);
   if (static_cast<int>(kept.size()) < options_.max_incarnations) return true;
   // Evict the incarnation heard longest ago among those that never contributed and can no
   // longer speak; one that did contribute stays (nothing learned is lost).
   auto victim = peers_.end();
   for (auto it : kept) {
-    const Peer& p = it->second;
-    if (p.report.ever_aligned || p.report.own_checkpoint || !Silent(p)) continue;
+    const PeerState& p = it->second;
+    if (p.report.ever_aligned || p.report.own_checkpoint || !Silent(p, now)) continue;
     if (victim == peers_.end() || p.report.last_heard < victim->second.report.last_heard) victim = it;
   }
   if (victim == peers_.end()) return false;
@@ -91,14 +74,14 @@ void MapExchange::OnPeerLiveliness(RobotId robot, bool alive, double now) {
     } else if (alive) {
       p.report.stale = false;
     }
-    p.report.frozen = Frozen(p);
-    p.report.silent = Silent(p);
+    p.report.frozen = p.Frozen();
+    p.report.silent = Silent(p, now);
   }
 }
 
 void MapExchange::AddOwnCheckpoint(std::uint32_t incarnation, double origin_stamp, LandmarkMap local,
                                    LandmarkMap global) {
-  Peer& p = peers_[{self_, incarnation}];
+  PeerState& p = peers_[{self_, incarnation}];
   p.report.key = {self_, incarnation};
   p.report.own_checkpoint = true;
   p.report.stale = true;  // that process is gone; its maps stay
@@ -112,23 +95,7 @@ void MapExchange::AddOwnCheckpoint(std::uint32_t incarnation, double origin_stam
   p.changed = true;
 }
 
-bool MapExchange::Agree(const Pose2& a, const Pose2& b, const Eigen::Vector2d& at) const {
-  return Within(a, b, at, options_.relay_tolerance_m, options_.relay_tolerance_deg);
-}
-
-MapExchange::Overlap MapExchange::Compare(const LandmarkMap& witness, const LandmarkMap& map, const Pose2& placement,
-                                          int* inliers) const {
-  const AlignmentResult r = VerifyAlignment(witness, map, placement, options_.align);
-  if (r.covered < options_.align.min_inliers) return Overlap::kNone;  // the witness has not mapped there
-  if (!r.accepted() || static_cast<double>(r.inliers.size()) < options_.relay_min_agreement * r.covered ||
-      !Agree(r.transform, placement, Centroid(map))) {
-    return Overlap::kDisagrees;
-  }
-  if (inliers != nullptr) *inliers = static_cast<int>(r.inliers.size());
-  return Overlap::kAgrees;
-}
-
-void MapExchange::Drop(Peer& p, double now) {
+void MapExchange::Drop(PeerState& p, double now) {
   ++p.report.drops;
   p.superseded_by.reset();
   p.report.superseded = false;
@@ -145,13 +112,7 @@ bool MapExchange::Spend() {
   return true;
 }
 
-bool MapExchange::Frozen(const Peer& p) const { return p.report.stale || p.report.own_checkpoint; }
-
-bool MapExchange::Silent(const Peer& p) const {
-  return Frozen(p) || now_ - p.report.last_heard > options_.SilentAfterS();
-}
-
-bool MapExchange::AttemptDue(const Peer& p, const LandmarkMap& own_local, double now) const {
+bool MapExchange::AttemptDue(const PeerState& p, const LandmarkMap& own_local, double now) const {
   if (now - p.last_attempt < options_.align_period_s) return false;
   if (p.changed || Grew(own_local.size(), p.own_size_at_attempt)) return true;
   // A peer that is silent (or can no longer speak) sends no better map: what it sent is tried
@@ -159,9 +120,9 @@ bool MapExchange::AttemptDue(const Peer& p, const LandmarkMap& own_local, double
   return p.report.silent && own_local.size() != p.own_size_at_attempt;
 }
 
-bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool reconsider_relay) {
+bool MapExchange::Align(PeerState& p, const LandmarkMap& own_local, double now, bool reconsider_relay) {
   if (!Spend()) return false;
-  const LandmarkMap& theirs = PeerMap(p);
+  const LandmarkMap& theirs = p.Map();
   const AlignmentResult r = AlignMaps(own_local, theirs, options_.align, rng_);
   p.report.last_verdict = r.verdict;
   p.last_attempt = now;
@@ -170,29 +131,30 @@ bool MapExchange::Align(Peer& p, const LandmarkMap& own_local, double now, bool 
   p.changed = false;
   if (!r.accepted()) return false;
   const Eigen::Vector2d at = Centroid(theirs);
-  if (std::any_of(p.refuted.begin(), p.refuted.end(), [&](const Pose2& t) { return Agree(t, r.transform, at); })) {
+  if (std::any_of(p.refuted.begin(), p.refuted.end(), [&](const Pose2& t) { return relay_.Agree(t, r.transform, at); })) {
     ++p.report.refuted_answers;
     return false;
   }
   // An answer is used once a second, later one agrees with it (or with the transform in use).
-  const bool confirmed = !options_.test_only.confirm_alignments || (p.report.aligned && Agree(p.report.to_own, r.transform, at)) ||
-                         (p.candidate && Agree(*p.candidate, r.transform, at));
+  const bool confirmed = !options_.test_only.confirm_alignments || (p.report.aligned && relay_.Agree(p.report.to_own, r.transform, at)) ||
+                         (p.candidate && relay_.Agree(*p.candidate, r.transform, at));
   if (!confirmed) {
     p.candidate = r.transform;
     ++p.report.unconfirmed;
     return false;
   }
   p.candidate.reset();
-  Use(p, r, own_local, reconsider_relay);
+  Use(p, r, own_local, reconsider_relay, now);
   return true;
 }
 
-void MapExchange::Use(Peer& p, const AlignmentResult& r, const LandmarkMap& own_local, bool reconsider_relay) {
+void MapExchange::Use(PeerState& p, const AlignmentResult& r, const LandmarkMap& own_local, bool reconsider_relay,
+                      double now) {
   p.report.to_own = r.transform;
   p.report.to_own_cov = r.cov;
-  p.report.centroid = Centroid(PeerMap(p));
-  p.last_refine = now_;
-  ChooseSource(p, own_local, reconsider_relay);
+  p.report.centroid = Centroid(p.Map());
+  p.last_refine = now;
+  ChooseSource(p, own_local, reconsider_relay, now);
 }
 
 bool MapExchange::Grew(std::size_t size, std::size_t at_attempt) const {
@@ -200,7 +162,7 @@ bool MapExchange::Grew(std::size_t size, std::size_t at_attempt) const {
          (1.0 + options_.retry_growth) * static_cast<double>(std::max<std::size_t>(1, at_attempt));
 }
 
-bool MapExchange::RealignDue(const Peer& p, const LandmarkMap& own_local, double now) const {
+bool MapExchange::RealignDue(const PeerState& p, const LandmarkMap& own_local, double now) const {
   // A stale peer's contribution stays as it was verified (its map will not change). A silent
   // one's may still be corrected, by a confirmed answer (a move, never a removal).
   if (!options_.test_only.realign_on_growth || p.report.stale || now - p.last_attempt < options_.align_period_s) return false;
@@ -208,117 +170,61 @@ bool MapExchange::RealignDue(const Peer& p, const LandmarkMap& own_local, double
   // confirm it: that one is due as soon as either map has changed, as for a first alignment, not
   // only after the next fifth of growth (which may never come).
   if (p.candidate && (p.changed || own_local.size() != p.own_size_at_attempt)) return true;
-  return Grew(own_local.size(), p.own_size_at_attempt) || Grew(PeerMap(p).size(), p.peer_size_at_attempt);
+  return Grew(own_local.size(), p.own_size_at_attempt) || Grew(p.Map().size(), p.peer_size_at_attempt);
 }
 
-bool MapExchange::Verify(Peer& p, const LandmarkMap& own_local) {
-  const AlignmentResult r = VerifyAlignment(own_local, PeerMap(p), p.report.to_own, options_.align);
+bool MapExchange::Verify(PeerState& p, const LandmarkMap& own_local, double now) {
+  const AlignmentResult r = VerifyAlignment(own_local, p.Map(), p.report.to_own, options_.align);
   p.report.last_verdict = r.verdict;
   p.changed = false;
   if (!r.accepted()) return false;
-  Use(p, r, own_local, /*reconsider_relay=*/true);
+  Use(p, r, own_local, /*reconsider_relay=*/true, now);
   return true;
 }
 
-void MapExchange::Refine(Peer& p, const LandmarkMap& own_local) {
-  p.last_refine = now_;
-  const AlignmentResult r = VerifyAlignment(own_local, PeerMap(p), p.report.to_own, options_.align);
-  if (!r.accepted() || !Agree(r.transform, p.report.to_own, Centroid(PeerMap(p)))) return;
+void MapExchange::Refine(PeerState& p, const LandmarkMap& own_local, double now) {
+  p.last_refine = now;
+  const AlignmentResult r = VerifyAlignment(own_local, p.Map(), p.report.to_own, options_.align);
+  if (!r.accepted() || !relay_.Agree(r.transform, p.report.to_own, Centroid(p.Map()))) return;
   ++p.report.refinements;
-  Use(p, r, own_local, /*reconsider_relay=*/false);
+  Use(p, r, own_local, /*reconsider_relay=*/false, now);
 }
 
-bool MapExchange::RelayAgrees(const Peer& p, const Pose2& to_own, Peer** conflict) {
-  for (auto& [key, q] : peers_) {
-    if (&q == &p || !q.direct || q.direct->map.empty()) continue;
-    // A frozen peer this relay re-placed is the relay's to bring: its own copy is no witness.
-    if (q.superseded_by == p.report.key) continue;
-    // q's map as we placed it, against p's global map where p placed it: where they overlap,
-    // p's map must verify there, at the same transform.
-    if (Compare(TransformMap(q.direct->map, q.direct->to_own), p.global, to_own) == Overlap::kDisagrees) {
-      if (conflict != nullptr) *conflict = &q;
-      return false;
-    }
-  }
-  return true;
-}
-
-MapExchange::Evidence MapExchange::Weigh(const Peer& q, const Pose2& placement, const LandmarkMap& own_local) const {
-  const LandmarkMap& theirs = PeerMap(q);
-  Evidence e;
-  auto weigh = [&](const LandmarkMap& witness) {
-    int inliers = 0;
-    switch (Compare(witness, theirs, placement, &inliers)) {
-      case Overlap::kNone: break;
-      case Overlap::kAgrees:
-        ++e.supporters;
-        e.inliers += inliers;
-        break;
-      case Overlap::kDisagrees: ++e.against; break;
-    }
-  };
-  weigh(own_local);
-  for (const auto& [key, w] : peers_) {
-    if (&w == &q || !w.direct || w.direct->map.empty() || key.robot == q.report.key.robot) continue;
-    weigh(TransformMap(w.direct->map, w.direct->to_own));
-  }
-  return e;
-}
-
-bool MapExchange::RefuteByRelay(const Peer& p, const Pose2& to_own, Peer& q, const LandmarkMap& own_local) {
+bool MapExchange::RefuteByRelay(const PeerState& p, const Pose2& to_own, PeerState& q, const LandmarkMap& own_local,
+                                double now) {
+  if (!options_.test_only.refute_by_relay || !q.report.aligned || !q.direct) return false;
   // At most once per align period for each relay: one that does not hold q's map must not keep
   // another, which does, from being heard.
-  if (!options_.test_only.refute_by_relay || !q.report.aligned || !q.direct) return false;
   const auto checked = q.last_refute_check.find(p.report.key);
-  if (checked != q.last_refute_check.end() && now_ - checked->second < options_.align_period_s) return false;
-  q.last_refute_check[p.report.key] = now_;
-  // Where p's global map places q: q's map aligned to it (it holds q's landmarks as p fused them).
-  const LandmarkMap& theirs = PeerMap(q);
-  AlignmentOptions find = options_.align;
-  find.ambiguity_ratio = 2.0;  // the best placement: the evidence decides ...
-  find.max_iterations = 300;   // ... among few: a relay that holds q's map matches most of it
-  const AlignmentResult r = AlignMaps(TransformMap(p.global, to_own), theirs, find, rng_);
-  if (!r.accepted() || static_cast<double>(r.inliers.size()) < options_.refute_min_share * theirs.size()) return false;
-  // Placements this close are two fits of one alignment (of a bent map, say), not a false one.
-  const Pose2 ours = q.report.to_own;
-  const Eigen::Vector2d at = Centroid(theirs);
-  if (Within(r.transform, ours, at, options_.refute_min_offset_m, options_.refute_min_offset_deg)) return false;
-  const Evidence held = Weigh(q, ours, own_local);
-  const Evidence relay = Weigh(q, r.transform, own_local);
-  const bool relay_better = relay.supporters > 0 && (relay.against < held.against ||
-                                                     (relay.against == held.against && relay.inliers > held.inliers));
-  if (!relay_better && held.against <= held.supporters) return false;
-  // A frozen q cannot speak for itself any more: its landmarks stay, moved to where the live
-  // relay (holding them) places them, and only if another map we hold supports that placement;
-  // while that relay is used it brings them, and q's own copy stays out (see Update).
-  if (q.report.frozen && relay.supporters == 0) return false;
-
-  q.refuted.push_back(ours);
+  if (checked != q.last_refute_check.end() && now - checked->second < options_.align_period_s) return false;
+  q.last_refute_check[p.report.key] = now;
+  const std::optional<AlignmentResult> placed = relay_.Refutation(peers_, p, to_own, q, own_local, rng_);
+  if (!placed) return false;
+  q.refuted.push_back(q.report.to_own);
   ++q.report.refuted;
   q.report.refuted_by = p.report.key.robot;
   q.candidate.reset();
   if (q.report.frozen) {
+    // A frozen q cannot speak for itself any more: its landmarks stay, moved to where the live
+    // relay (holding them) places them; while that relay is used it brings them, and q's own
+    // copy stays out (see Update).
     ++q.report.replaced;
     q.superseded_by = p.report.key;
-    AlignmentResult placed = r;
-    placed.cov = r.cov + p.report.to_own_cov;  // the relay's frame is placed with that uncertainty
-    Use(q, placed, own_local, /*reconsider_relay=*/false);
+    Use(q, *placed, own_local, /*reconsider_relay=*/false, now);
     return true;
   }
   q.report.relayed = false;
-  Drop(q, now_);
+  Drop(q, now);
   return true;
 }
 
-const LandmarkMap& MapExchange::PeerMap(const Peer& p) { return p.has_local && !p.local.empty() ? p.local : p.global; }
-
-void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local, bool reconsider_relay) {
+void MapExchange::ChooseSource(PeerState& p, const LandmarkMap& own_local, bool reconsider_relay, double now) {
   MapSource s;
   s.robot = p.report.key.robot;
   s.incarnation = p.report.key.incarnation;
   s.to_own = p.report.to_own;
   s.to_own_cov = p.report.to_own_cov;
-  s.map = PeerMap(p);
+  s.map = p.Map();
   p.direct = s;
   // The peer's global map is in the peer's frame too: use it if it verifies where the peer's
   // local map aligned. Without reconsider_relay the earlier choice stays, at the new transform.
@@ -326,14 +232,15 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local, bool recon
     p.report.relayed = false;
     if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
       const AlignmentResult g = VerifyAlignment(own_local, p.global, s.to_own, options_.align);
-      if (g.accepted() && Agree(g.transform, s.to_own, Centroid(p.global))) {
-        Peer* conflict = nullptr;
-        if (!options_.test_only.relay_must_agree || RelayAgrees(p, s.to_own, &conflict)) {
+      if (g.accepted() && relay_.Agree(g.transform, s.to_own, Centroid(p.global))) {
+        const std::optional<PeerKey> conflict =
+            options_.test_only.relay_must_agree ? relay_.FirstConflict(peers_, p, s.to_own) : std::nullopt;
+        if (!conflict) {
           p.report.relayed = true;
-        } else if (RefuteByRelay(p, s.to_own, *conflict, own_local)) {
+        } else if (RefuteByRelay(p, s.to_own, peers_.at(*conflict), own_local, now)) {
           // Our alignment of the other peer was the false one; the relay may now agree.
           refuted_ = true;
-          p.report.relayed = RelayAgrees(p, s.to_own);
+          p.report.relayed = !relay_.FirstConflict(peers_, p, s.to_own);
           if (!p.report.relayed) ++p.report.relay_conflicts;
         } else {
           ++p.report.relay_conflicts;
@@ -348,24 +255,23 @@ void MapExchange::ChooseSource(Peer& p, const LandmarkMap& own_local, bool recon
 }
 
 bool MapExchange::Update(const LandmarkMap& own_local, double now) {
-  now_ = now;
   refuted_ = false;
   budget_ = options_.max_alignments_per_update;
   bool changed = false;
   std::set<PeerKey> chosen;  // peers whose map was chosen in this round
   for (auto& [key, p] : peers_) {
-    p.report.frozen = Frozen(p);
-    p.report.silent = Silent(p);
+    p.report.frozen = p.Frozen();
+    p.report.silent = Silent(p, now);
   }
   // Round robin: the first peer left without an alignment it was due last time goes first.
-  std::vector<std::map<PeerKey, Peer>::iterator> order;
+  std::vector<PeerStates::iterator> order;
   const auto turn = peers_.lower_bound(next_turn_);
   for (auto it = turn; it != peers_.end(); ++it) order.push_back(it);
   for (auto it = peers_.begin(); it != turn; ++it) order.push_back(it);
   std::optional<PeerKey> starved;
   for (auto it : order) {
     const PeerKey& key = it->first;
-    Peer& p = it->second;
+    PeerState& p = it->second;
     if (!p.has_local && !p.has_global) continue;
     if (!p.report.aligned) {
       if (!AttemptDue(p, own_local, now)) continue;
@@ -399,7 +305,7 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
       if (Align(p, own_local, now, /*reconsider_relay=*/was_changed)) {
         if (was_changed) chosen.insert(key);
         p.report.failures = 0;
-        if (!Agree(p.report.to_own, before, at)) {
+        if (!relay_.Agree(p.report.to_own, before, at)) {
           ++p.report.corrections;
           changed = true;
         }
@@ -411,11 +317,11 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     // stale peer's maps no longer change: its verified state stays as it is.
     if (p.report.stale) continue;
     if (!p.changed) {
-      if (options_.refine_period_s > 0.0 && now - p.last_refine >= options_.refine_period_s) Refine(p, own_local);
+      if (options_.refine_period_s > 0.0 && now - p.last_refine >= options_.refine_period_s) Refine(p, own_local, now);
       continue;
     }
     ++p.report.verifications;
-    if (Verify(p, own_local)) {
+    if (Verify(p, own_local, now)) {
       chosen.insert(key);
       p.report.failures = 0;
       continue;
@@ -434,7 +340,7 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
   changed = changed || refuted_;
   if (changed && options_.test_only.relay_must_agree) {
     for (auto& [key, p] : peers_) {
-      if (p.source && chosen.count(key)) ChooseSource(p, own_local, true);
+      if (p.source && chosen.count(key)) ChooseSource(p, own_local, true, now);
     }
   }
   std::vector<MapSource> sources, direct;
