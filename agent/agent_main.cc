@@ -21,6 +21,23 @@
 #include "common/transport/typed.h"
 
 namespace mapmesh {
+
+// stats.json: each struct's counters under their own names.
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SyncStats, odom_received, odom_processed, odom_rejected, odom_implausible,
+                                   odometry_lost, odom_duplicate, scans_received, scans_implausible, scans_lost,
+                                   scans_duplicate, scans_processed, scans_empty, scans_rejected, scans_before_start,
+                                   scans_late, scans_missing)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MapperStats, offered, associated, initialised, tentative, rejected_gate, ambiguous,
+                                   unidentified, out_of_range, invalid, failed_updates)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(AgentStats, maps_sent, bytes_sent, maps_received, bytes_received, maps_out_of_range,
+                                   maps_lost, maps_over_bandwidth, maps_unknown_sender, maps_stale_version,
+                                   maps_encode_failed, maps_encode_trimmed, links_refused)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerReport, own_checkpoint, origin_stamp, local_landmarks, global_landmarks, aligned,
+                                   ever_aligned, aligned_since, dropped, stale, stale_since, frozen, silent, last_heard,
+                                   relayed, relay_conflicts, refuted, refuted_by, replaced, superseded, refuted_answers,
+                                   attempts, unconfirmed, verifications, failures, rejected, drops, realignments,
+                                   refinements, corrections)
+
 namespace {
 
 namespace tp = transport;
@@ -39,49 +56,28 @@ class DdsOutput : public AgentOutput {
   tp::Writer<AgentStatus> status_;
 };
 
+// A map keyed by robot as a JSON object (keys are strings).
+template <typename T>
+json ByRobot(const std::map<RobotId, T>& m) {
+  json out = json::object();
+  for (const auto& [id, v] : m) out[std::to_string(id)] = v;
+  return out;
+}
+
 json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall) {
   json peers = json::array();
   for (const PeerReport& p : node.exchange().Peers()) {
     const Eigen::Matrix3d& c = p.to_own_cov;
-    peers.push_back({{"robot", p.key.robot},
-                     {"incarnation", p.key.incarnation},
-                     {"own_checkpoint", p.own_checkpoint},
-                     {"origin_stamp", p.origin_stamp},
-                     {"local_landmarks", p.local_landmarks},
-                     {"global_landmarks", p.global_landmarks},
-                     {"aligned", p.aligned},
-                     {"ever_aligned", p.ever_aligned},
-                     {"aligned_since", p.aligned_since},
-                     {"dropped", p.dropped},
-                     {"stale", p.stale},
-                     {"stale_since", p.stale_since},
-                     {"frozen", p.frozen},
-                     {"silent", p.silent},
-                     {"last_heard", p.last_heard},
-                     {"relayed", p.relayed},
-                     {"relay_conflicts", p.relay_conflicts},
-                     {"refuted", p.refuted},
-                     {"refuted_by", p.refuted_by},
-                     {"replaced", p.replaced},
-                     {"superseded", p.superseded},
-                     {"refuted_answers", p.refuted_answers},
-                     {"transform", {p.to_own.x, p.to_own.y, p.to_own.theta}},
-                     {"transform_cov", {c(0, 0), c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2)}},
-                     {"centroid", {p.centroid.x(), p.centroid.y()}},
-                     {"attempts", p.attempts},
-                     {"unconfirmed", p.unconfirmed},
-                     {"verifications", p.verifications},
-                     {"failures", p.failures},
-                     {"rejected", p.rejected},
-                     {"drops", p.drops},
-                     {"realignments", p.realignments},
-                     {"refinements", p.refinements},
-                     {"corrections", p.corrections},
-                     {"last_verdict", std::string(ToString(p.last_verdict))}});
+    json j = p;
+    j.update({{"robot", p.key.robot},
+              {"incarnation", p.key.incarnation},
+              {"transform", {p.to_own.x, p.to_own.y, p.to_own.theta}},
+              {"transform_cov", {c(0, 0), c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2)}},
+              {"centroid", {p.centroid.x(), p.centroid.y()}},
+              {"last_verdict", std::string(ToString(p.last_verdict))}});
+    peers.push_back(std::move(j));
   }
-  json lost = json::object();
-  for (const auto& [id, t] : lost_wall) lost[std::to_string(id)] = t;
-  return {{"peers", peers}, {"peers_lost_wall", lost}};
+  return {{"peers", peers}, {"peers_lost_wall", ByRobot(lost_wall)}};
 }
 
 // One log line per alignment event (aligned, corrected, refuted, dropped), so that the log
@@ -118,7 +114,7 @@ class InputWatch {
     const std::map<std::string, std::uint64_t> counts = {
         {"peer maps refused", s.MapsRefused()},      {"peer maps malformed", s.MapsRejected()},
         {"link tables refused", s.links_refused},    {"odometry implausible", y.odom_implausible},
-        {"scans implausible", y.scans_implausible},  {"odometry lost", y.odom_lost},
+        {"scans implausible", y.scans_implausible},  {"odometry lost", y.odometry_lost},
         {"scans lost", y.scans_lost},                {"own maps not encodable", s.maps_encode_failed}};
     std::string what;
     for (const auto& [name, n] : counts) {
@@ -139,70 +135,31 @@ class InputWatch {
 
 json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall) {
   const AgentStats& s = node.stats();
-  const SyncStats& sync = node.sync_stats();
-  const MapperStats& m = node.mapper().stats();
   json rejected = json::object();
   for (int i = 1; i < kMapDecodeErrorCount; ++i) {
     rejected[std::string(ToString(static_cast<MapDecodeError>(i)))] = s.maps_rejected[i];
   }
   json refused = json::object();
   for (int i = 0; i < kMapRefusalCount; ++i) refused[std::string(ToString(static_cast<MapRefusal>(i)))] = s.maps_refused[i];
-  json from = json::object();
-  for (const auto& [id, n] : s.maps_received_from) from[std::to_string(id)] = n;
   const Pose2 pose = node.Pose();
   const AgentStatus status = node.Status();
-  json j = {{"id", node.id()},
+  json j = s;
+  j.update(node.sync_stats());
+  j.update({{"id", node.id()},
             {"incarnation", node.incarnation()},
             {"processed_until", node.processed_until()},
             {"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
             {"pose", {pose.x, pose.y, pose.theta}},
             {"local_landmarks", node.LocalMap().size()},
             {"global_landmarks", node.global().map.size()},
-            {"odom_processed", sync.odom_processed},
-            {"odom_received", sync.odom_received},
-            {"odom_rejected", sync.odom_rejected},
-            {"odom_implausible", sync.odom_implausible},
-            {"odometry_lost", sync.odom_lost},
-            {"odom_duplicate", sync.odom_duplicate},
-            {"scans_received", sync.scans_received},
-            {"scans_implausible", sync.scans_implausible},
-            {"scans_lost", sync.scans_lost},
-            {"scans_duplicate", sync.scans_duplicate},
-            {"scans_processed", sync.scans_processed},
-            {"scans_empty", sync.scans_empty},
-            {"scans_rejected", sync.scans_rejected},
-            {"scans_before_start", sync.scans_before_start},
-            {"scans_late", sync.scans_late},
-            {"scans_missing", sync.scans_missing},
-            {"observations", {{"offered", m.observations},
-                              {"associated", m.associated},
-                              {"initialised", m.initialised},
-                              {"tentative", m.tentative},
-                              {"rejected_gate", m.rejected_gate},
-                              {"ambiguous", m.ambiguous},
-                              {"unidentified", m.unidentified},
-                              {"out_of_range", m.out_of_range},
-                              {"invalid", m.invalid},
-                              {"failed_updates", m.failed_updates}}},
-            {"maps_sent", s.maps_sent},
-            {"bytes_sent", s.bytes_sent},
+            {"observations", node.mapper().stats()},
             {"bytes_per_landmark", s.BytesPerLandmark()},
-            {"maps_received", s.maps_received},
-            {"bytes_received", s.bytes_received},
-            {"maps_out_of_range", s.maps_out_of_range},
-            {"maps_lost", s.maps_lost},
-            {"maps_over_bandwidth", s.maps_over_bandwidth},
-            {"maps_unknown_sender", s.maps_unknown_sender},
-            {"maps_stale_version", s.maps_stale_version},
             {"maps_dropped", s.MapsDropped()},
-            {"maps_encode_failed", s.maps_encode_failed},
-            {"maps_encode_trimmed", s.maps_encode_trimmed},
             {"maps_rejected", rejected},
             {"maps_refused", refused},
-            {"links_refused", s.links_refused},
-            {"maps_received_from", from},
+            {"maps_received_from", ByRobot(s.maps_received_from)},
             {"peers_aligned", status.peers_aligned},
-            {"peers_stale", status.peers_stale}};
+            {"peers_stale", status.peers_stale}});
   j.update(PeersJson(node, lost_wall));
   return j;
 }

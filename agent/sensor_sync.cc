@@ -49,7 +49,7 @@ void SensorSync::OnOdometry(const Odometry& odom) {
 
 void SensorSync::Accept(const Odometry& odom) {
   if (has_odom_ && odom.seq > last_odom_seq_ + 1 && odom.seq - last_odom_seq_ < kMaxSeqGap) {
-    stats_.odom_lost += odom.seq - last_odom_seq_ - 1;
+    stats_.odometry_lost += odom.seq - last_odom_seq_ - 1;
   }
   has_odom_ = true;
   recent_odom_.emplace_back(odom.seq, odom.stamp);

@@ -35,7 +35,7 @@ struct SyncStats {
   std::uint32_t odom_processed = 0;
   std::uint32_t odom_rejected = 0;      // non-finite values, dt <= 0, or stamp going backwards
   std::uint32_t odom_implausible = 0;   // stamp beyond the run's end, or a jump nothing continued
-  std::uint32_t odom_lost = 0;          // never arrived: gaps in the sequence numbers
+  std::uint32_t odometry_lost = 0;          // never arrived: gaps in the sequence numbers
   std::uint32_t odom_duplicate = 0;     // arrived again (sent again after a stall): ignored
   std::uint32_t scans_received = 0;     // every scan handed in
   std::uint32_t scans_implausible = 0;  // stamp beyond the run's end or the plausible window

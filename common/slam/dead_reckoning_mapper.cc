@@ -14,7 +14,7 @@ void DeadReckoningMapper::Predict(const OdometryControl& u, double dt) {
 void DeadReckoningMapper::Observe(const std::vector<Observation>& obs, double /*stamp*/) {
   for (const Observation& o : obs) {
     if (o.kind != ObservationKind::kLandmark) continue;
-    ++stats_.observations;
+    ++stats_.offered;
     if (!IsValidObservation(o)) {
       ++stats_.invalid;
       continue;

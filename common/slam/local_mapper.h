@@ -23,7 +23,7 @@ inline constexpr ChoiceTable<SlamMethod, 3> kSlamMethods{
 
 // What happened to the observations a local mapper was given.
 struct MapperStats {
-  std::uint64_t observations = 0;    // landmark observations offered
+  std::uint64_t offered = 0;         // landmark observations offered
   std::uint64_t associated = 0;      // fused into existing landmarks
   std::uint64_t initialised = 0;     // started a landmark
   std::uint64_t tentative = 0;       // held until a second sighting

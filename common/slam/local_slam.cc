@@ -60,7 +60,7 @@ void LocalSlam::Observe(const std::vector<Observation>& obs, double stamp) {
       decisions_[k].landmark = kNotLandmark;
       continue;
     }
-    ++stats_.observations;
+    ++stats_.offered;
     if (!IsValidObservation(o)) {
       ++stats_.invalid;
       continue;

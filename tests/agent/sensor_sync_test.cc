@@ -156,7 +156,7 @@ TEST(SensorSync, AForgedStampIsRefusedAndTheStreamGoesOn) {
   EXPECT_DOUBLE_EQ(sync.processed_until(), 1.0);
   EXPECT_EQ(sync.stats().odom_processed, 10u);
   EXPECT_EQ(sync.stats().odom_implausible, 1u);
-  EXPECT_EQ(sync.stats().odom_lost, 0u);
+  EXPECT_EQ(sync.stats().odometry_lost, 0u);
   EXPECT_EQ(sync.stats().odom_received, 11u);
   // With the run's end known, such a stamp is refused at once; so is a scan beyond the window.
   o.max_stamp_s = 100.0;
@@ -183,12 +183,12 @@ TEST(SensorSync, AStreamThatResumesAfterAGapIsTakenAndItsLossCounted) {
   sync.OnOdometry(Seq(41, 4.2));
   EXPECT_DOUBLE_EQ(sync.processed_until(), 4.2);
   EXPECT_EQ(sync.stats().odom_processed, 6u);
-  EXPECT_EQ(sync.stats().odom_lost, 36u);
+  EXPECT_EQ(sync.stats().odometry_lost, 36u);
   EXPECT_EQ(sync.stats().odom_implausible, 0u);
   // Within the window a gap is taken at once (and counted the same way).
   sync.OnOdometry(Seq(45, 4.6));
   EXPECT_DOUBLE_EQ(sync.processed_until(), 4.6);
-  EXPECT_EQ(sync.stats().odom_lost, 39u);
+  EXPECT_EQ(sync.stats().odometry_lost, 39u);
 }
 
 TEST(SensorSync, ScanSequenceGapsAreCountedAsLost) {
@@ -226,7 +226,7 @@ TEST(SensorSync, MessagesSentAgainAreIgnoredOnce) {
   sync.OnOdometry(Odom(1, 0.4, 0.2, 1));
   EXPECT_DOUBLE_EQ(sync.processed_until(), 0.4);
   EXPECT_EQ(sync.stats().scans_processed, 2u);
-  EXPECT_EQ(sync.stats().odom_lost + sync.stats().scans_lost, 0u);
+  EXPECT_EQ(sync.stats().odometry_lost + sync.stats().scans_lost, 0u);
 }
 
 }  // namespace
