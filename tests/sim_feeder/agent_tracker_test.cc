@@ -2,16 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/testing/messages.h"
+
 namespace mapmesh {
 namespace {
 
-AgentStatus St(RobotId id, std::uint32_t inc, double t) {
-  AgentStatus s;
-  s.robot_id = id;
-  s.incarnation = inc;
-  s.processed_until = t;
-  return s;
-}
+constexpr auto St = testing::StatusAt;
 
 TEST(AgentTracker, AnAgentIsUpOnceItReportedAndSubscribed) {
   AgentTracker t({1, 2});

@@ -4,30 +4,14 @@
 
 #include <map>
 
+#include "tests/testing/messages.h"
+
 namespace mapmesh {
 namespace {
 
-AgentStatus St(RobotId id, std::uint32_t inc, double t) {
-  AgentStatus s;
-  s.robot_id = id;
-  s.incarnation = inc;
-  s.processed_until = t;
-  return s;
-}
-
-Odometry Od(RobotId id, double stamp) {
-  Odometry o;
-  o.robot_id = id;
-  o.stamp = stamp;
-  return o;
-}
-
-Scan Sc(RobotId id, double stamp) {
-  Scan s;
-  s.robot_id = id;
-  s.stamp = stamp;
-  return s;
-}
+constexpr auto St = testing::StatusAt;
+constexpr auto Od = testing::OdometryAt;
+constexpr auto Sc = testing::ScanAt;
 
 // A pacer over robots 1 and 2 whose processes (pids 101, 102) are in `procs`.
 class LockstepPacerTest : public ::testing::Test {

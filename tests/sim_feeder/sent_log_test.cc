@@ -2,22 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/testing/messages.h"
+
 namespace mapmesh {
 namespace {
 
-Odometry O(RobotId id, double t) {
-  Odometry o;
-  o.robot_id = id;
-  o.stamp = t;
-  return o;
-}
-
-Scan S(RobotId id, double t) {
-  Scan s;
-  s.robot_id = id;
-  s.stamp = t;
-  return s;
-}
+constexpr auto O = testing::OdometryAt;
+constexpr auto S = testing::ScanAt;
 
 double StampOf(const SentLog::Message& m) {
   return std::visit([](const auto& x) { return x.stamp; }, m);
