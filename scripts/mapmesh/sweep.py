@@ -3,7 +3,6 @@ seeds, several runs at a time, each in DIR/runs/; one CSV row per agent and run 
 DIR/sweep.csv, and DIR/sweep.png drawn by scripts/plots/sweep.py."""
 
 import csv
-import json
 import os
 import subprocess
 import sys
@@ -12,6 +11,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from .run import REPO, RunError, last_line, plot
+from .rundir import SUMMARY, read_json
 
 COLUMNS = ["seed", "agent", "alive", "lm_local", "lm_global", "coverage_global", "nees_global", "rmse_global_m",
            "rmse_local_m", "nees_local", "peers_aligned", "bytes_sent", "wall_s"]
@@ -28,10 +28,10 @@ def _run_one(args, value, seed, run_dir):
     for s in args.set or []:
         cmd += ["--set", s]
     r = subprocess.run(cmd, capture_output=True, text=True)
-    if not (run_dir / "summary.json").exists():
+    if not (run_dir / SUMMARY).exists():
         reason = last_line(r.stderr, f"exit code {r.returncode}")
         raise RunError(f"{args.param}={value}" + (f" seed {seed}" if seed is not None else "") + f": {reason}", 1)
-    return json.loads((run_dir / "summary.json").read_text()), r.returncode
+    return read_json(run_dir / SUMMARY), r.returncode
 
 
 def _rows(value, seed, summary):

@@ -31,7 +31,10 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
 from plotlib import directory_argument, plt  # noqa: E402
+from mapmesh.rundir import (GLOBAL_MAP, LOCAL_MAP, REPORT, STATS, SUMMARY, TIMELINE, TRAJECTORY,  # noqa: E402
+                            TRUTH, RunDir, pose_at, truth_robots)
 
 import numpy as np  # noqa: E402
 from matplotlib.collections import PatchCollection  # noqa: E402
@@ -120,31 +123,6 @@ def seconds(v):
 
 
 # ----- geometry -----------------------------------------------------------------------------
-def wrap_angle(a):
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
-def pose_at(trajectory, t):
-    """The pose [x, y, theta] of a [[t, x, y, theta], ...] trajectory at time t, linearly
-    interpolated (clamped to its ends), or None for an empty trajectory."""
-    if not trajectory:
-        return None
-    if t <= trajectory[0][0]:
-        return list(trajectory[0][1:4])
-    if t >= trajectory[-1][0]:
-        return list(trajectory[-1][1:4])
-    lo, hi = 0, len(trajectory) - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if trajectory[mid][0] <= t:
-            lo = mid
-        else:
-            hi = mid
-    a, b = trajectory[lo], trajectory[hi]
-    s = (t - a[0]) / (b[0] - a[0]) if b[0] > a[0] else 0.0
-    return [a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2]), wrap_angle(a[3] + s * wrap_angle(b[3] - a[3]))]
-
-
 def to_world(frame, xy):
     """Points (N x 2, in a frame whose pose in the world is frame = [x0, y0, theta]) in the world."""
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
@@ -174,43 +152,26 @@ def ellipse_patches(xy, covs, theta):
 
 
 # ----- loading ------------------------------------------------------------------------------
-class Run:
+class Run(RunDir):
     """The files of one run directory; `notes` collects what is missing or unreadable."""
 
     def __init__(self, d):
-        self.dir = Path(d)
-        self.notes = []
-        self.summary = self.load("summary.json", required=True)
-        self.truth = self.load("truth.json")
-        self.timeline = self.load("timeline.json", quiet=True)
+        super().__init__(d)
+        self.summary = self.load(SUMMARY, required=True)
+        self.truth = self.load(TRUTH)
+        self.timeline = self.load(TIMELINE, quiet=True)
         self.agents = [a for a in self.summary.get("agents", []) if isinstance(a, dict)]
         self.ids = [a.get("id") for a in self.agents]
         self.colours = {rid: plt.get_cmap("tab10")(i % 10) for i, rid in enumerate(self.ids)}
-        self.truth_robots = {r.get("id"): r for r in (self.truth or {}).get("robots", [])}
+        self.truth_robots = truth_robots(self.truth)
         # Kills and restarts as the summary and the timeline list them (the same, normally).
         self.kills = events(self.summary.get("kills"), (self.timeline or {}).get("kills"))
         self.restarts = events(self.summary.get("restarts"), (self.timeline or {}).get("restarts"))
         self.pauses = events(self.summary.get("pauses"), (self.timeline or {}).get("pauses"))
         self.duration = self.summary.get("sim_duration_s") or (self.truth or {}).get("duration_s")
 
-    def load(self, name, required=False, quiet=False):
-        path = self.dir / name
-        if not path.exists():
-            if required:
-                raise FileNotFoundError(path)
-            if not quiet:
-                self.notes.append(f"{name}: missing")
-            return None
-        try:
-            return json.loads(path.read_text())
-        except (OSError, ValueError) as e:
-            if required:
-                raise
-            self.notes.append(f"{name}: unreadable ({e.__class__.__name__})")
-            return None
-
     def agent_file(self, rid, name):
-        return self.load(f"agent_{rid}/{name}", quiet=True)
+        return self.load(name, rid, quiet=True)
 
     def dead_intervals(self, rid):
         """[(killed at, restarted at or the end of the run)] of one agent."""
@@ -271,11 +232,11 @@ def map_figure(run, agent, path):
     """The maps of one agent, in the world frame when its frame's pose is known. Returns the
     frame description."""
     rid = agent.get("id")
-    local = run.agent_file(rid, "local_map.json")
-    glob = run.agent_file(rid, "global_map.json")
-    traj = run.agent_file(rid, "trajectory.json")
-    stats = run.agent_file(rid, "stats.json")
-    for name, value in (("local_map.json", local), ("global_map.json", glob), ("trajectory.json", traj)):
+    local = run.agent_file(rid, LOCAL_MAP)
+    glob = run.agent_file(rid, GLOBAL_MAP)
+    traj = run.agent_file(rid, TRAJECTORY)
+    stats = run.agent_file(rid, STATS)
+    for name, value in ((LOCAL_MAP, local), (GLOBAL_MAP, glob), (TRAJECTORY, traj)):
         if value is None:
             run.notes.append(f"agent {rid}: no {name}")
     frame, frame_text = agent_frame(run, agent, traj, stats)
@@ -710,15 +671,15 @@ agents not alive at the end.</p>
 </body>
 </html>
 """
-    path = run.dir / "report.html"
-    tmp = run.dir / "report.html.tmp"
+    path = run.path(REPORT)
+    tmp = run.path(REPORT + ".tmp")
     tmp.write_text(page)
     tmp.replace(path)
     return path
 
 
 def main(argv):
-    d, code = directory_argument(argv, __doc__, "report.py", "summary.json", "scripts/swarm run ... --out")
+    d, code = directory_argument(argv, __doc__, "report.py", SUMMARY, "scripts/swarm run ... --out")
     if d is None:
         return code
     try:
