@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+from .columns import format_table
 from .domain import DomainLease
 from .progress import Progress
 from .rundir import AGENT_LOG, FEEDER, INJECT, REPORT, STATS, SUMMARY, TIMELINE, TRUTH, RunDir, agent_dir
@@ -546,28 +547,6 @@ def _maps_dropped(stats):
     rejected = sum(stats.get("maps_rejected", {}).values()) + sum(stats.get("maps_refused", {}).values())
     return (stats.get("maps_out_of_range", 0) + stats.get("maps_lost", 0) + stats.get("maps_over_bandwidth", 0)
             + stats.get("maps_unknown_sender", 0) + stats.get("maps_stale_version", 0) + rejected)
-
-
-def format_table(summary):
-    def num(v, fmt):
-        return "-" if v is None else format(v, fmt)
-
-    rows = [("id", "alive", "exit", "restarts", "lm_local", "rmse_local", "lm_global", "rmse_global", "cov_global",
-             "peers", "maps_rx", "kB_tx", "kB_rx", "cpu_s", "rss_MB")]
-    for a in summary["agents"]:
-        loc, glo = a["local"] or {}, a["global"] or {}
-        rows.append((str(a["id"]), "yes" if a["alive_at_end"] else "no", num(a["exit_code"], "d"),
-                     str(a["restarts"]), num(loc.get("landmarks"), "d"), num(loc.get("rmse_m"), ".3f"),
-                     num(glo.get("landmarks"), "d"), num(glo.get("rmse_m"), ".3f"), num(glo.get("coverage"), ".2f"),
-                     str(len(a.get("peers_aligned", []))), num(a["maps_received"], "d"),
-                     num(None if a["bytes_sent"] is None else a["bytes_sent"] / 1000, ".1f"),
-                     num(None if a["bytes_received"] is None else a["bytes_received"] / 1000, ".1f"),
-                     num(a["cpu_s"], ".2f"), num(a["max_rss_mb"], ".1f")))
-    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    lines = ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in rows]
-    head = (f"{summary['scenario']}: {summary['sim_duration_s']:.1f} s simulated in {summary['wall_s']:.1f} s wall "
-            f"(x{summary['real_time_factor']:.1f})")
-    return "\n".join([head] + lines)
 
 
 def cmd_run(args):

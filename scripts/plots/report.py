@@ -33,6 +33,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
 from plotlib import directory_argument, plt  # noqa: E402
+from mapmesh.columns import HTML_COLUMNS, lookup  # noqa: E402
 from mapmesh.rundir import (GLOBAL_MAP, LOCAL_MAP, REPORT, STATS, SUMMARY, TIMELINE, TRAJECTORY,  # noqa: E402
                             TRUTH, RunDir, pose_at, truth_robots)
 
@@ -48,44 +49,11 @@ SIGMA_95 = 2.448
 NEES_EXPECTED = 2.0
 DASH = "\u2013"  # what a cell shows for a null value
 
-# The summary table: (data-key = path in a summary.json agent, column header).
-SUMMARY_COLUMNS = [
-    ("id", "agent"),
-    ("alive_at_end", "alive"),
-    ("exit_code", "exit"),
-    ("restarts", "restarts"),
-    ("local.landmarks", "local landmarks"),
-    ("local.rmse_m", "local RMSE (m)"),
-    ("local.nees_mean", "local NEES"),
-    ("global.landmarks", "global landmarks"),
-    ("global.rmse_m", "global RMSE (m)"),
-    ("global.nees_mean", "global NEES"),
-    ("global.coverage", "global coverage"),
-    ("peers_aligned", "peers aligned"),
-    ("maps_received", "maps received"),
-    ("bytes_sent", "bytes sent"),
-    ("bytes_per_landmark", "bytes / landmark"),
-    ("cpu_s", "CPU (s)"),
-    ("max_rss_mb", "max RSS (MB)"),
-]
-# Columns whose cell shows the number of items of a list value.
-COUNT_COLUMNS = {"peers_aligned"}
-
 LOCAL_COLOUR = "tab:blue"
 GLOBAL_COLOUR = "tab:orange"
 
 
 # ----- values and text ----------------------------------------------------------------------
-def lookup(record, path):
-    """The value at a dotted path ("global.rmse_m") of a dict, or None where any step is missing."""
-    value = record
-    for part in path.split("."):
-        if not isinstance(value, dict):
-            return None
-        value = value.get(part)
-    return value
-
-
 def format_number(v):
     """A number for a table cell: integers as they are, floats to 3 significant digits (never
     dropping integer digits: 1234.5 shows as 1235)."""
@@ -105,11 +73,12 @@ def format_number(v):
     return f"{v:.{max(0, 2 - magnitude)}f}"
 
 
-def cell_text(key, value):
-    """The text of a summary-table cell (data-value keeps the exact value)."""
+def cell_text(value, count=False):
+    """The text of a summary-table cell (data-value keeps the exact value); count: a list shows
+    its number of items."""
     if value is None:
         return DASH
-    if key in COUNT_COLUMNS and isinstance(value, list):
+    if count and isinstance(value, list):
         return str(len(value))
     if isinstance(value, (int, float)):
         return format_number(value)
@@ -316,9 +285,9 @@ def map_figure(run, agent, path):
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     loc, glo = agent.get("local") or {}, agent.get("global") or {}
-    ax.set_title(f"agent {rid} \u2013 {frame_text}\nlandmarks local {cell_text('', loc.get('landmarks'))} / "
-                 f"global {cell_text('', glo.get('landmarks'))};  RMSE local {cell_text('', loc.get('rmse_m'))} m / "
-                 f"global {cell_text('', glo.get('rmse_m'))} m", fontsize=11)
+    ax.set_title(f"agent {rid} \u2013 {frame_text}\nlandmarks local {cell_text(loc.get('landmarks'))} / "
+                 f"global {cell_text(glo.get('landmarks'))};  RMSE local {cell_text(loc.get('rmse_m'))} m / "
+                 f"global {cell_text(glo.get('rmse_m'))} m", fontsize=11)
     if handles:
         ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9, frameon=False)
     fig.savefig(path, dpi=DPI)
@@ -551,17 +520,17 @@ def events_text(events):
 
 
 def summary_table(run):
-    out = ['<table id="summary">', "<tr>" + "".join(f'<th data-key="{esc(k)}">{esc(h)}</th>'
-                                                    for k, h in SUMMARY_COLUMNS) + "</tr>"]
+    out = ['<table id="summary">', "<tr>" + "".join(f'<th data-key="{esc(c.key)}">{esc(c.html)}</th>'
+                                                    for c in HTML_COLUMNS) + "</tr>"]
     for a in run.agents:
         cls = "" if a.get("alive_at_end", True) else ' class="dead"'
         cells = []
-        for key, _ in SUMMARY_COLUMNS:
-            v = lookup(a, key)
+        for c in HTML_COLUMNS:
+            v = c.value(a)
             num = isinstance(v, (int, float, list)) and not isinstance(v, bool)
             cls_num = ' class="num"' if num else ""
-            cells.append(f'<td data-key="{esc(key)}" data-value="{esc(json.dumps(v))}"{cls_num}>'
-                         f"{esc(cell_text(key, v))}</td>")
+            cells.append(f'<td data-key="{esc(c.key)}" data-value="{esc(json.dumps(v))}"{cls_num}>'
+                         f"{esc(cell_text(v, c.count))}</td>")
         out.append(f'<tr data-agent="{esc(a.get("id"))}"{cls}>' + "".join(cells) + "</tr>")
     out.append("</table>")
     return "\n".join(out)
