@@ -459,7 +459,7 @@ class SwarmRun:
                 # this agent's final local map, and how many of its landmarks the global map holds.
                 "dead_peers": score.get("dead_peers", []),
                 "maps_received": stats.get("maps_received"),
-                "maps_dropped": _maps_dropped(stats),
+                "maps_dropped": stats.get("maps_dropped"),
                 "maps_rejected": stats.get("maps_rejected", {}),
                 "bytes_sent": stats.get("bytes_sent"),
                 "bytes_received": stats.get("bytes_received"),
@@ -539,14 +539,6 @@ def write_report(run_dir):
     """RUN_DIR/report.html by scripts/plots/report.py. Returns its path, or None with the
     reason on stderr."""
     return Path(run_dir) / REPORT if plot("report.py", run_dir, "report") else None
-
-
-def _maps_dropped(stats):
-    if not stats:
-        return None
-    rejected = sum(stats.get("maps_rejected", {}).values()) + sum(stats.get("maps_refused", {}).values())
-    return (stats.get("maps_out_of_range", 0) + stats.get("maps_lost", 0) + stats.get("maps_over_bandwidth", 0)
-            + stats.get("maps_unknown_sender", 0) + stats.get("maps_stale_version", 0) + rejected)
 
 
 def cmd_run(args):
