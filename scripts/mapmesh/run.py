@@ -198,9 +198,11 @@ class SwarmRun:
         ids = set(self.info["robots"])
         for t, rid in self.kills + self.restarts + [(t, rid) for t, rid, _ in self.pauses]:
             if rid not in ids:
-                raise RunError(f"--kill/--restart/--pause {rid}@{t}: no robot {rid} in this run (robots {sorted(ids)})", 2)
+                raise RunError(f"--kill/--restart/--pause {rid}@{t}: no robot {rid} in this run "
+                               f"(robots {sorted(ids)})", 2)
             if t > self.info["duration"]:
-                raise RunError(f"--kill/--restart/--pause {rid}@{t}: after the end of the run ({self.info['duration']} s)", 2)
+                raise RunError(f"--kill/--restart/--pause {rid}@{t}: after the end of the run "
+                               f"({self.info['duration']} s)", 2)
 
         if self.args.inject:
             cmd = [binary("mapmesh-inject"), "--scenario", self.scenario, "--cases", self.args.inject,

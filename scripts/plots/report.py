@@ -155,7 +155,8 @@ class Run(RunDir):
 
 def pauses_text(pauses):
     """'agent 2 at 30 s for 10 s (wall)' for each pause of summary.json."""
-    return "; ".join(f"agent {p.get('id')} at {format_number(p.get('t'))} s for {format_number(p.get('seconds'))} s (wall)"
+    return "; ".join(f"agent {p.get('id')} at {format_number(p.get('t'))} s "
+                     f"for {format_number(p.get('seconds'))} s (wall)"
                      for p in pauses if isinstance(p, dict)) or DASH
 
 
@@ -192,9 +193,9 @@ def agent_frame(run, agent, trajectory, stats):
 
 # ----- map figures --------------------------------------------------------------------------
 def landmark_arrays(m):
-    lms = [l for l in (m or {}).get("landmarks", []) if isinstance(l.get("x"), (int, float))
-           and isinstance(l.get("y"), (int, float))]
-    return np.array([[l["x"], l["y"]] for l in lms], dtype=float).reshape(-1, 2), [l.get("cov") for l in lms]
+    lms = [lm for lm in (m or {}).get("landmarks", []) if isinstance(lm.get("x"), (int, float))
+           and isinstance(lm.get("y"), (int, float))]
+    return np.array([[lm["x"], lm["y"]] for lm in lms], dtype=float).reshape(-1, 2), [lm.get("cov") for lm in lms]
 
 
 def map_figure(run, agent, path):
@@ -219,8 +220,8 @@ def map_figure(run, agent, path):
     if in_world and run.truth:
         lms = run.truth.get("landmarks", [])
         seen = set(run.truth.get("seen", []))
-        pts = np.array([[l["x"], l["y"]] for l in lms], dtype=float).reshape(-1, 2)
-        mask = np.array([l.get("id") in seen for l in lms], dtype=bool)
+        pts = np.array([[lm["x"], lm["y"]] for lm in lms], dtype=float).reshape(-1, 2)
+        mask = np.array([lm.get("id") in seen for lm in lms], dtype=bool)
         ax.scatter(pts[~mask, 0], pts[~mask, 1], s=6, c="#cfcfcf", zorder=1, linewidths=0)
         ax.scatter(pts[mask, 0], pts[mask, 1], s=8, c="#8a8a8a", zorder=1, linewidths=0)
         handles += [Line2D([], [], ls="", marker="o", ms=3, color="#cfcfcf", label="true landmark (unseen)"),
@@ -439,7 +440,8 @@ def exchanges_figure(run, tl, period, path):
         ax.set_xlim(0, run.duration)
     ax.grid(axis="x", alpha=0.3)
     ax.set_title("maps received: a bar over each checkpoint period in which the receiver got maps from the sender"
-                 "\n(red \u00d7: killed, shaded until restarted; green \u25b2: restarted; orange |: paused)", fontsize=10)
+                 "\n(red \u00d7: killed, shaded until restarted; green \u25b2: restarted; orange |: paused)",
+                 fontsize=10)
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
 
