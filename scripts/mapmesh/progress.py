@@ -17,7 +17,8 @@ class Progress:
     def _line(self, ev):
         alive = ev.get("alive", [])
         return (f"t={ev['t']:7.1f}/{self.duration:.1f} s  alive {len(alive)}  "
-                f"aligned pairs {ev.get('aligned_pairs', 0)}  maps exchanged {ev.get('maps_received', 0)}  wall {time.monotonic() - self.start:6.1f} s")
+                f"aligned pairs {ev.get('aligned_pairs', 0)}  maps exchanged {ev.get('maps_received', 0)}  "
+                f"wall {time.monotonic() - self.start:6.1f} s")
 
     def update(self, ev):
         if self.quiet:

@@ -13,8 +13,10 @@ import sys
 import time
 from pathlib import Path
 
+from .columns import format_table
 from .domain import DomainLease
 from .progress import Progress
+from .rundir import AGENT_LOG, FEEDER, INJECT, REPORT, STATS, SUMMARY, TIMELINE, TRUTH, RunDir, agent_dir
 
 REPO = Path(__file__).resolve().parents[2]
 # Plots need matplotlib and numpy from Debian, which /usr/bin/python3 has (another python3 may
@@ -196,9 +198,11 @@ class SwarmRun:
         ids = set(self.info["robots"])
         for t, rid in self.kills + self.restarts + [(t, rid) for t, rid, _ in self.pauses]:
             if rid not in ids:
-                raise RunError(f"--kill/--restart/--pause {rid}@{t}: no robot {rid} in this run (robots {sorted(ids)})", 2)
+                raise RunError(f"--kill/--restart/--pause {rid}@{t}: no robot {rid} in this run "
+                               f"(robots {sorted(ids)})", 2)
             if t > self.info["duration"]:
-                raise RunError(f"--kill/--restart/--pause {rid}@{t}: after the end of the run ({self.info['duration']} s)", 2)
+                raise RunError(f"--kill/--restart/--pause {rid}@{t}: after the end of the run "
+                               f"({self.info['duration']} s)", 2)
 
         if self.args.inject:
             cmd = [binary("mapmesh-inject"), "--scenario", self.scenario, "--cases", self.args.inject,
@@ -210,7 +214,7 @@ class SwarmRun:
     def agent_cmd(self, rid, incarnation):
         resume = ["--resume"] if incarnation > 1 else []
         cmd = [binary("mapmesh-agent"), "--scenario", self.scenario, "--id", str(rid),
-               "--domain", str(self.lease.id), "--out", str(self.out / f"agent_{rid}"),
+               "--domain", str(self.lease.id), "--out", str(self.out / agent_dir(rid)),
                "--incarnation", str(incarnation)] + resume + self.common
         return cmd
 
@@ -227,22 +231,22 @@ class SwarmRun:
         slot = self.agents[rid]
         incarnation = len(slot.procs) + 1
         if incarnation == 1:  # an earlier run's files in DIR must not leak into this one
-            shutil.rmtree(self.out / f"agent_{rid}", ignore_errors=True)
-        (self.out / f"agent_{rid}").mkdir(parents=True, exist_ok=True)
-        slot.procs.append(self.spawn(self.agent_cmd(rid, incarnation), self.out / f"agent_{rid}" / "agent.log",
+            shutil.rmtree(self.out / agent_dir(rid), ignore_errors=True)
+        (self.out / agent_dir(rid)).mkdir(parents=True, exist_ok=True)
+        slot.procs.append(self.spawn(self.agent_cmd(rid, incarnation), self.out / agent_dir(rid) / AGENT_LOG,
                                      append=incarnation > 1))
 
     def start_injector(self):
         cmd = [binary("mapmesh-inject"), "--scenario", self.scenario, "--domain", str(self.lease.id),
                "--cases", self.args.inject, "--period-s", str(self.args.inject_period),
-               "--report", str(self.out / "inject.json")] + self.common
+               "--report", str(self.out / INJECT)] + self.common
         self.injector = self.spawn(cmd, self.out / "inject.log")
 
     # ----- the run ------------------------------------------------------------------------
     def execute(self):
         self.check_scenario()
         self.out.mkdir(parents=True, exist_ok=True)
-        for stale in ["summary.json", "truth.json", "feeder.json", "timeline.json", "report.html", "inject.json"]:
+        for stale in [SUMMARY, TRUTH, FEEDER, TIMELINE, REPORT, INJECT]:
             (self.out / stale).unlink(missing_ok=True)
         self.lease = DomainLease()
         wall_start = time.monotonic()
@@ -424,24 +428,19 @@ class SwarmRun:
 
     # ----- results ------------------------------------------------------------------------
     def summarise(self, wall_s, interrupted):
+        run = RunDir(self.out)
         scores = {}
-        truth = self.out / "truth.json"
-        if truth.exists():
+        if run.path(TRUTH).exists():
             r = subprocess.run([binary("mapmesh-eval"), "--run", str(self.out)], capture_output=True, text=True)
             if r.returncode == 0:
                 scores = json.loads(r.stdout).get("agents", {})
             else:
                 print(f"swarm: mapmesh-eval failed: {r.stderr.strip()}", file=sys.stderr)
-        feeder_stats = {}
-        fpath = self.out / "feeder.json"
-        if fpath.exists():
-            feeder_stats = {r["id"]: r for r in json.loads(fpath.read_text()).get("robots", [])}
+        feeder_stats = {r["id"]: r for r in (run.read_if_present(FEEDER) or {}).get("robots", [])}
         agents = []
         for rid, slot in self.agents.items():
-            stats = {}
-            spath = self.out / f"agent_{rid}" / "stats.json"
-            if spath.exists():  # final, or the last checkpoint of a killed agent
-                stats = json.loads(spath.read_text())
+            # final, or the last checkpoint of a killed agent
+            stats = run.read_if_present(STATS, rid) or {}
             score = scores.get(str(rid), {})
             sent = feeder_stats.get(rid, {})
             agents.append({
@@ -462,7 +461,7 @@ class SwarmRun:
                 # this agent's final local map, and how many of its landmarks the global map holds.
                 "dead_peers": score.get("dead_peers", []),
                 "maps_received": stats.get("maps_received"),
-                "maps_dropped": _maps_dropped(stats),
+                "maps_dropped": stats.get("maps_dropped"),
                 "maps_rejected": stats.get("maps_rejected", {}),
                 "bytes_sent": stats.get("bytes_sent"),
                 "bytes_received": stats.get("bytes_received"),
@@ -507,14 +506,13 @@ class SwarmRun:
             "failed_agents": [a["id"] for a in agents if a["failed"]],
         }
         if self.args.inject:
-            ipath = self.out / "inject.json"
-            summary["injected"] = json.loads(ipath.read_text()) if ipath.exists() else None
+            summary["injected"] = run.read_if_present(INJECT)
             summary["injector_exit_code"] = self.injector.returncode if self.injector else None
-        write_json(self.out / "summary.json", summary)
+        write_json(run.path(SUMMARY), summary)
         # Each agent's counters and scored maps over time, for the report's time plots.
         timeline = {"kills": summary["kills"], "restarts": summary["restarts"], "pauses": summary["pauses"],
                     "agents": {str(rid): scores.get(str(rid), {}).get("history", []) for rid in self.agents}}
-        write_json(self.out / "timeline.json", timeline)
+        write_json(run.path(TIMELINE), timeline)
         return summary
 
 
@@ -542,44 +540,14 @@ def plot(script, run_dir, what):
 def write_report(run_dir):
     """RUN_DIR/report.html by scripts/plots/report.py. Returns its path, or None with the
     reason on stderr."""
-    return Path(run_dir) / "report.html" if plot("report.py", run_dir, "report") else None
-
-
-def _maps_dropped(stats):
-    if not stats:
-        return None
-    rejected = sum(stats.get("maps_rejected", {}).values()) + sum(stats.get("maps_refused", {}).values())
-    return (stats.get("maps_out_of_range", 0) + stats.get("maps_lost", 0) + stats.get("maps_over_bandwidth", 0)
-            + stats.get("maps_unknown_sender", 0) + stats.get("maps_stale_version", 0) + rejected)
-
-
-def format_table(summary):
-    def num(v, fmt):
-        return "-" if v is None else format(v, fmt)
-
-    rows = [("id", "alive", "exit", "restarts", "lm_local", "rmse_local", "lm_global", "rmse_global", "cov_global",
-             "peers", "maps_rx", "kB_tx", "kB_rx", "cpu_s", "rss_MB")]
-    for a in summary["agents"]:
-        loc, glo = a["local"] or {}, a["global"] or {}
-        rows.append((str(a["id"]), "yes" if a["alive_at_end"] else "no", num(a["exit_code"], "d"),
-                     str(a["restarts"]), num(loc.get("landmarks"), "d"), num(loc.get("rmse_m"), ".3f"),
-                     num(glo.get("landmarks"), "d"), num(glo.get("rmse_m"), ".3f"), num(glo.get("coverage"), ".2f"),
-                     str(len(a.get("peers_aligned", []))), num(a["maps_received"], "d"),
-                     num(None if a["bytes_sent"] is None else a["bytes_sent"] / 1000, ".1f"),
-                     num(None if a["bytes_received"] is None else a["bytes_received"] / 1000, ".1f"),
-                     num(a["cpu_s"], ".2f"), num(a["max_rss_mb"], ".1f")))
-    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    lines = ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in rows]
-    head = (f"{summary['scenario']}: {summary['sim_duration_s']:.1f} s simulated in {summary['wall_s']:.1f} s wall "
-            f"(x{summary['real_time_factor']:.1f})")
-    return "\n".join([head] + lines)
+    return Path(run_dir) / REPORT if plot("report.py", run_dir, "report") else None
 
 
 def cmd_run(args):
     run = SwarmRun(args)
     summary = run.execute()
     print(format_table(summary))
-    print(f"summary: {Path(args.out) / 'summary.json'}")
+    print(f"summary: {Path(args.out) / SUMMARY}")
     if not args.no_report and not summary["interrupted"]:
         report = write_report(args.out)
         if report:
@@ -600,7 +568,7 @@ def failure_message(summary, out):
             continue
         how = ", ".join(f"incarnation {i['incarnation']} {describe_end(i['exit_code'])}"
                         for i in a["incarnations"] if i["failed"])
-        log = Path(out) / f"agent_{a['id']}" / "agent.log"
+        log = Path(out) / agent_dir(a["id"]) / AGENT_LOG
         parts.append(f"agent {a['id']} ({how}; see {log})")
     return f"swarm: agents {summary['failed_agents']} failed: " + "; ".join(parts)
 
@@ -619,7 +587,7 @@ def describe_end(code):
 
 
 def cmd_report(args):
-    if not (Path(args.dir) / "summary.json").exists():
+    if not (Path(args.dir) / SUMMARY).exists():
         raise RunError(f"{args.dir}: no summary.json (run scripts/swarm run SCENARIO --out {args.dir})", 1)
     report = write_report(args.dir)
     if report is None:

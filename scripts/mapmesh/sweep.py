@@ -3,7 +3,6 @@ seeds, several runs at a time, each in DIR/runs/; one CSV row per agent and run 
 DIR/sweep.csv, and DIR/sweep.png drawn by scripts/plots/sweep.py."""
 
 import csv
-import json
 import os
 import subprocess
 import sys
@@ -11,10 +10,9 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from .columns import SWEEP_HEADER, sweep_row
 from .run import REPO, RunError, last_line, plot
-
-COLUMNS = ["seed", "agent", "alive", "lm_local", "lm_global", "coverage_global", "nees_global", "rmse_global_m",
-           "rmse_local_m", "nees_local", "peers_aligned", "bytes_sent", "wall_s"]
+from .rundir import SUMMARY, read_json
 
 
 def _run_one(args, value, seed, run_dir):
@@ -28,20 +26,10 @@ def _run_one(args, value, seed, run_dir):
     for s in args.set or []:
         cmd += ["--set", s]
     r = subprocess.run(cmd, capture_output=True, text=True)
-    if not (run_dir / "summary.json").exists():
+    if not (run_dir / SUMMARY).exists():
         reason = last_line(r.stderr, f"exit code {r.returncode}")
         raise RunError(f"{args.param}={value}" + (f" seed {seed}" if seed is not None else "") + f": {reason}", 1)
-    return json.loads((run_dir / "summary.json").read_text()), r.returncode
-
-
-def _rows(value, seed, summary):
-    out = []
-    for a in summary["agents"]:
-        g, loc = a.get("global") or {}, a.get("local") or {}
-        out.append([value, seed, a["id"], int(bool(a["alive_at_end"])), loc.get("landmarks"), g.get("landmarks"),
-                    g.get("coverage"), g.get("nees_mean"), g.get("rmse_m"), loc.get("rmse_m"), loc.get("nees_mean"),
-                    len(a.get("peers_aligned", [])), a.get("bytes_sent"), summary["wall_s"]])
-    return out
+    return read_json(run_dir / SUMMARY), r.returncode
 
 
 def cmd_sweep(args):
@@ -79,9 +67,10 @@ def cmd_sweep(args):
     path = out / "sweep.csv"
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow([args.param] + COLUMNS)
+        w.writerow([args.param] + SWEEP_HEADER)
         for (v, s) in plan:
-            w.writerows(_rows(v, s if s is not None else "", results[(v, s)]))
+            summary = results[(v, s)]
+            w.writerows(sweep_row(v, s if s is not None else "", summary, a) for a in summary["agents"])
     print(f"csv:  {path}")
     if not plot("sweep.py", out, "sweep plot"):
         return 1

@@ -12,7 +12,8 @@ from plotlib import curves, directory_argument, panel, plt, rows  # noqa: E402
 
 
 def main(argv):
-    d, code = directory_argument(argv, __doc__, "alignment.py", "fig46_similarity.csv", "mapmesh-lab thesis-align --out")
+    d, code = directory_argument(argv, __doc__, "alignment.py", "fig46_similarity.csv",
+                                 "mapmesh-lab thesis-align --out")
     if d is None:
         return code
     sim = rows(d / "fig46_similarity.csv")

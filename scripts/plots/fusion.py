@@ -37,7 +37,8 @@ def sweep_figure(d, name, xlabel, title):
         series["robot 1 map"] = sorted(curves(data, "method", "value", "consistent_a")[first])
         series["robot 2 map"] = sorted(curves(data, "method", "value", "consistent_b")[first])
     dashed = dict(METHOD_STYLE)
-    dashed.update({"robot 1 map": {"linestyle": "--", "color": "black"}, "robot 2 map": {"linestyle": ":", "color": "grey"}})
+    dashed.update({"robot 1 map": {"linestyle": "--", "color": "black"},
+                   "robot 2 map": {"linestyle": ":", "color": "grey"}})
     panel(axes[0], series, f"{title}: consistent landmarks (NEES < 5.99)", xlabel, "ratio", style=dashed)
     axes[0].set_ylim(0, 1.05)
     dets = curves(data, "method", "value", "det_merged", lambda r: r["method"] != "ml")

@@ -31,7 +31,11 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
 from plotlib import directory_argument, plt  # noqa: E402
+from mapmesh.columns import HTML_COLUMNS, lookup  # noqa: E402
+from mapmesh.rundir import (GLOBAL_MAP, LOCAL_MAP, REPORT, STATS, SUMMARY, TIMELINE, TRAJECTORY,  # noqa: E402
+                            TRUTH, RunDir, pose_at, truth_robots)
 
 import numpy as np  # noqa: E402
 from matplotlib.collections import PatchCollection  # noqa: E402
@@ -45,44 +49,11 @@ SIGMA_95 = 2.448
 NEES_EXPECTED = 2.0
 DASH = "\u2013"  # what a cell shows for a null value
 
-# The summary table: (data-key = path in a summary.json agent, column header).
-SUMMARY_COLUMNS = [
-    ("id", "agent"),
-    ("alive_at_end", "alive"),
-    ("exit_code", "exit"),
-    ("restarts", "restarts"),
-    ("local.landmarks", "local landmarks"),
-    ("local.rmse_m", "local RMSE (m)"),
-    ("local.nees_mean", "local NEES"),
-    ("global.landmarks", "global landmarks"),
-    ("global.rmse_m", "global RMSE (m)"),
-    ("global.nees_mean", "global NEES"),
-    ("global.coverage", "global coverage"),
-    ("peers_aligned", "peers aligned"),
-    ("maps_received", "maps received"),
-    ("bytes_sent", "bytes sent"),
-    ("bytes_per_landmark", "bytes / landmark"),
-    ("cpu_s", "CPU (s)"),
-    ("max_rss_mb", "max RSS (MB)"),
-]
-# Columns whose cell shows the number of items of a list value.
-COUNT_COLUMNS = {"peers_aligned"}
-
 LOCAL_COLOUR = "tab:blue"
 GLOBAL_COLOUR = "tab:orange"
 
 
 # ----- values and text ----------------------------------------------------------------------
-def lookup(record, path):
-    """The value at a dotted path ("global.rmse_m") of a dict, or None where any step is missing."""
-    value = record
-    for part in path.split("."):
-        if not isinstance(value, dict):
-            return None
-        value = value.get(part)
-    return value
-
-
 def format_number(v):
     """A number for a table cell: integers as they are, floats to 3 significant digits (never
     dropping integer digits: 1234.5 shows as 1235)."""
@@ -102,11 +73,12 @@ def format_number(v):
     return f"{v:.{max(0, 2 - magnitude)}f}"
 
 
-def cell_text(key, value):
-    """The text of a summary-table cell (data-value keeps the exact value)."""
+def cell_text(value, count=False):
+    """The text of a summary-table cell (data-value keeps the exact value); count: a list shows
+    its number of items."""
     if value is None:
         return DASH
-    if key in COUNT_COLUMNS and isinstance(value, list):
+    if count and isinstance(value, list):
         return str(len(value))
     if isinstance(value, (int, float)):
         return format_number(value)
@@ -120,31 +92,6 @@ def seconds(v):
 
 
 # ----- geometry -----------------------------------------------------------------------------
-def wrap_angle(a):
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
-def pose_at(trajectory, t):
-    """The pose [x, y, theta] of a [[t, x, y, theta], ...] trajectory at time t, linearly
-    interpolated (clamped to its ends), or None for an empty trajectory."""
-    if not trajectory:
-        return None
-    if t <= trajectory[0][0]:
-        return list(trajectory[0][1:4])
-    if t >= trajectory[-1][0]:
-        return list(trajectory[-1][1:4])
-    lo, hi = 0, len(trajectory) - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if trajectory[mid][0] <= t:
-            lo = mid
-        else:
-            hi = mid
-    a, b = trajectory[lo], trajectory[hi]
-    s = (t - a[0]) / (b[0] - a[0]) if b[0] > a[0] else 0.0
-    return [a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2]), wrap_angle(a[3] + s * wrap_angle(b[3] - a[3]))]
-
-
 def to_world(frame, xy):
     """Points (N x 2, in a frame whose pose in the world is frame = [x0, y0, theta]) in the world."""
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
@@ -174,43 +121,26 @@ def ellipse_patches(xy, covs, theta):
 
 
 # ----- loading ------------------------------------------------------------------------------
-class Run:
+class Run(RunDir):
     """The files of one run directory; `notes` collects what is missing or unreadable."""
 
     def __init__(self, d):
-        self.dir = Path(d)
-        self.notes = []
-        self.summary = self.load("summary.json", required=True)
-        self.truth = self.load("truth.json")
-        self.timeline = self.load("timeline.json", quiet=True)
+        super().__init__(d)
+        self.summary = self.load(SUMMARY, required=True)
+        self.truth = self.load(TRUTH)
+        self.timeline = self.load(TIMELINE, quiet=True)
         self.agents = [a for a in self.summary.get("agents", []) if isinstance(a, dict)]
         self.ids = [a.get("id") for a in self.agents]
         self.colours = {rid: plt.get_cmap("tab10")(i % 10) for i, rid in enumerate(self.ids)}
-        self.truth_robots = {r.get("id"): r for r in (self.truth or {}).get("robots", [])}
+        self.truth_robots = truth_robots(self.truth)
         # Kills and restarts as the summary and the timeline list them (the same, normally).
         self.kills = events(self.summary.get("kills"), (self.timeline or {}).get("kills"))
         self.restarts = events(self.summary.get("restarts"), (self.timeline or {}).get("restarts"))
         self.pauses = events(self.summary.get("pauses"), (self.timeline or {}).get("pauses"))
         self.duration = self.summary.get("sim_duration_s") or (self.truth or {}).get("duration_s")
 
-    def load(self, name, required=False, quiet=False):
-        path = self.dir / name
-        if not path.exists():
-            if required:
-                raise FileNotFoundError(path)
-            if not quiet:
-                self.notes.append(f"{name}: missing")
-            return None
-        try:
-            return json.loads(path.read_text())
-        except (OSError, ValueError) as e:
-            if required:
-                raise
-            self.notes.append(f"{name}: unreadable ({e.__class__.__name__})")
-            return None
-
     def agent_file(self, rid, name):
-        return self.load(f"agent_{rid}/{name}", quiet=True)
+        return self.load(name, rid, quiet=True)
 
     def dead_intervals(self, rid):
         """[(killed at, restarted at or the end of the run)] of one agent."""
@@ -225,7 +155,8 @@ class Run:
 
 def pauses_text(pauses):
     """'agent 2 at 30 s for 10 s (wall)' for each pause of summary.json."""
-    return "; ".join(f"agent {p.get('id')} at {format_number(p.get('t'))} s for {format_number(p.get('seconds'))} s (wall)"
+    return "; ".join(f"agent {p.get('id')} at {format_number(p.get('t'))} s "
+                     f"for {format_number(p.get('seconds'))} s (wall)"
                      for p in pauses if isinstance(p, dict)) or DASH
 
 
@@ -262,20 +193,20 @@ def agent_frame(run, agent, trajectory, stats):
 
 # ----- map figures --------------------------------------------------------------------------
 def landmark_arrays(m):
-    lms = [l for l in (m or {}).get("landmarks", []) if isinstance(l.get("x"), (int, float))
-           and isinstance(l.get("y"), (int, float))]
-    return np.array([[l["x"], l["y"]] for l in lms], dtype=float).reshape(-1, 2), [l.get("cov") for l in lms]
+    lms = [lm for lm in (m or {}).get("landmarks", []) if isinstance(lm.get("x"), (int, float))
+           and isinstance(lm.get("y"), (int, float))]
+    return np.array([[lm["x"], lm["y"]] for lm in lms], dtype=float).reshape(-1, 2), [lm.get("cov") for lm in lms]
 
 
 def map_figure(run, agent, path):
     """The maps of one agent, in the world frame when its frame's pose is known. Returns the
     frame description."""
     rid = agent.get("id")
-    local = run.agent_file(rid, "local_map.json")
-    glob = run.agent_file(rid, "global_map.json")
-    traj = run.agent_file(rid, "trajectory.json")
-    stats = run.agent_file(rid, "stats.json")
-    for name, value in (("local_map.json", local), ("global_map.json", glob), ("trajectory.json", traj)):
+    local = run.agent_file(rid, LOCAL_MAP)
+    glob = run.agent_file(rid, GLOBAL_MAP)
+    traj = run.agent_file(rid, TRAJECTORY)
+    stats = run.agent_file(rid, STATS)
+    for name, value in ((LOCAL_MAP, local), (GLOBAL_MAP, glob), (TRAJECTORY, traj)):
         if value is None:
             run.notes.append(f"agent {rid}: no {name}")
     frame, frame_text = agent_frame(run, agent, traj, stats)
@@ -289,8 +220,8 @@ def map_figure(run, agent, path):
     if in_world and run.truth:
         lms = run.truth.get("landmarks", [])
         seen = set(run.truth.get("seen", []))
-        pts = np.array([[l["x"], l["y"]] for l in lms], dtype=float).reshape(-1, 2)
-        mask = np.array([l.get("id") in seen for l in lms], dtype=bool)
+        pts = np.array([[lm["x"], lm["y"]] for lm in lms], dtype=float).reshape(-1, 2)
+        mask = np.array([lm.get("id") in seen for lm in lms], dtype=bool)
         ax.scatter(pts[~mask, 0], pts[~mask, 1], s=6, c="#cfcfcf", zorder=1, linewidths=0)
         ax.scatter(pts[mask, 0], pts[mask, 1], s=8, c="#8a8a8a", zorder=1, linewidths=0)
         handles += [Line2D([], [], ls="", marker="o", ms=3, color="#cfcfcf", label="true landmark (unseen)"),
@@ -355,9 +286,9 @@ def map_figure(run, agent, path):
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     loc, glo = agent.get("local") or {}, agent.get("global") or {}
-    ax.set_title(f"agent {rid} \u2013 {frame_text}\nlandmarks local {cell_text('', loc.get('landmarks'))} / "
-                 f"global {cell_text('', glo.get('landmarks'))};  RMSE local {cell_text('', loc.get('rmse_m'))} m / "
-                 f"global {cell_text('', glo.get('rmse_m'))} m", fontsize=11)
+    ax.set_title(f"agent {rid} \u2013 {frame_text}\nlandmarks local {cell_text(loc.get('landmarks'))} / "
+                 f"global {cell_text(glo.get('landmarks'))};  RMSE local {cell_text(loc.get('rmse_m'))} m / "
+                 f"global {cell_text(glo.get('rmse_m'))} m", fontsize=11)
     if handles:
         ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9, frameon=False)
     fig.savefig(path, dpi=DPI)
@@ -509,7 +440,8 @@ def exchanges_figure(run, tl, period, path):
         ax.set_xlim(0, run.duration)
     ax.grid(axis="x", alpha=0.3)
     ax.set_title("maps received: a bar over each checkpoint period in which the receiver got maps from the sender"
-                 "\n(red \u00d7: killed, shaded until restarted; green \u25b2: restarted; orange |: paused)", fontsize=10)
+                 "\n(red \u00d7: killed, shaded until restarted; green \u25b2: restarted; orange |: paused)",
+                 fontsize=10)
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
 
@@ -590,17 +522,17 @@ def events_text(events):
 
 
 def summary_table(run):
-    out = ['<table id="summary">', "<tr>" + "".join(f'<th data-key="{esc(k)}">{esc(h)}</th>'
-                                                    for k, h in SUMMARY_COLUMNS) + "</tr>"]
+    out = ['<table id="summary">', "<tr>" + "".join(f'<th data-key="{esc(c.key)}">{esc(c.html)}</th>'
+                                                    for c in HTML_COLUMNS) + "</tr>"]
     for a in run.agents:
         cls = "" if a.get("alive_at_end", True) else ' class="dead"'
         cells = []
-        for key, _ in SUMMARY_COLUMNS:
-            v = lookup(a, key)
+        for c in HTML_COLUMNS:
+            v = c.value(a)
             num = isinstance(v, (int, float, list)) and not isinstance(v, bool)
             cls_num = ' class="num"' if num else ""
-            cells.append(f'<td data-key="{esc(key)}" data-value="{esc(json.dumps(v))}"{cls_num}>'
-                         f"{esc(cell_text(key, v))}</td>")
+            cells.append(f'<td data-key="{esc(c.key)}" data-value="{esc(json.dumps(v))}"{cls_num}>'
+                         f"{esc(cell_text(v, c.count))}</td>")
         out.append(f'<tr data-agent="{esc(a.get("id"))}"{cls}>' + "".join(cells) + "</tr>")
     out.append("</table>")
     return "\n".join(out)
@@ -710,15 +642,15 @@ agents not alive at the end.</p>
 </body>
 </html>
 """
-    path = run.dir / "report.html"
-    tmp = run.dir / "report.html.tmp"
+    path = run.path(REPORT)
+    tmp = run.path(REPORT + ".tmp")
     tmp.write_text(page)
     tmp.replace(path)
     return path
 
 
 def main(argv):
-    d, code = directory_argument(argv, __doc__, "report.py", "summary.json", "scripts/swarm run ... --out")
+    d, code = directory_argument(argv, __doc__, "report.py", SUMMARY, "scripts/swarm run ... --out")
     if d is None:
         return code
     try:

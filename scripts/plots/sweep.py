@@ -20,14 +20,12 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
 from plotlib import directory_argument, plt, rows  # noqa: E402
+from mapmesh.columns import PLOT_COLUMNS  # noqa: E402
 
-# (column names, first preferred; panel title; y label)
-METRICS = [
-    (("coverage_global", "global.coverage"), "global coverage", "share of the seen true landmarks"),
-    (("nees_global", "global.nees_mean"), "global mean NEES", "mean NEES (2 expected)"),
-    (("rmse_global_m", "global.rmse_m"), "global RMSE", "RMSE (m)"),
-]
+# (column names, first preferred: sweep.csv's, then the summary.json path; panel title; y label)
+METRICS = [((c.csv, c.key), *c.plot) for c in PLOT_COLUMNS]
 NEES_EXPECTED = 2.0
 MISSING = {"", "null", "none", "nan", "-", "\u2013"}
 

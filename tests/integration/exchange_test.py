@@ -21,7 +21,7 @@ def history(run, rid):
 
 def origins(map_json, robot):
     """(incarnation, id) of every landmark input from `robot` in a global map JSON."""
-    return {(o[1], o[2]) for l in map_json["landmarks"] for o in l.get("origins", []) if o[0] == robot}
+    return {(o[1], o[2]) for lm in map_json["landmarks"] for o in lm.get("origins", []) if o[0] == robot}
 
 
 class ExchangeTest(SwarmCase):

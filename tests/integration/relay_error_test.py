@@ -36,7 +36,10 @@ def make_run(d):
     truth = {"landmarks": [{"id": i, "x": p[0], "y": p[1]} for i, p in world.items()],
              "robots": [{"id": r, "trajectory": [[0.0, x, 0.0, 0.0], [100.0, x, 0.0, 0.0]]} for r, x in starts.items()]}
     (d / "truth.json").write_text(json.dumps(truth))
-    in_frame = lambda i, r: (world[i][0] - starts[r], world[i][1])
+
+    def in_frame(i, r):
+        return (world[i][0] - starts[r], world[i][1])
+
     for r in starts:
         a = d / f"agent_{r}"
         a.mkdir()
@@ -52,7 +55,10 @@ def make_run(d):
         p = turn(in_frame(i, 1))
         glob.append(lm(i, (p[0] + SHIFT[0], p[1] + SHIFT[1])))
     (d / "agent_1" / "global_map.json").write_text(json.dumps({"landmarks": glob}))
-    rms = lambda v: math.sqrt(sum(x * x + y * y for x, y in v) / len(v))
+
+    def rms(v):
+        return math.sqrt(sum(x * x + y * y for x, y in v) / len(v))
+
     frame_only = [(turn(in_frame(i, 1))[0] - in_frame(i, 1)[0], turn(in_frame(i, 1))[1] - in_frame(i, 1)[1])
                   for i in range(20, 30)]
     both = [(x + SHIFT[0], y + SHIFT[1]) for x, y in frame_only]

@@ -80,8 +80,8 @@ def make_fake_run(d):
     sensed = {}  # robot -> landmark ids it saw (within 9 m of its path while its agent ran)
     for r in robots:
         rid = r["id"]
-        sensed[rid] = sorted({l["id"] for p in r["trajectory"] if p[0] >= origin_stamp[rid] for l in landmarks
-                              if math.hypot(l["x"] - p[1], l["y"] - p[2]) < 9})
+        sensed[rid] = sorted({lm["id"] for p in r["trajectory"] if p[0] >= origin_stamp[rid] for lm in landmarks
+                              if math.hypot(lm["x"] - p[1], lm["y"] - p[2]) < 9})
     seen = sorted(set().union(*sensed.values()))
     _write(d / "truth.json", {"scenario": "fake3", "duration_s": duration, "headings_known": True,
                               "landmarks": landmarks, "seen": seen, "robots": robots})

@@ -156,8 +156,8 @@ class FeederLivelinessTest(SwarmCase):
         self.out.mkdir(parents=True)
         scen = str(DATA / "three.yaml")
         common = ["--scenario", scen, "--domain", str(lease.id), "--set", "duration_s=60"]
-        agents = [subprocess.Popen([str(BIN / "mapmesh-agent"), "--id", str(i), "--out", str(self.out / f"a{i}")] + common,
-                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for i in (1, 2, 3)]
+        agents = [subprocess.Popen([str(BIN / "mapmesh-agent"), "--id", str(i), "--out", str(self.out / f"a{i}")]
+                                   + common, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for i in (1, 2, 3)]
         try:
             feeder = subprocess.Popen([str(BIN / "mapmesh-feeder"), "--out", str(self.out), "--events", "--control",
                                        "--hold-at", "5", "--stall-timeout", "60"] + common,
@@ -260,7 +260,8 @@ class BadInputTest(unittest.TestCase):
                     [str(BIN / "mapmesh-agent"), "--scenario", str(path), "--id", "1", "--domain", "1"] + extra,
                     path, expected)
             with tempfile.TemporaryDirectory() as tmp, self.subTest(name=path.name, tool="swarm"):
-                self.assert_fails_fast_with_one_line(SWARM + ["run", str(path), "--out", tmp] + extra, path, expected, 2)
+                self.assert_fails_fast_with_one_line(SWARM + ["run", str(path), "--out", tmp] + extra, path, expected,
+                                                     2)
 
     def test_bad_arguments(self):
         r = subprocess.run(SWARM + ["run", str(DATA / "three.yaml"), "--out", "/tmp/x", "--kill", "nine@ten"],
@@ -271,7 +272,8 @@ class BadInputTest(unittest.TestCase):
                            capture_output=True, text=True, timeout=30)
         self.assertEqual(r.returncode, 2)
         self.assertIn("no robot 7 in this run", r.stderr)
-        r = subprocess.run([str(BIN / "mapmesh-agent"), "--scenario", "x.yaml"], capture_output=True, text=True, timeout=30)
+        r = subprocess.run([str(BIN / "mapmesh-agent"), "--scenario", "x.yaml"], capture_output=True, text=True,
+                           timeout=30)
         self.assertEqual(r.returncode, 2)
         self.assertEqual(len(r.stderr.strip().splitlines()), 1)
 

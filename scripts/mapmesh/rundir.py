@@ -1,0 +1,108 @@
+"""A run directory written by `scripts/swarm run` (README.md, "Outputs"): the names of its files
+and how they are read, for the launcher (mapmesh/run.py, mapmesh/sweep.py), the report
+(scripts/plots/report.py) and scripts/relay-error; and a robot's true pose at a time from its
+truth.json trajectory. Standard library only."""
+
+import json
+import math
+from pathlib import Path
+
+# The run's files.
+SUMMARY = "summary.json"
+TRUTH = "truth.json"
+TIMELINE = "timeline.json"
+FEEDER = "feeder.json"
+INJECT = "inject.json"
+REPORT = "report.html"
+# Each agent's files, in its directory agent_dir(id).
+STATS = "stats.json"
+LOCAL_MAP = "local_map.json"
+GLOBAL_MAP = "global_map.json"
+TRAJECTORY = "trajectory.json"
+AGENT_LOG = "agent.log"
+
+
+def agent_dir(rid):
+    """The name of agent RID's directory in a run directory."""
+    return f"agent_{rid}"
+
+
+def read_json(path):
+    """A JSON file's value; OSError or ValueError when it cannot be read."""
+    return json.loads(Path(path).read_text())
+
+
+class RunDir:
+    """The files of one run directory. `read` raises when a file is missing or unreadable,
+    `read_if_present` only when it is unreadable, and `load` never for an optional file: it
+    notes in `notes` what is missing (unless quiet) or unreadable."""
+
+    def __init__(self, d):
+        self.dir = Path(d)
+        self.notes = []
+
+    def path(self, name, rid=None):
+        """The path of the run's file NAME, or of agent RID's file NAME."""
+        return self.dir / name if rid is None else self.dir / agent_dir(rid) / name
+
+    def read(self, name, rid=None):
+        return read_json(self.path(name, rid))
+
+    def read_if_present(self, name, rid=None):
+        path = self.path(name, rid)
+        return read_json(path) if path.exists() else None
+
+    def load(self, name, rid=None, required=False, quiet=False):
+        path = self.path(name, rid)
+        if rid is not None:
+            name = f"{agent_dir(rid)}/{name}"
+        if not path.exists():
+            if required:
+                raise FileNotFoundError(path)
+            if not quiet:
+                self.notes.append(f"{name}: missing")
+            return None
+        try:
+            return read_json(path)
+        except (OSError, ValueError) as e:
+            if required:
+                raise
+            self.notes.append(f"{name}: unreadable ({e.__class__.__name__})")
+            return None
+
+    def agent_ids(self):
+        """The ids of the agents that have a directory here, in increasing order."""
+        prefix = agent_dir("")
+        return sorted(int(d.name[len(prefix):]) for d in self.dir.glob(prefix + "*")
+                      if d.is_dir() and d.name[len(prefix):].isdigit())
+
+
+def truth_robots(truth):
+    """{robot id: its truth.json record (start, trajectory)} of a truth.json value (or None)."""
+    return {r.get("id"): r for r in (truth or {}).get("robots", [])}
+
+
+def wrap_angle(a):
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def pose_at(trajectory, t):
+    """The pose [x, y, theta] of a [[t, x, y, theta], ...] trajectory at time t, or None for an
+    empty trajectory. Clamped to its ends; between two samples the position is interpolated
+    linearly and the heading along the shorter arc, as mapmesh-eval does (Pose2 Interpolate)."""
+    if not trajectory:
+        return None
+    if t <= trajectory[0][0]:
+        return list(trajectory[0][1:4])
+    if t >= trajectory[-1][0]:
+        return list(trajectory[-1][1:4])
+    lo, hi = 0, len(trajectory) - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if trajectory[mid][0] <= t:
+            lo = mid
+        else:
+            hi = mid
+    a, b = trajectory[lo], trajectory[hi]
+    s = (t - a[0]) / (b[0] - a[0]) if b[0] > a[0] else 0.0
+    return [a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2]), wrap_angle(a[3] + s * wrap_angle(b[3] - a[3]))]
