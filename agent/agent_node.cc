@@ -12,7 +12,8 @@ namespace mapmesh {
 namespace {
 
 // MapMessage fields besides the payload: robot_id, kind, version, stamp, sequence length.
-constexpr std::size_t kMapMessageFixedBytes = 4 + 1 + 4 + 4 + 8 + 8 + 4;  // keys, incarnation, version, stamps, payload length
+constexpr std::size_t kMapMessageFixedBytes = 4 + 1 + 4 + 4 + 8 + 8 + 4;  // keys, incarnation, version, stamps,
+                                                                          // payload length
 
 }  // namespace
 

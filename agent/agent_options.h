@@ -21,7 +21,8 @@ struct AgentOptions {
   MapLimits peer_limits;                // what a peer's map may be: landmarks, extent, uncertainty
   double status_period_s = 1.0;         // status_period_s: scenario seconds between status reports
   double checkpoint_period_s = 10.0;    // checkpoint_period_s: scenario seconds between checkpoints (0: none)
-  double max_stamp_jump_s = 20.0;       // max_stamp_jump_s: sensor, link and map stamps this far ahead of ours are implausible
+  double max_stamp_jump_s = 20.0;       // max_stamp_jump_s: sensor, link and map stamps this far ahead of ours
+                                        // are implausible
 
   // Reads the whole agent section; the caller rejects keys nobody read (Finish).
   template <typename Reader>

@@ -31,12 +31,15 @@ struct ExchangeAblations {
 };
 
 struct ExchangeOptions {
-  double align_period_s = 5.0;     // agent.align_period_s: an unaligned peer is tried again this often, when its map changed ...
+  double align_period_s = 5.0;     // agent.align_period_s: an unaligned peer is tried again this often, when its
+                                   // map changed ...
   double retry_growth = 0.2;       // ... or ours grew by this share
   int drop_after_failures = 2;     // agent.drop_after_failures: consecutive failed verifications drop the alignment
-  double refine_period_s = 5.0;    // agent.refine_period_s: a live aligned peer that sent nothing new has its transform refined on our
-                                   // own map as it is now, this often (0: only when the peer's map changes)
-  bool relay_global_maps = true;   // agent.relay_global_maps: fuse a peer's global map when it agrees with the peer's alignment
+  double refine_period_s = 5.0;    // agent.refine_period_s: a live aligned peer that sent nothing new has its transform
+                                   // refined on our own map as it is now, this often (0: only when the peer's
+                                   // map changes)
+  bool relay_global_maps = true;   // agent.relay_global_maps: fuse a peer's global map when it agrees with the
+                                   // peer's alignment
   double relay_tolerance_m = 1.0;  // ... within this (at the map's centroid) ...
   double relay_tolerance_deg = 2.0;  // ... and this (two transforms within both agree, for confirmations too)
   // ... and where it overlaps another aligned peer's map, verifies against that map too (a
@@ -50,11 +53,15 @@ struct ExchangeOptions {
                                         // as of Victoria Park's bent maps, 3-5 m and 2-3 degrees apart) ...
   double refute_min_share = 0.5;        // ... and the relay's placement matches this share of the peer's map
                                         // (the relay holds that map, not a stretch of it by coincidence)
-  double map_publish_period_s = 2.0;    // agent.map_publish_period_s: scenario seconds between an agent's map publications
-  double silent_after_s = 0.0;          // a peer that sent no map for this long (scenario s) is silent; 0: 3 map periods
-  int max_alignments_per_update = 4;    // agent.max_alignments_per_update: full alignments (first, retried and fresh ones) per Update, round robin
-  std::uint32_t version_slack = 64;     // a map's version may exceed the last one received by this plus MaxVersionsPerS()
-                                        // times the scenario seconds since (and any version that rate times now)
+  double map_publish_period_s = 2.0;    // agent.map_publish_period_s: scenario seconds between an agent's map
+                                        // publications
+  double silent_after_s = 0.0;          // a peer that sent no map for this long (scenario s) is silent; 0: 3
+                                        // map periods
+  int max_alignments_per_update = 4;    // agent.max_alignments_per_update: full alignments (first, retried and fresh
+                                        // ones) per Update, round robin
+  std::uint32_t version_slack = 64;     // a map's version may exceed the last one received by this plus
+                                        // MaxVersionsPerS() times the scenario seconds since (and any version that
+                                        // rate times now)
   int max_incarnations = 8;             // incarnations kept per robot; a newer one evicts one never aligned and frozen
   AlignmentOptions align = ExchangeAlignment();
   GlobalMapOptions global;

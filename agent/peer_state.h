@@ -43,7 +43,8 @@ struct PeerReport {
   Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();
   bool relayed = false;            // its global map is fused (not its local map)
   int relay_conflicts = 0;         // times its global map disagreed with another peer's map (not relayed then)
-  int refuted = 0;                 // times our alignment of it lost to a relay's placement (then dropped, or re-placed when frozen) ...
+  int refuted = 0;                 // times our alignment of it lost to a relay's placement (then dropped, or re-placed
+                                   // when frozen) ...
   int replaced = 0;                // ... of which it was frozen and moved to the relay's placement ...
   bool superseded = false;         // ... and that relay, used now, brings its landmarks (its own copy is left out)
   RobotId refuted_by = 0;          // ... the last time, to this peer's relay

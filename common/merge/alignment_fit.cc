@@ -177,9 +177,9 @@ void Conclude(const LandmarkMap& a_in, const LandmarkMap& b_in, const LandmarkMa
   const double scale = o.landmark_errors == LandmarkErrors::kIndependent ? 1.0 : static_cast<double>(ni);
   r.cov = scale * info.inverse();
   r.cov = 0.5 * (r.cov + r.cov.transpose()).eval();
-  // 2 residual dimensions per inlier, 3 parameters fitted: chi-square with 2n - 4 dof (the
-  // even number just below) bounds the sum.
-  r.residual_bound = o.residual_tolerance * Chi2Quantile(o.residual_probability, std::max(2, 2 * ni - 4));
+  // 2 residual dimensions per inlier, 3 parameters fitted: chi-square with 2n - 3 dof bounds
+  // the sum.
+  r.residual_bound = o.residual_tolerance * Chi2Quantile(o.residual_probability, std::max(1, 2 * ni - 3));
   if (!std::isfinite(r.residual_chi2) || r.residual_chi2 > r.residual_bound) {
     r.verdict = AlignmentVerdict::kResidualsTooLarge;
     return;

@@ -40,15 +40,18 @@ struct AlignmentOptions {
   double side_tolerance_sigmas = 3.0;   // sorted sides: sides may differ by this many sigmas ...
   double min_side_tolerance_m = 0.1;    // ... and at least this much (SLAM covariances are often optimistic)
   double min_side_m = 0.3;              // triangles with a shorter side are not used
-  int min_consistent_triangles = 2;     // sorted sides: a match counts only in a patch of this many adjacent, consistent matches
+  int min_consistent_triangles = 2;     // sorted sides: a match counts only in a patch of this many adjacent,
+                                        // consistent matches
   int patch_stop_triangles = 12;        // sorted sides: once a patch this large is found ...
-  int seeds_after_patch = 100;          // ... this many more seed triangles look for a competitor, then the search stops
+  int seeds_after_patch = 100;          // ... this many more seed triangles look for a competitor, then the
+                                        // search stops
   double patch_keep_ratio = 0.25;       // patches smaller than this share of the largest are dropped
   double thesis_tau = 1.6487;           // thesis similarity threshold (exp(0.5))
   ConsensusDistance distance = ConsensusDistance::kMahalanobis;
   double euclidean_gate_m = 2.0;        // Euclidean consensus gate (thesis default)
   double gate_probability = 0.99;       // Mahalanobis consensus: chi-square 2 dof quantile
-  double success_probability = 0.999;   // RANSAC stops when an all-inlier sample was drawn with this probability (eq. 63)
+  double success_probability = 0.999;   // RANSAC stops when an all-inlier sample was drawn with this probability
+                                        // (eq. 63)
   int max_iterations = 5000;
   int min_inliers = 6;                  // fewer inliers: rejected
   double residual_probability = 0.999;  // chi-square test on the inliers' residuals ...
@@ -96,7 +99,8 @@ struct AlignmentResult {
   int usable_a = 0, usable_b = 0;                   // landmarks with finite means and valid covariances
   int triangles_a = 0, triangles_b = 0;
   int candidates = 0;
-  int best_patch = 0, patches = 0;                  // sorted sides: largest patch of consistent triangle matches, patches kept
+  int best_patch = 0, patches = 0;                  // sorted sides: largest patch of consistent triangle matches,
+                                                    // patches kept
   int iterations = 0;
   int best_support = 0;                             // RANSAC consensus of the best hypothesis (candidates)
   int runner_up_support = 0;                        // ... of the best hypothesis different from it

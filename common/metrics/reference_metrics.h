@@ -14,7 +14,8 @@
 namespace mapmesh {
 
 struct ReferenceQuality {
-  bool aligned = false;        // the map's frame in the reference's is known (aligned, or given); nothing else is set otherwise
+  bool aligned = false;        // the map's frame in the reference's is known (aligned, or given); nothing else is
+                               // set otherwise
   Pose2 to_reference;          // the map's frame in the reference's
   int landmarks = 0;           // in the map
   int reference_landmarks = 0;

@@ -17,9 +17,11 @@
 namespace mapmesh {
 
 struct CekfOptions {
-  double region_half_m = 5.0;  // agent.region_half_m: a switch happens when the robot is this far (inf-norm) from the region centre
-  double reach_m = 0.0;        // agent.region_reach_m: active landmarks lie within region_half_m + reach_m (inf-norm) of it;
-                               // 0: the sensor's range plus 4 m (LocalSlamOptions::ForSensor), which CekfSlam requires resolved
+  double region_half_m = 5.0;  // agent.region_half_m: a switch happens when the robot is this far (inf-norm) from the
+                               // region centre
+  double reach_m = 0.0;        // agent.region_reach_m: active landmarks lie within region_half_m + reach_m (inf-norm)
+                               // of it; 0: the sensor's range plus 4 m (LocalSlamOptions::ForSensor), which CekfSlam
+                               // requires resolved
 
   // Reads its keys of the scenario's agent section (docs/SCENARIOS.md).
   template <typename Reader>

@@ -30,7 +30,8 @@ inline constexpr ChoiceTable<AssociationMethod, 4> kAssociationMethods{{{Associa
 struct AssociationOptions {
   AssociationMethod method = AssociationMethod::kAuto;  // agent.association
   double gate_probability = 0.99;    // agent.gate_probability: individual and joint compatibility, chi-square quantile
-  double new_landmark_chi2 = 13.82;  // agent.new_landmark_chi2: farther than this (2 dof, 99.9 %) from every candidate: new
+  double new_landmark_chi2 = 13.82;  // agent.new_landmark_chi2: farther than this (2 dof, 99.9 %) from every
+                                     // candidate: new
   long max_jcbb_nodes = 200000;      // JCBB keeps the best hypothesis found within this many nodes
 
   // The method for a sensor that does (or does not) report signatures: kAuto resolved.

@@ -22,13 +22,15 @@ struct SensorSpec {
 };
 
 struct LocalSlamOptions {
-  SlamMethod filter = SlamMethod::kCekf;  // agent.slam (LocalSlam runs kCekf or kEkf; kDeadReckoning is the baseline mapper)
+  SlamMethod filter = SlamMethod::kCekf;  // agent.slam (LocalSlam runs kCekf or kEkf; kDeadReckoning is the
+                                          // baseline mapper)
   AssociationOptions association;
   EkfOptions ekf;                       // linearisation, of either filter
   CekfOptions cekf;
   bool tentative = false;               // agent.tentative: a new landmark enters the map only when seen twice
   double tentative_gate_m = 1.0;        // agent.tentative_gate_m: a second sighting lands within this of the first
-  double tentative_timeout_s = 30.0;    // agent.tentative_timeout_s: tentative landmarks not seen again by then are forgotten
+  double tentative_timeout_s = 30.0;    // agent.tentative_timeout_s: tentative landmarks not seen again by then
+                                        // are forgotten
   double min_range_m = 0.0;             // agent.min_range_m: observations outside [min, max] range are dropped
   double max_range_m = 0.0;             // agent.max_range_m; 0: the sensor's max range plus 5 sigma (ForSensor;
                                         // LocalSlam given 0 applies no limit)
