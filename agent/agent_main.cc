@@ -87,7 +87,8 @@ void LogPeerEvents(const AgentNode& node, std::map<PeerKey, PeerReport>& last) {
     const PeerReport before = last.count(p.key) ? last[p.key] : PeerReport{};
     last[p.key] = p;
     const double t = node.processed_until();
-    const std::string who = fmt::format("peer {}.{}{}", p.key.robot, p.key.incarnation, p.own_checkpoint ? " (own checkpoint)" : "");
+    const std::string who = fmt::format("peer {}.{}{}", p.key.robot, p.key.incarnation,
+                                        p.own_checkpoint ? " (own checkpoint)" : "");
     if (p.replaced > before.replaced) {
       spdlog::info("t={:.1f}s {}: frozen; re-placed where peer {}'s relay puts its landmarks", t, who, p.refuted_by);
     } else if (p.refuted > before.refuted) {
@@ -96,8 +97,9 @@ void LogPeerEvents(const AgentNode& node, std::map<PeerKey, PeerReport>& last) {
       spdlog::info("t={:.1f}s {}: alignment dropped after {} failed verifications", t, who, before.failures + 1);
     }
     if (p.aligned && (!before.aligned || p.corrections > before.corrections)) {
-      spdlog::info("t={:.1f}s {}: {} at ({:.2f} m, {:.2f} m, {:.2f} deg){}", t, who, before.aligned ? "realigned" : "aligned",
-                   p.to_own.x, p.to_own.y, RadToDeg(p.to_own.theta), p.relayed ? ", relaying its global map" : "");
+      spdlog::info("t={:.1f}s {}: {} at ({:.2f} m, {:.2f} m, {:.2f} deg){}", t, who,
+                   before.aligned ? "realigned" : "aligned", p.to_own.x, p.to_own.y, RadToDeg(p.to_own.theta),
+                   p.relayed ? ", relaying its global map" : "");
     }
   }
 }
@@ -111,11 +113,14 @@ class InputWatch {
     if (now < next_) return;
     const AgentStats& s = node.stats();
     const SyncStats& y = node.sync_stats();
-    const std::map<std::string, std::uint64_t> counts = {
-        {"peer maps refused", s.MapsRefused()},      {"peer maps malformed", s.MapsRejected()},
-        {"link tables refused", s.links_refused},    {"odometry implausible", y.odom_implausible},
-        {"scans implausible", y.scans_implausible},  {"odometry lost", y.odometry_lost},
-        {"scans lost", y.scans_lost},                {"own maps not encodable", s.maps_encode_failed}};
+    const std::map<std::string, std::uint64_t> counts = {{"peer maps refused", s.MapsRefused()},
+                                                         {"peer maps malformed", s.MapsRejected()},
+                                                         {"link tables refused", s.links_refused},
+                                                         {"odometry implausible", y.odom_implausible},
+                                                         {"scans implausible", y.scans_implausible},
+                                                         {"odometry lost", y.odometry_lost},
+                                                         {"scans lost", y.scans_lost},
+                                                         {"own maps not encodable", s.maps_encode_failed}};
     std::string what;
     for (const auto& [name, n] : counts) {
       const std::uint64_t before = last_.count(name) ? last_[name] : 0;
@@ -140,7 +145,8 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
     rejected[std::string(ToString(static_cast<MapDecodeError>(i)))] = s.maps_rejected[i];
   }
   json refused = json::object();
-  for (int i = 0; i < kMapRefusalCount; ++i) refused[std::string(ToString(static_cast<MapRefusal>(i)))] = s.maps_refused[i];
+  for (int i = 0; i < kMapRefusalCount; ++i)
+    refused[std::string(ToString(static_cast<MapRefusal>(i)))] = s.maps_refused[i];
   const Pose2 pose = node.Pose();
   const AgentStatus status = node.Status();
   json j = s;
@@ -204,9 +210,7 @@ void WriteOutputs(const AgentNode& node, const std::string& dir, const std::map<
                        {"poses", poses}});
 }
 
-double WallNow() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
+double WallNow() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
 
 int Run(int argc, char** argv) {
   tp::ShutdownSignal shutdown;  // first: block SIGINT/SIGTERM before any thread starts
@@ -222,8 +226,9 @@ int Run(int argc, char** argv) {
   cli.add_option("--out", out_dir, "directory for the final maps and stats (default agent_<id>)");
   cli.add_option("--incarnation", incarnation, "number identifying this start of the agent");
   bool resume = false;
-  cli.add_flag("--resume", resume,
-               "restart from OUT/checkpoint.json: re-merge what the earlier incarnation knew (it starts a new map frame)");
+  cli.add_flag(
+      "--resume", resume,
+      "restart from OUT/checkpoint.json: re-merge what the earlier incarnation knew (it starts a new map frame)");
   if (auto code = app::ParseArgs(cli, "mapmesh-agent", argc, argv)) return *code;
   app::SetupLogging("agent " + std::to_string(id), po.log_level);
   if (out_dir.empty()) out_dir = "agent_" + std::to_string(id);
@@ -232,8 +237,7 @@ int Run(int argc, char** argv) {
   if (!loaded) return 2;
   const Scenario& scenario = *loaded;
   if (!scenario.FindRobot(static_cast<RobotId>(id))) {
-    std::fprintf(stderr, "mapmesh-agent: %s: robots: no robot with id %d in this run\n",
-                 po.scenario_path.c_str(), id);
+    std::fprintf(stderr, "mapmesh-agent: %s: robots: no robot with id %d in this run\n", po.scenario_path.c_str(), id);
     return 2;
   }
 
@@ -280,8 +284,8 @@ int Run(int argc, char** argv) {
   waitset.AttachReader(maps.raw(), 4);
   waitset.AttachGuard(stop, 5);
   shutdown.Watch(&stop);
-  spdlog::info("up: scenario {} domain {} config {} incarnation {}", scenario.name, po.domain,
-               session.config_used(), incarnation);
+  spdlog::info("up: scenario {} domain {} config {} incarnation {}", scenario.name, po.domain, session.config_used(),
+               incarnation);
 
   // Status also goes out on a wall-clock beat: the feeder learns we exist before any data,
   // and a lost best-effort status never stalls lockstep for long.
@@ -319,8 +323,9 @@ int Run(int argc, char** argv) {
     std::size_t left_out = 0;
     io::WriteJsonAtomic(checkpoint_path, io::CheckpointToJson(node.Checkpoint(&left_out)));
     if (left_out > 0 && !warned_left_out) {
-      spdlog::warn("checkpoint: {} oldest earlier incarnations never re-merged are left out (a checkpoint holds {} at most)",
-                   left_out, io::CheckpointLimits{}.max_earlier);
+      spdlog::warn(
+          "checkpoint: {} oldest earlier incarnations never re-merged are left out (a checkpoint holds {} at most)",
+          left_out, io::CheckpointLimits{}.max_earlier);
       warned_left_out = true;
     }
   };

@@ -60,8 +60,8 @@ double AgentStats::BytesPerLandmark() const {
 }
 
 std::uint32_t AgentStats::MapsDropped() const {
-  return maps_out_of_range + maps_lost + maps_over_bandwidth + maps_unknown_sender + maps_stale_version + MapsRejected() +
-         MapsRefused();
+  return maps_out_of_range + maps_lost + maps_over_bandwidth + maps_unknown_sender + maps_stale_version +
+         MapsRejected() + MapsRefused();
 }
 
 AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId self, std::uint32_t incarnation,
@@ -101,9 +101,8 @@ void AgentNode::AfterInterval(const Odometry& odom) {
   }
   if (sync_.processed_until() + 1e-9 >= next_map_publish_s_) {
     PublishMaps();
-    next_map_publish_s_ =
-        (std::floor(sync_.processed_until() / options_.exchange.map_publish_period_s + 1e-9) + 1.0) *
-        options_.exchange.map_publish_period_s;
+    next_map_publish_s_ = (std::floor(sync_.processed_until() / options_.exchange.map_publish_period_s + 1e-9) + 1.0) *
+                          options_.exchange.map_publish_period_s;
   }
   bool status_due = odom.sync;
   if (sync_.processed_until() + 1e-9 >= next_status_s_) {
@@ -183,7 +182,8 @@ void AgentNode::OnMap(const MapMessage& msg) {
   stats_.bytes_received += WireBytes(msg);
   // A map larger than we will align is refused before it is decoded (kept within the codec's
   // own limit, so that a malformed count is still reported as such).
-  if (const auto n = MapPayloadCount(msg.payload); n && *n <= kMapCodecMaxLandmarks && *n > options_.peer_limits.max_landmarks) {
+  if (const auto n = MapPayloadCount(msg.payload);
+      n && *n <= kMapCodecMaxLandmarks && *n > options_.peer_limits.max_landmarks) {
     return refuse(MapRefusal::kTooManyLandmarks);
   }
   MapDecodeResult decoded = DecodeMap(msg.payload);
@@ -220,7 +220,8 @@ bool AgentNode::OnPeerLiveliness(RobotId robot, bool alive) {
 
 void AgentNode::Resume(const AgentCheckpoint& c) {
   const auto add = [this](const IncarnationSnapshot& s) {
-    MAPMESH_CHECK(s.robot == self_ && s.incarnation != incarnation_, "a checkpoint not validated by io::LoadCheckpoint");
+    MAPMESH_CHECK(s.robot == self_ && s.incarnation != incarnation_,
+                  "a checkpoint not validated by io::LoadCheckpoint");
     exchange_.AddOwnCheckpoint(s.incarnation, s.origin_stamp, s.local, s.global);
   };
   add(c);

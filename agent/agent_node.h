@@ -36,8 +36,8 @@ class AgentOutput {
 // What an agent knows of its run besides its own options (agent/agent_setup.h derives it from
 // a scenario).
 struct AgentRun {
-  std::vector<RobotId> robots;         // the robots of this run; maps from others are rejected
-  std::uint64_t seed = 1;              // the run's seed (the agent's generators derive theirs from it)
+  std::vector<RobotId> robots;  // the robots of this run; maps from others are rejected
+  std::uint64_t seed = 1;       // the run's seed (the agent's generators derive theirs from it)
   double end_s = std::numeric_limits<double>::infinity();  // no stamp of the run comes after this plus
                                                            // max_stamp_jump_s (infinite: a dataset replayed whole)
   double trajectory_period_s = 0.5;    // how often the estimated pose is recorded (feeder.truth_period_s)
@@ -71,21 +71,21 @@ std::string_view ToString(MapRefusal r);
 struct AgentStats {
   std::uint32_t maps_sent = 0;
   std::uint64_t bytes_sent = 0;
-  std::uint32_t maps_received = 0;      // passed the radio gate and decoded
-  std::uint64_t bytes_received = 0;     // of messages that passed the radio gate
+  std::uint32_t maps_received = 0;   // passed the radio gate and decoded
+  std::uint64_t bytes_received = 0;  // of messages that passed the radio gate
   std::uint32_t maps_out_of_range = 0;
-  std::uint32_t maps_lost = 0;          // dropped by the radio loss model
-  std::uint32_t maps_over_bandwidth = 0; // arrived while the link was still busy
+  std::uint32_t maps_lost = 0;            // dropped by the radio loss model
+  std::uint32_t maps_over_bandwidth = 0;  // arrived while the link was still busy
   std::uint32_t maps_unknown_sender = 0;
   std::array<std::uint32_t, kMapDecodeErrorCount> maps_rejected{};  // by MapDecodeError
-  std::uint32_t maps_stale_version = 0; // not newer than one already received from that sender
+  std::uint32_t maps_stale_version = 0;                        // not newer than one already received from that sender
   std::array<std::uint32_t, kMapRefusalCount> maps_refused{};  // by MapRefusal
-  std::uint32_t maps_encode_failed = 0; // own maps that could not be encoded (never sent) ...
-  MapDecodeError last_encode_error = MapDecodeError::kOk;  // ... the last time, why
+  std::uint32_t maps_encode_failed = 0;                        // own maps that could not be encoded (never sent) ...
+  MapDecodeError last_encode_error = MapDecodeError::kOk;      // ... the last time, why
   std::uint32_t maps_encode_trimmed = 0;  // own maps sent without landmarks beyond the codec's bound
-  std::uint32_t links_refused = 0;      // link tables with implausible stamps
-  std::uint64_t landmarks_sent = 0;     // over all maps sent
-  std::uint64_t payload_bytes_sent = 0; // their encoded payloads
+  std::uint32_t links_refused = 0;        // link tables with implausible stamps
+  std::uint64_t landmarks_sent = 0;       // over all maps sent
+  std::uint64_t payload_bytes_sent = 0;   // their encoded payloads
   std::map<RobotId, std::uint32_t> maps_received_from;
   std::uint32_t MapsRejected() const;
   // Encoded bytes per landmark sent (header included), 0 before anything was sent.

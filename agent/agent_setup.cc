@@ -23,8 +23,7 @@ AgentRun AgentRunFor(const Scenario& sc, RobotId self) {
   run.noise.motion = motion;
   const double sigma_turn = motion.kind == MotionModel::Kind::kAckermann ? robot->motion.sigma_steering_rad
                                                                          : robot->motion.sigma_w_radps;
-  run.noise.control_cov =
-      Eigen::Vector2d(std::pow(robot->motion.sigma_v_mps, 2), sigma_turn * sigma_turn).asDiagonal();
+  run.noise.control_cov = Eigen::Vector2d(std::pow(robot->motion.sigma_v_mps, 2), sigma_turn * sigma_turn).asDiagonal();
   run.noise.control_period_s = sc.world.control_period_s;
   run.noise.obs_cov = Eigen::Vector2d(std::pow(robot->sensor.sigma_range_m, 2),
                                       std::pow(DegToRad(robot->sensor.sigma_bearing_deg), 2))

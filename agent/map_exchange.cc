@@ -20,7 +20,8 @@ MapExchange::Receipt MapExchange::OnPeerMap(RobotId robot, std::uint32_t incarna
     const std::uint32_t last = kind == MapKind::kLocal ? known.local_version : known.global_version;
     const double heard = kind == MapKind::kLocal ? known.local_heard : known.global_heard;
     if (has && version <= last) return Receipt::kStaleVersion;
-    if (has && version - last > options_.version_slack + rate * std::max(0.0, now - heard)) return Receipt::kVersionJump;
+    if (has && version - last > options_.version_slack + rate * std::max(0.0, now - heard))
+      return Receipt::kVersionJump;
   } else if (!MakeRoomFor(robot, now)) {
     return Receipt::kTooManyIncarnations;
   }
@@ -50,7 +51,8 @@ MapExchange::Receipt MapExchange::OnPeerMap(RobotId robot, std::uint32_t incarna
 
 bool MapExchange::MakeRoomFor(RobotId robot, double now) {
   std::vector<PeerStates::iterator> kept;
-  for (auto it = peers_.lower_bound({robot, 0}); it != peers_.end() && it->first.robot == robot; ++it) kept.push_back(it);
+  for (auto it = peers_.lower_bound({robot, 0}); it != peers_.end() && it->first.robot == robot; ++it)
+    kept.push_back(it);
   if (static_cast<int>(kept.size()) < options_.max_incarnations) return true;
   // Evict the incarnation heard longest ago among those that never contributed and can no
   // longer speak; one that did contribute stays (nothing learned is lost).
@@ -131,12 +133,14 @@ bool MapExchange::Align(PeerState& p, const LandmarkMap& own_local, double now, 
   p.changed = false;
   if (!r.accepted()) return false;
   const Eigen::Vector2d at = Centroid(theirs);
-  if (std::any_of(p.refuted.begin(), p.refuted.end(), [&](const Pose2& t) { return relay_.Agree(t, r.transform, at); })) {
+  if (std::any_of(p.refuted.begin(), p.refuted.end(),
+                  [&](const Pose2& t) { return relay_.Agree(t, r.transform, at); })) {
     ++p.report.refuted_answers;
     return false;
   }
   // An answer is used once a second, later one agrees with it (or with the transform in use).
-  const bool confirmed = !options_.test_only.confirm_alignments || (p.report.aligned && relay_.Agree(p.report.to_own, r.transform, at)) ||
+  const bool confirmed = !options_.test_only.confirm_alignments ||
+                         (p.report.aligned && relay_.Agree(p.report.to_own, r.transform, at)) ||
                          (p.candidate && relay_.Agree(*p.candidate, r.transform, at));
   if (!confirmed) {
     p.candidate = r.transform;
@@ -165,7 +169,8 @@ bool MapExchange::Grew(std::size_t size, std::size_t at_attempt) const {
 bool MapExchange::RealignDue(const PeerState& p, const LandmarkMap& own_local, double now) const {
   // A stale peer's contribution stays as it was verified (its map will not change). A silent
   // one's may still be corrected, by a confirmed answer (a move, never a removal).
-  if (!options_.test_only.realign_on_growth || p.report.stale || now - p.last_attempt < options_.align_period_s) return false;
+  if (!options_.test_only.realign_on_growth || p.report.stale || now - p.last_attempt < options_.align_period_s)
+    return false;
   // A realignment that disagreed with the transform in use waits for a second, later answer to
   // confirm it: that one is due as soon as either map has changed, as for a first alignment, not
   // only after the next fifth of growth (which may never come).
@@ -233,8 +238,9 @@ void MapExchange::ChooseSource(PeerState& p, const LandmarkMap& own_local, bool 
     if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
       const AlignmentResult g = VerifyAlignment(own_local, p.global, s.to_own, options_.align);
       if (g.accepted() && relay_.Agree(g.transform, s.to_own, Centroid(p.global))) {
-        const std::optional<PeerKey> conflict =
-            options_.test_only.relay_must_agree ? relay_.FirstConflict(peers_, p, s.to_own) : std::nullopt;
+        const std::optional<PeerKey> conflict = options_.test_only.relay_must_agree
+                                                    ? relay_.FirstConflict(peers_, p, s.to_own)
+                                                    : std::nullopt;
         if (!conflict) {
           p.report.relayed = true;
         } else if (RefuteByRelay(p, s.to_own, peers_.at(*conflict), own_local, now)) {
@@ -380,7 +386,8 @@ std::vector<MapExchange::Received> MapExchange::ReceivedMaps() const {
 std::vector<MapExchange::OwnEarlier> MapExchange::UnalignedOwnCheckpoints() const {
   std::vector<OwnEarlier> out;
   for (const auto& [key, p] : peers_) {
-    if (p.report.own_checkpoint && !p.source) out.push_back({key.incarnation, p.report.origin_stamp, p.local, p.global});
+    if (p.report.own_checkpoint && !p.source)
+      out.push_back({key.incarnation, p.report.origin_stamp, p.local, p.global});
   }
   return out;
 }

@@ -89,7 +89,9 @@ class MapInjector {
   };
   static MsgKey Key(const MapMessage& m) { return {m.robot_id, m.incarnation, m.version}; }
   // The faulty peer's maps 1, 2, 5, 6, 9, 10, ... are honest copies.
-  static bool IsHonest(const MapMessage& m) { return m.incarnation == kInjectFaultyIncarnation && m.version % 4 != 3 && m.version % 4 != 0; }
+  static bool IsHonest(const MapMessage& m) {
+    return m.incarnation == kInjectFaultyIncarnation && m.version % 4 != 3 && m.version % 4 != 0;
+  }
   std::optional<InjectedMessage> Make(const std::string& c, RobotId sender);
   std::optional<InjectedMessage> MakeHostile(const std::string& c, RobotId target);
   LandmarkMap RandomMap(int n);

@@ -27,37 +27,37 @@ struct PeerKey {
 // What the agent knows about one peer incarnation (for status, stats and tests).
 struct PeerReport {
   PeerKey key;
-  bool own_checkpoint = false;     // an earlier incarnation of this agent
-  double origin_stamp = 0.0;       // when the peer's frame was fixed
+  bool own_checkpoint = false;  // an earlier incarnation of this agent
+  double origin_stamp = 0.0;    // when the peer's frame was fixed
   int local_landmarks = 0, global_landmarks = 0;
-  bool aligned = false;            // currently contributes with a verified alignment
+  bool aligned = false;  // currently contributes with a verified alignment
   bool ever_aligned = false;
-  bool dropped = false;            // was aligned, stopped verifying
-  bool stale = false;              // its writer is gone (liveliness)
+  bool dropped = false;  // was aligned, stopped verifying
+  bool stale = false;    // its writer is gone (liveliness)
   double stale_since = 0.0;
-  bool frozen = false;             // can no longer speak (stale, or an own checkpoint): kept as it is
-  bool silent = false;             // frozen, or no map for silent_after_s
-  double last_heard = 0.0;         // scenario time of its last map (ours, when it arrived)
-  double aligned_since = 0.0;      // scenario time of the first acceptance
-  Pose2 to_own;                    // the peer's frame in ours
+  bool frozen = false;         // can no longer speak (stale, or an own checkpoint): kept as it is
+  bool silent = false;         // frozen, or no map for silent_after_s
+  double last_heard = 0.0;     // scenario time of its last map (ours, when it arrived)
+  double aligned_since = 0.0;  // scenario time of the first acceptance
+  Pose2 to_own;                // the peer's frame in ours
   Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();
-  bool relayed = false;            // its global map is fused (not its local map)
-  int relay_conflicts = 0;         // times its global map disagreed with another peer's map (not relayed then)
-  int refuted = 0;                 // times our alignment of it lost to a relay's placement (then dropped, or re-placed
-                                   // when frozen) ...
-  int replaced = 0;                // ... of which it was frozen and moved to the relay's placement ...
-  bool superseded = false;         // ... and that relay, used now, brings its landmarks (its own copy is left out)
-  RobotId refuted_by = 0;          // ... the last time, to this peer's relay
-  int refuted_answers = 0;         // alignments refused for agreeing with a refuted one
+  bool relayed = false;     // its global map is fused (not its local map)
+  int relay_conflicts = 0;  // times its global map disagreed with another peer's map (not relayed then)
+  int refuted = 0;          // times our alignment of it lost to a relay's placement (then dropped, or re-placed
+                            // when frozen) ...
+  int replaced = 0;         // ... of which it was frozen and moved to the relay's placement ...
+  bool superseded = false;  // ... and that relay, used now, brings its landmarks (its own copy is left out)
+  RobotId refuted_by = 0;   // ... the last time, to this peer's relay
+  int refuted_answers = 0;  // alignments refused for agreeing with a refuted one
   Eigen::Vector2d centroid = Eigen::Vector2d::Zero();  // of the peer map aligned last, in its frame
   int attempts = 0, verifications = 0;
-  int unconfirmed = 0;             // accepted alignments not (yet) confirmed by a later one
-  int failures = 0;                // consecutive failed verifications (reset by a success)
-  int rejected = 0;                // failed verifications in all
-  int drops = 0;                   // times the alignment was dropped
-  int realignments = 0;            // fresh alignments of an aligned peer (realign_on_growth) ...
-  int corrections = 0;             // ... that replaced a transform they disagreed with
-  int refinements = 0;             // transforms refined on our newer own map alone (refine_period_s)
+  int unconfirmed = 0;   // accepted alignments not (yet) confirmed by a later one
+  int failures = 0;      // consecutive failed verifications (reset by a success)
+  int rejected = 0;      // failed verifications in all
+  int drops = 0;         // times the alignment was dropped
+  int realignments = 0;  // fresh alignments of an aligned peer (realign_on_growth) ...
+  int corrections = 0;   // ... that replaced a transform they disagreed with
+  int refinements = 0;   // transforms refined on our newer own map alone (refine_period_s)
   AlignmentVerdict last_verdict = AlignmentVerdict::kTooFewLandmarks;
 };
 
@@ -67,16 +67,16 @@ struct PeerState {
   bool has_local = false, has_global = false;
   std::uint32_t local_version = 0, global_version = 0;
   double local_heard = 0.0, global_heard = 0.0;  // when the last map of each kind arrived
-  bool changed = false;            // a map arrived since the last attempt or verification
+  bool changed = false;                          // a map arrived since the last attempt or verification
   double last_attempt = -1e300;
-  double last_refine = -1e300;     // last alignment, verification or refinement against our map
+  double last_refine = -1e300;  // last alignment, verification or refinement against our map
   std::size_t own_size_at_attempt = 0, peer_size_at_attempt = 0;
   // What the global map takes from this peer.
   std::optional<MapSource> source;
-  std::optional<MapSource> direct;  // ... and the one-hop map (never a relayed global map)
-  std::optional<Pose2> candidate;   // an accepted alignment awaiting confirmation
-  std::vector<Pose2> refuted;       // alignments that lost to a relay's placement
-  std::optional<PeerKey> superseded_by;  // frozen, re-placed by this relay (see MapExchange::Update)
+  std::optional<MapSource> direct;              // ... and the one-hop map (never a relayed global map)
+  std::optional<Pose2> candidate;               // an accepted alignment awaiting confirmation
+  std::vector<Pose2> refuted;                   // alignments that lost to a relay's placement
+  std::optional<PeerKey> superseded_by;         // frozen, re-placed by this relay (see MapExchange::Update)
   std::map<PeerKey, double> last_refute_check;  // by relay: when its placement of this peer was last weighed
 
   // The map aligned: the peer's local map, or its global map when it sent no local one.

@@ -24,9 +24,9 @@
 namespace mapmesh {
 
 struct RadioGateOptions {
-  double loss_probability = 0.0;      // chance that a message in range is dropped anyway
-  double bandwidth_bytes_per_s = 0.0; // per link; 0 means unlimited
-  double max_stamp_jump_s = 20.0;     // a table this far ahead of our time and the last table is held (see above)
+  double loss_probability = 0.0;       // chance that a message in range is dropped anyway
+  double bandwidth_bytes_per_s = 0.0;  // per link; 0 means unlimited
+  double max_stamp_jump_s = 20.0;      // a table this far ahead of our time and the last table is held (see above)
   double max_stamp_s = std::numeric_limits<double>::infinity();  // no table is stamped after this (the run's end)
 };
 

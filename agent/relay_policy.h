@@ -35,7 +35,8 @@ class RelayPolicy {
     int supporters = 0;  // maps that overlap it and agree ...
     int inliers = 0;     // ... with this many matched landmarks in all
   };
-  Evidence Weigh(const PeerStates& peers, const PeerState& q, const Pose2& placement, const LandmarkMap& own_local) const;
+  Evidence Weigh(const PeerStates& peers, const PeerState& q, const Pose2& placement,
+                 const LandmarkMap& own_local) const;
   // p's relay (at to_own) and our alignment of q place q differently. Returns the relay's
   // placement of q (its covariance including p's) when the evidence refutes our alignment: the
   // relay's placement is better supported, or ours is opposed more than supported. A frozen q

@@ -31,22 +31,22 @@
 namespace mapmesh {
 
 struct SyncStats {
-  std::uint32_t odom_received = 0;      // every odometry message handed in
+  std::uint32_t odom_received = 0;  // every odometry message handed in
   std::uint32_t odom_processed = 0;
-  std::uint32_t odom_rejected = 0;      // non-finite values, dt <= 0, or stamp going backwards
-  std::uint32_t odom_implausible = 0;   // stamp beyond the run's end, or a jump nothing continued
-  std::uint32_t odometry_lost = 0;          // never arrived: gaps in the sequence numbers
-  std::uint32_t odom_duplicate = 0;     // arrived again (sent again after a stall): ignored
-  std::uint32_t scans_received = 0;     // every scan handed in
-  std::uint32_t scans_implausible = 0;  // stamp beyond the run's end or the plausible window
-  std::uint32_t scans_lost = 0;         // never arrived: gaps in the sequence numbers
-  std::uint32_t scans_duplicate = 0;    // arrived again: ignored
-  std::uint32_t scans_processed = 0;    // applied (empty ones included: they are consumed)
-  std::uint32_t scans_empty = 0;        // of which carried no observation: nothing to apply
-  std::uint32_t scans_rejected = 0;     // non-finite stamp
-  std::uint32_t scans_before_start = 0; // joining a running stream: the first interval's scans
-  std::uint32_t scans_late = 0;         // arrived after their interval was processed
-  std::uint32_t scans_missing = 0;      // announced by odometry but never arrived
+  std::uint32_t odom_rejected = 0;       // non-finite values, dt <= 0, or stamp going backwards
+  std::uint32_t odom_implausible = 0;    // stamp beyond the run's end, or a jump nothing continued
+  std::uint32_t odometry_lost = 0;       // never arrived: gaps in the sequence numbers
+  std::uint32_t odom_duplicate = 0;      // arrived again (sent again after a stall): ignored
+  std::uint32_t scans_received = 0;      // every scan handed in
+  std::uint32_t scans_implausible = 0;   // stamp beyond the run's end or the plausible window
+  std::uint32_t scans_lost = 0;          // never arrived: gaps in the sequence numbers
+  std::uint32_t scans_duplicate = 0;     // arrived again: ignored
+  std::uint32_t scans_processed = 0;     // applied (empty ones included: they are consumed)
+  std::uint32_t scans_empty = 0;         // of which carried no observation: nothing to apply
+  std::uint32_t scans_rejected = 0;      // non-finite stamp
+  std::uint32_t scans_before_start = 0;  // joining a running stream: the first interval's scans
+  std::uint32_t scans_late = 0;          // arrived after their interval was processed
+  std::uint32_t scans_missing = 0;       // announced by odometry but never arrived
 };
 
 class SensorSync {
@@ -64,8 +64,8 @@ class SensorSync {
   };
 
   struct Options {
-    bool frame_at_first_landmark = true;   // agent.frame_at_first_landmark: see above
-    double max_stamp_jump_s = 20.0;        // stamps this far beyond the odometry received so far are implausible
+    bool frame_at_first_landmark = true;  // agent.frame_at_first_landmark: see above
+    double max_stamp_jump_s = 20.0;       // stamps this far beyond the odometry received so far are implausible
     double max_stamp_s = std::numeric_limits<double>::infinity();  // and any beyond this (the run's end)
 
     // Reads its keys of the scenario's agent section (docs/SCENARIOS.md); the stamp bounds
@@ -76,7 +76,8 @@ class SensorSync {
     }
   };
 
-  SensorSync(Sink& sink, const Options& options) : sink_(sink), options_(options), frame_fixed_(!options.frame_at_first_landmark) {}
+  SensorSync(Sink& sink, const Options& options)
+      : sink_(sink), options_(options), frame_fixed_(!options.frame_at_first_landmark) {}
   explicit SensorSync(Sink& sink, bool frame_at_first_landmark = false)
       : SensorSync(sink, Options{frame_at_first_landmark}) {}
 
@@ -108,10 +109,10 @@ class SensorSync {
   Sink& sink_;
   Options options_;
   bool frame_fixed_;
-  bool has_odom_ = false;            // some odometry was accepted ...
-  double last_odom_stamp_ = 0.0;     // ... the latest, pending ones included
+  bool has_odom_ = false;         // some odometry was accepted ...
+  double last_odom_stamp_ = 0.0;  // ... the latest, pending ones included
   std::uint32_t last_odom_seq_ = 0;
-  std::optional<Odometry> jump_;     // a jump beyond the window, until the next message tells
+  std::optional<Odometry> jump_;  // a jump beyond the window, until the next message tells
   bool has_scan_seq_ = false;
   std::uint32_t last_scan_seq_ = 0;
   // The last odometry messages taken and scans received (sequence number, stamp), to know one

@@ -24,7 +24,8 @@ std::vector<std::uint8_t> RandomPayload(int n) {
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(0.0, 200.0);
   LandmarkMap m;
-  for (int i = 0; i < n; ++i) m.landmarks.push_back({static_cast<std::uint32_t>(i), -1, {u(rng), u(rng)}, 0.01 * Eigen::Matrix2d::Identity()});
+  for (int i = 0; i < n; ++i)
+    m.landmarks.push_back({static_cast<std::uint32_t>(i), -1, {u(rng), u(rng)}, 0.01 * Eigen::Matrix2d::Identity()});
   return EncodeMap(m);
 }
 
@@ -33,7 +34,8 @@ void BM_AgentReceivesPeerMap(benchmark::State& state) {
   const Scenario sc = ParseScenario(R"(version: 1
 world: {landmarks: {list: [[5, 0], [0, 5]]}}
 robots: {list: [{id: 1, start: [0, 0, 0]}, {id: 2, start: [1, 0, 0]}]}
-)", "bench.yaml");
+)",
+                                    "bench.yaml");
   NullOutput out;
   AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
   node.OnLinks({0.0, {{1, 2}}});
@@ -49,7 +51,10 @@ robots: {list: [{id: 1, start: [0, 0, 0]}, {id: 2, start: [1, 0, 0]}]}
   state.counters["refused"] = static_cast<double>(node.stats().MapsRefused());
   state.counters["received"] = static_cast<double>(node.stats().maps_received);
 }
-BENCHMARK(BM_AgentReceivesPeerMap)->Arg(200)->Arg(static_cast<int>(kMapCodecMaxLandmarks))->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_AgentReceivesPeerMap)
+    ->Arg(200)
+    ->Arg(static_cast<int>(kMapCodecMaxLandmarks))
+    ->Unit(benchmark::kMicrosecond);
 
 // What decoding the 100 000-landmark map would cost (the agent does not).
 void BM_DecodeHugeMap(benchmark::State& state) {

@@ -1,8 +1,8 @@
 // mapmesh-bench: speed figures. Each is reported as a ratio against a baseline measured in
 // the same run (see docs/BENCHMARKS.md for the recorded figures and the command).
 
-#include <Eigen/LU>
 #include <benchmark/benchmark.h>
+#include <Eigen/LU>
 
 #include <memory>
 #include <type_traits>
@@ -11,10 +11,10 @@
 #include "common/merge/fusion.h"
 #include "common/merge/global_map.h"
 #include "common/merge/map_alignment.h"
-#include "lab/synthetic_maps.h"
 #include "common/slam/cekf_slam.h"
 #include "common/slam/ekf_slam.h"
 #include "common/slam/observation_model.h"
+#include "lab/synthetic_maps.h"
 #include "sim_feeder/simulator.h"
 
 namespace mapmesh {
@@ -103,7 +103,8 @@ std::unique_ptr<EkfSlam> MakeFilledFilter<EkfSlam>(int n) {
 
 template <>
 std::unique_ptr<CekfSlam> MakeFilledFilter<CekfSlam>(int n) {
-  auto f = std::make_unique<CekfSlam>(BenchNoise(), CekfOptions{5.0, 12.0}, EkfOptions{/*first_estimates_jacobians=*/false});
+  auto f = std::make_unique<CekfSlam>(BenchNoise(), CekfOptions{5.0, 12.0},
+                                      EkfOptions{/*first_estimates_jacobians=*/false});
   Fill(*f, n);
   f->Switch();  // settle, and make only the landmarks around the robot active
   return f;
@@ -157,8 +158,18 @@ void BM_Drive100Scans(benchmark::State& state) {
   }
   state.counters["landmarks"] = n;
 }
-BENCHMARK_TEMPLATE(BM_Drive100Scans, EkfSlam)->Arg(250)->Arg(1000)->Arg(2000)->Unit(benchmark::kMillisecond)->Iterations(1);
-BENCHMARK_TEMPLATE(BM_Drive100Scans, CekfSlam)->Arg(250)->Arg(1000)->Arg(2000)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK_TEMPLATE(BM_Drive100Scans, EkfSlam)
+    ->Arg(250)
+    ->Arg(1000)
+    ->Arg(2000)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+BENCHMARK_TEMPLATE(BM_Drive100Scans, CekfSlam)
+    ->Arg(250)
+    ->Arg(1000)
+    ->Arg(2000)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
 
 // The compressed filter's batch update and re-partition when the robot leaves its region.
 void BM_CekfSwitch(benchmark::State& state) {
@@ -207,7 +218,12 @@ void BM_AlignMaps(benchmark::State& state) {
   }
   state.counters["success"] = static_cast<double>(correct) / runs;
 }
-BENCHMARK(BM_AlignMaps)->Args({1000, 10})->Args({60, 50})->Unit(benchmark::kMillisecond)->Repetitions(5)->ReportAggregatesOnly(true);
+BENCHMARK(BM_AlignMaps)
+    ->Args({1000, 10})
+    ->Args({60, 50})
+    ->Unit(benchmark::kMillisecond)
+    ->Repetitions(5)
+    ->ReportAggregatesOnly(true);
 
 // The baseline: RANSAC over every landmark pair (no triangle pre-filter), same tests.
 void BM_AllPairsRansac(benchmark::State& state) {

@@ -7,16 +7,14 @@
 #include <cstdlib>
 
 namespace mapmesh::detail {
-[[noreturn]] inline void CheckFailed(const char* cond, const char* file, int line,
-                                     const char* msg) {
-  std::fprintf(stderr, "%s:%d: check failed: %s%s%s\n", file, line, cond, msg[0] ? ": " : "",
-               msg);
+[[noreturn]] inline void CheckFailed(const char* cond, const char* file, int line, const char* msg) {
+  std::fprintf(stderr, "%s:%d: check failed: %s%s%s\n", file, line, cond, msg[0] ? ": " : "", msg);
   std::abort();
 }
 }  // namespace mapmesh::detail
 
 // MAPMESH_CHECK(cond) or MAPMESH_CHECK(cond, "message").
-#define MAPMESH_CHECK(cond, ...)                                                     \
-  do {                                                                               \
+#define MAPMESH_CHECK(cond, ...)                                                            \
+  do {                                                                                      \
     if (!(cond)) ::mapmesh::detail::CheckFailed(#cond, __FILE__, __LINE__, "" __VA_ARGS__); \
   } while (0)

@@ -23,8 +23,8 @@ std::set<int> TrueIds(const LandmarkMap& map, const Pose2& origin, const std::ve
 }  // namespace
 
 HeldFromPeer CheckHeld(const LandmarkMap& own_local, const LandmarkMap& own_global, const Pose2& own_origin,
-                       const LandmarkMap& peer_map, const Pose2& peer_origin,
-                       const std::vector<Eigen::Vector2d>& truth, double gate_m) {
+                       const LandmarkMap& peer_map, const Pose2& peer_origin, const std::vector<Eigen::Vector2d>& truth,
+                       double gate_m) {
   HeldFromPeer h;
   const LandmarkMap theirs_alone = WithoutSignatures(peer_map);
   const Pose2 true_to_own = own_origin.Inverse() * peer_origin;

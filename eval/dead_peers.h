@@ -23,22 +23,22 @@ namespace mapmesh {
 inline constexpr int kAlignTries = 10;
 
 struct HeldFromPeer {
-  int landmarks = 0;       // true landmarks in the last map received from the peer
-  int aligned_tries = 0;   // of kAlignTries, the alignments of it to our final local map that find the
-                           // true transform (within 1 m at its centroid and 2 degrees)
+  int landmarks = 0;      // true landmarks in the last map received from the peer
+  int aligned_tries = 0;  // of kAlignTries, the alignments of it to our final local map that find the
+                          // true transform (within 1 m at its centroid and 2 degrees)
   bool alignable() const { return 2 * aligned_tries > kAlignTries; }
-  bool overlaps = false;   // it verifies against our final local map at the true transform
-  std::string verdict;     // ... the alignment's verdict there
-  int covered = 0;         // ... its landmarks laid on ground we mapped, and how many of them match
+  bool overlaps = false;  // it verifies against our final local map at the true transform
+  std::string verdict;    // ... the alignment's verdict there
+  int covered = 0;        // ... its landmarks laid on ground we mapped, and how many of them match
   int inliers = 0;
-  int held = 0;            // of its true landmarks, those our global map holds too
+  int held = 0;  // of its true landmarks, those our global map holds too
 };
 
 // own_local, own_global: the agent's final maps, in its frame, whose true pose is own_origin;
 // peer_map: the last local map received from the peer, in its frame (true pose peer_origin).
 // Landmarks are matched to the truth as the evaluation does (MatchToTruth within gate_m).
 HeldFromPeer CheckHeld(const LandmarkMap& own_local, const LandmarkMap& own_global, const Pose2& own_origin,
-                       const LandmarkMap& peer_map, const Pose2& peer_origin,
-                       const std::vector<Eigen::Vector2d>& truth, double gate_m);
+                       const LandmarkMap& peer_map, const Pose2& peer_origin, const std::vector<Eigen::Vector2d>& truth,
+                       double gate_m);
 
 }  // namespace mapmesh

@@ -25,12 +25,15 @@ using io::json;
 
 json QualityJson(const MapQuality& q) {
   if (!q.evaluated) {
-    return {{"landmarks", q.landmarks}, {"matched", nullptr}, {"rmse_m", nullptr}, {"nees_mean", nullptr},
+    return {{"landmarks", q.landmarks},    {"matched", nullptr},  {"rmse_m", nullptr}, {"nees_mean", nullptr},
             {"consistent_ratio", nullptr}, {"coverage", nullptr}, {"frame", "unknown"}};
   }
-  return {{"landmarks", q.landmarks},   {"matched", q.matched},
-          {"rmse_m", q.rmse_m},         {"nees_mean", q.nees_mean},
-          {"consistent_ratio", q.consistent_ratio}, {"coverage", q.coverage},
+  return {{"landmarks", q.landmarks},
+          {"matched", q.matched},
+          {"rmse_m", q.rmse_m},
+          {"nees_mean", q.nees_mean},
+          {"consistent_ratio", q.consistent_ratio},
+          {"coverage", q.coverage},
           {"frame", q.aligned ? "aligned" : "true_origin"}};
 }
 
@@ -72,8 +75,10 @@ json AlignmentErrors(const json& stats, const io::RunTruth& truth, const std::op
     }
     const std::optional<PlacementError> e = ScorePlacement(peer, *origin, true_pose, own_fit, peer_fit);
     if (!e) continue;
-    json entry = {{"trans_m", e->from_start.translation_m}, {"rot_rad", e->from_start.rotation_rad},
-                  {"incarnation", peer.incarnation}, {"own_checkpoint", p.value("own_checkpoint", false)}};
+    json entry = {{"trans_m", e->from_start.translation_m},
+                  {"rot_rad", e->from_start.rotation_rad},
+                  {"incarnation", peer.incarnation},
+                  {"own_checkpoint", p.value("own_checkpoint", false)}};
     if (e->from_fit) {
       entry["trans_fit_m"] = e->from_fit->translation_m;
       entry["rot_fit_rad"] = e->from_fit->rotation_rad;
@@ -99,8 +104,8 @@ json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::
     for (const char* kind : {"local", "global"}) {
       const std::string path = dir + "/" + snapshot + "_" + kind + ".json";
       if (snapshot.empty() || !std::filesystem::exists(path)) continue;
-      const MapQuality q =
-          EvaluateOwnFrameMap(io::MapFromJson(io::ReadJson(path)), truth.landmarks, truth.seen, origin, gate_m);
+      const MapQuality q = EvaluateOwnFrameMap(io::MapFromJson(io::ReadJson(path)), truth.landmarks, truth.seen, origin,
+                                               gate_m);
       line[kind] = QualityJson(q);
     }
     line.erase("snapshot");
@@ -114,7 +119,8 @@ json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::
 json DeadPeersJson(const json& stats, const LandmarkMap& global, const std::string& dir, const io::RunTruth& truth,
                    const std::optional<Pose2>& origin, double gate_m) {
   json out = json::array();
-  if (!stats.contains("peers") || !origin || !truth.headings_known || !std::filesystem::exists(dir + "/local_map.json")) {
+  if (!stats.contains("peers") || !origin || !truth.headings_known ||
+      !std::filesystem::exists(dir + "/local_map.json")) {
     return out;
   }
   const LandmarkMap own = io::MapFromJson(io::ReadJson(dir + "/local_map.json"));
@@ -127,11 +133,18 @@ json DeadPeersJson(const json& stats, const LandmarkMap& global, const std::stri
     if (!rt || !std::filesystem::exists(path)) continue;
     const std::optional<Pose2> peer_origin = rt->PoseAt(p.at("origin_stamp").get<double>());
     if (!peer_origin) continue;
-    const HeldFromPeer h =
-        CheckHeld(own, global, *origin, io::MapFromJson(io::ReadJson(path)), *peer_origin, truth.landmarks, gate_m);
-    out.push_back({{"robot", robot}, {"incarnation", inc}, {"landmarks", h.landmarks}, {"alignable", h.alignable()},
-                   {"aligned_tries", h.aligned_tries}, {"overlaps", h.overlaps},
-                   {"verdict", h.verdict}, {"covered", h.covered}, {"inliers", h.inliers}, {"held", h.held},
+    const HeldFromPeer h = CheckHeld(own, global, *origin, io::MapFromJson(io::ReadJson(path)), *peer_origin,
+                                     truth.landmarks, gate_m);
+    out.push_back({{"robot", robot},
+                   {"incarnation", inc},
+                   {"landmarks", h.landmarks},
+                   {"alignable", h.alignable()},
+                   {"aligned_tries", h.aligned_tries},
+                   {"overlaps", h.overlaps},
+                   {"verdict", h.verdict},
+                   {"covered", h.covered},
+                   {"inliers", h.inliers},
+                   {"held", h.held},
                    {"aligned", p.value("aligned", false)}});
   }
   return out;
@@ -195,7 +208,8 @@ int Run(int argc, char** argv) {
       if (!std::filesystem::exists(path)) continue;
       const LandmarkMap map = io::MapFromJson(io::ReadJson(path));
       const bool fitted = !origin && local_fit && std::string(kind) == "global";
-      entry[kind] = QualityJson(EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, fitted ? local_fit : origin, gate_m));
+      entry[kind] = QualityJson(EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, fitted ? local_fit : origin,
+                                                    gate_m));
       if (fitted) entry[kind]["frame"] = "local_map_fit";
       // The same map after a least-squares rigid fit to the truth, whatever its origin: the
       // error of its shape alone.
@@ -204,7 +218,8 @@ int Run(int argc, char** argv) {
       if (reference) {
         // The global map is in the local map's frame: it is placed where the local map aligned.
         const ReferenceQuality rq = CompareToReference(map, *reference, gate_m, AlignmentOptions{}, rng,
-                                                       std::string(kind) == "global" ? local_to_reference : std::nullopt);
+                                                       std::string(kind) == "global" ? local_to_reference
+                                                                                     : std::nullopt);
         if (std::string(kind) == "local" && rq.aligned) local_to_reference = rq.to_reference;
         entry[kind]["reference"] = ReferenceJson(rq);
         entry[kind]["reference"]["frame"] = std::string(kind) == "global" ? "local_map_alignment" : "alignment";
@@ -228,7 +243,8 @@ int Run(int argc, char** argv) {
       const MapQuality q = EvaluateOwnFrameMap(own, truth.landmarks, truth.seen, origin, gate_m);
       entry["global"]["rmse_own_landmarks_m"] = q.evaluated && q.matched > 0 ? json(q.rmse_m) : json();
       const std::optional<Pose2> own_fit = std::filesystem::exists(dir + "/local_map.json")
-                                               ? MapFrameInWorld(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks)
+                                               ? MapFrameInWorld(io::MapFromJson(io::ReadJson(dir + "/local_map.json")),
+                                                                 truth.landmarks)
                                                : std::nullopt;
       entry["alignment_errors"] = AlignmentErrors(stats, truth, origin, own_fit, run_dir);
       entry["dead_peers"] = DeadPeersJson(stats, map, dir, truth, origin, gate_m);
@@ -249,8 +265,8 @@ int Run(int argc, char** argv) {
           ref.push_back({s.t, {s.pose.x, s.pose.y}});
         }
       }
-      const TrajectoryError e =
-          origin ? CompareTrajectory(est, ref, false) : CompareTrajectory(est, DropImplausibleFixes(ref, 20.0), true);
+      const TrajectoryError e = origin ? CompareTrajectory(est, ref, false)
+                                       : CompareTrajectory(est, DropImplausibleFixes(ref, 20.0), true);
       entry["local"]["trajectory_rmse_m"] = e.samples > 0 ? json(e.rmse_m) : json();
       entry["local"]["trajectory_frame"] = origin ? "true_origin" : "aligned";
     }

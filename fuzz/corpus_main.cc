@@ -159,8 +159,8 @@ void MapSeeds(const fs::path& dir) {
   // Edge values: the coordinate bound, extreme and clamped sigmas, extreme correlations, ids.
   LandmarkMap edge;
   const double b = kMapCodecMaxCoordinateM;
-  const std::vector<std::array<double, 5>> rows = {{b, b, 1e-5, 1e-5, 0.0},   {-b, -b, 3.4e3, 3.4e3, 0.9999},
-                                                   {b, -b, 1e-9, 1e4, -0.9999}, {0, 0, 1e-5, 3.4e3, 1.0},
+  const std::vector<std::array<double, 5>> rows = {{b, b, 1e-5, 1e-5, 0.0},       {-b, -b, 3.4e3, 3.4e3, 0.9999},
+                                                   {b, -b, 1e-9, 1e4, -0.9999},   {0, 0, 1e-5, 3.4e3, 1.0},
                                                    {-0.0, 0.0005, 0.0, 0.0, 0.0}, {1e-3, -1e-3, 1, 1, -1.0}};
   for (std::size_t i = 0; i < rows.size(); ++i) {
     Landmark l;
@@ -249,15 +249,15 @@ void MapSeeds(const fs::path& dir) {
   add("raw-edge", raw(edge));
   LandmarkMap beyond = edge;
   beyond.landmarks[0].mean.x() = kMapCodecMaxCoordinateM + 0.0005;  // rounds beyond the bound
-  beyond.landmarks[1].cov(0, 1) = 1e300;                             // not PSD
+  beyond.landmarks[1].cov(0, 1) = 1e300;                            // not PSD
   add("raw-invalid", raw(beyond));
 
   WriteDict(dir.parent_path() / "map_decoder.dict",
             {std::string("MM\x02\x00", 4), std::string("\xff\xff", 2), std::string("\xfe\xff", 2),
              std::string("\xfe\x7f", 2), std::string("\xff\x7f", 2), std::string("\x01\x80", 2),
              std::string("\x00\x80", 2), std::string("\x00\x12\x7a\x00", 4), std::string("\x00\xee\x85\xff", 4),
-             std::string("\xa0\x86\x01\x00", 4), std::string("\x00\x00\xc0\x7f", 4),
-             std::string("\x00\x00\x80\x7f", 4), std::string("\xff\xff\x7f\x00", 3)});
+             std::string("\xa0\x86\x01\x00", 4), std::string("\x00\x00\xc0\x7f", 4), std::string("\x00\x00\x80\x7f", 4),
+             std::string("\xff\xff\x7f\x00", 3)});
 }
 
 IncarnationSnapshot Snapshot(std::uint32_t incarnation, std::size_t n, std::mt19937& rng) {
@@ -352,11 +352,13 @@ void CheckpointSeeds(const fs::path& dir, const fs::path& source_dir) {
   add("bad-utf8", "{\"robot\": \"\xff\xfe\"}");
 
   std::set<std::string> dict = KeyLiterals(source_dir / "common/io/checkpoint.cc");
+  // clang-format off
   for (const char* t : {"{", "}", "[", "]", ":", ",", "null", "true", "false", "-0.0", "1e308", "1e-320",
                         "18446744073709551615", "4294967295", "4294967296", "-2147483648", "2147483648",
                         "\"earlier\":[", "\"cov\":[1,0,1]", "\\u0000", "\"\\ud800\""}) {
     dict.insert(t);
   }
+  // clang-format on
   WriteDict(dir.parent_path() / "checkpoint.dict", dict);
 }
 
@@ -382,9 +384,8 @@ void ScenarioSeeds(const fs::path& dir, const fs::path& source_dir) {
                                            "#--set radio.range_m=30\n#--agents 3\n");
   Write(dir / "variant-set-map.yaml", circle + "#--set agent={slam: ekf, fusion: ci_det}\n");
   Write(dir / "variant-bad-set.yaml", circle + "#--set robots.list[5].id=9\n");
-  Write(dir / "variant-csv.yaml",
-        "version: 1\nworld:\n  landmarks:\n    csv: landmarks.csv\nrobots:\n  count: 2\n"
-        "  defaults:\n    path: {type: lawnmower, area_m: [0, 0, 20, 20], spacing_m: 4}\n");
+  Write(dir / "variant-csv.yaml", "version: 1\nworld:\n  landmarks:\n    csv: landmarks.csv\nrobots:\n  count: 2\n"
+                                  "  defaults:\n    path: {type: lawnmower, area_m: [0, 0, 20, 20], spacing_m: 4}\n");
   Write(dir / "variant-bad-csv.yaml", "version: 1\nworld: {landmarks: {csv: bad.csv}}\nrobots: {count: 1}\n");
   Write(dir / "variant-list.yaml",
         "version: 1\nseed: 7\nduration_s: 5\nworld:\n  landmarks:\n    list: [[0, 0], [1, 2], [3, -4]]\n"
@@ -398,20 +399,23 @@ void ScenarioSeeds(const fs::path& dir, const fs::path& source_dir) {
   Write(dir / "variant-park.yaml",
         "version: 1\nworld:\n  landmarks:\n    generator: {type: park, count: 50, area_m: [0, 0, 80, 60], paths: 3,"
         " path_width_m: 3, scatter_fraction: 0.1}\nrobots:\n  count: 3\n  defaults:\n    path: {type: park}\n");
-  Write(dir / "variant-anchors.yaml",
-        "version: 1\nworld:\n  landmarks:\n    list: &pts [[0, 0], [5, 5]]\nrobots:\n  list:\n"
-        "    - &r {id: 1, path: {type: waypoints, points: *pts}}\n    - id: 2\n      path: {type: waypoints, points: *pts}\n");
+  Write(
+      dir / "variant-anchors.yaml",
+      "version: 1\nworld:\n  landmarks:\n    list: &pts [[0, 0], [5, 5]]\nrobots:\n  list:\n"
+      "    - &r {id: 1, path: {type: waypoints, points: *pts}}\n    - id: 2\n      path: {type: waypoints, points: *pts}\n");
   Write(dir / "variant-empty.yaml", "");
   Write(dir / "variant-agents-only.yaml", "version: 1\nworld: {landmarks: {list: []}}\n#--agents 2\n");
 
   // Every key name and choice the docs list (the agent's keys are read in its modules' headers,
   // the others in the config sources; docs/SCENARIOS.md names them all, as a unit test checks).
   std::set<std::string> dict = DocumentedNames(source_dir / "docs/SCENARIOS.md");
+  // clang-format off
   for (const char* t : {": ", "- ", "{", "}", "[", "]", ", ", "\n  ", "&a ", "*a", "!!str ", "!!int ", "---\n",
                         "? ", "|\n", ">\n", "~", "null", "true", "1e308", ".inf", ".nan", "-0", "0x7fffffff",
                         "2147483647", "4294967296", "#--set ", "#--agents ", "landmarks.csv", "bad.csv"}) {
     dict.insert(t);
   }
+  // clang-format on
   WriteDict(dir.parent_path() / "scenario.dict", dict);
 }
 

@@ -6,9 +6,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <span>
 #include <unordered_set>
 #include <vector>
@@ -118,7 +118,8 @@ bool Encodable(const LandmarkMap& map) {
   for (const Landmark& l : map.landmarks) {
     if (!l.mean.allFinite() || !IsValidCovariance(l.cov) || !ids.insert(l.id).second) return false;
     const double bound_mm = kMapCodecMaxCoordinateM * 1000.0;
-    if (!(std::abs(std::round(l.mean.x() * 1000.0)) <= bound_mm && std::abs(std::round(l.mean.y() * 1000.0)) <= bound_mm)) {
+    if (!(std::abs(std::round(l.mean.x() * 1000.0)) <= bound_mm &&
+          std::abs(std::round(l.mean.y() * 1000.0)) <= bound_mm)) {
       return false;
     }
   }

@@ -69,8 +69,7 @@ std::string AlignCsvRow(const AlignTrial& t) {
   s << t.trial << ',' << t.landmarks_a << ',' << t.landmarks_b << ',' << t.shared << ',' << ToString(t.verdict) << ','
     << (t.correct ? 1 : 0) << ',' << t.translation_error_m << ',' << t.rotation_error_deg << ',' << t.candidates << ','
     << t.candidate_precision << ',' << t.inliers << ',' << t.inlier_precision << ',' << t.best_support << ','
-    << t.runner_up_support << ',' << t.match_ms << ','
-    << t.ransac_ms;
+    << t.runner_up_support << ',' << t.match_ms << ',' << t.ransac_ms;
   return s.str();
 }
 

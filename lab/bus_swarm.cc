@@ -150,8 +150,8 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
       r.global_quality = EvaluateOwnFrameMap(r.global.map, world.landmarks, result.seen, r.origin_truth);
     }
     const TruePoseAt true_pose = [&](RobotId robot, double t) { return TruthAt(truth[robot], t); };
-    const std::optional<Pose2> own_fit =
-        world.landmarks.empty() ? std::nullopt : MapFrameInWorld(r.local, world.landmarks);
+    const std::optional<Pose2> own_fit = world.landmarks.empty() ? std::nullopt
+                                                                 : MapFrameInWorld(r.local, world.landmarks);
     for (const PeerReport& p : r.peers) {
       if (!p.aligned || !r.origin_truth || !world.headings_known) continue;
       // The peer's map as the run ended, when it is this incarnation's.
@@ -160,9 +160,9 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
       if (own_fit && peer.alive && peer.incarnation == p.key.incarnation) {
         peer_fit = MapFrameInWorld(peer.node->LocalMap(), world.landmarks);
       }
-      const std::optional<PlacementError> e = ScorePlacement(
-          {p.key.robot, p.key.incarnation, p.to_own, p.centroid, p.origin_stamp}, *r.origin_truth, true_pose, own_fit,
-          peer_fit);
+      const std::optional<PlacementError> e = ScorePlacement({p.key.robot, p.key.incarnation, p.to_own, p.centroid,
+                                                              p.origin_stamp},
+                                                             *r.origin_truth, true_pose, own_fit, peer_fit);
       if (!e) continue;
       BusAgentResult::AlignmentError err{p.key, e->from_start.translation_m, e->from_start.rotation_rad};
       if (e->from_fit) {

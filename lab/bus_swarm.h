@@ -28,7 +28,7 @@ struct BusAgentResult {
   RobotId robot = 0;
   std::uint32_t incarnation = 0;
   bool alive_at_end = true;
-  std::optional<Pose2> origin_truth;        // true pose of its map frame
+  std::optional<Pose2> origin_truth;  // true pose of its map frame
   LandmarkMap local;
   GlobalMap global;
   std::vector<PeerReport> peers;
@@ -61,6 +61,5 @@ struct BusSwarmResult {
 };
 
 BusSwarmResult RunBusSwarm(const Scenario& scenario, const BusSwarmOptions& options);
-
 
 }  // namespace mapmesh::lab

@@ -383,7 +383,8 @@ std::string VictoriaPairsCsv(const std::vector<VictoriaPairResult>& pairs) {
   for (const auto& p : pairs) {
     s << p.a << ',' << p.b << ',' << ToString(p.verdict) << ',' << p.overlap << ',' << Num(p.nees_a) << ','
       << Num(p.nees_b);
-    for (std::size_t k = 0; k < columns; ++k) s << ',' << (k < p.merged_nees.size() ? Num(p.merged_nees[k].second) : "");
+    for (std::size_t k = 0; k < columns; ++k)
+      s << ',' << (k < p.merged_nees.size() ? Num(p.merged_nees[k].second) : "");
     s << '\n';
   }
   return s.str();

@@ -20,8 +20,8 @@
 namespace mapmesh::lab {
 
 struct FusionTrialOptions {
-  RobotId a = 1, b = 2;               // b's map is fused into a's global map
-  bool oracle_alignment = false;      // use the true transform (zero covariance) instead of aligning
+  RobotId a = 1, b = 2;           // b's map is fused into a's global map
+  bool oracle_alignment = false;  // use the true transform (zero covariance) instead of aligning
   AlignmentOptions align;
   std::vector<FusionMethod> methods{FusionMethod::kMaximumLikelihood, FusionMethod::kInformation,
                                     FusionMethod::kCiConstant, FusionMethod::kCiDeterminant, FusionMethod::kCiTrace};
@@ -45,12 +45,12 @@ struct MethodScore {
 
 struct FusionTrialResult {
   std::uint64_t seed = 0;
-  double value = 0.0;                     // the swept parameter
+  double value = 0.0;  // the swept parameter
   AlignmentVerdict verdict = AlignmentVerdict::kTooFewLandmarks;
-  bool fused = false;                     // aligned (or oracle) and scored
+  bool fused = false;  // aligned (or oracle) and scored
   double translation_error_m = 0.0, rotation_error_deg = 0.0;
-  AssociationScore association;           // of the overlap, against the truth
-  OverlapScore a, b;                      // each robot's own estimates of the overlap landmarks
+  AssociationScore association;  // of the overlap, against the truth
+  OverlapScore a, b;             // each robot's own estimates of the overlap landmarks
   std::vector<MethodScore> methods;
 };
 
@@ -65,7 +65,7 @@ struct FusionSweepOptions {
   std::vector<double> values;
   int seeds = 100;
   std::uint64_t first_seed = 1;
-  int threads = 0;                    // 0: the machine's cores
+  int threads = 0;  // 0: the machine's cores
   FusionTrialOptions trial;
   SlamRunOptions slam;
   std::function<void(int done, int total)> progress;
@@ -82,8 +82,8 @@ struct FusionSweepRow {
   int runs = 0, fused_runs = 0;
   double translation_error_m = 0.0, rotation_error_deg = 0.0;
   double association_precision = 0.0, association_recall = 0.0;
-  double overlap_landmarks = 0.0;   // per fused run
-  OverlapScore a, b, merged;        // landmarks: the total over the runs
+  double overlap_landmarks = 0.0;  // per fused run
+  OverlapScore a, b, merged;       // landmarks: the total over the runs
   double global_nees = 0.0, global_consistent_ratio = 0.0;
 };
 std::vector<FusionSweepRow> SummariseFusionSweep(const std::vector<FusionTrialResult>& trials,

@@ -3,21 +3,21 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <algorithm>
 #include <map>
 
 #include "common/app/process.h"
 #include "lab/alignment_experiment.h"
 #include "lab/bus_swarm.h"
 #include "lab/fusion_experiment.h"
-#include "lab/thesis_fusion.h"
 #include "lab/pairs_experiment.h"
-#include "lab/thesis_alignment.h"
 #include "lab/slam_experiment.h"
+#include "lab/thesis_alignment.h"
+#include "lab/thesis_fusion.h"
 #include "sim_feeder/sources.h"
 
 namespace mapmesh {
@@ -56,9 +56,11 @@ int RunSlamCommand(const app::ProcessOptions& po, int seeds, std::uint64_t first
       csv << lab::SlamCsvRow(r) << '\n';
       if (!trace_dir.empty()) {
         std::filesystem::create_directories(trace_dir);
-        std::ofstream t(trace_dir + "/trace_seed" + std::to_string(r.seed) + "_robot" + std::to_string(r.robot) + ".csv");
+        std::ofstream t(trace_dir + "/trace_seed" + std::to_string(r.seed) + "_robot" + std::to_string(r.robot) +
+                        ".csv");
         t << "t,position_error_m,heading_error_rad,pose_nees\n";
-        for (const auto& p : r.trace) t << p.t << ',' << p.position_error_m << ',' << p.heading_error_rad << ',' << p.nees << '\n';
+        for (const auto& p : r.trace)
+          t << p.t << ',' << p.position_error_m << ',' << p.heading_error_rad << ',' << p.nees << '\n';
       }
       sum["rmse"] += r.landmark_rmse_m;
       sum["rmse_aligned"] += r.landmark_rmse_aligned_m;
@@ -76,7 +78,8 @@ int RunSlamCommand(const app::ProcessOptions& po, int seeds, std::uint64_t first
     std::fprintf(stderr,
                  "mean over %d robot runs: landmark RMSE %.3f m (aligned %.3f m), landmark NEES %.2f, pose NEES %.2f, "
                  "trajectory RMSE %.3f m",
-                 rows, sum["rmse"] / rows, sum["rmse_aligned"] / rows, sum["nees"] / rows, sum["pose_nees"] / rows, sum["traj"] / rows);
+                 rows, sum["rmse"] / rows, sum["rmse_aligned"] / rows, sum["nees"] / rows, sum["pose_nees"] / rows,
+                 sum["traj"] / rows);
     if (hide) {
       std::fprintf(stderr, ", wrong associations %.0f of %.0f (%.3f %%)", sum["wrong"], sum["assoc"],
                    sum["assoc"] > 0 ? 100.0 * sum["wrong"] / sum["assoc"] : 0.0);
@@ -130,7 +133,8 @@ int RunFusionCommand(const app::ProcessOptions& po, const std::string& param, co
   so.values = values;
   so.slam.datasets_root = ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot());
   so.progress = [](int done, int total) {
-    if (isatty(STDERR_FILENO)) std::fprintf(stderr, "\rmapmesh-lab: run %d/%d%s", done, total, done == total ? "\n" : "");
+    if (isatty(STDERR_FILENO))
+      std::fprintf(stderr, "\rmapmesh-lab: run %d/%d%s", done, total, done == total ? "\n" : "");
   };
   // Validate the scenario and the key once, with a one-line error, before the sweep.
   app::ProcessOptions first = po;
@@ -144,7 +148,8 @@ int RunFusionCommand(const app::ProcessOptions& po, const std::string& param, co
     return LoadScenario(po.scenario_path, overrides, po.agents);
   };
   CsvOut out(csv_path);
-  out.stream() << lab::FusionSweepCsv(param, lab::SummariseFusionSweep(lab::RunFusionSweep(make, so), so.trial.methods));
+  out.stream() << lab::FusionSweepCsv(param,
+                                      lab::SummariseFusionSweep(lab::RunFusionSweep(make, so), so.trial.methods));
   return 0;
 }
 
@@ -214,7 +219,8 @@ int Run(int argc, char** argv) {
   std::string datasets, csv, trace;
   CLI::App* slam = cli.add_subcommand("slam", "run every robot's local SLAM on a scenario, score it against the truth");
   app::AddScenarioOptions(*slam, po);
-  slam->add_option("--seeds", seeds, "Monte Carlo runs (seeds first-seed, first-seed + 1, ...)")->check(CLI::PositiveNumber);
+  slam->add_option("--seeds", seeds, "Monte Carlo runs (seeds first-seed, first-seed + 1, ...)")
+      ->check(CLI::PositiveNumber);
   slam->add_option("--first-seed", first_seed, "first seed (default: the scenario's, for one run; 0 otherwise)");
   slam->add_flag("--hide-signatures", hide, "give the estimator unidentified observations and score its associations");
   slam->add_option("--datasets", datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
@@ -228,10 +234,12 @@ int Run(int argc, char** argv) {
   std::string align_csv;
   CLI::App* al = cli.add_subcommand("align", "align synthetic map pairs (thesis 5.1.1): success, accuracy, time");
   al->add_option("--landmarks", maps.landmarks, "landmarks per map")->check(CLI::PositiveNumber);
-  al->add_option("--overlap", maps.overlap, "share of each map the other also holds (0: disjoint)")->check(CLI::Range(0.0, 1.0));
+  al->add_option("--overlap", maps.overlap, "share of each map the other also holds (0: disjoint)")
+      ->check(CLI::Range(0.0, 1.0));
   al->add_option("--sigma", maps.sigma_m, "landmark noise (m)")->check(CLI::NonNegativeNumber);
   al->add_option("--density", maps.density_per_m2, "landmarks per square metre")->check(CLI::PositiveNumber);
-  al->add_option("--spacing", maps.min_spacing_m, "minimum distance between landmarks (m)")->check(CLI::NonNegativeNumber);
+  al->add_option("--spacing", maps.min_spacing_m, "minimum distance between landmarks (m)")
+      ->check(CLI::NonNegativeNumber);
   al->add_option("--trials", trials, "map pairs")->check(CLI::PositiveNumber);
   al->add_option("--seed", align_seed, "seed of the first pair");
   al->add_option("--matcher", matcher, "sorted | thesis")->check(CLI::IsMember({"sorted", "thesis"}));
@@ -241,14 +249,16 @@ int Run(int argc, char** argv) {
   al->add_option("--csv", align_csv, "write the CSV here (default: stdout)");
   app::ProcessOptions pairs_po;
   std::string pairs_csv, pairs_datasets;
-  CLI::App* pairs = cli.add_subcommand("pairs", "run every robot's SLAM, then align every pair of robots by map overlap and by rendezvous");
+  CLI::App* pairs = cli.add_subcommand(
+      "pairs", "run every robot's SLAM, then align every pair of robots by map overlap and by rendezvous");
   app::AddScenarioOptions(*pairs, pairs_po);
-  pairs->add_option("--datasets", pairs_datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
+  pairs->add_option("--datasets", pairs_datasets,
+                    "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
   pairs->add_option("--csv", pairs_csv, "write the CSV here (default: stdout)");
   lab::ThesisAlignmentOptions ta;
   std::string ta_dir = "lab-out/alignment";
-  CLI::App* thesis_align =
-      cli.add_subcommand("thesis-align", "the thesis's alignment experiments (Figs. 46, 48-53): CSVs for scripts/plots/alignment.py");
+  CLI::App* thesis_align = cli.add_subcommand(
+      "thesis-align", "the thesis's alignment experiments (Figs. 46, 48-53): CSVs for scripts/plots/alignment.py");
   thesis_align->add_option("--out", ta_dir, "directory for the CSVs");
   thesis_align->add_option("--trials", ta.trials, "runs per point of each curve")->check(CLI::PositiveNumber);
   thesis_align->add_option("--seed", ta.seed, "first seed");
@@ -259,31 +269,40 @@ int Run(int argc, char** argv) {
   CLI::App* fusion = cli.add_subcommand(
       "fusion", "sweep a scenario key; fuse robot 2's map into robot 1's global map with every estimator (thesis 5.2)");
   app::AddScenarioOptions(*fusion, fusion_po);
-  fusion->add_option("--param", fusion_param, "the scenario key to sweep, e.g. robots.list[1].sensor.sigma_bearing_deg")->required();
+  fusion->add_option("--param", fusion_param, "the scenario key to sweep, e.g. robots.list[1].sensor.sigma_bearing_deg")
+      ->required();
   fusion->add_option("--values", fusion_values, "its values (comma-separated)")->required()->delimiter(',');
   fusion->add_option("--seeds", fusion_so.seeds, "Monte Carlo runs per value")->check(CLI::PositiveNumber);
   fusion->add_option("--first-seed", fusion_so.first_seed, "seed of the first run");
-  fusion->add_option("--threads", fusion_so.threads, "worker threads (default: the machine's cores)")->check(CLI::NonNegativeNumber);
-  fusion->add_flag("--oracle-alignment", fusion_so.trial.oracle_alignment, "use the true transform instead of aligning the maps");
-  fusion->add_option("--datasets", fusion_datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
+  fusion->add_option("--threads", fusion_so.threads, "worker threads (default: the machine's cores)")
+      ->check(CLI::NonNegativeNumber);
+  fusion->add_flag("--oracle-alignment", fusion_so.trial.oracle_alignment,
+                   "use the true transform instead of aligning the maps");
+  fusion->add_option("--datasets", fusion_datasets,
+                     "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
   fusion->add_option("--csv", fusion_csv, "write the CSV here (default: stdout)");
   lab::ThesisFusionOptions tf;
   std::string tf_dir = "lab-out/fusion", tf_datasets;
   CLI::App* thesis_fusion = cli.add_subcommand(
-      "thesis-fusion", "the thesis's fusion experiments (Figs. 61-62, 64-65, 72-73, Table 7): CSVs for scripts/plots/fusion.py");
+      "thesis-fusion",
+      "the thesis's fusion experiments (Figs. 61-62, 64-65, 72-73, Table 7): CSVs for scripts/plots/fusion.py");
   thesis_fusion->add_option("--out", tf_dir, "directory for the CSVs");
   thesis_fusion->add_option("--seeds", tf.seeds, "Monte Carlo runs per point")->check(CLI::PositiveNumber);
   thesis_fusion->add_option("--first-seed", tf.first_seed, "seed of the first run");
-  thesis_fusion->add_option("--threads", tf.threads, "worker threads (default: the machine's cores)")->check(CLI::NonNegativeNumber);
+  thesis_fusion->add_option("--threads", tf.threads, "worker threads (default: the machine's cores)")
+      ->check(CLI::NonNegativeNumber);
   thesis_fusion->add_option("--only", tf.only, "run only these: bearing, velocity, range, victoria")
       ->delimiter(',')
       ->check(CLI::IsMember({"bearing", "velocity", "range", "victoria"}));
-  thesis_fusion->add_flag("--oracle-alignment", tf.oracle_alignment, "use the true transforms instead of aligning the maps");
-  thesis_fusion->add_option("--datasets", tf_datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
+  thesis_fusion->add_flag("--oracle-alignment", tf.oracle_alignment,
+                          "use the true transforms instead of aligning the maps");
+  thesis_fusion->add_option("--datasets", tf_datasets,
+                            "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
   app::ProcessOptions bus_po;
   std::vector<std::string> bus_kills, bus_restarts;
   std::string bus_datasets;
-  CLI::App* bus = cli.add_subcommand("bus", "run a scenario's agents in one process over an in-memory bus: maps, alignments, fusion");
+  CLI::App* bus = cli.add_subcommand(
+      "bus", "run a scenario's agents in one process over an in-memory bus: maps, alignments, fusion");
   app::AddScenarioOptions(*bus, bus_po);
   bus->add_option("--kill", bus_kills, "kill agent ID at scenario time T (ID@T, repeatable)");
   bus->add_option("--restart", bus_restarts, "restart agent ID at T from its last checkpoint (ID@T, repeatable)");
@@ -294,15 +313,16 @@ int Run(int argc, char** argv) {
     tf.scenarios_dir = MAPMESH_SOURCE_DIR "/scenarios";
     tf.datasets_root = ResolveDatasetsRoot(tf_datasets, app::DefaultDatasetsRoot());
     lab::RunThesisFusion(tf_dir, tf);
-    std::fprintf(stderr, "mapmesh-lab: CSVs in %s (plot: /usr/bin/python3 scripts/plots/fusion.py %s)\n", tf_dir.c_str(),
-                 tf_dir.c_str());
+    std::fprintf(stderr, "mapmesh-lab: CSVs in %s (plot: /usr/bin/python3 scripts/plots/fusion.py %s)\n",
+                 tf_dir.c_str(), tf_dir.c_str());
     return 0;
   }
-  if (fusion->parsed()) return RunFusionCommand(fusion_po, fusion_param, fusion_values, fusion_so, fusion_datasets, fusion_csv);
+  if (fusion->parsed())
+    return RunFusionCommand(fusion_po, fusion_param, fusion_values, fusion_so, fusion_datasets, fusion_csv);
   if (thesis_align->parsed()) {
     lab::RunThesisAlignment(ta_dir, ta);
-    std::fprintf(stderr, "mapmesh-lab: CSVs in %s (plot: /usr/bin/python3 scripts/plots/alignment.py %s)\n", ta_dir.c_str(),
-                 ta_dir.c_str());
+    std::fprintf(stderr, "mapmesh-lab: CSVs in %s (plot: /usr/bin/python3 scripts/plots/alignment.py %s)\n",
+                 ta_dir.c_str(), ta_dir.c_str());
     return 0;
   }
   if (pairs->parsed()) return RunPairsCommand(pairs_po, pairs_datasets, pairs_csv);

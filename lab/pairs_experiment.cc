@@ -5,8 +5,8 @@
 #include <sstream>
 
 #include "common/map/landmark_map.h"
-#include "common/metrics/landmark_metrics.h"
 #include "common/merge/rendezvous.h"
+#include "common/metrics/landmark_metrics.h"
 #include "common/metrics/trajectory_metrics.h"
 
 namespace mapmesh::lab {
@@ -123,10 +123,10 @@ std::string PairsCsvHeader() {
 
 std::string PairsCsvRow(const PairResult& p) {
   std::ostringstream s;
-  s << p.a << ',' << p.b << ',' << p.truth_known << ',' << ToString(p.verdict) << ',' << p.inliers << ',' << p.best_support
-    << ',' << p.runner_up_support << ',' << p.residual_chi2 << ',' << p.residual_bound << ',' << p.covered << ','
-    << p.map_translation_error_m << ',' << p.map_rotation_error_deg << ',' << p.mutual_sightings << ','
-    << p.rendezvous_median_translation_m << ',' << p.rendezvous_median_rotation_deg << ','
+  s << p.a << ',' << p.b << ',' << p.truth_known << ',' << ToString(p.verdict) << ',' << p.inliers << ','
+    << p.best_support << ',' << p.runner_up_support << ',' << p.residual_chi2 << ',' << p.residual_bound << ','
+    << p.covered << ',' << p.map_translation_error_m << ',' << p.map_rotation_error_deg << ',' << p.mutual_sightings
+    << ',' << p.rendezvous_median_translation_m << ',' << p.rendezvous_median_rotation_deg << ','
     << p.rendezvous_within_tolerance;
   return s.str();
 }

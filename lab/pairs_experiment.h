@@ -17,15 +17,15 @@ struct PairResult {
   // Map overlap.
   AlignmentVerdict verdict = AlignmentVerdict::kTooFewLandmarks;
   int inliers = 0;
-  int best_support = 0, runner_up_support = 0;   // RANSAC consensus of the best and the best different hypothesis
+  int best_support = 0, runner_up_support = 0;  // RANSAC consensus of the best and the best different hypothesis
   double residual_chi2 = 0.0, residual_bound = 0.0;
-  int covered = 0;                               // b's landmarks laid over a's mapped ground
+  int covered = 0;  // b's landmarks laid over a's mapped ground
   double map_translation_error_m = 0.0, map_rotation_error_deg = 0.0;
   // Rendezvous.
   int mutual_sightings = 0;                      // pairs of sightings less than 0.5 s apart
   double rendezvous_median_translation_m = 0.0;  // over the single-rendezvous estimates
   double rendezvous_median_rotation_deg = 0.0;
-  double rendezvous_within_tolerance = 0.0;      // share within 0.2 m and 1 deg
+  double rendezvous_within_tolerance = 0.0;  // share within 0.2 m and 1 deg
 };
 
 // The true transform from b's map frame into a's: from rigid fits of both maps to the

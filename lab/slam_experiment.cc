@@ -42,7 +42,8 @@ class RobotRun : public SensorSync::Sink {
     }
     if (Mapped()) samples_.push_back({stamp, mapper_->pose(), mapper_->pose_cov()});
     for (const Observation& o : scan.obs) {
-      if (o.kind == ObservationKind::kRobot) sightings_.push_back({stamp, static_cast<RobotId>(o.signature), o.range, o.bearing});
+      if (o.kind == ObservationKind::kRobot)
+        sightings_.push_back({stamp, static_cast<RobotId>(o.signature), o.range, o.bearing});
     }
   }
   void IntervalDone(const Odometry&) override {}
@@ -89,7 +90,6 @@ class RobotRun : public SensorSync::Sink {
   std::unordered_map<std::int64_t, std::int32_t> identity_;
 };
 
-
 // GPS fixes implying a faster jump than this are glitches.
 constexpr double kMaxVehicleSpeedMps = 20.0;
 
@@ -128,7 +128,8 @@ std::vector<SlamRunResult> RunSlam(const Scenario& scenario_in, const SlamRunOpt
     r.landmarks = static_cast<int>(map.size());
     r.shape_sigma_m = map.shape_sigma_m;
     std::vector<double> sig;
-    for (const Landmark& l : map.landmarks) sig.push_back(std::sqrt(std::max(0.0, l.cov.eigenvalues().real().maxCoeff())));
+    for (const Landmark& l : map.landmarks)
+      sig.push_back(std::sqrt(std::max(0.0, l.cov.eigenvalues().real().maxCoeff())));
     if (!sig.empty()) {
       std::nth_element(sig.begin(), sig.begin() + static_cast<long>(sig.size() / 2), sig.end());
       r.median_sigma_m = sig[sig.size() / 2];
@@ -174,7 +175,8 @@ std::vector<SlamRunResult> RunSlam(const Scenario& scenario_in, const SlamRunOpt
       // Unknown frame (GPS reference): compare at the reference fixes, glitches dropped,
       // after a least-squares rigid fit.
       for (const GroundTruth& g : truth[id]) ref_track.push_back({g.stamp, {g.x, g.y}});
-      const TrajectoryError e = CompareTrajectory(est_track, DropImplausibleFixes(ref_track, kMaxVehicleSpeedMps), true);
+      const TrajectoryError e = CompareTrajectory(est_track, DropImplausibleFixes(ref_track, kMaxVehicleSpeedMps),
+                                                  true);
       r.trajectory_rmse_m = e.rmse_m;
       r.trajectory_aligned = e.aligned;
       for (std::size_t i = 0; i < e.times.size(); ++i) {
@@ -203,12 +205,14 @@ std::string SlamCsvHeader() {
 std::string SlamCsvRow(const SlamRunResult& r) {
   std::ostringstream s;
   s << r.seed << ',' << r.robot << ',' << r.landmarks << ','
-    << (!r.map_evaluated ? "none" : r.map_aligned ? "aligned" : "true_origin") << ',' << r.landmark_rmse_m << ','
-    << r.landmark_rmse_aligned_m << ','
-    << r.landmark_nees << ',' << r.consistent_ratio << ',' << r.coverage << ',' << r.shape_sigma_m << ',' << r.median_sigma_m << ',' << r.pose_samples << ','
-    << r.pose_nees << ',' << r.trajectory_rmse_m << ',' << (r.trajectory_aligned ? "aligned" : "true_origin") << ','
-    << r.associations << ',' << r.wrong_associations << ',' << r.new_landmarks << ',' << r.dropped << ','
-    << r.wall_s;
+    << (!r.map_evaluated ? "none"
+        : r.map_aligned  ? "aligned"
+                         : "true_origin")
+    << ',' << r.landmark_rmse_m << ',' << r.landmark_rmse_aligned_m << ',' << r.landmark_nees << ','
+    << r.consistent_ratio << ',' << r.coverage << ',' << r.shape_sigma_m << ',' << r.median_sigma_m << ','
+    << r.pose_samples << ',' << r.pose_nees << ',' << r.trajectory_rmse_m << ','
+    << (r.trajectory_aligned ? "aligned" : "true_origin") << ',' << r.associations << ',' << r.wrong_associations << ','
+    << r.new_landmarks << ',' << r.dropped << ',' << r.wall_s;
   return s.str();
 }
 

@@ -13,7 +13,7 @@
 namespace mapmesh::lab {
 
 struct SlamRunOptions {
-  std::string datasets_root;  // for dataset scenarios
+  std::string datasets_root;     // for dataset scenarios
   bool hide_signatures = false;  // feed the estimator unidentified observations, score associations
 };
 
@@ -23,20 +23,20 @@ struct SlamRunResult {
   RobotId robot = 0;
   int landmarks = 0;
   bool map_evaluated = false;
-  bool map_aligned = false;           // scored after a rigid fit (start pose unknown)
+  bool map_aligned = false;  // scored after a rigid fit (start pose unknown)
   double landmark_rmse_m = 0.0;
   double landmark_rmse_aligned_m = 0.0;  // after a least-squares rigid fit to the truth, whatever the start
-  double landmark_nees = 0.0;         // mean over landmarks (2 dof)
+  double landmark_nees = 0.0;            // mean over landmarks (2 dof)
   double consistent_ratio = 0.0;
   double coverage = 0.0;
-  double shape_sigma_m = 0.0;         // the map's shape precision (LandmarkMap::shape_sigma_m)
-  double median_sigma_m = 0.0;        // median over landmarks of the marginal's largest standard deviation
-  int pose_samples = 0;               // scans at which the pose was scored
-  double pose_nees = 0.0;             // mean over scans (3 dof); needs true headings
-  double trajectory_rmse_m = 0.0;     // position error at each scan (after a rigid fit when the start is unknown)
+  double shape_sigma_m = 0.0;      // the map's shape precision (LandmarkMap::shape_sigma_m)
+  double median_sigma_m = 0.0;     // median over landmarks of the marginal's largest standard deviation
+  int pose_samples = 0;            // scans at which the pose was scored
+  double pose_nees = 0.0;          // mean over scans (3 dof); needs true headings
+  double trajectory_rmse_m = 0.0;  // position error at each scan (after a rigid fit when the start is unknown)
   bool trajectory_aligned = false;
-  long associations = 0;              // hide_signatures: observations fused into a landmark
-  long wrong_associations = 0;        // ... into a landmark started by another true landmark
+  long associations = 0;        // hide_signatures: observations fused into a landmark
+  long wrong_associations = 0;  // ... into a landmark started by another true landmark
   long new_landmarks = 0;
   long dropped = 0;
   double wall_s = 0.0;
@@ -46,13 +46,13 @@ struct SlamRunResult {
   };
   std::vector<TracePoint> trace;
   // What the run produced, for later experiments (alignment between robots).
-  LandmarkMap map;                              // the final local map, in the robot's frame
+  LandmarkMap map;  // the final local map, in the robot's frame
   struct PoseSample {
     double t;
     Pose2 pose;
     Eigen::Matrix3d cov;
   };
-  std::vector<PoseSample> poses;                // at every scan
+  std::vector<PoseSample> poses;  // at every scan
   struct Sighting {
     double t;
     RobotId seen;

@@ -32,8 +32,8 @@ MapPair MakeMapPair(const MapPairOptions& o, std::mt19937_64& rng) {
     const bool in_a = p.x() <= side && p.y() <= side;
     const bool in_b = p.x() >= shift && p.y() >= shift;
     if (in_a) {
-      pair.a.landmarks.push_back({static_cast<std::uint32_t>(pair.a.size()), -1,
-                                  p + Eigen::Vector2d(n(rng), n(rng)), cov});
+      pair.a.landmarks.push_back({static_cast<std::uint32_t>(pair.a.size()), -1, p + Eigen::Vector2d(n(rng), n(rng)),
+                                  cov});
     }
     if (in_b) world_of_b.push_back(static_cast<int>(i));
   }

@@ -19,12 +19,12 @@ struct MapPair {
 };
 
 struct MapPairOptions {
-  int landmarks = 1000;        // per map (about)
-  double overlap = 0.1;        // share of each map's area (and landmarks) the other also has; 0: disjoint
-  double sigma_m = 0.1;        // noise on every landmark mean, per map; covariances sigma^2 I
+  int landmarks = 1000;  // per map (about)
+  double overlap = 0.1;  // share of each map's area (and landmarks) the other also has; 0: disjoint
+  double sigma_m = 0.1;  // noise on every landmark mean, per map; covariances sigma^2 I
   double density_per_m2 = 0.25;
   double min_spacing_m = 1.0;
-  bool random_frame = true;    // B in a random frame (rotation anywhere, translation within 100 m)
+  bool random_frame = true;  // B in a random frame (rotation anywhere, translation within 100 m)
 };
 
 MapPair MakeMapPair(const MapPairOptions& options, std::mt19937_64& rng);

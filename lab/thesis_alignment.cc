@@ -32,8 +32,8 @@ Eigen::Vector2d Centroid(const LandmarkMap& m) {
 }
 
 struct Score {
-  double thesis = 0.0;   // the thesis's success: share of the true pairs found as inliers
-  double ours = 0.0;     // accepted and within 0.2 m (at B's centroid) and 1 deg
+  double thesis = 0.0;  // the thesis's success: share of the true pairs found as inliers
+  double ours = 0.0;    // accepted and within 0.2 m (at B's centroid) and 1 deg
   double ms = 0.0;
 };
 
@@ -210,7 +210,8 @@ void RunThesisAlignment(const std::string& dir, const ThesisAlignmentOptions& op
           ms.push_back(sc.ms);
         }
         std::nth_element(ms.begin(), ms.begin() + ms.size() / 2, ms.end());
-        f << distance << ',' << s << ',' << thesis / kTrials << ',' << ours / kTrials << ',' << ms[ms.size() / 2] << '\n';
+        f << distance << ',' << s << ',' << thesis / kTrials << ',' << ours / kTrials << ',' << ms[ms.size() / 2]
+          << '\n';
         Progress("figs 52/53", ++done, 2 * static_cast<int>(noise.size()));
       }
     }

@@ -8,7 +8,7 @@
 namespace mapmesh::lab {
 
 struct ThesisAlignmentOptions {
-  int trials = 50;          // per point of every curve
+  int trials = 50;  // per point of every curve
   std::uint64_t seed = 1;
 };
 

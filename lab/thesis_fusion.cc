@@ -54,9 +54,11 @@ void Sweep(const std::string& dir, const std::string& name, const std::string& s
   so.progress = Progress(name);
   const std::string file = o.scenarios_dir + "/" + scenario;
   const auto make = [&](double value, std::uint64_t seed) {
-    return LoadScenario(file, {ParseOverride(key + "=" + FormatValue(value)), ParseOverride("seed=" + std::to_string(seed))});
+    return LoadScenario(file,
+                        {ParseOverride(key + "=" + FormatValue(value)), ParseOverride("seed=" + std::to_string(seed))});
   };
-  Write(dir + "/" + name + ".csv", FusionSweepCsv(parameter, SummariseFusionSweep(RunFusionSweep(make, so), so.trial.methods)));
+  Write(dir + "/" + name + ".csv",
+        FusionSweepCsv(parameter, SummariseFusionSweep(RunFusionSweep(make, so), so.trial.methods)));
 }
 
 }  // namespace
@@ -68,8 +70,8 @@ void RunThesisFusion(const std::string& dir, const ThesisFusionOptions& o) {
           "bearing_sigma_deg", {0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5}, o);
   }
   if (Wanted(o, "velocity")) {
-    Sweep(dir, "fig64_65_velocity", "thesis_circle_pair.yaml", "robots.list[1].motion.sigma_v_mps", "velocity_sigma_mps",
-          {0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45}, o);
+    Sweep(dir, "fig64_65_velocity", "thesis_circle_pair.yaml", "robots.list[1].motion.sigma_v_mps",
+          "velocity_sigma_mps", {0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45}, o);
   }
   if (Wanted(o, "range")) {
     Sweep(dir, "fig72_73_range", "thesis_low_overlap_range.yaml", "robots.list[1].sensor.max_range_m", "range_m",

@@ -14,11 +14,11 @@
 namespace mapmesh::lab {
 
 struct ThesisFusionOptions {
-  std::string scenarios_dir;   // where thesis_circle_pair.yaml etc. are
-  std::string datasets_root;   // for Victoria Park
-  int seeds = 100;             // Monte Carlo runs per point
+  std::string scenarios_dir;  // where thesis_circle_pair.yaml etc. are
+  std::string datasets_root;  // for Victoria Park
+  int seeds = 100;            // Monte Carlo runs per point
   std::uint64_t first_seed = 1;
-  int threads = 0;             // 0: the machine's cores
+  int threads = 0;  // 0: the machine's cores
   bool oracle_alignment = false;
   std::vector<std::string> only;  // experiment names to run (bearing, velocity, range, victoria); empty: all
 };

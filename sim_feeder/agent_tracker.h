@@ -60,10 +60,10 @@ class AgentTracker {
 
  private:
   struct State {
-    bool seen = false;        // a status of the current incarnation arrived
+    bool seen = false;  // a status of the current incarnation arrived
     bool subscribed = false;
     bool dead = false;
-    bool silent = false;      // liveliness lost, process still there
+    bool silent = false;  // liveliness lost, process still there
     std::optional<int> pid;
     std::optional<std::uint32_t> incarnation;
     std::optional<std::uint32_t> stale_incarnation;  // killed process: ignore its statuses

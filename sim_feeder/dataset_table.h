@@ -15,8 +15,8 @@ class DatasetError : public std::runtime_error {
 };
 
 struct TableRow {
-  int line = 0;             // 1-based line in the file
-  std::vector<double> v;    // exactly the requested number of columns
+  int line = 0;           // 1-based line in the file
+  std::vector<double> v;  // exactly the requested number of columns
 };
 
 // Reads every data row of path; each must hold exactly `columns` numbers.

@@ -222,8 +222,9 @@ class Feeder {
         aligned += s.peers_aligned.size();
       }
     }
-    return {{"event", "progress"}, {"t", stamp}, {"duration", sc_.duration_s}, {"alive", alive},
-            {"maps_received", maps}, {"aligned_pairs", aligned}};
+    return {{"event", "progress"},        {"t", stamp},
+            {"duration", sc_.duration_s}, {"alive", alive},
+            {"maps_received", maps},      {"aligned_pairs", aligned}};
   }
 
  private:
@@ -301,11 +302,11 @@ int Run(int argc, char** argv) {
                                {"landmarks", source.Truth().landmarks.size()},
                                {"duration", sc.duration_s},
                                {"pace", std::string(NameOf(kPaces, sc.feeder.pace))}}
-                               .dump()
-                               .c_str());
+                              .dump()
+                              .c_str());
     } else {
-      std::printf("%s: ok: %zu robots, %zu landmarks, %.1f s\n", po.scenario_path.c_str(),
-                  sc.robots.size(), source.Truth().landmarks.size(), sc.duration_s);
+      std::printf("%s: ok: %zu robots, %zu landmarks, %.1f s\n", po.scenario_path.c_str(), sc.robots.size(),
+                  source.Truth().landmarks.size(), sc.duration_s);
     }
     return 0;
   }

@@ -65,9 +65,7 @@ std::vector<SentLog::Message> LockstepPacer::OnMatches(RobotId id, std::uint32_t
 
 void LockstepPacer::OnControl(const ControlCommand& c, std::uint32_t total_matches) {
   switch (c.kind) {
-    case ControlCommand::Kind::kDead:
-      GiveUp(c.id);
-      break;
+    case ControlCommand::Kind::kDead: GiveUp(c.id); break;
     case ControlCommand::Kind::kExpect:
       if (matches_at_restart_.count(c.id)) {
         matches_at_restart_[c.id] = total_matches;
@@ -76,14 +74,9 @@ void LockstepPacer::OnControl(const ControlCommand& c, std::uint32_t total_match
       tracker_.ExpectRestart(c.id);
       sent_.Forget(c.id);
       break;
-    case ControlCommand::Kind::kPid:
-      tracker_.SetProcess(c.id, c.pid);
-      break;
-    case ControlCommand::Kind::kContinue:
-      continue_ = true;
-      break;
-    case ControlCommand::Kind::kStop:
-      break;
+    case ControlCommand::Kind::kPid: tracker_.SetProcess(c.id, c.pid); break;
+    case ControlCommand::Kind::kContinue: continue_ = true; break;
+    case ControlCommand::Kind::kStop: break;
   }
 }
 

@@ -107,7 +107,7 @@ class LockstepPacer {
   std::map<RobotId, std::uint32_t> last_matches_;
   std::map<RobotId, Odometry> held_;
   std::map<RobotId, double> published_until_;  // last odometry stamp published per robot
-  std::vector<double> holds_;                    // sorted, ascending
+  std::vector<double> holds_;                  // sorted, ascending
   double next_barrier_;
   bool continue_ = false;
   double startup_deadline_ = 0.0;

@@ -22,8 +22,11 @@ std::string RobotFile(const std::string& dir, RobotId id, const char* what) {
 
 // The ground truth (rows t, x, y, theta) at time t.
 std::optional<Pose2> InterpolatePose(const std::vector<TableRow>& gt, double t) {
-  return PoseAlong(gt, t, [](const TableRow& r) { return r.v[0]; },
-                   [](const TableRow& r) { return Pose2{r.v[1], r.v[2], r.v[3]}; });
+  return PoseAlong(
+      gt, t, [](const TableRow& r) { return r.v[0]; },
+      [](const TableRow& r) {
+        return Pose2{r.v[1], r.v[2], r.v[3]};
+      });
 }
 
 }  // namespace
@@ -56,8 +59,10 @@ ReplayData LoadMrclam(const std::string& dir, const Scenario& scenario) {
   std::vector<Raw> raw;
   double t0 = std::numeric_limits<double>::infinity();
   for (const RobotSpec& spec : scenario.robots) {
-    Raw r{spec.id, ReadTable(RobotFile(dir, spec.id, "Odometry"), 3),
-          ReadTable(RobotFile(dir, spec.id, "Measurement"), 4), {}};
+    Raw r{spec.id,
+          ReadTable(RobotFile(dir, spec.id, "Odometry"), 3),
+          ReadTable(RobotFile(dir, spec.id, "Measurement"), 4),
+          {}};
     const std::string gt_file = RobotFile(dir, spec.id, "Groundtruth");
     if (std::filesystem::exists(gt_file)) r.gt = ReadTable(gt_file, 4);
     if (r.odom.empty()) throw DatasetError(RobotFile(dir, spec.id, "Odometry") + ": no odometry rows");
@@ -128,8 +133,8 @@ ReplayData LoadMrclam(const std::string& dir, const Scenario& scenario) {
     for (std::size_t i = 0; i < rows.size(); ++i) {
       const double t = rows[i].v[0] - t0;
       const double end = i + 1 < rows.size() ? rows[i + 1].v[0] - t0 : std::max(last_t, t) + 0.02;
-      s.odom.push_back({r.id, static_cast<std::uint32_t>(s.odom.size()), end, end - t, rows[i].v[1],
-                        rows[i].v[2], 0.0, 0, false});
+      s.odom.push_back({r.id, static_cast<std::uint32_t>(s.odom.size()), end, end - t, rows[i].v[1], rows[i].v[2], 0.0,
+                        0, false});
     }
     CountScansPerInterval(s);
 

@@ -14,20 +14,20 @@ namespace mapmesh {
 // One robot's streams, stamped in scenario seconds and sorted.
 struct RobotStreams {
   RobotId id = 0;
-  std::vector<Odometry> odom;       // seq from 0, scans_in_interval filled in
+  std::vector<Odometry> odom;  // seq from 0, scans_in_interval filled in
   std::vector<Scan> scans;
-  std::vector<GroundTruth> truth;   // may be empty (no ground truth)
-  std::optional<Pose2> start;       // true pose at the start of the first odometry interval
+  std::vector<GroundTruth> truth;  // may be empty (no ground truth)
+  std::optional<Pose2> start;      // true pose at the start of the first odometry interval
 };
 
 // What was read from the files, for the record (feeder.json).
 struct ReplayCounts {
   RobotId id = 0;
-  int odom_rows = 0;                // rows in the odometry file used
-  int odom_duplicate_rows = 0;      // rows repeating the previous timestamp: merged
-  int measurement_rows = 0;         // rows in the measurement file used
-  int measurement_unknown = 0;      // rows whose barcode is no known subject: dropped
-  int robot_sightings = 0;          // rows that see another robot
+  int odom_rows = 0;            // rows in the odometry file used
+  int odom_duplicate_rows = 0;  // rows repeating the previous timestamp: merged
+  int measurement_rows = 0;     // rows in the measurement file used
+  int measurement_unknown = 0;  // rows whose barcode is no known subject: dropped
+  int robot_sightings = 0;      // rows that see another robot
 };
 
 struct ReplayData {

@@ -5,8 +5,8 @@
 
 namespace mapmesh {
 
-UnicycleControl FollowWaypoints(const Pose2& pose, const PathOptions& path,
-                                const MotionOptions& motion, double dt, FollowerState& state) {
+UnicycleControl FollowWaypoints(const Pose2& pose, const PathOptions& path, const MotionOptions& motion, double dt,
+                                FollowerState& state) {
   if (state.finished || path.points.empty()) return {0.0, 0.0};
   // Switch waypoints inside the radius (possibly several, if they are close together).
   for (std::size_t guard = 0; guard <= path.points.size(); ++guard) {
@@ -64,10 +64,8 @@ Observation RangeBearing(const Pose2& pose, const Eigen::Vector2d& point) {
   return o;
 }
 
-std::vector<Observation> SenseLandmarks(const Pose2& pose,
-                                        const std::vector<Eigen::Vector2d>& landmarks,
-                                        const SensorOptions& sensor, std::mt19937_64& rng,
-                                        std::vector<int>* indices) {
+std::vector<Observation> SenseLandmarks(const Pose2& pose, const std::vector<Eigen::Vector2d>& landmarks,
+                                        const SensorOptions& sensor, std::mt19937_64& rng, std::vector<int>* indices) {
   std::normal_distribution<double> n01(0.0, 1.0);
   const double sb = DegToRad(sensor.sigma_bearing_deg);
   std::vector<Observation> out;

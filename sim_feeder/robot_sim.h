@@ -23,8 +23,8 @@ struct FollowerState {
 // inside the waypoint radius. steering "thesis" (Fig. 27): full turn rate toward the
 // waypoint, or none once within one step of it, at constant speed. "smooth": turn rate
 // proportional to the error up to the limit, turning in place when the waypoint is behind.
-UnicycleControl FollowWaypoints(const Pose2& pose, const PathOptions& path,
-                                const MotionOptions& motion, double dt, FollowerState& state);
+UnicycleControl FollowWaypoints(const Pose2& pose, const PathOptions& path, const MotionOptions& motion, double dt,
+                                FollowerState& state);
 
 // Thesis 4.1.4: bounding box, bounding line (in front of the robot) and bounding circle
 // tests, then the field of view when it is narrower than 180 degrees.
@@ -36,8 +36,7 @@ Observation RangeBearing(const Pose2& pose, const Eigen::Vector2d& point);
 // Observations of every visible landmark, with Gaussian range and bearing noise.
 // Signatures are the landmark indices when sensor.signatures is set, else -1. When
 // indices is given, the index of each observed landmark is appended to it.
-std::vector<Observation> SenseLandmarks(const Pose2& pose,
-                                        const std::vector<Eigen::Vector2d>& landmarks,
+std::vector<Observation> SenseLandmarks(const Pose2& pose, const std::vector<Eigen::Vector2d>& landmarks,
                                         const SensorOptions& sensor, std::mt19937_64& rng,
                                         std::vector<int>* indices = nullptr);
 

@@ -23,7 +23,7 @@ Feed MakeFeed(Scenario& scenario, const std::string& datasets_root) {
   }
   const std::string dir = datasets_root + "/" + scenario.source.dataset;
   ReplayData data = scenario.source.type == SourceType::kMrclam ? LoadMrclam(dir, scenario)
-                                                     : LoadVictoriaPark(dir, scenario);
+                                                                : LoadVictoriaPark(dir, scenario);
   if (scenario.duration_given) Truncate(data, scenario.duration_s);
   scenario.duration_s = data.duration_s;
   feed.counts = data.counts;

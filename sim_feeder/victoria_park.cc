@@ -24,8 +24,8 @@ ReplayData LoadVictoriaPark(const std::string& dir, const Scenario& scenario) {
   const double overlap = scenario.source.overlap_s;
   const double length = (t_last - t_first + (k - 1) * overlap) / k;
   if (length <= overlap) {
-    throw DatasetError(dir + ": " + std::to_string(k) + " virtual robots with overlap_s " +
-                       std::to_string(overlap) + " leave no time for each robot");
+    throw DatasetError(dir + ": " + std::to_string(k) + " virtual robots with overlap_s " + std::to_string(overlap) +
+                       " leave no time for each robot");
   }
   auto first_at_or_after = [](const std::vector<TableRow>& rows, double t) {
     return std::lower_bound(rows.begin(), rows.end(), t, [](const TableRow& r, double v) { return r.v[0] < v; });
@@ -48,8 +48,8 @@ ReplayData LoadVictoriaPark(const std::string& dir, const Scenario& scenario) {
         ++counts.odom_duplicate_rows;
         continue;
       }
-      s.odom.push_back({spec.id, static_cast<std::uint32_t>(s.odom.size()), t - origin, t - last,
-                        it->v[1], 0.0, it->v[2], 0, false});
+      s.odom.push_back({spec.id, static_cast<std::uint32_t>(s.odom.size()), t - origin, t - last, it->v[1], 0.0,
+                        it->v[2], 0, false});
       last = t;
       ++counts.odom_rows;
     }

@@ -110,8 +110,8 @@ double DistanceToPolyline(const Eigen::Vector2d& p, const Polyline& line) {
   return best;
 }
 
-std::optional<std::vector<Eigen::Vector2d>> GenerateUniformLandmarks(
-    const LandmarkGeneratorOptions& options, std::mt19937_64& rng, GenerationStats* stats) {
+std::optional<std::vector<Eigen::Vector2d>> GenerateUniformLandmarks(const LandmarkGeneratorOptions& options,
+                                                                     std::mt19937_64& rng, GenerationStats* stats) {
   const Rect& a = options.area_m;
   std::uniform_real_distribution<double> ux(a.xmin, a.xmax), uy(a.ymin, a.ymax);
   SpacedSet set(options.min_spacing_m, a, options.count, stats);
@@ -123,8 +123,8 @@ std::optional<std::vector<Eigen::Vector2d>> GenerateUniformLandmarks(
   return set.Take();
 }
 
-std::optional<std::vector<Eigen::Vector2d>> GenerateDiscLandmarks(
-    const LandmarkGeneratorOptions& options, std::mt19937_64& rng, GenerationStats* stats) {
+std::optional<std::vector<Eigen::Vector2d>> GenerateDiscLandmarks(const LandmarkGeneratorOptions& options,
+                                                                  std::mt19937_64& rng, GenerationStats* stats) {
   std::uniform_real_distribution<double> ur(0.0, options.radius_m), ub(0.0, 2.0 * std::numbers::pi);
   const Eigen::Vector2d& c = options.center_m;
   const double radius = options.radius_m;
@@ -138,8 +138,7 @@ std::optional<std::vector<Eigen::Vector2d>> GenerateDiscLandmarks(
   return set.Take();
 }
 
-std::optional<World> GeneratePark(const LandmarkGeneratorOptions& o, std::mt19937_64& rng,
-                                  GenerationStats* stats) {
+std::optional<World> GeneratePark(const LandmarkGeneratorOptions& o, std::mt19937_64& rng, GenerationStats* stats) {
   const Rect& a = o.area_m;
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::normal_distribution<double> n01(0.0, 1.0);
@@ -221,8 +220,8 @@ World BuildWorld(const Scenario& scenario) {
     if (pts) world = World{std::move(*pts), {}};
   }
   if (!world) {
-    throw ConfigError(scenario.path + ": world.landmarks.generator: could not place " +
-                      std::to_string(g.count) + " landmarks at the minimum spacing");
+    throw ConfigError(scenario.path + ": world.landmarks.generator: could not place " + std::to_string(g.count) +
+                      " landmarks at the minimum spacing");
   }
   for (const RobotSpec& r : scenario.robots) {
     if (r.path.type == PathType::kPark && world->paths.empty()) {

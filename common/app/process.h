@@ -19,7 +19,7 @@ struct ProcessOptions {
   std::vector<std::string> sets;  // --set key.path=value
   int agents = 0;                 // 0: the scenario's robot count
   int domain = -1;
-  std::string dds_config;         // empty: CYCLONEDDS_URI, else the shipped loopback config
+  std::string dds_config;  // empty: CYCLONEDDS_URI, else the shipped loopback config
   std::string log_level = "info";
 };
 

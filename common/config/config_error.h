@@ -35,8 +35,7 @@ inline std::string EscapeControlCharacters(const std::string& text) {
 
 class ConfigError : public std::runtime_error {
  public:
-  explicit ConfigError(const std::string& message)
-      : std::runtime_error(EscapeControlCharacters(message)) {}
+  explicit ConfigError(const std::string& message) : std::runtime_error(EscapeControlCharacters(message)) {}
 };
 
 }  // namespace mapmesh

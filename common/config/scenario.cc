@@ -65,8 +65,8 @@ void ApplyOverride(YAML::Node root, const ConfigOverride& o, const std::string& 
     YAML::Node next = cur[name];
     if (index) {
       if (!next.IsSequence() || *index >= next.size()) {
-        throw ConfigError(file + ": --set " + o.key_path + ": no element " +
-                          std::to_string(*index) + " in '" + name + "'");
+        throw ConfigError(file + ": --set " + o.key_path + ": no element " + std::to_string(*index) + " in '" + name +
+                          "'");
       }
       YAML::Node elem;
       elem.reset(next[*index]);
@@ -131,7 +131,7 @@ const RobotSpec* Scenario::FindRobot(RobotId id) const {
 
 MotionOptions MotionOptions::DownsDefaults() {
   MotionOptions m;
-  m.speed_mps = 1.0;              // Downs 4.2: up to 1 m/s
+  m.speed_mps = 1.0;  // Downs 4.2: up to 1 m/s
   m.max_turn_rate_dps = 90.0;
   m.steering = Steering::kSmooth;  // Downs turns towards the waypoint, then drives
   m.sigma_v_mps = 0.01;
@@ -141,11 +141,11 @@ MotionOptions MotionOptions::DownsDefaults() {
 
 SensorOptions SensorOptions::DownsDefaults() {
   SensorOptions s;
-  s.max_range_m = 10.0;           // Downs 4.2: 10 m
-  s.fov_deg = 45.0;               // pi / 4 arc
+  s.max_range_m = 10.0;  // Downs 4.2: 10 m
+  s.fov_deg = 45.0;      // pi / 4 arc
   s.sigma_range_m = 0.01;
-  s.sigma_bearing_deg = 0.573;    // 0.01 rad
-  s.scan_every_steps = 10;        // one observation a second at the 0.1 s step
+  s.sigma_bearing_deg = 0.573;  // 0.01 rad
+  s.scan_every_steps = 10;      // one observation a second at the 0.1 s step
   return s;
 }
 
@@ -162,12 +162,11 @@ std::vector<Eigen::Vector2d> CircleWaypoints(const PathOptions& path, Pose2* sta
   std::vector<Eigen::Vector2d> pts;
   for (int i = 1; i <= path.count; ++i) {
     const double a = a0 + dir * 2.0 * std::numbers::pi * i / path.count;
-    pts.emplace_back(path.center_m.x() + path.radius_m * std::cos(a),
-                     path.center_m.y() + path.radius_m * std::sin(a));
+    pts.emplace_back(path.center_m.x() + path.radius_m * std::cos(a), path.center_m.y() + path.radius_m * std::sin(a));
   }
   if (start) {
-    *start = {path.center_m.x() + path.radius_m * std::cos(a0),
-              path.center_m.y() + path.radius_m * std::sin(a0), WrapAngle(a0 + dir * std::numbers::pi / 2)};
+    *start = {path.center_m.x() + path.radius_m * std::cos(a0), path.center_m.y() + path.radius_m * std::sin(a0),
+              WrapAngle(a0 + dir * std::numbers::pi / 2)};
   }
   return pts;
 }
@@ -238,7 +237,8 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
   sc.agent = ReadAgent(top.Child("agent"));
   sc.feeder = ReadFeeder(top.Child("feeder"));
   if (!dataset && sc.duration_s / sc.world.control_period_s > limits::kMaxSimulationSteps) {
-    top.Fail("duration_s", "the run would take " + std::to_string(std::llround(sc.duration_s / sc.world.control_period_s)) +
+    top.Fail("duration_s", "the run would take " +
+                               std::to_string(std::llround(sc.duration_s / sc.world.control_period_s)) +
                                " steps of world.control_period_s (at most " +
                                std::to_string(static_cast<long long>(limits::kMaxSimulationSteps)) + ")");
   }
@@ -282,8 +282,8 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
       if (dataset) r.Fail("start", "a dataset robot starts where the data says");
       scenario_internal::CheckCoordinates(r, "start", {start[0], start[1]});
       if (!(std::abs(start[2]) <= limits::kMaxAngleDeg)) {
-        r.Fail("start", "the heading must be within +-" + FormatNumber(limits::kMaxAngleDeg) +
-                            " degrees (got " + FormatNumber(start[2]) + ")");
+        r.Fail("start", "the heading must be within +-" + FormatNumber(limits::kMaxAngleDeg) + " degrees (got " +
+                            FormatNumber(start[2]) + ")");
       }
       spec.start = {start[0], start[1], WrapAngle(DegToRad(start[2]))};
       spec.start_given = true;
@@ -359,17 +359,15 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
     if (total_waypoints > static_cast<std::size_t>(limits::kMaxTotalWaypoints)) {
       robots.Fail(robots.Has("list") && !robots.Has("count") ? "list" : "count",
                   "the first " + std::to_string(i + 1) + " of the run's " + std::to_string(wanted) +
-                      " robots already have " + std::to_string(total_waypoints) +
-                      " path waypoints (at most " + std::to_string(limits::kMaxTotalWaypoints) +
-                      " in all: fewer robots or shorter paths)");
+                      " robots already have " + std::to_string(total_waypoints) + " path waypoints (at most " +
+                      std::to_string(limits::kMaxTotalWaypoints) + " in all: fewer robots or shorter paths)");
     }
     sc.robots.push_back(std::move(spec));
   }
   return sc;
 }
 
-Scenario LoadScenario(const std::string& file, const std::vector<ConfigOverride>& overrides,
-                      int agents) {
+Scenario LoadScenario(const std::string& file, const std::vector<ConfigOverride>& overrides, int agents) {
   if (auto problem = scenario_internal::RegularFileProblem(file, limits::kMaxScenarioBytes)) {
     throw ConfigError(file + ": cannot open scenario file: " + *problem);
   }

@@ -30,16 +30,17 @@ struct Rect {
 
 // Where the world's data comes from.
 enum class SourceType { kSimulation, kMrclam, kVictoriaPark };
-inline constexpr ChoiceTable<SourceType, 3> kSourceTypes{
-    {{SourceType::kSimulation, "simulation"}, {SourceType::kMrclam, "mrclam"}, {SourceType::kVictoriaPark, "victoria_park"}}};
+inline constexpr ChoiceTable<SourceType, 3> kSourceTypes{{{SourceType::kSimulation, "simulation"},
+                                                          {SourceType::kMrclam, "mrclam"},
+                                                          {SourceType::kVictoriaPark, "victoria_park"}}};
 
 struct SourceOptions {
   SourceType type = SourceType::kSimulation;
-  std::string dataset;              // folder under the datasets root (mrclam/MRCLAM_Dataset7, victoria_park)
-  std::vector<RobotId> robots;      // mrclam: which of robots 1-5 (default all)
-  double odometry_delay_s = 0.0;    // mrclam: commanded velocities take effect this much later
-  int virtual_robots = 4;           // victoria_park: the run is split into this many robots
-  double overlap_s = 60.0;          // victoria_park: time shared by consecutive segments
+  std::string dataset;            // folder under the datasets root (mrclam/MRCLAM_Dataset7, victoria_park)
+  std::vector<RobotId> robots;    // mrclam: which of robots 1-5 (default all)
+  double odometry_delay_s = 0.0;  // mrclam: commanded velocities take effect this much later
+  int virtual_robots = 4;         // victoria_park: the run is split into this many robots
+  double overlap_s = 60.0;        // victoria_park: time shared by consecutive segments
   bool IsDataset() const { return type != SourceType::kSimulation; }
 };
 
@@ -51,23 +52,23 @@ inline constexpr ChoiceTable<LandmarkLayout, 3> kLandmarkLayouts{
 
 struct LandmarkGeneratorOptions {
   LandmarkLayout type = LandmarkLayout::kUniform;
-  int count = 100;                // number of landmarks
-  Rect area_m{0, 0, 50, 50};      // uniform, park: where they are placed
-  double min_spacing_m = 1.0;     // minimum distance between any two landmarks
-  int paths = 4;                  // park: number of footpaths crossing the area
-  double path_width_m = 4.0;      // park: trees stand at least half this from a path's centre line
-  double scatter_fraction = 0.2;  // park: share of trees placed away from the paths
-  Eigen::Vector2d center_m{0, 0}; // disc: centre
-  double radius_m = 30.0;         // disc: radius (points at uniform radius and bearing, as Downs)
+  int count = 100;                 // number of landmarks
+  Rect area_m{0, 0, 50, 50};       // uniform, park: where they are placed
+  double min_spacing_m = 1.0;      // minimum distance between any two landmarks
+  int paths = 4;                   // park: number of footpaths crossing the area
+  double path_width_m = 4.0;       // park: trees stand at least half this from a path's centre line
+  double scatter_fraction = 0.2;   // park: share of trees placed away from the paths
+  Eigen::Vector2d center_m{0, 0};  // disc: centre
+  double radius_m = 30.0;          // disc: radius (points at uniform radius and bearing, as Downs)
 };
 
 struct WorldOptions {
   double control_period_s = 0.1;  // simulation and odometry step
   // Exactly one landmark source for simulations: an inline list, a CSV file, or a generator.
-  std::vector<Eigen::Vector2d> landmarks;              // from world.landmarks.list or .csv
-  std::string landmarks_csv;                           // resolved path, empty if not used
-  std::optional<LandmarkGeneratorOptions> generator;   // world.landmarks.generator
-  Rect bounds_m;  // area robots may roam; defaults to the landmark area
+  std::vector<Eigen::Vector2d> landmarks;             // from world.landmarks.list or .csv
+  std::string landmarks_csv;                          // resolved path, empty if not used
+  std::optional<LandmarkGeneratorOptions> generator;  // world.landmarks.generator
+  Rect bounds_m;                                      // area robots may roam; defaults to the landmark area
 };
 
 inline constexpr ChoiceTable<MotionModel::Kind, 2> kMotionModels{
@@ -81,28 +82,28 @@ inline constexpr ChoiceTable<Steering, 2> kSteerings{{{Steering::kThesis, "thesi
 // Motion of a robot: its model, the simulated driving, and the noise on its odometry.
 struct MotionOptions {
   MotionModel::Kind model = MotionModel::Kind::kUnicycle;  // unicycle | ackermann (Victoria Park's car)
-  AckermannParams ackermann;            // model ackermann: vehicle geometry
+  AckermannParams ackermann;                               // model ackermann: vehicle geometry
   Steering steering = Steering::kThesis;
-  double speed_mps = 0.3;               // forward speed
-  double max_turn_rate_dps = 30.0;      // turn-rate limit, deg/s
-  double sigma_v_mps = 0.03;            // odometry noise on v
-  double sigma_w_radps = 0.0524;        // odometry noise on w (3 deg/s)
-  double sigma_steering_rad = 0.0;      // odometry noise on the steering angle (ackermann)
-  double waypoint_radius_m = 1.0;       // switch to the next waypoint inside this radius
+  double speed_mps = 0.3;           // forward speed
+  double max_turn_rate_dps = 30.0;  // turn-rate limit, deg/s
+  double sigma_v_mps = 0.03;        // odometry noise on v
+  double sigma_w_radps = 0.0524;    // odometry noise on w (3 deg/s)
+  double sigma_steering_rad = 0.0;  // odometry noise on the steering angle (ackermann)
+  double waypoint_radius_m = 1.0;   // switch to the next waypoint inside this radius
   static MotionOptions ThesisDefaults() { return {}; }
   static MotionOptions DownsDefaults();
 };
 
 // Range-bearing sensor of a robot.
 struct SensorOptions {
-  double max_range_m = 8.0;             // LMS-200-like range
-  double fov_deg = 180.0;               // field of view, centred on the heading
-  double sigma_range_m = 0.05;          // range noise
-  double sigma_bearing_deg = 1.0;       // bearing noise
-  int scan_every_steps = 5;             // one scan per this many control steps
-  bool scan_at_start = false;           // simulation: also scan from the start pose, before the first control
-                                        // step (anchors the map frame before any odometry noise)
-  bool signatures = false;              // share landmark identities (known correspondence)
+  double max_range_m = 8.0;        // LMS-200-like range
+  double fov_deg = 180.0;          // field of view, centred on the heading
+  double sigma_range_m = 0.05;     // range noise
+  double sigma_bearing_deg = 1.0;  // bearing noise
+  int scan_every_steps = 5;        // one scan per this many control steps
+  bool scan_at_start = false;      // simulation: also scan from the start pose, before the first control
+                                   // step (anchors the map frame before any odometry noise)
+  bool signatures = false;         // share landmark identities (known correspondence)
   static SensorOptions ThesisDefaults() { return {}; }
   static SensorOptions DownsDefaults();
 };
@@ -131,18 +132,18 @@ struct PathOptions {
 
 struct RobotSpec {
   RobotId id = 0;
-  Pose2 start;                          // true start pose (theta in radians)
-  bool start_given = false;             // false: drawn (or from the path or the dataset)
+  Pose2 start;               // true start pose (theta in radians)
+  bool start_given = false;  // false: drawn (or from the path or the dataset)
   PathOptions path;
   MotionOptions motion;
   SensorOptions sensor;
 };
 
 struct RadioOptions {
-  double range_m = 20.0;                // robots further apart cannot hear each other
-  double loss_probability = 0.0;        // chance that a map message is dropped
-  double bandwidth_bytes_per_s = 0.0;   // per link; 0 means unlimited
-  double links_period_s = 0.5;          // how often the feeder publishes the link table
+  double range_m = 20.0;               // robots further apart cannot hear each other
+  double loss_probability = 0.0;       // chance that a map message is dropped
+  double bandwidth_bytes_per_s = 0.0;  // per link; 0 means unlimited
+  double links_period_s = 0.5;         // how often the feeder publishes the link table
 };
 
 // How the feeder paces the run: lockstep (as fast as the agents go) or realtime.
@@ -151,25 +152,25 @@ inline constexpr ChoiceTable<Pace, 2> kPaces{{{Pace::kLockstep, "lockstep"}, {Pa
 
 struct FeederOptions {
   Pace pace = Pace::kLockstep;
-  double realtime_factor = 1.0;         // realtime: scenario seconds per wall second
-  double lockstep_window_s = 0.5;       // lockstep: data published between barriers (<= 10 s)
-  double startup_timeout_s = 30.0;      // wall seconds to wait for every agent to appear
-  double truth_period_s = 0.5;          // trajectory sampling in truth.json
+  double realtime_factor = 1.0;     // realtime: scenario seconds per wall second
+  double lockstep_window_s = 0.5;   // lockstep: data published between barriers (<= 10 s)
+  double startup_timeout_s = 30.0;  // wall seconds to wait for every agent to appear
+  double truth_period_s = 0.5;      // trajectory sampling in truth.json
 };
 
 struct Scenario {
   int version = 1;
   std::string name;
   std::string description;
-  std::string path;                     // the file it was loaded from
+  std::string path;  // the file it was loaded from
   std::uint64_t seed = 1;
-  double duration_s = 60.0;             // datasets: 0 until the feeder has read the data
-  bool duration_given = false;          // datasets: false replays everything
+  double duration_s = 60.0;     // datasets: 0 until the feeder has read the data
+  bool duration_given = false;  // datasets: false replays everything
   SourceOptions source;
   WorldOptions world;
-  std::vector<RobotSpec> robots;        // resolved: exactly the robots of this run
+  std::vector<RobotSpec> robots;  // resolved: exactly the robots of this run
   RadioOptions radio;
-  AgentOptions agent;                   // the agent section: each module's own options (agent/agent_options.h)
+  AgentOptions agent;  // the agent section: each module's own options (agent/agent_options.h)
   FeederOptions feeder;
 
   // The robot with this id, or nullptr.
@@ -188,8 +189,7 @@ ConfigOverride ParseOverride(const std::string& text);
 // the first listed ones, then robots generated from robots.defaults with seeded random
 // starts and paths (mrclam: the first N robots; victoria_park: N virtual robots).
 // Throws ConfigError (one line naming file, line and key) on any problem.
-Scenario LoadScenario(const std::string& file, const std::vector<ConfigOverride>& overrides = {},
-                      int agents = 0);
+Scenario LoadScenario(const std::string& file, const std::vector<ConfigOverride>& overrides = {}, int agents = 0);
 
 // Same, from YAML text (file is used only in messages and to resolve relative paths). With
 // keys_read, collects the path of every key the loader asked for, present or not (list

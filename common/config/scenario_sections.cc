@@ -72,8 +72,7 @@ std::vector<Eigen::Vector2d> ReadPoints(YamlReader& r, const std::string& key, i
 
 // Reads "x,y" rows; blank lines, '#' comments and a non-numeric header row are skipped. The
 // file must be a regular, readable file of at most kMaxCsvBytes holding 1 to kMaxLandmarks rows.
-std::vector<Eigen::Vector2d> ReadLandmarkCsv(YamlReader& r, const std::string& key,
-                                             const std::string& path) {
+std::vector<Eigen::Vector2d> ReadLandmarkCsv(YamlReader& r, const std::string& key, const std::string& path) {
   if (auto problem = RegularFileProblem(path, limits::kMaxCsvBytes)) {
     r.Fail(key, "cannot open landmarks file '" + path + "': " + *problem);
   }
@@ -109,8 +108,8 @@ std::vector<Eigen::Vector2d> ReadLandmarkCsv(YamlReader& r, const std::string& k
 
 Rect BoundingBox(const std::vector<Eigen::Vector2d>& pts, double margin) {
   if (pts.empty()) return {0, 0, 50, 50};
-  Rect r{std::numeric_limits<double>::max(), std::numeric_limits<double>::max(),
-         std::numeric_limits<double>::lowest(), std::numeric_limits<double>::lowest()};
+  Rect r{std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::lowest(),
+         std::numeric_limits<double>::lowest()};
   for (const auto& p : pts) {
     r.xmin = std::min(r.xmin, p.x());
     r.ymin = std::min(r.ymin, p.y());
@@ -206,8 +205,8 @@ WorldOptions ReadWorld(YamlReader w, const std::string& scenario_dir, bool datas
   lm.Finish();
   if (o.generator && o.generator->type == LandmarkLayout::kDisc) {
     const auto& g = *o.generator;
-    o.bounds_m = {g.center_m.x() - g.radius_m, g.center_m.y() - g.radius_m,
-                  g.center_m.x() + g.radius_m, g.center_m.y() + g.radius_m};
+    o.bounds_m = {g.center_m.x() - g.radius_m, g.center_m.y() - g.radius_m, g.center_m.x() + g.radius_m,
+                  g.center_m.y() + g.radius_m};
   } else {
     o.bounds_m = o.generator ? o.generator->area_m : BoundingBox(o.landmarks, 1.0);
   }
@@ -303,8 +302,8 @@ void ReadPath(YamlReader p, PathOptions& o, const Rect& world_bounds) {
       {PathType::kCircle, {"count", "center_m", "radius_m", "start_angle_deg", "clockwise"}},
       {PathType::kLawnmower, {"area_m", "spacing_m"}},
       {PathType::kPark, {"index"}}};
-  for (const char* k : {"points", "count", "area_m", "center_m", "radius_m", "start_angle_deg",
-                        "clockwise", "spacing_m", "index"}) {
+  for (const char* k :
+       {"points", "count", "area_m", "center_m", "radius_m", "start_angle_deg", "clockwise", "spacing_m", "index"}) {
     if (p.Has(k) && !keys.at(o.type).count(k)) {
       p.Fail(k, "not used by path type " + std::string(NameOf(kPathTypes, o.type)));
     }

@@ -39,8 +39,7 @@ int YamlReader::LineOf(const YAML::Node& node) const {
   return 1;
 }
 
-void YamlReader::FailAt(const YAML::Node& node, const std::string& key_path,
-                        const std::string& reason) const {
+void YamlReader::FailAt(const YAML::Node& node, const std::string& key_path, const std::string& reason) const {
   const std::string shown = key_path.empty() ? "(top level)" : key_path;
   // A key set with --set (or anything below it) is reported as such: its line is not in the file.
   for (const std::string& o : source_->overridden) {
@@ -51,11 +50,9 @@ void YamlReader::FailAt(const YAML::Node& node, const std::string& key_path,
   FailInFile(node, key_path, reason);
 }
 
-void YamlReader::FailInFile(const YAML::Node& node, const std::string& key_path,
-                            const std::string& reason) const {
+void YamlReader::FailInFile(const YAML::Node& node, const std::string& key_path, const std::string& reason) const {
   const std::string shown = key_path.empty() ? "(top level)" : key_path;
-  throw ConfigError(source_->file + ":" + std::to_string(LineOf(node)) + ": " + shown + ": " +
-                    reason);
+  throw ConfigError(source_->file + ":" + std::to_string(LineOf(node)) + ": " + shown + ": " + reason);
 }
 
 void YamlReader::Fail(const std::string& key, const std::string& reason) const {
@@ -94,8 +91,7 @@ void YamlReader::Get(const std::string& key, double& out) {
 }
 void YamlReader::Get(const std::string& key, int& out) { GetScalar(key, out, "an integer"); }
 void YamlReader::Get(const std::string& key, std::uint64_t& out) {
-  if (Has(key) && node_[key].IsScalar() && !node_[key].Scalar().empty() &&
-      node_[key].Scalar()[0] == '-') {
+  if (Has(key) && node_[key].IsScalar() && !node_[key].Scalar().empty() && node_[key].Scalar()[0] == '-') {
     Fail(key, "must be a non-negative integer");
   }
   GetScalar(key, out, "a non-negative integer");
@@ -122,8 +118,7 @@ void YamlReader::GetVector(const std::string& key, std::vector<double>& out, std
   out = std::move(v);
 }
 
-void YamlReader::GetChoice(const std::string& key, std::string& out,
-                           const std::vector<std::string>& choices) {
+void YamlReader::GetChoice(const std::string& key, std::string& out, const std::vector<std::string>& choices) {
   Get(key, out);
   for (const auto& c : choices) {
     if (out == c) return;

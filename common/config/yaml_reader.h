@@ -20,7 +20,7 @@ namespace mapmesh {
 // Where a YAML tree came from, and which key paths were set on the command line.
 struct YamlSource {
   std::string file;
-  std::set<std::string> overridden;  // key paths given with --set
+  std::set<std::string> overridden;            // key paths given with --set
   std::set<std::string>* keys_read = nullptr;  // when set, collects the path of every value key read
                                                // (list indices as [], mappings only through their keys)
 };
@@ -37,8 +37,7 @@ class YamlReader {
   // Throws ConfigError for `key` (relative to this mapping) with `reason`.
   [[noreturn]] void Fail(const std::string& key, const std::string& reason) const;
   // Same, for a node anywhere below this mapping.
-  [[noreturn]] void FailAt(const YAML::Node& node, const std::string& key_path,
-                           const std::string& reason) const;
+  [[noreturn]] void FailAt(const YAML::Node& node, const std::string& key_path, const std::string& reason) const;
 
   bool Has(const std::string& key) const;
   // The raw node for key (marks it as read); null node when absent.
@@ -98,8 +97,7 @@ class YamlReader {
   // Remembers key as read (for Finish) and, for a value (leaf), in source().keys_read.
   void MarkRead(const std::string& key, bool leaf);
   // Throws ConfigError at node's line in the file, even below a key given with --set.
-  [[noreturn]] void FailInFile(const YAML::Node& node, const std::string& key_path,
-                               const std::string& reason) const;
+  [[noreturn]] void FailInFile(const YAML::Node& node, const std::string& key_path, const std::string& reason) const;
 
   YAML::Node node_;
   std::string path_;

@@ -4,8 +4,7 @@
 
 namespace mapmesh {
 
-std::optional<Pose2> FitRigid2D(const std::vector<Eigen::Vector2d>& src,
-                                const std::vector<Eigen::Vector2d>& dst) {
+std::optional<Pose2> FitRigid2D(const std::vector<Eigen::Vector2d>& src, const std::vector<Eigen::Vector2d>& dst) {
   if (src.size() != dst.size() || src.size() < 2) return std::nullopt;
   const double n = static_cast<double>(src.size());
   Eigen::Vector2d ms = Eigen::Vector2d::Zero(), md = Eigen::Vector2d::Zero();
@@ -31,8 +30,8 @@ std::optional<Pose2> FitRigid2D(const std::vector<Eigen::Vector2d>& src,
   return Pose2{t.x(), t.y(), theta};
 }
 
-std::optional<Pose2> FitRigid2D(const Eigen::Vector2d& src1, const Eigen::Vector2d& src2,
-                                const Eigen::Vector2d& dst1, const Eigen::Vector2d& dst2) {
+std::optional<Pose2> FitRigid2D(const Eigen::Vector2d& src1, const Eigen::Vector2d& src2, const Eigen::Vector2d& dst1,
+                                const Eigen::Vector2d& dst2) {
   // [T(p1); T(p2)] = [S1 I; S2 I] theta with S = [x -y; y x]; with M = S1 - S2,
   // [cos, sin] = M^-1 (q1 - q2) (M = [dx -dy; dy dx], inverted by hand).
   const Eigen::Vector2d d = src1 - src2, q = dst1 - dst2;

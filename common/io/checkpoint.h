@@ -26,9 +26,9 @@ namespace mapmesh {
 struct IncarnationSnapshot {
   RobotId robot = 0;
   std::uint32_t incarnation = 0;
-  double origin_stamp = 0.0;      // s, when that incarnation's frame was fixed
-  double processed_until = 0.0;   // s
-  LandmarkMap local, global;      // in that incarnation's frame
+  double origin_stamp = 0.0;     // s, when that incarnation's frame was fixed
+  double processed_until = 0.0;  // s
+  LandmarkMap local, global;     // in that incarnation's frame
 };
 
 // What an agent saves to survive a kill: enough to re-merge everything it knew, through the
@@ -69,8 +69,8 @@ nlohmann::json CheckpointToJson(const AgentCheckpoint& checkpoint);
 // unique id in its map, a finite mean within limits.max_abs_coordinate_m and a finite,
 // symmetric PSD covariance; and the limits hold. Never throws, never aborts; work and stack
 // are bounded by the text's size, not its nesting.
-CheckpointLoad ParseCheckpoint(std::string_view text, std::string_view name, RobotId robot,
-                               std::uint32_t incarnation, const CheckpointLimits& limits = {});
+CheckpointLoad ParseCheckpoint(std::string_view text, std::string_view name, RobotId robot, std::uint32_t incarnation,
+                               const CheckpointLimits& limits = {});
 
 // Reads and parses the file at path as ParseCheckpoint does. A missing file gives `missing`;
 // an unreadable one, a directory or one larger than limits.max_file_bytes an error (the size

@@ -50,8 +50,7 @@ LandmarkMap MapFromJson(const json& j) {
       l.signature = e.value("signature", -1);
       l.mean = {e.at("x").get<double>(), e.at("y").get<double>()};
       const auto& c = e.at("cov");
-      l.cov << c.at(0).get<double>(), c.at(1).get<double>(), c.at(1).get<double>(),
-          c.at(2).get<double>();
+      l.cov << c.at(0).get<double>(), c.at(1).get<double>(), c.at(1).get<double>(), c.at(2).get<double>();
       map.landmarks.push_back(l);
     }
   } catch (const json::exception& ex) {
@@ -61,7 +60,8 @@ LandmarkMap MapFromJson(const json& j) {
 }
 
 std::optional<Pose2> RobotTruth::PoseAt(double t) const {
-  return PoseAlong(trajectory, t, [](const TruthSample& s) { return s.t; }, [](const TruthSample& s) { return s.pose; });
+  return PoseAlong(
+      trajectory, t, [](const TruthSample& s) { return s.t; }, [](const TruthSample& s) { return s.pose; });
 }
 
 const RobotTruth* RunTruth::Find(RobotId id) const {
@@ -86,12 +86,8 @@ json TruthToJson(const RunTruth& truth) {
                       {"start", r.start ? json{r.start->x, r.start->y, r.start->theta} : json()},
                       {"trajectory", traj}});
   }
-  return {{"scenario", truth.scenario},
-          {"duration_s", truth.duration_s},
-          {"landmarks", lms},
-          {"seen", truth.seen},
-          {"headings_known", truth.headings_known},
-          {"robots", robots}};
+  return {{"scenario", truth.scenario}, {"duration_s", truth.duration_s},         {"landmarks", lms},
+          {"seen", truth.seen},         {"headings_known", truth.headings_known}, {"robots", robots}};
 }
 
 RunTruth TruthFromJson(const json& j) {

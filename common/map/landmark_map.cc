@@ -6,8 +6,7 @@
 namespace mapmesh {
 
 const Landmark* LandmarkMap::Find(std::uint32_t id) const {
-  auto it = std::find_if(landmarks.begin(), landmarks.end(),
-                         [id](const Landmark& l) { return l.id == id; });
+  auto it = std::find_if(landmarks.begin(), landmarks.end(), [id](const Landmark& l) { return l.id == id; });
   return it == landmarks.end() ? nullptr : &*it;
 }
 
@@ -19,7 +18,6 @@ bool IsValidCovariance(const Eigen::Matrix2d& cov) {
   const double det = cov(0, 0) * cov(1, 1) - cov(0, 1) * cov(1, 0);
   return cov(0, 0) >= 0.0 && cov(1, 1) >= 0.0 && det >= -1e-12 * scale * scale;
 }
-
 
 LandmarkMap TransformMap(const LandmarkMap& map, const Pose2& pose) {
   LandmarkMap out = map;

@@ -12,9 +12,9 @@ namespace mapmesh {
 
 // One landmark estimate in its map's frame.
 struct Landmark {
-  std::uint32_t id = 0;                         // unique within its map
-  std::int32_t signature = -1;                  // sensor identity if known, else -1
-  Eigen::Vector2d mean = Eigen::Vector2d::Zero();  // m
+  std::uint32_t id = 0;                               // unique within its map
+  std::int32_t signature = -1;                        // sensor identity if known, else -1
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();     // m
   Eigen::Matrix2d cov = Eigen::Matrix2d::Identity();  // m^2, marginal 2x2 covariance
 };
 

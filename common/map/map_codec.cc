@@ -40,7 +40,7 @@ std::int32_t GetI24(const std::uint8_t* p) {
 }
 
 constexpr std::int32_t kI24Max = (1 << 23) - 1, kI24Min = -(1 << 23);
-constexpr double kSigmaMin = 1e-5;         // m
+constexpr double kSigmaMin = 1e-5;  // m
 constexpr double kLogStep = 3e-4;
 constexpr std::uint16_t kSigmaCodeMax = 65534;  // 65535 is invalid
 constexpr std::int16_t kRhoCodeMax = 32766;
@@ -91,7 +91,8 @@ std::vector<std::uint8_t> EncodeMap(const LandmarkMap& map, MapDecodeError* erro
     if (!IsValidCovariance(l.cov)) return fail(MapDecodeError::kBadCovariance);
     if (!ids.insert(l.id).second) return fail(MapDecodeError::kDuplicateId);
     const double x = std::round(l.mean.x() * 1000.0), y = std::round(l.mean.y() * 1000.0);
-    if (!(std::abs(x) <= kMaxCoordinateMm && std::abs(y) <= kMaxCoordinateMm)) return fail(MapDecodeError::kOutOfBounds);
+    if (!(std::abs(x) <= kMaxCoordinateMm && std::abs(y) <= kMaxCoordinateMm))
+      return fail(MapDecodeError::kOutOfBounds);
     lo_x = i == 0 ? x : std::min(lo_x, x);
     hi_x = i == 0 ? x : std::max(hi_x, x);
     lo_y = i == 0 ? y : std::min(lo_y, y);
@@ -169,7 +170,8 @@ MapDecodeResult DecodeMap(std::span<const std::uint8_t> payload) {
     Landmark l;
     l.id = Get<std::uint32_t>(p);
     const double x_mm = ox + GetI24(p + 4), y_mm = oy + GetI24(p + 7);
-    if (std::abs(x_mm) > kMaxCoordinateMm || std::abs(y_mm) > kMaxCoordinateMm) return fail(MapDecodeError::kOutOfBounds);
+    if (std::abs(x_mm) > kMaxCoordinateMm || std::abs(y_mm) > kMaxCoordinateMm)
+      return fail(MapDecodeError::kOutOfBounds);
     l.mean = {x_mm / 1000.0, y_mm / 1000.0};
     const auto cx = Get<std::uint16_t>(p + 10), cy = Get<std::uint16_t>(p + 12);
     const auto cr = Get<std::int16_t>(p + 14);

@@ -39,15 +39,15 @@ inline constexpr double kMapCodecMaxCoordinateM = 8000.0;
 // Why a payload was rejected. kOk means it decoded.
 enum class MapDecodeError {
   kOk = 0,
-  kTruncated,      // shorter than its header or its count says
-  kOversized,      // longer than its count says, or count above the limit
+  kTruncated,  // shorter than its header or its count says
+  kOversized,  // longer than its count says, or count above the limit
   kBadMagic,
   kUnknownVersion,
   kNonFinite,      // NaN or inf (the shape precision, or an invalid standard-deviation code)
   kBadCovariance,  // not positive definite (a correlation code out of range)
   kDuplicateId,
-  kBadHeader,      // unknown flags, or a negative shape precision
-  kOutOfBounds,    // the origin or a landmark beyond kMapCodecMaxCoordinateM
+  kBadHeader,    // unknown flags, or a negative shape precision
+  kOutOfBounds,  // the origin or a landmark beyond kMapCodecMaxCoordinateM
 };
 inline constexpr int kMapDecodeErrorCount = 10;
 

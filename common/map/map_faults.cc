@@ -11,8 +11,8 @@ namespace mapmesh {
 namespace {
 
 constexpr std::array<std::string_view, kPayloadFaultCount> kNames = {
-    "truncated", "oversized", "count_above_limit", "bad_magic", "unknown_version",
-    "non_finite", "bad_covariance", "duplicate_id", "bad_header", "out_of_bounds"};
+    "truncated",  "oversized",      "count_above_limit", "bad_magic",  "unknown_version",
+    "non_finite", "bad_covariance", "duplicate_id",      "bad_header", "out_of_bounds"};
 
 // Byte offsets in the version-2 layout (map_codec.h).
 constexpr std::size_t kVersionAt = 2, kFlagsAt = 3, kCountAt = 4, kOriginXAt = 8, kShapeAt = 16;

@@ -17,16 +17,16 @@ namespace mapmesh {
 
 // One way to break a valid payload; each maps to the MapDecodeError that must reject it.
 enum class PayloadFault {
-  kTruncated,       // the last landmark cut short
-  kOversized,       // one byte more than the count says
-  kCountAboveLimit, // a landmark count above kMapCodecMaxLandmarks
+  kTruncated,        // the last landmark cut short
+  kOversized,        // one byte more than the count says
+  kCountAboveLimit,  // a landmark count above kMapCodecMaxLandmarks
   kBadMagic,
   kUnknownVersion,
-  kNonFinite,       // a NaN shape precision
-  kBadCovariance,   // a correlation code of exactly +-1 on one landmark
-  kDuplicateId,     // the second landmark takes the first one's id
-  kBadHeader,       // unknown flags
-  kOutOfBounds,     // the map's origin 2000 km away (beyond kMapCodecMaxCoordinateM)
+  kNonFinite,      // a NaN shape precision
+  kBadCovariance,  // a correlation code of exactly +-1 on one landmark
+  kDuplicateId,    // the second landmark takes the first one's id
+  kBadHeader,      // unknown flags
+  kOutOfBounds,    // the map's origin 2000 km away (beyond kMapCodecMaxCoordinateM)
 };
 inline constexpr int kPayloadFaultCount = 10;
 

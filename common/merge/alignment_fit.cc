@@ -91,7 +91,8 @@ LandmarkMap ForAlignment(const LandmarkMap& m, double floor_m, bool every_landma
   LandmarkMap out = m;
   const double s = std::max(m.shape_sigma_m, floor_m), v = s * s;
   for (Landmark& l : out.landmarks) {
-    if (l.mean.allFinite() && IsValidCovariance(l.cov) && (every_landmark || LargestSigma(l.cov) * LargestSigma(l.cov) > v)) {
+    if (l.mean.allFinite() && IsValidCovariance(l.cov) &&
+        (every_landmark || LargestSigma(l.cov) * LargestSigma(l.cov) > v)) {
       l.cov = v * Eigen::Matrix2d::Identity();
     }
   }

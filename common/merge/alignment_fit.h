@@ -17,9 +17,9 @@ namespace mapmesh::alignment_detail {
 
 // The landmarks of a map that alignment can use.
 struct Usable {
-  std::vector<int> index;               // into the map's landmarks
+  std::vector<int> index;  // into the map's landmarks
   std::vector<Eigen::Vector2d> points;
-  std::vector<double> sigma;            // sqrt of the covariance's largest eigenvalue
+  std::vector<double> sigma;  // sqrt of the covariance's largest eigenvalue
   double max_sigma = 0.0;
 };
 

@@ -41,7 +41,9 @@ inline constexpr ChoiceTable<FusionMethod, 5> kFusionMethods{{{FusionMethod::kMa
                                                               {FusionMethod::kCiTrace, "ci_trace"}}};
 inline std::string_view ToString(FusionMethod m) { return NameOf(kFusionMethods, m); }
 // "ml", "information", "ci", "ci_det", "ci_trace"; nullopt for anything else.
-inline std::optional<FusionMethod> ParseFusionMethod(std::string_view name) { return ParseChoice(kFusionMethods, name); }
+inline std::optional<FusionMethod> ParseFusionMethod(std::string_view name) {
+  return ParseChoice(kFusionMethods, name);
+}
 
 // A 2D Gaussian estimate.
 struct Gaussian2 {
@@ -64,9 +66,9 @@ FusionVerdict CheckEstimate(const Gaussian2& g);
 struct FusionResult {
   FusionVerdict verdict = FusionVerdict::kNoInputs;
   bool ok() const { return verdict == FusionVerdict::kFused; }
-  int bad_input = -1;            // the first input that was rejected
+  int bad_input = -1;  // the first input that was rejected
   Gaussian2 fused;
-  std::vector<double> weights;   // CI: the weight of each input (sums to 1)
+  std::vector<double> weights;  // CI: the weight of each input (sums to 1)
 };
 
 // Fuses the inputs with the method. Any invalid input rejects the whole fusion (nothing is
@@ -77,7 +79,8 @@ enum class CiCriterion { kDeterminant, kTrace };
 
 // Two inputs, without allocating: the common case of the global map. nullopt when either
 // input is invalid (CheckEstimate); *weight, when given, receives a's CI weight.
-std::optional<Gaussian2> FusePair(const Gaussian2& a, const Gaussian2& b, FusionMethod method, double* weight = nullptr);
+std::optional<Gaussian2> FusePair(const Gaussian2& a, const Gaussian2& b, FusionMethod method,
+                                  double* weight = nullptr);
 
 // CI of two valid inputs with a's weight w given.
 Gaussian2 CiFuseWithWeight(const Gaussian2& a, const Gaussian2& b, double w);

@@ -22,8 +22,8 @@ double LargestEigen(const Eigen::Matrix2d& c) {
 }
 
 struct Cluster {
-  Gaussian2 anchor;                  // the estimate candidates are gated against
-  std::vector<Gaussian2> inputs;     // everything fused into it, anchor first
+  Gaussian2 anchor;               // the estimate candidates are gated against
+  std::vector<Gaussian2> inputs;  // everything fused into it, anchor first
   std::vector<LandmarkOrigin> origins;
   std::int32_t signature = -1;
 };

@@ -36,19 +36,19 @@ namespace mapmesh {
 // One contributor to the global map.
 struct MapSource {
   RobotId robot = 0;
-  std::uint32_t incarnation = 0;                      // which start of the robot's process (its frame)
-  LandmarkMap map;                                    // in the source's own frame
-  Pose2 to_own;                                       // maps the source's frame into the own frame
+  std::uint32_t incarnation = 0;                         // which start of the robot's process (its frame)
+  LandmarkMap map;                                       // in the source's own frame
+  Pose2 to_own;                                          // maps the source's frame into the own frame
   Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();  // of (x, y, theta) of to_own
 };
 
 struct GlobalMapOptions {
   FusionMethod method = FusionMethod::kCiConstant;  // agent.fusion
-  double gate_probability = 0.999;  // individual and joint compatibility (chi-square); a missed true
-                                    // pair duplicates a landmark, so the gate is wide and JCBB
-                                    // settles what it lets through
-  int max_jcbb_landmarks = 10;      // larger ambiguous groups are resolved greedily (closest first)
-  long max_jcbb_nodes = 20000;      // per group
+  double gate_probability = 0.999;                  // individual and joint compatibility (chi-square); a missed true
+                                                    // pair duplicates a landmark, so the gate is wide and JCBB
+                                                    // settles what it lets through
+  int max_jcbb_landmarks = 10;                      // larger ambiguous groups are resolved greedily (closest first)
+  long max_jcbb_nodes = 20000;                      // per group
 
   // Reads its keys of the scenario's agent section (docs/SCENARIOS.md).
   template <typename Reader>
@@ -65,20 +65,20 @@ struct LandmarkOrigin {
 };
 
 struct GlobalMapStats {
-  int local = 0;                // local landmarks cloned
-  int sources = 0;              // sources used
-  int rejected_sources = 0;     // with an invalid transform covariance
-  int associated = 0;           // source landmarks fused into an existing global landmark
-  int appended = 0;             // source landmarks that started a global landmark
-  int rejected_landmarks = 0;   // invalid landmarks (local or source): never fused
+  int local = 0;               // local landmarks cloned
+  int sources = 0;             // sources used
+  int rejected_sources = 0;    // with an invalid transform covariance
+  int associated = 0;          // source landmarks fused into an existing global landmark
+  int appended = 0;            // source landmarks that started a global landmark
+  int rejected_landmarks = 0;  // invalid landmarks (local or source): never fused
   int non_finite_mean = 0, invalid_covariance = 0, singular_covariance = 0;  // ... by reason
-  int ambiguous_groups = 0;     // candidate groups resolved by JCBB
-  int greedy_groups = 0;        // ... too large for JCBB, resolved closest first
+  int ambiguous_groups = 0;                                                  // candidate groups resolved by JCBB
+  int greedy_groups = 0;  // ... too large for JCBB, resolved closest first
 };
 
 struct GlobalMap {
-  LandmarkMap map;                                // in the own frame; ids are indices; a landmark keeps a
-                                                  // signature its inputs agree on (unknown ones aside)
+  LandmarkMap map;                                   // in the own frame; ids are indices; a landmark keeps a
+                                                     // signature its inputs agree on (unknown ones aside)
   std::vector<std::vector<LandmarkOrigin>> origins;  // per global landmark, its inputs (first: the anchor)
   GlobalMapStats stats;
 };

@@ -118,9 +118,10 @@ AlignmentResult RansacAlign(const LandmarkMap& a_in, const LandmarkMap& b_in, co
     const Landmark &a1 = a.landmarks[c1.a], &a2 = a.landmarks[c2.a], &b1 = b.landmarks[c1.b], &b2 = b.landmarks[c2.b];
     // A rigid motion keeps distances: reject samples that cannot be one.
     const double dist_gap = std::abs((a1.mean - a2.mean).norm() - (b1.mean - b2.mean).norm());
-    const double tol = rigid_tol > 0 ? rigid_tol
-                                     : 3.0 * std::sqrt(std::pow(LargestSigma(a1.cov), 2) + std::pow(LargestSigma(a2.cov), 2) +
-                                                       std::pow(LargestSigma(b1.cov), 2) + std::pow(LargestSigma(b2.cov), 2));
+    const double tol = rigid_tol > 0
+                           ? rigid_tol
+                           : 3.0 * std::sqrt(std::pow(LargestSigma(a1.cov), 2) + std::pow(LargestSigma(a2.cov), 2) +
+                                             std::pow(LargestSigma(b1.cov), 2) + std::pow(LargestSigma(b2.cov), 2));
     if (dist_gap > tol) continue;
     const std::optional<Pose2> t = FitRigid2D(b1.mean, b2.mean, a1.mean, a2.mean);
     if (!t) continue;
@@ -143,7 +144,8 @@ AlignmentResult RansacAlign(const LandmarkMap& a_in, const LandmarkMap& b_in, co
       if (q >= 1.0) {
         bound = 50;
       } else if (q > 0.0) {
-        bound = std::max<long>(50, static_cast<long>(std::ceil(std::log(1.0 - o.success_probability) / std::log(1.0 - q))));
+        bound = std::max<long>(50,
+                               static_cast<long>(std::ceil(std::log(1.0 - o.success_probability) / std::log(1.0 - q))));
       }
     } else if (!same_as_best && h.BetterThan(runner)) {
       static_cast<Hypothesis&>(runner) = h;

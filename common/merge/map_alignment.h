@@ -37,21 +37,21 @@ enum class LandmarkErrors {
 
 struct AlignmentOptions {
   TriangleMatcher matcher = TriangleMatcher::kSortedSides;
-  double side_tolerance_sigmas = 3.0;   // sorted sides: sides may differ by this many sigmas ...
-  double min_side_tolerance_m = 0.1;    // ... and at least this much (SLAM covariances are often optimistic)
-  double min_side_m = 0.3;              // triangles with a shorter side are not used
-  int min_consistent_triangles = 2;     // sorted sides: a match counts only in a patch of this many adjacent,
-                                        // consistent matches
-  int patch_stop_triangles = 12;        // sorted sides: once a patch this large is found ...
-  int seeds_after_patch = 100;          // ... this many more seed triangles look for a competitor, then the
-                                        // search stops
-  double patch_keep_ratio = 0.25;       // patches smaller than this share of the largest are dropped
-  double thesis_tau = 1.6487;           // thesis similarity threshold (exp(0.5))
+  double side_tolerance_sigmas = 3.0;  // sorted sides: sides may differ by this many sigmas ...
+  double min_side_tolerance_m = 0.1;   // ... and at least this much (SLAM covariances are often optimistic)
+  double min_side_m = 0.3;             // triangles with a shorter side are not used
+  int min_consistent_triangles = 2;    // sorted sides: a match counts only in a patch of this many adjacent,
+                                       // consistent matches
+  int patch_stop_triangles = 12;       // sorted sides: once a patch this large is found ...
+  int seeds_after_patch = 100;         // ... this many more seed triangles look for a competitor, then the
+                                       // search stops
+  double patch_keep_ratio = 0.25;      // patches smaller than this share of the largest are dropped
+  double thesis_tau = 1.6487;          // thesis similarity threshold (exp(0.5))
   ConsensusDistance distance = ConsensusDistance::kMahalanobis;
-  double euclidean_gate_m = 2.0;        // Euclidean consensus gate (thesis default)
-  double gate_probability = 0.99;       // Mahalanobis consensus: chi-square 2 dof quantile
-  double success_probability = 0.999;   // RANSAC stops when an all-inlier sample was drawn with this probability
-                                        // (eq. 63)
+  double euclidean_gate_m = 2.0;       // Euclidean consensus gate (thesis default)
+  double gate_probability = 0.99;      // Mahalanobis consensus: chi-square 2 dof quantile
+  double success_probability = 0.999;  // RANSAC stops when an all-inlier sample was drawn with this probability
+                                       // (eq. 63)
   int max_iterations = 5000;
   int min_inliers = 6;                  // fewer inliers: rejected
   double residual_probability = 0.999;  // chi-square test on the inliers' residuals ...
@@ -64,9 +64,9 @@ struct AlignmentOptions {
   double coverage_radius_m = 2.5;       // a moved landmark of B within this of one of A's lies where A has mapped ...
   double min_overlap_ratio = 0.3;       // ... and at least this share of those must be inliers
   LandmarkErrors landmark_errors = LandmarkErrors::kUnknownCorrelation;  // for the transform's covariance
-  double min_shape_sigma_m = 0.1;       // maps that report their shape precision (LandmarkMap::shape_sigma_m)
-                                        // are compared with it (and fitted with it, every landmark alike), but
-                                        // never below this
+  double min_shape_sigma_m = 0.1;  // maps that report their shape precision (LandmarkMap::shape_sigma_m)
+                                   // are compared with it (and fitted with it, every landmark alike), but
+                                   // never below this
 };
 
 // A proposed correspondence: landmark a of map A and landmark b of map B, with the number
@@ -79,42 +79,41 @@ struct CandidatePair {
 
 enum class AlignmentVerdict {
   kAccepted = 0,
-  kTooFewLandmarks,    // fewer than 3 usable landmarks in a map
-  kNoTriangles,        // a map's landmarks are collinear (or too close together)
-  kNoCandidates,       // no triangle of one map looks like a triangle of the other
+  kTooFewLandmarks,  // fewer than 3 usable landmarks in a map
+  kNoTriangles,      // a map's landmarks are collinear (or too close together)
+  kNoCandidates,     // no triangle of one map looks like a triangle of the other
   kTooFewInliers,
-  kResidualsTooLarge,  // the inliers do not fit the transform as their covariances say
-  kAmbiguous,          // another, different transform is nearly as well supported
+  kResidualsTooLarge,    // the inliers do not fit the transform as their covariances say
+  kAmbiguous,            // another, different transform is nearly as well supported
   kInconsistentOverlap,  // where the transform lays B over A's mapped area, most of B's landmarks find no partner
-  kDegenerate,         // the inliers do not determine the transform (collinear, or singular covariances)
+  kDegenerate,           // the inliers do not determine the transform (collinear, or singular covariances)
 };
 std::string_view ToString(AlignmentVerdict v);
 
 struct AlignmentResult {
   AlignmentVerdict verdict = AlignmentVerdict::kTooFewLandmarks;
   bool accepted() const { return verdict == AlignmentVerdict::kAccepted; }
-  Pose2 transform;                                  // maps B's frame into A's: p_A = transform.Apply(p_B)
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();    // of (x, y, theta) of the transform
-  std::vector<std::pair<int, int>> inliers;         // (index in A, index in B)
-  int usable_a = 0, usable_b = 0;                   // landmarks with finite means and valid covariances
+  Pose2 transform;                                // maps B's frame into A's: p_A = transform.Apply(p_B)
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();  // of (x, y, theta) of the transform
+  std::vector<std::pair<int, int>> inliers;       // (index in A, index in B)
+  int usable_a = 0, usable_b = 0;                 // landmarks with finite means and valid covariances
   int triangles_a = 0, triangles_b = 0;
   int candidates = 0;
-  int best_patch = 0, patches = 0;                  // sorted sides: largest patch of consistent triangle matches,
-                                                    // patches kept
+  int best_patch = 0, patches = 0;  // sorted sides: largest patch of consistent triangle matches,
+                                    // patches kept
   int iterations = 0;
-  int best_support = 0;                             // RANSAC consensus of the best hypothesis (candidates)
-  int runner_up_support = 0;                        // ... of the best hypothesis different from it
-  int covered = 0;                                  // B's landmarks that the transform lays where A has mapped
-  double residual_chi2 = 0.0;                       // sum of the inliers' squared Mahalanobis residuals
-  double residual_bound = 0.0;                      // the chi-square bound it was tested against
+  int best_support = 0;         // RANSAC consensus of the best hypothesis (candidates)
+  int runner_up_support = 0;    // ... of the best hypothesis different from it
+  int covered = 0;              // B's landmarks that the transform lays where A has mapped
+  double residual_chi2 = 0.0;   // sum of the inliers' squared Mahalanobis residuals
+  double residual_bound = 0.0;  // the chi-square bound it was tested against
 };
 
 // Candidate landmark pairs from matched Delaunay triangles. Indices refer to the maps'
 // landmark vectors; unusable landmarks (non-finite, invalid covariance) never appear. rng
 // orders the seed triangles (sorted sides).
-std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a, const LandmarkMap& b,
-                                          const AlignmentOptions& options, std::mt19937_64& rng,
-                                          AlignmentResult* stats = nullptr);
+std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a, const LandmarkMap& b, const AlignmentOptions& options,
+                                          std::mt19937_64& rng, AlignmentResult* stats = nullptr);
 
 // RANSAC over candidate pairs, refinement and the acceptance tests.
 AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const std::vector<CandidatePair>& candidates,

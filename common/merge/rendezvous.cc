@@ -5,12 +5,13 @@
 namespace mapmesh {
 
 std::optional<RendezvousResult> RendezvousAlign(const RendezvousInput& in) {
-  const double values[] = {in.pose1.x, in.pose1.y, in.pose1.theta, in.pose2.x, in.pose2.y, in.pose2.theta,
-                           in.range12, in.bearing12, in.range21, in.bearing21};
+  const double values[] = {in.pose1.x,     in.pose1.y, in.pose1.theta, in.pose2.x, in.pose2.y,
+                           in.pose2.theta, in.range12, in.bearing12,   in.range21, in.bearing21};
   for (double v : values) {
     if (!std::isfinite(v)) return std::nullopt;
   }
-  if (!(in.sigma_range1 > 0 && in.sigma_range2 > 0) || !in.cov1.allFinite() || !in.cov2.allFinite()) return std::nullopt;
+  if (!(in.sigma_range1 > 0 && in.sigma_range2 > 0) || !in.cov1.allFinite() || !in.cov2.allFinite())
+    return std::nullopt;
   RendezvousResult r;
   // Eq. 40: inverse-variance mean of the two ranges.
   const double w1 = 1.0 / (in.sigma_range1 * in.sigma_range1), w2 = 1.0 / (in.sigma_range2 * in.sigma_range2);

@@ -122,7 +122,8 @@ void GrowPatch(const TriangleMatch& seed, const std::vector<Triangle>& ta, const
 
 std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a_in, const LandmarkMap& b_in, const AlignmentOptions& o,
                                           std::mt19937_64& rng, AlignmentResult* stats) {
-  const Usable ua = UsableLandmarks(ForAlignment(a_in, o.min_shape_sigma_m)), ub = UsableLandmarks(ForAlignment(b_in, o.min_shape_sigma_m));
+  const Usable ua = UsableLandmarks(ForAlignment(a_in, o.min_shape_sigma_m)),
+               ub = UsableLandmarks(ForAlignment(b_in, o.min_shape_sigma_m));
   const std::vector<Triangle> ta = ua.points.size() >= 3 ? MakeTriangles(ua, o) : std::vector<Triangle>{};
   const std::vector<Triangle> tb = ub.points.size() >= 3 ? MakeTriangles(ub, o) : std::vector<Triangle>{};
   if (stats) {
@@ -158,8 +159,8 @@ std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a_in, const Landmar
         const Eigen::Vector3d tol = Eigen::Vector3d::Constant(box);
         for (int i : tree.InBox(y.sorted - tol, y.sorted + tol)) {
           if (visited.count((static_cast<std::int64_t>(i) << 32) | j)) continue;
-          const int shift =
-              BestShift(ta[i], y, std::max(floor, k * std::sqrt(2.0 * (ta[i].sigma * ta[i].sigma + y.sigma * y.sigma))));
+          const int shift = BestShift(
+              ta[i], y, std::max(floor, k * std::sqrt(2.0 * (ta[i].sigma * ta[i].sigma + y.sigma * y.sigma))));
           if (shift < 0) continue;
           GrowPatch({i, j, shift}, ta, tb, k, floor, visited, patch);
           if (static_cast<int>(patch.size()) < o.min_consistent_triangles) continue;
@@ -172,7 +173,7 @@ std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a_in, const Landmar
         // The larger the patch, the less likely a competitor of its size hides in the seeds
         // not tried yet: search on for fewer seeds.
         const int after = std::max(10, static_cast<int>(o.seeds_after_patch * o.patch_stop_triangles /
-                                                         std::max<double>(1.0, static_cast<double>(best))));
+                                                        std::max<double>(1.0, static_cast<double>(best))));
         if (static_cast<int>(best) >= o.patch_stop_triangles && ++seeds_since_best > after) break;
       }
       // Keep the patches that can compete with the largest.
@@ -211,9 +212,8 @@ std::vector<CandidatePair> MatchTriangles(const LandmarkMap& a_in, const Landmar
     out.push_back({static_cast<int>(key >> 32), static_cast<int>(key & 0xffffffff), n});
   }
   // A fixed order keeps results reproducible for a given generator.
-  std::sort(out.begin(), out.end(), [](const CandidatePair& x, const CandidatePair& y) {
-    return x.a != y.a ? x.a < y.a : x.b < y.b;
-  });
+  std::sort(out.begin(), out.end(),
+            [](const CandidatePair& x, const CandidatePair& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; });
   if (stats) stats->candidates = static_cast<int>(out.size());
   return out;
 }

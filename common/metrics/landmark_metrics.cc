@@ -32,8 +32,7 @@ AssociationScore ScoreAssociations(const std::vector<std::pair<int, int>>& predi
   return s;
 }
 
-std::vector<int> MatchToTruth(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
-                              double gate_m) {
+std::vector<int> MatchToTruth(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth, double gate_m) {
   std::vector<int> match(map.size(), -1);
   std::vector<bool> used(truth.size(), false);
   std::vector<std::tuple<double, std::size_t, std::size_t>> candidates;
@@ -63,8 +62,8 @@ std::vector<int> MatchToTruth(const LandmarkMap& map, const std::vector<Eigen::V
   return match;
 }
 
-MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
-                       const std::vector<int>& seen, double gate_m) {
+MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth, const std::vector<int>& seen,
+                       double gate_m) {
   MapQuality q;
   q.landmarks = static_cast<int>(map.size());
   const std::vector<int> match = MatchToTruth(map, truth, gate_m);
@@ -104,8 +103,7 @@ MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d
 std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth) {
   std::vector<Eigen::Vector2d> src, dst;
   for (const Landmark& l : map.landmarks) {
-    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < truth.size() &&
-        truth[l.signature].allFinite()) {
+    if (l.signature >= 0 && static_cast<std::size_t>(l.signature) < truth.size() && truth[l.signature].allFinite()) {
       src.push_back(l.mean);
       dst.push_back(truth[l.signature]);
     }
@@ -114,8 +112,7 @@ std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<E
 }
 
 MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
-                               const std::vector<int>& seen, const std::optional<Pose2>& origin,
-                               double gate_m) {
+                               const std::vector<int>& seen, const std::optional<Pose2>& origin, double gate_m) {
   if (origin) return EvaluateMap(TransformMap(map, *origin), truth, seen, gate_m);
   const std::optional<Pose2> fit = MapFrameInWorld(map, truth);
   if (!fit) {

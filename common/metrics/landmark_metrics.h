@@ -36,24 +36,23 @@ AssociationScore ScoreAssociations(const std::vector<std::pair<int, int>>& predi
 // Each estimated landmark's true counterpart (index into truth), or -1.
 // A landmark with a signature is matched to that true landmark; one without is matched to
 // the nearest true landmark within gate_m (each true landmark at most once, closest first).
-std::vector<int> MatchToTruth(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
-                              double gate_m);
+std::vector<int> MatchToTruth(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth, double gate_m);
 
 struct MapQuality {
-  bool evaluated = true;      // false: the map could not be placed in the truth frame
-  bool aligned = false;       // placed by a rigid fit to the truth rather than a known origin
-  int landmarks = 0;          // landmarks in the map
-  int matched = 0;            // of which have a true counterpart
-  double rmse_m = 0.0;        // over matched landmarks
-  double nees_mean = 0.0;     // over matched landmarks
+  bool evaluated = true;          // false: the map could not be placed in the truth frame
+  bool aligned = false;           // placed by a rigid fit to the truth rather than a known origin
+  int landmarks = 0;              // landmarks in the map
+  int matched = 0;                // of which have a true counterpart
+  double rmse_m = 0.0;            // over matched landmarks
+  double nees_mean = 0.0;         // over matched landmarks
   double consistent_ratio = 0.0;  // share of matched landmarks with NEES below kChi2Dof2P95
-  double coverage = 0.0;      // share of `seen` true landmarks that the map contains
+  double coverage = 0.0;          // share of `seen` true landmarks that the map contains
 };
 
 // Quality of a map already expressed in the truth frame. seen lists the true landmarks that
 // any robot observed (the coverage denominator); empty means all of them.
-MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
-                       const std::vector<int>& seen, double gate_m = 2.0);
+MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth, const std::vector<int>& seen,
+                       double gate_m = 2.0);
 
 // Where a map's frame really lies in the world: the least-squares rigid fit of its landmarks to
 // the (finite) true ones they carry the signature of (needs two); nullopt without signatures.
@@ -62,7 +61,6 @@ std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<E
 // Quality of a map given in its own frame. It is moved into the truth frame by `origin` (the
 // true pose of the frame) when known; otherwise by MapFrameInWorld, and then aligned is true.
 MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
-                               const std::vector<int>& seen, const std::optional<Pose2>& origin,
-                               double gate_m = 2.0);
+                               const std::vector<int>& seen, const std::optional<Pose2>& origin, double gate_m = 2.0);
 
 }  // namespace mapmesh

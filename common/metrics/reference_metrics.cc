@@ -61,7 +61,8 @@ ReferenceQuality CompareToReference(const LandmarkMap& map, const LandmarkMap& r
     q.rmse_m = std::sqrt(sq / q.matched);
     q.nees_mean = nees / q.matched;
   }
-  q.reference_coverage = reference.empty() ? 0.0 : static_cast<double>(q.matched) / static_cast<double>(reference.size());
+  q.reference_coverage = reference.empty() ? 0.0
+                                           : static_cast<double>(q.matched) / static_cast<double>(reference.size());
   return q;
 }
 

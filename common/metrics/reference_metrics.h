@@ -14,17 +14,17 @@
 namespace mapmesh {
 
 struct ReferenceQuality {
-  bool aligned = false;        // the map's frame in the reference's is known (aligned, or given); nothing else is
-                               // set otherwise
-  Pose2 to_reference;          // the map's frame in the reference's
-  int landmarks = 0;           // in the map
+  bool aligned = false;  // the map's frame in the reference's is known (aligned, or given); nothing else is
+                         // set otherwise
+  Pose2 to_reference;    // the map's frame in the reference's
+  int landmarks = 0;     // in the map
   int reference_landmarks = 0;
-  int matched = 0;             // map landmarks whose nearest reference landmark (within the gate) has none nearer
-  int duplicates = 0;          // map landmarks within the gate of a reference landmark another one is nearer to
-  int extra = 0;               // map landmarks with no reference landmark within the gate
+  int matched = 0;                  // map landmarks whose nearest reference landmark (within the gate) has none nearer
+  int duplicates = 0;               // map landmarks within the gate of a reference landmark another one is nearer to
+  int extra = 0;                    // map landmarks with no reference landmark within the gate
   double reference_coverage = 0.0;  // share of reference landmarks matched
-  double rmse_m = 0.0;         // over matched landmarks, after the alignment
-  double nees_mean = 0.0;      // over matched landmarks, map and reference covariances added
+  double rmse_m = 0.0;              // over matched landmarks, after the alignment
+  double nees_mean = 0.0;           // over matched landmarks, map and reference covariances added
 };
 
 // Signatures are ignored: the alignment and the matching use geometry only. With

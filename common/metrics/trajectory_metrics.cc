@@ -72,8 +72,11 @@ TransformError CompareTransforms(const Pose2& estimate, const Pose2& truth, cons
 }
 
 std::optional<Pose2> TruthAt(const std::vector<GroundTruth>& g, double t) {
-  return PoseAlong(g, t, [](const GroundTruth& s) { return s.stamp; },
-                   [](const GroundTruth& s) { return Pose2{s.x, s.y, s.theta}; });
+  return PoseAlong(
+      g, t, [](const GroundTruth& s) { return s.stamp; },
+      [](const GroundTruth& s) {
+        return Pose2{s.x, s.y, s.theta};
+      });
 }
 
 }  // namespace mapmesh

@@ -132,7 +132,8 @@ void CekfSlam::BatchUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& p, int n_old, st
   const Eigen::MatrixXd pab = phi_ * pab1_;
   for (std::size_t i = 0; i < idx_a.size(); ++i) x(idx_a[i]) = active_.x()(static_cast<Eigen::Index>(i));
   if (fe) {
-    for (std::size_t i = 0; i < idx_a.size(); ++i) (*fe)(idx_a[i]) = active_.first_estimates()(static_cast<Eigen::Index>(i));
+    for (std::size_t i = 0; i < idx_a.size(); ++i)
+      (*fe)(idx_a[i]) = active_.first_estimates()(static_cast<Eigen::Index>(i));
   }
   p(idx_a, idx_a) = active_.P();
   p(idx_a, idx_b_) = pab;
@@ -163,9 +164,7 @@ void CekfSlam::Switch() {
   StartPeriod();
 }
 
-Eigen::Vector2d CekfSlam::Mean(LandmarkId id) const {
-  return active_.landmark(active_slot_.at(id));
-}
+Eigen::Vector2d CekfSlam::Mean(LandmarkId id) const { return active_.landmark(active_slot_.at(id)); }
 
 Eigen::MatrixXd CekfSlam::JointCov(const std::vector<LandmarkId>& ids) const {
   std::vector<int> idx{0, 1, 2};
@@ -213,7 +212,8 @@ LandmarkMap CekfSlam::Map() const {
     l.cov = gp_.block<2, 2>(g, g) - cols.transpose() * psi_pab.middleCols<2>(j);
     map.landmarks.push_back(l);
   }
-  std::sort(map.landmarks.begin(), map.landmarks.end(), [](const Landmark& a, const Landmark& b) { return a.id < b.id; });
+  std::sort(map.landmarks.begin(), map.landmarks.end(),
+            [](const Landmark& a, const Landmark& b) { return a.id < b.id; });
   return map;
 }
 

@@ -79,15 +79,15 @@ class CekfSlam : public LandmarkFilter {
   // The period.
   Eigen::Vector2d center_ = Eigen::Vector2d::Zero();
   EkfState active_;
-  std::vector<LandmarkId> active_ids_;            // by active slot
+  std::vector<LandmarkId> active_ids_;  // by active slot
   std::unordered_map<LandmarkId, int> active_slot_;
-  std::size_t period_active_ = 0;                 // active landmarks that existed at the period start
-  std::vector<int> idx_a_, idx_b_;                // state indices (global) of the period-start active and passive parts
+  std::size_t period_active_ = 0;   // active landmarks that existed at the period start
+  std::vector<int> idx_a_, idx_b_;  // state indices (global) of the period-start active and passive parts
   std::unordered_map<LandmarkId, int> passive_col_;  // a passive landmark's first column in P_ab
-  Eigen::MatrixXd pab1_;                          // P_ab at the period start
-  Eigen::MatrixXd phi_;                           // Phi: P_ab(k) = Phi P_ab(k1)
-  Eigen::MatrixXd psi_;                           // psi: P_bb(k) = P_bb(k1) - P_ab(k1)^T psi P_ab(k1)
-  Eigen::VectorXd theta_;                         // theta: x_b(k) = x_b(k1) + P_ab(k1)^T theta
+  Eigen::MatrixXd pab1_;                             // P_ab at the period start
+  Eigen::MatrixXd phi_;                              // Phi: P_ab(k) = Phi P_ab(k1)
+  Eigen::MatrixXd psi_;                              // psi: P_bb(k) = P_bb(k1) - P_ab(k1)^T psi P_ab(k1)
+  Eigen::VectorXd theta_;                            // theta: x_b(k) = x_b(k1) + P_ab(k1)^T theta
   int switches_ = 0;
 };
 

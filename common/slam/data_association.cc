@@ -31,7 +31,8 @@ Pairing MakePairing(const AssociationProblem& p, int i, int j) {
   q.nu = {p.z[i](0) - zhat(0), WrapAngle(p.z[i](1) - zhat(1))};
   const int c = 3 + 2 * j;
   q.hp = q.hr * p.joint_cov.topRows<3>() + q.hm * p.joint_cov.middleRows<2>(c);
-  const Eigen::Matrix2d s = q.hp.leftCols<3>() * q.hr.transpose() + q.hp.middleCols<2>(c) * q.hm.transpose() + p.obs_cov;
+  const Eigen::Matrix2d s = q.hp.leftCols<3>() * q.hr.transpose() + q.hp.middleCols<2>(c) * q.hm.transpose() +
+                            p.obs_cov;
   const Eigen::LDLT<Eigen::Matrix2d> ldlt(s);
   q.d2 = ldlt.info() == Eigen::Success ? q.nu.dot(ldlt.solve(q.nu)) : std::numeric_limits<double>::infinity();
   if (!std::isfinite(q.d2) || q.d2 < 0) q.d2 = std::numeric_limits<double>::infinity();
@@ -47,8 +48,8 @@ double JointD2(const AssociationProblem& p, const std::vector<const Pairing*>& h
     nu.segment<2>(2 * a) = h[a]->nu;
     for (int b = 0; b < k; ++b) {
       const int cb = 3 + 2 * h[b]->cand;
-      c.block<2, 2>(2 * a, 2 * b) =
-          h[a]->hp.leftCols<3>() * h[b]->hr.transpose() + h[a]->hp.middleCols<2>(cb) * h[b]->hm.transpose();
+      c.block<2, 2>(2 * a, 2 * b) = h[a]->hp.leftCols<3>() * h[b]->hr.transpose() +
+                                    h[a]->hp.middleCols<2>(cb) * h[b]->hm.transpose();
     }
     c.block<2, 2>(2 * a, 2 * a) += p.obs_cov;
   }
@@ -118,7 +119,8 @@ AssociationResult Associate(const AssociationProblem& p, const AssociationOption
       nearest[i] = std::min(nearest[i], q.d2);
       if (q.d2 < gate) compatible[i].push_back(std::move(q));
     }
-    std::sort(compatible[i].begin(), compatible[i].end(), [](const Pairing& a, const Pairing& b) { return a.d2 < b.d2; });
+    std::sort(compatible[i].begin(), compatible[i].end(),
+              [](const Pairing& a, const Pairing& b) { return a.d2 < b.d2; });
   }
 
   std::vector<const Pairing*> chosen(n, nullptr);

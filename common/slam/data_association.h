@@ -53,20 +53,20 @@ struct AssociationOptions {
 struct AssociationProblem {
   Pose2 robot;
   std::vector<LandmarkId> candidates;
-  std::vector<Eigen::Vector2d> means;        // per candidate
-  Eigen::MatrixXd joint_cov;                 // of [robot; candidates], 3 + 2K square
+  std::vector<Eigen::Vector2d> means;  // per candidate
+  Eigen::MatrixXd joint_cov;           // of [robot; candidates], 3 + 2K square
   Eigen::Matrix2d obs_cov = Eigen::Matrix2d::Identity();
-  std::vector<Eigen::Vector2d> z;            // observations [range, bearing]
-  std::vector<std::int32_t> signatures;      // per observation, -1 when unknown
+  std::vector<Eigen::Vector2d> z;        // observations [range, bearing]
+  std::vector<std::int32_t> signatures;  // per observation, -1 when unknown
 };
 
 struct AssociationResult {
   static constexpr int kNew = -1;
   static constexpr int kDiscard = -2;
-  std::vector<int> match;      // per observation: a candidate index, kNew or kDiscard
-  int rejected_by_gate = 0;    // known pairings whose innovation failed the gate (outliers)
-  int ambiguous = 0;           // compatible with nothing, yet too close to a landmark to be new
-  int unidentified = 0;        // known mode: observations without a signature
+  std::vector<int> match;    // per observation: a candidate index, kNew or kDiscard
+  int rejected_by_gate = 0;  // known pairings whose innovation failed the gate (outliers)
+  int ambiguous = 0;         // compatible with nothing, yet too close to a landmark to be new
+  int unidentified = 0;      // known mode: observations without a signature
   long jcbb_nodes = 0;
 };
 

@@ -24,10 +24,9 @@ void DeadReckoningMapper::Observe(const std::vector<Observation>& obs, double /*
     // Sensor noise projected into the map frame: radial sigma_r, tangential r * sigma_b.
     Eigen::Matrix2d rot;
     rot << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
-    const Eigen::Matrix2d local =
-        Eigen::Vector2d(options_.sigma_range_m * options_.sigma_range_m,
-                        std::pow(o.range * options_.sigma_bearing_rad, 2))
-            .asDiagonal();
+    const Eigen::Matrix2d local = Eigen::Vector2d(options_.sigma_range_m * options_.sigma_range_m,
+                                                  std::pow(o.range * options_.sigma_bearing_rad, 2))
+                                      .asDiagonal();
     const Eigen::Matrix2d noise = rot * local * rot.transpose();
 
     std::size_t idx = tracks_.size();
@@ -48,8 +47,7 @@ void DeadReckoningMapper::Observe(const std::vector<Observation>& obs, double /*
       ++stats_.initialised;
       Track t;
       t.signature = o.signature;
-      t.id = o.signature >= 0 ? static_cast<std::uint32_t>(o.signature)
-                              : static_cast<std::uint32_t>(tracks_.size());
+      t.id = o.signature >= 0 ? static_cast<std::uint32_t>(o.signature) : static_cast<std::uint32_t>(tracks_.size());
       tracks_.push_back(t);
       if (o.signature >= 0) by_signature_[o.signature] = idx;
     }

@@ -19,11 +19,11 @@
 namespace mapmesh {
 
 struct DeadReckoningOptions {
-  MotionModel motion;                // how odometry moves the pose (the robot's)
-  double sigma_range_m = 0.05;       // sensor range noise, for landmark covariances (the robot's)
-  double sigma_bearing_rad = 0.0175; // sensor bearing noise (the robot's)
-  double association_gate_m = 1.0;   // agent.association_gate_m: without signatures, join the nearest landmark
-                                     // within this
+  MotionModel motion;                 // how odometry moves the pose (the robot's)
+  double sigma_range_m = 0.05;        // sensor range noise, for landmark covariances (the robot's)
+  double sigma_bearing_rad = 0.0175;  // sensor bearing noise (the robot's)
+  double association_gate_m = 1.0;    // agent.association_gate_m: without signatures, join the nearest landmark
+                                      // within this
 
   // Reads its keys of the scenario's agent section (docs/SCENARIOS.md).
   template <typename Reader>

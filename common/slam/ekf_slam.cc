@@ -5,8 +5,8 @@
 
 namespace mapmesh {
 
-void GatherState(const Eigen::VectorXd& x, const Eigen::MatrixXd& p, const std::vector<int>& idx,
-                 Eigen::VectorXd* xo, Eigen::MatrixXd* po) {
+void GatherState(const Eigen::VectorXd& x, const Eigen::MatrixXd& p, const std::vector<int>& idx, Eigen::VectorXd* xo,
+                 Eigen::MatrixXd* po) {
   const int n = static_cast<int>(idx.size());
   xo->resize(n);
   po->resize(n, n);

@@ -30,12 +30,12 @@ class EkfSlam : public LandmarkFilter {
  private:
   FilterNoise noise_;
   EkfState state_;
-  std::vector<LandmarkId> ids_;                 // by slot
+  std::vector<LandmarkId> ids_;  // by slot
   std::unordered_map<LandmarkId, int> slot_;
 };
 
 // Gathers the rows and columns of state indices idx from (x, p).
-void GatherState(const Eigen::VectorXd& x, const Eigen::MatrixXd& p, const std::vector<int>& idx,
-                 Eigen::VectorXd* xo, Eigen::MatrixXd* po);
+void GatherState(const Eigen::VectorXd& x, const Eigen::MatrixXd& p, const std::vector<int>& idx, Eigen::VectorXd* xo,
+                 Eigen::MatrixXd* po);
 
 }  // namespace mapmesh

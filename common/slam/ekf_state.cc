@@ -84,8 +84,7 @@ void EkfState::Jacobians(int slot, Matrix23* h_robot, Eigen::Matrix2d* h_landmar
   ObserveRangeBearing({fe_(0), fe_(1), fe_(2)}, first_estimate(slot), h_robot, h_landmark);
 }
 
-bool EkfState::Update(const std::vector<Measurement>& obs, const Eigen::Matrix2d& obs_cov,
-                      UpdateTerms* terms) {
+bool EkfState::Update(const std::vector<Measurement>& obs, const Eigen::Matrix2d& obs_cov, UpdateTerms* terms) {
   const int k = static_cast<int>(obs.size());
   if (k == 0) return true;
   const int m = 2 * k;

@@ -28,8 +28,7 @@ namespace mapmesh {
 // Makes room for n entries in a state vector and its covariance, keeping the first `used`:
 // storage grows geometrically (at least doubling), so the O(N^2) copy is rare. A vector
 // alongside the state (first estimates) grows with it.
-void GrowStateStorage(Eigen::VectorXd& x, Eigen::MatrixXd& p, int used, int n,
-                      Eigen::VectorXd* alongside = nullptr);
+void GrowStateStorage(Eigen::VectorXd& x, Eigen::MatrixXd& p, int used, int n, Eigen::VectorXd* alongside = nullptr);
 
 // How the filters (full and compressed EKF) linearise.
 struct EkfOptions {
@@ -83,8 +82,7 @@ class EkfState {
   // Batch EKF update with every measurement of a scan at once (thesis eq. 23-25), in the
   // standard form followed by symmetrisation. False (and no change) if S is not positive
   // definite. The innovations use the latest estimates, the Jacobians those of Jacobians().
-  bool Update(const std::vector<Measurement>& obs, const Eigen::Matrix2d& obs_cov,
-              UpdateTerms* terms = nullptr);
+  bool Update(const std::vector<Measurement>& obs, const Eigen::Matrix2d& obs_cov, UpdateTerms* terms = nullptr);
 
   // Predicted observation of a slot and its Jacobians, both at the latest estimates.
   Eigen::Vector2d Predicted(int slot, Matrix23* h_robot, Eigen::Matrix2d* h_landmark) const;

@@ -30,8 +30,8 @@ struct JcbbResult {
   std::vector<int> option;  // per item: the index of its chosen candidate, or -1 unpaired
   int pairings = 0;
   double joint_d2 = 0.0;
-  long nodes = 0;            // search nodes visited
-  bool node_limit = false;   // the search stopped at max_nodes: the best found so far
+  long nodes = 0;           // search nodes visited
+  bool node_limit = false;  // the search stopped at max_nodes: the best found so far
 };
 
 JcbbResult JointCompatibility(const std::vector<std::vector<int>>& candidates, const JointDistance& joint_d2,

@@ -24,7 +24,7 @@ struct FilterNoise {
   // with how often odometry arrives or how an interval is split at scans.
   Eigen::Matrix2d control_cov = Eigen::Matrix2d::Identity();
   double control_period_s = 0.1;
-  Eigen::Matrix2d obs_cov = Eigen::Matrix2d::Identity();      // of [range, bearing]
+  Eigen::Matrix2d obs_cov = Eigen::Matrix2d::Identity();  // of [range, bearing]
   Eigen::Matrix2d ControlCovFor(double dt) const { return control_cov * (control_period_s / dt); }
 };
 

@@ -25,15 +25,15 @@ struct LocalSlamOptions {
   SlamMethod filter = SlamMethod::kCekf;  // agent.slam (LocalSlam runs kCekf or kEkf; kDeadReckoning is the
                                           // baseline mapper)
   AssociationOptions association;
-  EkfOptions ekf;                       // linearisation, of either filter
+  EkfOptions ekf;  // linearisation, of either filter
   CekfOptions cekf;
-  bool tentative = false;               // agent.tentative: a new landmark enters the map only when seen twice
-  double tentative_gate_m = 1.0;        // agent.tentative_gate_m: a second sighting lands within this of the first
-  double tentative_timeout_s = 30.0;    // agent.tentative_timeout_s: tentative landmarks not seen again by then
-                                        // are forgotten
-  double min_range_m = 0.0;             // agent.min_range_m: observations outside [min, max] range are dropped
-  double max_range_m = 0.0;             // agent.max_range_m; 0: the sensor's max range plus 5 sigma (ForSensor;
-                                        // LocalSlam given 0 applies no limit)
+  bool tentative = false;                  // agent.tentative: a new landmark enters the map only when seen twice
+  double tentative_gate_m = 1.0;           // agent.tentative_gate_m: a second sighting lands within this of the first
+  double tentative_timeout_s = 30.0;       // agent.tentative_timeout_s: tentative landmarks not seen again by then
+                                           // are forgotten
+  double min_range_m = 0.0;                // agent.min_range_m: observations outside [min, max] range are dropped
+  double max_range_m = 0.0;                // agent.max_range_m; 0: the sensor's max range plus 5 sigma (ForSensor;
+                                           // LocalSlam given 0 applies no limit)
   double new_landmark_separation_m = 0.5;  // unknown association: new landmarks of one scan closer than this are one
 
   // These options for a robot with this sensor: the association method and the limits left
@@ -82,8 +82,8 @@ class LocalSlam : public LocalMapper {
 
   // What became of each observation of the last scan, in the order given to Observe: the
   // landmark id it was fused into or started, or one of these.
-  static constexpr std::int64_t kDropped = -1;    // outlier, ambiguous, invalid, out of range
-  static constexpr std::int64_t kHeld = -2;       // tentative
+  static constexpr std::int64_t kDropped = -1;  // outlier, ambiguous, invalid, out of range
+  static constexpr std::int64_t kHeld = -2;     // tentative
   static constexpr std::int64_t kNotLandmark = -3;
   struct Decision {
     std::int64_t landmark = kDropped;

@@ -20,8 +20,8 @@ double SincDerivative(double u) {
 // Eq. 99 rewritten with sin(a + b) - sin(a) = 2 cos(a + b/2) sin(b/2) (and its cosine twin):
 //   x' = x + v dt cos(th + w dt / 2) sinc(w dt / 2),  y' = y + v dt sin(th + w dt / 2) sinc(w dt / 2).
 // It is exactly eq. 99 for w != 0, tends to eq. 98 as w -> 0, and loses no precision near 0.
-Pose2 UnicycleMotion(const Pose2& pose, const UnicycleControl& u, double dt,
-                     Eigen::Matrix3d* j_pose, Eigen::Matrix<double, 3, 2>* j_control) {
+Pose2 UnicycleMotion(const Pose2& pose, const UnicycleControl& u, double dt, Eigen::Matrix3d* j_pose,
+                     Eigen::Matrix<double, 3, 2>* j_control) {
   const double half = 0.5 * u.w_radps * dt;
   const double a = pose.theta + half;
   const double ca = std::cos(a), sa = std::sin(a);
@@ -34,8 +34,8 @@ Pose2 UnicycleMotion(const Pose2& pose, const UnicycleControl& u, double dt,
         0, 0, 1;
   }
   if (j_control) {
-    const double ds = SincDerivative(half) * 0.5 * dt;  // d sinc / d w
-    const double da = 0.5 * dt;                         // d a / d w
+    const double ds = SincDerivative(half) * 0.5 * dt;        // d sinc / d w
+    const double da = 0.5 * dt;                               // d a / d w
     *j_control << dt * ca * s, d * (-sa * da * s + ca * ds),  //
         dt * sa * s, d * (ca * da * s + sa * ds),             //
         0, dt;
@@ -43,9 +43,8 @@ Pose2 UnicycleMotion(const Pose2& pose, const UnicycleControl& u, double dt,
   return out;
 }
 
-Pose2 AckermannMotion(const Pose2& pose, const AckermannControl& u, double dt,
-                      const AckermannParams& p, Eigen::Matrix3d* j_pose,
-                      Eigen::Matrix<double, 3, 2>* j_control) {
+Pose2 AckermannMotion(const Pose2& pose, const AckermannControl& u, double dt, const AckermannParams& p,
+                      Eigen::Matrix3d* j_pose, Eigen::Matrix<double, 3, 2>* j_control) {
   const double L = p.wheelbase_m, H = p.encoder_offset_m, a = p.laser_a_m, b = p.laser_b_m;
   const double t = std::tan(u.steering_rad);
   const double k = 1.0 / (1.0 - t * H / L);  // vc = k v
@@ -66,10 +65,9 @@ Pose2 AckermannMotion(const Pose2& pose, const AckermannControl& u, double dt,
     const double dvc_ds = u.v_mps * k * k * H / L * dt_ds;
     // f = vc * g(t): g_x = c - t (a s + b c) / L, g_y = s + t (a c - b s) / L, g_th = t / L.
     const double gx = c - t * (a * s + b * c) / L, gy = s + t * (a * c - b * s) / L, gth = t / L;
-    const double dgx = -(a * s + b * c) / L * dt_ds, dgy = (a * c - b * s) / L * dt_ds,
-                 dgth = dt_ds / L;
+    const double dgx = -(a * s + b * c) / L * dt_ds, dgy = (a * c - b * s) / L * dt_ds, dgth = dt_ds / L;
     *j_control << dt * k * gx, dt * (dvc_ds * gx + vc * dgx),  //
-        dt * k * gy, dt * (dvc_ds * gy + vc * dgy),             //
+        dt * k * gy, dt * (dvc_ds * gy + vc * dgy),            //
         dt * k * gth, dt * (dvc_ds * gth + vc * dgth);
   }
   return out;

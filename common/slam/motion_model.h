@@ -17,8 +17,7 @@ struct UnicycleControl {
 // Unicycle motion over dt: thesis eq. 99, which tends to eq. 98 as w -> 0, evaluated in a
 // form that stays exact near w = 0.
 // Optional Jacobians: d(pose')/d(pose) (3x3) and d(pose')/d(v, w) (3x2).
-Pose2 UnicycleMotion(const Pose2& pose, const UnicycleControl& u, double dt,
-                     Eigen::Matrix3d* j_pose = nullptr,
+Pose2 UnicycleMotion(const Pose2& pose, const UnicycleControl& u, double dt, Eigen::Matrix3d* j_pose = nullptr,
                      Eigen::Matrix<double, 3, 2>* j_control = nullptr);
 
 // Car-like (Ackermann) vehicle of Victoria Park (Guivant & Nebot 2001): the state is the
@@ -42,9 +41,8 @@ struct AckermannControl {
 //   y' = y + dt (vc sin(phi) + vc/L tan(s) (a cos(phi) - b sin(phi)))
 //   phi' = phi + dt vc/L tan(s)
 // Optional Jacobians: d(pose')/d(pose) (3x3) and d(pose')/d(v, s) (3x2).
-Pose2 AckermannMotion(const Pose2& pose, const AckermannControl& u, double dt,
-                      const AckermannParams& params, Eigen::Matrix3d* j_pose = nullptr,
-                      Eigen::Matrix<double, 3, 2>* j_control = nullptr);
+Pose2 AckermannMotion(const Pose2& pose, const AckermannControl& u, double dt, const AckermannParams& params,
+                      Eigen::Matrix3d* j_pose = nullptr, Eigen::Matrix<double, 3, 2>* j_control = nullptr);
 
 // Which model moves a robot, and its parameters; chosen per robot by the scenario.
 struct MotionModel {

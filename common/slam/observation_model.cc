@@ -4,8 +4,8 @@
 
 namespace mapmesh {
 
-Eigen::Vector2d ObserveRangeBearing(const Pose2& robot, const Eigen::Vector2d& landmark,
-                                    Matrix23* h_robot, Eigen::Matrix2d* h_landmark) {
+Eigen::Vector2d ObserveRangeBearing(const Pose2& robot, const Eigen::Vector2d& landmark, Matrix23* h_robot,
+                                    Eigen::Matrix2d* h_landmark) {
   const double dx = landmark.x() - robot.x, dy = landmark.y() - robot.y;
   const double q = dx * dx + dy * dy, r = std::sqrt(q);
   if (h_robot) {

@@ -69,13 +69,9 @@ RadioLinks FromMsg(const mapmesh_msg_RadioLinks& m) {
   return r;
 }
 
-mapmesh_msg_GroundTruth ToMsg(const GroundTruth& v, MsgScratch&) {
-  return {v.robot_id, v.stamp, v.x, v.y, v.theta};
-}
+mapmesh_msg_GroundTruth ToMsg(const GroundTruth& v, MsgScratch&) { return {v.robot_id, v.stamp, v.x, v.y, v.theta}; }
 
-GroundTruth FromMsg(const mapmesh_msg_GroundTruth& m) {
-  return {m.robot_id, m.stamp, m.x, m.y, m.theta};
-}
+GroundTruth FromMsg(const mapmesh_msg_GroundTruth& m) { return {m.robot_id, m.stamp, m.x, m.y, m.theta}; }
 
 mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch&) {
   mapmesh_msg_MapMessage m{};

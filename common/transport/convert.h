@@ -11,10 +11,10 @@ namespace mapmesh::transport {
 template <typename T>
 struct Wire;  // Wire<T>::Msg (generated struct) and Wire<T>::Descriptor()
 
-#define MAPMESH_WIRE(Type, MsgType)                                            \
-  template <>                                                                  \
-  struct Wire<Type> {                                                          \
-    using Msg = MsgType;                                                       \
+#define MAPMESH_WIRE(Type, MsgType)                                               \
+  template <>                                                                     \
+  struct Wire<Type> {                                                             \
+    using Msg = MsgType;                                                          \
     static const dds_topic_descriptor_t* Descriptor() { return &MsgType##_desc; } \
   }
 

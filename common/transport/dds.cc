@@ -66,10 +66,8 @@ Domain::Domain(dds_domainid_t id, const std::string& config)
 Participant::Participant(dds_domainid_t domain)
     : Entity(Check(dds_create_participant(domain, nullptr, nullptr), "dds_create_participant")) {}
 
-Topic::Topic(const Participant& p, const dds_topic_descriptor_t* desc, const std::string& name,
-             const Qos& qos)
-    : Entity(Check(dds_create_topic(p.get(), desc, name.c_str(), qos.get(), nullptr),
-                   "dds_create_topic")) {}
+Topic::Topic(const Participant& p, const dds_topic_descriptor_t* desc, const std::string& name, const Qos& qos)
+    : Entity(Check(dds_create_topic(p.get(), desc, name.c_str(), qos.get(), nullptr), "dds_create_topic")) {}
 
 RawWriter::RawWriter(const Participant& p, const Topic& t, const Qos& qos)
     : Entity(Check(dds_create_writer(p.get(), t.get(), qos.get(), nullptr), "dds_create_writer")) {}
@@ -111,9 +109,7 @@ std::uint32_t RawReader::MatchedWriters() const {
 GuardCondition::GuardCondition(const Participant& p)
     : Entity(Check(dds_create_guardcondition(p.get()), "dds_create_guardcondition")) {}
 
-void GuardCondition::Trigger() const {
-  Check(dds_set_guardcondition(e_, true), "dds_set_guardcondition");
-}
+void GuardCondition::Trigger() const { Check(dds_set_guardcondition(e_, true), "dds_set_guardcondition"); }
 
 bool GuardCondition::Triggered() const {
   bool t = false;
@@ -121,8 +117,7 @@ bool GuardCondition::Triggered() const {
   return t;
 }
 
-WaitSet::WaitSet(const Participant& p)
-    : Entity(Check(dds_create_waitset(p.get()), "dds_create_waitset")) {}
+WaitSet::WaitSet(const Participant& p) : Entity(Check(dds_create_waitset(p.get()), "dds_create_waitset")) {}
 
 void WaitSet::AttachReader(const RawReader& r, dds_attach_t tag) {
   Entity cond(Check(dds_create_readcondition(r.get(), DDS_ANY_STATE), "dds_create_readcondition"));
@@ -136,8 +131,7 @@ void WaitSet::AttachGuard(const GuardCondition& g, dds_attach_t tag) {
 
 std::vector<dds_attach_t> WaitSet::Wait(double timeout_s) const {
   dds_attach_t tags[16];
-  const dds_return_t n =
-      Check(dds_waitset_wait(e_, tags, 16, ToDuration(timeout_s)), "dds_waitset_wait");
+  const dds_return_t n = Check(dds_waitset_wait(e_, tags, 16, ToDuration(timeout_s)), "dds_waitset_wait");
   return std::vector<dds_attach_t>(tags, tags + std::min<dds_return_t>(n, 16));
 }
 

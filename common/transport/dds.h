@@ -25,9 +25,7 @@ class DdsError : public std::runtime_error {
 // Throws DdsError when rc is negative; returns rc otherwise.
 dds_return_t Check(dds_return_t rc, const char* what);
 
-inline dds_duration_t ToDuration(double seconds) {
-  return static_cast<dds_duration_t>(seconds * 1e9);
-}
+inline dds_duration_t ToDuration(double seconds) { return static_cast<dds_duration_t>(seconds * 1e9); }
 
 // Owns one DDS entity handle; deleting it deletes its children too.
 class Entity {
@@ -94,8 +92,7 @@ class Participant : public Entity {
 
 class Topic : public Entity {
  public:
-  Topic(const Participant& p, const dds_topic_descriptor_t* desc, const std::string& name,
-        const Qos& qos);
+  Topic(const Participant& p, const dds_topic_descriptor_t* desc, const std::string& name, const Qos& qos);
 };
 
 // Untyped writer and reader; the typed ones in typed.h wrap them.

@@ -7,8 +7,8 @@
 namespace mapmesh::transport {
 namespace {
 
-std::unique_ptr<Domain> MakeDomain(int domain_id, const std::string& config_path,
-                                   const std::string& default_config, std::string& used) {
+std::unique_ptr<Domain> MakeDomain(int domain_id, const std::string& config_path, const std::string& default_config,
+                                   std::string& used) {
   std::string path = config_path;
   if (path.empty()) {
     const char* env = std::getenv("CYCLONEDDS_URI");

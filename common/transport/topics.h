@@ -25,9 +25,7 @@ inline Qos SensorQos() { return Qos().Reliable().KeepAll().Volatile(); }
 inline Qos LinksQos() { return Qos().Reliable().KeepLast(1).TransientLocal(); }
 inline Qos TruthQos() { return Qos().BestEffort().KeepLast(1); }
 // Maps: latest per (robot, kind), kept for late joiners, liveliness tracks the sender.
-inline Qos MapQos() {
-  return Qos().Reliable().KeepLast(1).TransientLocal().Liveliness(kAgentLeaseS).NoAutoDispose();
-}
+inline Qos MapQos() { return Qos().Reliable().KeepLast(1).TransientLocal().Liveliness(kAgentLeaseS).NoAutoDispose(); }
 inline Qos StatusQos() { return Qos().BestEffort().KeepLast(1).Liveliness(kAgentLeaseS); }
 
 }  // namespace mapmesh::transport

@@ -14,29 +14,29 @@ using RobotId = std::uint32_t;
 struct Odometry {
   RobotId robot_id = 0;
   std::uint32_t seq = 0;
-  double stamp = 0.0;            // s, end of the interval
-  double dt = 0.0;               // s, length of the interval
-  double v = 0.0;                // m/s
-  double w = 0.0;                // rad/s
-  double steering = 0.0;         // rad
+  double stamp = 0.0;     // s, end of the interval
+  double dt = 0.0;        // s, length of the interval
+  double v = 0.0;         // m/s
+  double w = 0.0;         // rad/s
+  double steering = 0.0;  // rad
   std::uint32_t scans_in_interval = 0;
-  bool sync = false;             // lockstep barrier: report status after processing this
+  bool sync = false;  // lockstep barrier: report status after processing this
 };
 
 enum class ObservationKind : std::uint8_t { kLandmark = 0, kRobot = 1 };
 
 // One range-bearing reading in the sensor frame (bearing from the robot's heading).
 struct Observation {
-  double range = 0.0;            // m
-  double bearing = 0.0;          // rad
-  std::int32_t signature = -1;   // identity when the scenario shares it, else -1
+  double range = 0.0;           // m
+  double bearing = 0.0;         // rad
+  std::int32_t signature = -1;  // identity when the scenario shares it, else -1
   ObservationKind kind = ObservationKind::kLandmark;
 };
 
 struct Scan {
   RobotId robot_id = 0;
   std::uint32_t seq = 0;
-  double stamp = 0.0;            // s
+  double stamp = 0.0;  // s
   std::vector<Observation> obs;
 };
 
@@ -65,10 +65,10 @@ enum class MapKind : std::uint8_t { kLocal = 0, kGlobal = 1 };
 struct MapMessage {
   RobotId robot_id = 0;
   MapKind kind = MapKind::kLocal;
-  std::uint32_t incarnation = 0;   // the sender's process start: each has its own map frame
-  std::uint32_t version = 0;       // publications of this kind within the incarnation
-  double stamp = 0.0;              // s, the sender's processed_until when it published
-  double origin_stamp = 0.0;       // s, when the sender's map frame was fixed
+  std::uint32_t incarnation = 0;  // the sender's process start: each has its own map frame
+  std::uint32_t version = 0;      // publications of this kind within the incarnation
+  double stamp = 0.0;             // s, the sender's processed_until when it published
+  double origin_stamp = 0.0;      // s, when the sender's map frame was fixed
   std::vector<std::uint8_t> payload;
 };
 

@@ -275,8 +275,8 @@ TEST(AgentNodeCheckpoint, HoldsAtMostTheLoadersLimitOfEarlierIncarnationsTheNewe
   ASSERT_EQ(c.earlier.size(), cap);
   EXPECT_EQ(c.earlier.front().incarnation, 2u);  // incarnation 1, the oldest, is left out
   EXPECT_EQ(c.earlier.back().incarnation, cap + 1);
-  const io::CheckpointLoad load =
-      io::ParseCheckpoint(io::CheckpointToJson(c).dump(), "c.json", 1, static_cast<std::uint32_t>(cap + 3));
+  const io::CheckpointLoad load = io::ParseCheckpoint(io::CheckpointToJson(c).dump(), "c.json", 1,
+                                                      static_cast<std::uint32_t>(cap + 3));
   EXPECT_TRUE(load.ok()) << load.error;
   // Within the limit nothing is left out.
   AgentNode fresh(sc.agent, AgentRunFor(sc, 1), 1, 2, out);
@@ -299,7 +299,8 @@ TEST(AgentNodeLimits, RefusesPeerMapsBeyondItsLimitsAndCountsWhy) {
   auto map_of = [](int n, double x, double sigma) {
     LandmarkMap m;
     for (int i = 0; i < n; ++i) {
-      m.landmarks.push_back({static_cast<std::uint32_t>(i), -1, {x + i, 0.0}, sigma * sigma * Eigen::Matrix2d::Identity()});
+      m.landmarks.push_back(
+          {static_cast<std::uint32_t>(i), -1, {x + i, 0.0}, sigma * sigma * Eigen::Matrix2d::Identity()});
     }
     return m;
   };

@@ -465,7 +465,9 @@ TEST(MapExchange, AnAlignmentMustMatchHalfOfThePeersLandmarksOnGroundWeMapped) {
     const PeerReport r = a.Peers().front();
     if (ratio < 0.42) {
       EXPECT_TRUE(r.aligned);  // the false alignment
-      EXPECT_GT((r.to_own.Apply(Eigen::Vector2d::Zero()) - (kFrameA.Inverse() * kFrameC).Apply(Eigen::Vector2d::Zero())).norm(), 10.0);
+      EXPECT_GT((r.to_own.Apply(Eigen::Vector2d::Zero()) - (kFrameA.Inverse() * kFrameC).Apply(Eigen::Vector2d::Zero()))
+                    .norm(),
+                10.0);
     } else {
       EXPECT_FALSE(r.aligned);
       EXPECT_EQ(r.last_verdict, AlignmentVerdict::kInconsistentOverlap);

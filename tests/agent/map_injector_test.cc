@@ -71,7 +71,8 @@ TEST(MapInjector, BeforeHearingAnyMapOnlyMalformedAndForeignMapsAreMade) {
   }
   EXPECT_EQ(made.count("ok"), 0u);
   // Every decode error is among what was made, from both claimed senders in turn.
-  for (int e = 1; e < kMapDecodeErrorCount; ++e) EXPECT_GT(made[std::string(ToString(static_cast<MapDecodeError>(e)))], 0);
+  for (int e = 1; e < kMapDecodeErrorCount; ++e)
+    EXPECT_GT(made[std::string(ToString(static_cast<MapDecodeError>(e)))], 0);
   EXPECT_GT(made["unknown_sender"], 0);
   EXPECT_EQ(inj.sent().at("truncated").at(1), inj.sent().at("truncated").at(2));
   EXPECT_EQ(inj.sent().count("stale_version"), 0u);

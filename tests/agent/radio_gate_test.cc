@@ -39,7 +39,7 @@ TEST(RadioGate, LossRateIsHonoured) {
 TEST(RadioGate, BandwidthKeepsTheLinkBusyForBytesOverRate) {
   RadioGate g(1, {0.0, 1000.0}, 1);  // 1000 bytes/s
   g.UpdateLinks({0.0, {{1, 2}, {1, 3}}}, 0.0);
-  EXPECT_EQ(g.Admit(2, 500, 10.0), GateVerdict::kPass);   // busy until 10.5
+  EXPECT_EQ(g.Admit(2, 500, 10.0), GateVerdict::kPass);  // busy until 10.5
   EXPECT_EQ(g.Admit(2, 500, 10.4), GateVerdict::kBusy);
   EXPECT_EQ(g.Admit(3, 500, 10.4), GateVerdict::kPass);   // each sender has its own link
   EXPECT_EQ(g.Admit(2, 5000, 10.5), GateVerdict::kPass);  // a large message passes, busy to 15.5

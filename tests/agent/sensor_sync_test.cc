@@ -12,7 +12,9 @@ namespace {
 class Log : public SensorSync::Sink {
  public:
   void Move(const OdometryControl& u, double dt) override { events.push_back("move " + Fmt(dt) + " v" + Fmt(u.v_mps)); }
-  void ApplyScan(const Scan& s, double stamp) override { events.push_back("scan " + Fmt(stamp) + " n" + std::to_string(s.obs.size())); }
+  void ApplyScan(const Scan& s, double stamp) override {
+    events.push_back("scan " + Fmt(stamp) + " n" + std::to_string(s.obs.size()));
+  }
   void IntervalDone(const Odometry& o) override { events.push_back("done " + Fmt(o.stamp)); }
   bool Mapped() const override { return mapped; }
   static std::string Fmt(double v) {

@@ -129,16 +129,17 @@ TEST_F(ScenarioDocs, EveryDocumentedKeyIsReadAndEveryKeyReadIsDocumented) {
   Parse("version: 1\nsource: {type: victoria_park, virtual_robots: 3, overlap_s: 30}\n");
   // Every path type, in the defaults and in a listed robot; each preset, in both places too.
   for (const char* type : {"waypoints", "random", "circle", "lawnmower", "park"}) {
-    const std::string extra = std::string(type) == "waypoints"                               ? ", points: [[1, 1], [5, 5]]"
-                              : std::string(type) == "random" || std::string(type) == "lawnmower" ? ", area_m: [0, 0, 20, 20]"
-                                                                                                  : "";
+    const std::string extra = std::string(type) == "waypoints" ? ", points: [[1, 1], [5, 5]]"
+                              : std::string(type) == "random" || std::string(type) == "lawnmower"
+                                  ? ", area_m: [0, 0, 20, 20]"
+                                  : "";
     const std::string path = std::string("{type: ") + type + extra + "}";
     Parse("version: 1\nworld: {landmarks: {generator: {type: park}}}\nrobots:\n  defaults: {path: " + path +
           "}\n  list: [{id: 1, path: " + path + "}]\n");
   }
   for (const char* preset : {"thesis", "downs"}) {
-    Parse(std::string("version: 1\nworld: {landmarks: {generator: {count: 10}}}\nrobots:\n  defaults: {preset: ") + preset +
-          "}\n  list: [{id: 1, preset: " + preset + ", start: [0, 0, 0]}]\n");
+    Parse(std::string("version: 1\nworld: {landmarks: {generator: {count: 10}}}\nrobots:\n  defaults: {preset: ") +
+          preset + "}\n  list: [{id: 1, preset: " + preset + ", start: [0, 0, 0]}]\n");
   }
 
   const std::set<std::string> documented = DocumentedKeys();

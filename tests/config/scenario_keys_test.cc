@@ -16,8 +16,9 @@ using testing::kSimulation;
 TEST(ScenarioKeys, DuplicateKeysNameTheSecondOccurrence) {
   EXPECT_EQ(ErrorOf(std::string(kSimulation) + "radio: {range_m: 5}\nseed: 3\nradio: {range_m: 9}\n"),
             "s.yaml:9: radio: duplicate key (first given on line 7)");
-  EXPECT_EQ(ErrorOf(std::string(kSimulation) + "  defaults:\n    sensor:\n      max_range_m: 5\n      max_range_m: 6\n"),
-            "s.yaml:10: robots.defaults.sensor.max_range_m: duplicate key (first given on line 9)");
+  EXPECT_EQ(
+      ErrorOf(std::string(kSimulation) + "  defaults:\n    sensor:\n      max_range_m: 5\n      max_range_m: 6\n"),
+      "s.yaml:10: robots.defaults.sensor.max_range_m: duplicate key (first given on line 9)");
   EXPECT_EQ(ErrorOf("world: {landmarks: {generator: {count: 5, count: 6}}}\nrobots: {count: 1}\n"),
             "s.yaml:1: world.landmarks.generator.count: duplicate key (first given on line 1)");
   EXPECT_EQ(ErrorOf("world: {landmarks: {list: [[0, 0]]}}\nrobots:\n  list:\n    - {id: 1, id: 2}\n"),

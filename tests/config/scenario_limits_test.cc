@@ -10,8 +10,8 @@
 
 #include "common/config/config_error.h"
 #include "common/config/scenario.h"
-#include "tests/config/scenario_testing.h"
 #include "common/config/scenario_limits.h"
+#include "tests/config/scenario_testing.h"
 
 namespace mapmesh {
 namespace {
@@ -52,6 +52,8 @@ const std::vector<std::string> kParkPath = {"world.landmarks.generator.type=park
 const std::vector<std::string> kNoSpacing = {"world.landmarks.generator.min_spacing_m=0"};
 const std::vector<std::string> kNoLandmarks = {"world.landmarks.generator.count=0"};
 
+// One bound per line: a table (not formatted).
+// clang-format off
 INSTANTIATE_TEST_SUITE_P(
     EveryKey, BoundTest,
     ::testing::Values(
@@ -138,6 +140,7 @@ INSTANTIATE_TEST_SUITE_P(
         Bound{kSimulation, {}, "feeder.lockstep_window_s", "10", "11", "must be <= 10 (got 11)"},
         Bound{kSimulation, {}, "feeder.startup_timeout_s", "86400", "1e300", "must be <= 86400 (got 1e+300)"},
         Bound{kSimulation, {}, "feeder.truth_period_s", "0.001", "0.0009", "must be >= 0.001 (got 0.0009)"}));
+// clang-format on
 
 // The user's reports: each is one line with file, line and key.
 TEST(ScenarioLimits, HugeLandmarkCountWithATinySpacingIsRefusedAtItsLine) {
@@ -185,7 +188,8 @@ TEST(ScenarioLimits, RobotCountsAndIds) {
   std::string many = "world: {landmarks: {generator: {count: 5}}}\nrobots:\n  list:\n";
   for (int i = 1; i <= limits::kMaxRobots + 1; ++i) many += "    - {id: " + std::to_string(i) + "}\n";
   EXPECT_EQ(ErrorOf(many), "s.yaml:4: robots.list: at most 1024 entries (got 1025)");
-  EXPECT_EQ(ErrorOf("source: {type: mrclam, robots: [1, 3, 1]}\n"), "s.yaml:1: source.robots[2]: robot 1 is listed twice");
+  EXPECT_EQ(ErrorOf("source: {type: mrclam, robots: [1, 3, 1]}\n"),
+            "s.yaml:1: source.robots[2]: robot 1 is listed twice");
 }
 
 TEST(ScenarioLimits, StartPosesAndInlinePoints) {
@@ -230,7 +234,8 @@ TEST(ScenarioLimits, AnEmptyOverrideIsAnError) {
   EXPECT_THROW(ParseOverride("radio.range_m=  "), ConfigError);
   // A YAML null would also leave the key at its default.
   EXPECT_EQ(ErrorOf(kSimulation, {"duration_s=~"}), "s.yaml: --set duration_s: empty value (give key.path=VALUE)");
-  EXPECT_EQ(ErrorOf(kSimulation, {"radio.range_m=null"}), "s.yaml: --set radio.range_m: empty value (give key.path=VALUE)");
+  EXPECT_EQ(ErrorOf(kSimulation, {"radio.range_m=null"}),
+            "s.yaml: --set radio.range_m: empty value (give key.path=VALUE)");
   EXPECT_EQ(ErrorOf(kSimulation, {"name=''"}), "");  // an empty string, said so
 }
 
@@ -269,8 +274,8 @@ TEST_F(ScenarioFilesTest, TheLandmarksCsvMustBeARegularFileWithLandmarks) {
   }
   EXPECT_EQ(CsvError("many.csv"), prefix + Path("many.csv") + ":100001: more than 100000 landmarks");
   fs::resize_file(Path("many.csv"), limits::kMaxCsvBytes + 1);
-  EXPECT_EQ(CsvError("many.csv"), prefix + "cannot open landmarks file '" + Path("many.csv") +
-                                      "': larger than 64 MiB (67108865 bytes)");
+  EXPECT_EQ(CsvError("many.csv"),
+            prefix + "cannot open landmarks file '" + Path("many.csv") + "': larger than 64 MiB (67108865 bytes)");
 }
 
 TEST_F(ScenarioFilesTest, TheScenarioMustBeARegularFile) {

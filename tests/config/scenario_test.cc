@@ -81,9 +81,7 @@ TEST_F(ScenarioTest, UnknownTopLevelKey) {
 
 TEST_F(ScenarioTest, NegativeSensorRange) {
   const std::string err = ErrorOf(std::string(kMinimal) + "      sensor: {max_range_m: -2}\n");
-  EXPECT_NE(err.find("s.yaml:9: robots.list[0].sensor.max_range_m: must be >= 0 (got -2)"),
-            std::string::npos)
-      << err;
+  EXPECT_NE(err.find("s.yaml:9: robots.list[0].sensor.max_range_m: must be >= 0 (got -2)"), std::string::npos) << err;
 }
 
 TEST_F(ScenarioTest, WrongType) {
@@ -130,16 +128,20 @@ TEST_F(ScenarioTest, OtherBadValues) {
   EXPECT_NE(ErrorOf(std::string(kMinimal) + "radio: {loss_probability: 1.5}\n")
                 .find("radio.loss_probability: must be <= 1 (got 1.5)"),
             std::string::npos);
-  EXPECT_NE(ErrorOf(std::string(kMinimal) + "feeder: {pace: warp}\n").find("feeder.pace: must be one of lockstep, realtime"),
-            std::string::npos);
+  EXPECT_NE(
+      ErrorOf(std::string(kMinimal) + "feeder: {pace: warp}\n").find("feeder.pace: must be one of lockstep, realtime"),
+      std::string::npos);
   EXPECT_NE(ErrorOf("version: 1\nworld:\n  landmarks:\n    list: [[0, 0]]\n    csv: a.csv\nrobots: {count: 1}\n")
                 .find("world.landmarks: give exactly one of"),
             std::string::npos);
-  EXPECT_NE(ErrorOf("world: {landmarks: {list: [[1, 2, 3]]}}\nrobots: {count: 1}\n").find("world.landmarks.list[0]: expected a point"),
+  EXPECT_NE(ErrorOf("world: {landmarks: {list: [[1, 2, 3]]}}\nrobots: {count: 1}\n")
+                .find("world.landmarks.list[0]: expected a point"),
             std::string::npos);
-  EXPECT_NE(ErrorOf("world: {landmarks: {generator: {count: 5000, area_m: [0, 0, 10, 10], min_spacing_m: 1}}}\nrobots: {count: 1}\n")
-                .find("world.landmarks.generator.count: cannot place 5000"),
-            std::string::npos);
+  EXPECT_NE(
+      ErrorOf(
+          "world: {landmarks: {generator: {count: 5000, area_m: [0, 0, 10, 10], min_spacing_m: 1}}}\nrobots: {count: 1}\n")
+          .find("world.landmarks.generator.count: cannot place 5000"),
+      std::string::npos);
   EXPECT_NE(ErrorOf("world: {landmarks: {list: []}}\n").find("the scenario has no robots"), std::string::npos);
   EXPECT_NE(ErrorOf("world: [\n").find("s.yaml:"), std::string::npos);  // YAML syntax error
 }
@@ -256,9 +258,10 @@ robots:
   EXPECT_EQ(s.robots[0].path.points.size(), 36u);
   EXPECT_NEAR(s.robots[0].start.x, 5.0, 1e-12);
   EXPECT_EQ(s.robots[1].path.points.size(), 6u);
-  EXPECT_NE(ErrorOf("world: {landmarks: {list: [[0, 0]]}}\nrobots: {list: [{id: 1, path: {type: circle, spacing_m: 3}}]}\n")
-                .find("robots.list[0].path.spacing_m: not used by path type circle"),
-            std::string::npos);
+  EXPECT_NE(
+      ErrorOf("world: {landmarks: {list: [[0, 0]]}}\nrobots: {list: [{id: 1, path: {type: circle, spacing_m: 3}}]}\n")
+          .find("robots.list[0].path.spacing_m: not used by path type circle"),
+      std::string::npos);
 }
 
 TEST_F(ScenarioExtrasTest, PresetsSetMotionAndSensor) {
@@ -288,14 +291,16 @@ TEST_F(ScenarioExtrasTest, DatasetSourcesDecideTheRobots) {
   EXPECT_EQ(m.source.dataset, "mrclam/MRCLAM_Dataset7");
   EXPECT_EQ(ParseScenario("source: {type: mrclam}\n", "m.yaml", {}, 3).robots.size(), 3u);
   const Scenario v = ParseScenario(
-      "source: {type: victoria_park}\nduration_s: 100\nrobots: {defaults: {motion: {model: ackermann}}}\n", "v.yaml", {}, 6);
+      "source: {type: victoria_park}\nduration_s: 100\nrobots: {defaults: {motion: {model: ackermann}}}\n", "v.yaml",
+      {}, 6);
   EXPECT_EQ(v.robots.size(), 6u);
   EXPECT_EQ(v.source.virtual_robots, 6);
   EXPECT_TRUE(v.duration_given);
   EXPECT_EQ(MotionModelFor(v.robots[0].motion).kind, MotionModel::Kind::kAckermann);
   EXPECT_NE(ErrorOf("source: {type: mrclam, robots: [7]}\n").find("source.robots[0]: MRCLAM has robots 1-5"),
             std::string::npos);
-  EXPECT_NE(ErrorOf("source: {type: mrclam}\nworld: {landmarks: {list: [[0, 0]]}}\n").find("takes its landmarks from the dataset"),
+  EXPECT_NE(ErrorOf("source: {type: mrclam}\nworld: {landmarks: {list: [[0, 0]]}}\n")
+                .find("takes its landmarks from the dataset"),
             std::string::npos);
   EXPECT_NE(ErrorOf("source: {type: mrclam}\nrobots: {count: 3}\n").find("robots.count: a dataset"), std::string::npos);
   EXPECT_NE(ErrorOf("source: {type: mars}\n").find("source.type: must be one of"), std::string::npos);

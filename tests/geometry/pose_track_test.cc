@@ -14,7 +14,8 @@ struct Sample {
 };
 
 std::optional<Pose2> At(const std::vector<Sample>& track, double t) {
-  return PoseAlong(track, t, [](const Sample& s) { return s.t; }, [](const Sample& s) { return s.pose; });
+  return PoseAlong(
+      track, t, [](const Sample& s) { return s.t; }, [](const Sample& s) { return s.pose; });
 }
 
 TEST(PoseAlong, EmptyTrackHasNoPose) { EXPECT_FALSE(At({}, 1.0)); }
@@ -50,7 +51,8 @@ TEST(PoseAlong, AgreesWithInterpolateBetweenTheSamplesAroundAnyTime) {
     const double q = std::uniform_real_distribution<double>(0.0, track.back().t)(rng);
     std::size_t i = 1;
     while (track[i].t < q) ++i;
-    const Pose2 want = Interpolate(track[i - 1].pose, track[i].pose, (q - track[i - 1].t) / (track[i].t - track[i - 1].t));
+    const Pose2 want = Interpolate(track[i - 1].pose, track[i].pose,
+                                   (q - track[i - 1].t) / (track[i].t - track[i - 1].t));
     const Pose2 got = *At(track, q);
     EXPECT_EQ(got.x, want.x);
     EXPECT_EQ(got.y, want.y);

@@ -58,8 +58,8 @@ TEST(RigidFit, TwoPairClosedFormMatchesTheGeneralFit) {
     EXPECT_NEAR(WrapAngle(closed->theta - general->theta), 0.0, 1e-12);
     EXPECT_NEAR(WrapAngle(closed->theta - t.theta), 0.0, 1e-9);
   }
-  EXPECT_FALSE(
-      FitRigid2D(Eigen::Vector2d(2, 2), Eigen::Vector2d(2, 2), Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 0)).has_value());
+  EXPECT_FALSE(FitRigid2D(Eigen::Vector2d(2, 2), Eigen::Vector2d(2, 2), Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 0))
+                   .has_value());
 }
 
 }  // namespace

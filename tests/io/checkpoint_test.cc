@@ -155,8 +155,7 @@ TEST(Checkpoint, IncarnationsAreDistinctAndNotTheResumingOne) {
   EXPECT_EQ(Refusal(CheckpointToJson(c)), Reason("incarnation 9 is the resuming process's own incarnation"));
   c = Checkpoint();
   c.earlier[1].incarnation = kNow;
-  EXPECT_EQ(Refusal(CheckpointToJson(c)),
-            Reason("earlier[1].incarnation 9 is the resuming process's own incarnation"));
+  EXPECT_EQ(Refusal(CheckpointToJson(c)), Reason("earlier[1].incarnation 9 is the resuming process's own incarnation"));
   c = Checkpoint();
   c.earlier[1].incarnation = c.earlier[0].incarnation;
   EXPECT_EQ(Refusal(CheckpointToJson(c)), Reason("earlier[1].incarnation 2 repeats earlier[0].incarnation"));
@@ -208,8 +207,7 @@ TEST(Checkpoint, CovarianceMustBePositiveSemiDefinite) {
   c.local.landmarks[0].cov << 1.0, 2.0, 2.0, 1.0;  // det -3
   EXPECT_EQ(Refusal(CheckpointToJson(c)), Reason("local.landmarks[0].cov [1, 2, 1] is not positive semi-definite"));
   c.local.landmarks[0].cov << -0.5, 0.0, 0.0, 1.0;
-  EXPECT_EQ(Refusal(CheckpointToJson(c)),
-            Reason("local.landmarks[0].cov [-0.5, 0, 1] is not positive semi-definite"));
+  EXPECT_EQ(Refusal(CheckpointToJson(c)), Reason("local.landmarks[0].cov [-0.5, 0, 1] is not positive semi-definite"));
   c.local.landmarks[0].cov << 0.0, 0.0, 0.0, 0.0;  // PSD (a perfectly known landmark) is taken
   EXPECT_TRUE(Parse(CheckpointToJson(c).dump()).ok());
 }
@@ -281,8 +279,8 @@ TEST(Checkpoint, MoreLandmarksThanTheLimitAreRefused) {
 }
 
 TEST(Checkpoint, MalformedJsonIsOneLine) {
-  for (const std::string text : {"", "{", "[1, 2", "nul", "{\"robot\": 3,}", "\xff\xfe{}", "{\"a\":\"\n\"}",
-                                 "{\"robot\": 3} trailing"}) {
+  for (const std::string text :
+       {"", "{", "[1, 2", "nul", "{\"robot\": 3,}", "\xff\xfe{}", "{\"a\":\"\n\"}", "{\"robot\": 3} trailing"}) {
     SCOPED_TRACE(text);
     EXPECT_NE(Refusal(text).find(": not valid JSON: "), std::string::npos);
   }

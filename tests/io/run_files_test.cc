@@ -44,7 +44,7 @@ TEST(RunFiles, TruthRoundTripsAndInterpolates) {
   EXPECT_NEAR(mid.y, 2.0, 1e-12);
   // Heading interpolates the short way round, through pi.
   EXPECT_NEAR(std::abs(mid.theta), M_PI, 1e-9);
-  EXPECT_NEAR(back.Find(4)->PoseAt(5.0)->x, 2.0, 1e-12);   // clamped
+  EXPECT_NEAR(back.Find(4)->PoseAt(5.0)->x, 2.0, 1e-12);  // clamped
   EXPECT_NEAR(back.Find(4)->PoseAt(-1.0)->x, 0.0, 1e-12);
   EXPECT_TRUE(back.headings_known);
   // Unknown starts survive the round trip.

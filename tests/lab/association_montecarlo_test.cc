@@ -13,7 +13,8 @@ double WrongRate(const std::string& method, int seeds, long* total) {
   long wrong = 0, assoc = 0;
   for (int seed = 1; seed <= seeds; ++seed) {
     const Scenario sc = LoadScenario(MAPMESH_SOURCE_DIR "/scenarios/cluttered.yaml",
-                                     {ParseOverride("agent.association=" + method), ParseOverride("seed=" + std::to_string(seed))});
+                                     {ParseOverride("agent.association=" + method),
+                                      ParseOverride("seed=" + std::to_string(seed))});
     lab::SlamRunOptions o;
     o.hide_signatures = true;
     for (const lab::SlamRunResult& r : lab::RunSlam(sc, o)) {

@@ -31,8 +31,9 @@ void CheckCiConsistency(const std::vector<FusionSweepRow>& rows) {
               "det");
   int checked = 0;
   for (const FusionSweepRow& r : rows) {
-    std::printf("%-6.2f %-12s %3d/%-3d %8.3f %8.3f %8.3f %8.3f %8.2e\n", r.value, std::string(ToString(r.method)).c_str(),
-                r.fused_runs, r.runs, r.merged.consistent_ratio, r.merged.nees, r.a.nees, r.b.nees, r.merged.det);
+    std::printf("%-6.2f %-12s %3d/%-3d %8.3f %8.3f %8.3f %8.3f %8.2e\n", r.value,
+                std::string(ToString(r.method)).c_str(), r.fused_runs, r.runs, r.merged.consistent_ratio, r.merged.nees,
+                r.a.nees, r.b.nees, r.merged.det);
     EXPECT_GE(r.fused_runs, 0.9 * r.runs) << "alignment failed too often at sigma " << r.value;
     EXPECT_GT(r.merged.landmarks, 50 * r.fused_runs) << "the overlap is most of each map";
     EXPECT_GE(r.association_precision, 0.99);

@@ -60,9 +60,9 @@ TEST(MapCodec, EmptyMapRoundTrips) {
 
 TEST(MapCodec, ExtremesAreClampedIntoValidCovariances) {
   LandmarkMap m;
-  m.landmarks.push_back({1, -1, {0.0, 0.0}, Eigen::Matrix2d::Zero()});                    // zero covariance
+  m.landmarks.push_back({1, -1, {0.0, 0.0}, Eigen::Matrix2d::Zero()});                       // zero covariance
   m.landmarks.push_back({2, -1, {1.0, 0.0}, (Eigen::Matrix2d() << 1, 1, 1, 1).finished()});  // singular
-  m.landmarks.push_back({3, -1, {2.0, 0.0}, 1e8 * Eigen::Matrix2d::Identity()});          // 10 km
+  m.landmarks.push_back({3, -1, {2.0, 0.0}, 1e8 * Eigen::Matrix2d::Identity()});             // 10 km
   const MapDecodeResult r = DecodeMap(EncodeMap(m));
   ASSERT_TRUE(r.ok());
   for (const Landmark& l : r.map.landmarks) EXPECT_GT(l.cov.determinant(), 0.0);

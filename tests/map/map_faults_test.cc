@@ -52,7 +52,8 @@ TEST(PayloadFaults, NamesRoundTripAndUnknownNamesAreRefused) {
 
 TEST(PayloadFaults, EveryDecodeErrorCanBeInjected) {
   std::vector<bool> reached(kMapDecodeErrorCount, false);
-  for (int i = 0; i < kPayloadFaultCount; ++i) reached[static_cast<int>(ExpectedDecodeError(static_cast<PayloadFault>(i)))] = true;
+  for (int i = 0; i < kPayloadFaultCount; ++i)
+    reached[static_cast<int>(ExpectedDecodeError(static_cast<PayloadFault>(i)))] = true;
   for (int e = 1; e < kMapDecodeErrorCount; ++e) EXPECT_TRUE(reached[e]) << ToString(static_cast<MapDecodeError>(e));
 }
 

@@ -8,7 +8,9 @@ namespace {
 LandmarkMap Grid(int n, double spacing_m, double sigma_m) {
   LandmarkMap m;
   for (int i = 0; i < n; ++i) {
-    m.landmarks.push_back({static_cast<std::uint32_t>(i), -1, {spacing_m * i, -spacing_m * i},
+    m.landmarks.push_back({static_cast<std::uint32_t>(i),
+                           -1,
+                           {spacing_m * i, -spacing_m * i},
                            sigma_m * sigma_m * Eigen::Matrix2d::Identity()});
   }
   return m;

@@ -162,7 +162,8 @@ TEST(Fusion, EveryMethodIgnoresTheOrderOfItsInputs) {
 }
 
 TEST(Fusion, MaximumLikelihoodIsTheSampleMeanAndCovariance) {
-  const std::vector<Gaussian2> in{{{0.0, 0.0}, Eigen::Matrix2d::Identity()}, {{2.0, 0.0}, 4 * Eigen::Matrix2d::Identity()}};
+  const std::vector<Gaussian2> in{{{0.0, 0.0}, Eigen::Matrix2d::Identity()},
+                                  {{2.0, 0.0}, 4 * Eigen::Matrix2d::Identity()}};
   const FusionResult r = Fuse(in, FusionMethod::kMaximumLikelihood);
   ASSERT_TRUE(r.ok());
   EXPECT_TRUE(r.fused.mean.isApprox(Eigen::Vector2d(1.0, 0.0)));

@@ -205,7 +205,7 @@ TEST(GlobalMap, EstimatorDecidesHowSharedLandmarksShrink) {
   ASSERT_EQ(ci.map.size(), 20u);
   ASSERT_EQ(info.map.size(), 20u);
   for (std::size_t i = 0; i < 20; ++i) {
-    EXPECT_NEAR(ci.map.landmarks[i].cov(0, 0), 0.01, 1e-12);    // equal inputs: CI keeps the covariance
+    EXPECT_NEAR(ci.map.landmarks[i].cov(0, 0), 0.01, 1e-12);     // equal inputs: CI keeps the covariance
     EXPECT_NEAR(info.map.landmarks[i].cov(0, 0), 0.005, 1e-12);  // information fusion halves it
     EXPECT_LT((ci.map.landmarks[i].mean - info.map.landmarks[i].mean).norm(), 1e-12);
   }
@@ -217,8 +217,8 @@ TEST(GlobalMap, InvalidInputIsCountedAndNeverFused) {
   LandmarkMap local = NoisyMap(world, Range(0, 10), {}, 0.1, rng);
   LandmarkMap peer = NoisyMap(world, Range(0, 10), {}, 0.1, rng);
   local.landmarks[0].mean.x() = std::numeric_limits<double>::quiet_NaN();
-  local.landmarks[1].cov << 1.0, 2.0, 2.0, 1.0;                 // not PSD
-  peer.landmarks[2].cov << 1.0, 1.0, 1.0, 1.0;                  // singular
+  local.landmarks[1].cov << 1.0, 2.0, 2.0, 1.0;  // not PSD
+  peer.landmarks[2].cov << 1.0, 1.0, 1.0, 1.0;   // singular
   peer.landmarks[3].cov(0, 0) = std::numeric_limits<double>::infinity();
   peer.landmarks[4].mean.y() = std::numeric_limits<double>::infinity();
   std::vector<MapSource> src{{2, 0, peer, Pose2{}, Eigen::Matrix3d::Zero()}};

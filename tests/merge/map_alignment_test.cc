@@ -83,7 +83,8 @@ double TransformNees(LandmarkErrors errors, double sigma_common, std::uint64_t f
     }
     const AlignmentResult r = AlignMaps(p.a, p.b, o, rng);
     if (!r.accepted()) continue;
-    const Eigen::Vector3d e(r.transform.x - p.truth.x, r.transform.y - p.truth.y, WrapAngle(r.transform.theta - p.truth.theta));
+    const Eigen::Vector3d e(r.transform.x - p.truth.x, r.transform.y - p.truth.y,
+                            WrapAngle(r.transform.theta - p.truth.theta));
     nees += e.dot(r.cov.ldlt().solve(e));
     ++n;
   }
@@ -102,7 +103,8 @@ TEST(MapAlignment, TransformCovarianceIsConsistentForIndependentLandmarks) {
 TEST(MapAlignment, TransformCovarianceIsConsistentForCorrelatedLandmarks) {
   const double unknown = TransformNees(LandmarkErrors::kUnknownCorrelation, 0.3, 700);
   const double independent = TransformNees(LandmarkErrors::kIndependent, 0.3, 700);
-  std::printf("common-mode maps: transform NEES %.2f (unknown correlation), %.1f (independent)\n", unknown, independent);
+  std::printf("common-mode maps: transform NEES %.2f (unknown correlation), %.1f (independent)\n", unknown,
+              independent);
   EXPECT_LT(unknown, 3.0 * 1.5);
   EXPECT_GT(independent, 3.0 * 10);  // the check can fail: the independent assumption is caught
 }

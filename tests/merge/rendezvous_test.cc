@@ -73,7 +73,8 @@ TEST(Rendezvous, CovarianceMatchesMonteCarlo) {
     in.range21 += in.sigma_range2 * n(rng);
     in.bearing21 += in.sigma_bearing2 * n(rng);
     const auto r = RendezvousAlign(in);
-    const Eigen::Vector3d e(r->transform.x - truth.x, r->transform.y - truth.y, WrapAngle(r->transform.theta - truth.theta));
+    const Eigen::Vector3d e(r->transform.x - truth.x, r->transform.y - truth.y,
+                            WrapAngle(r->transform.theta - truth.theta));
     nees += e.dot(r->cov.ldlt().solve(e));
   }
   EXPECT_NEAR(nees / kN, 3.0, 0.3);
@@ -87,8 +88,12 @@ TEST(Pose2Jacobians, ComposeAndInvertMatchNumericalDifferentiation) {
     Eigen::Matrix3d ja, jb, ji;
     Compose({a(0), a(1), a(2)}, {b(0), b(1), b(2)}, &ja, &jb);
     Invert({a(0), a(1), a(2)}, &ji);
-    auto fa = [&](const Eigen::VectorXd& s) { return Eigen::VectorXd((Pose2{s(0), s(1), s(2)} * Pose2{b(0), b(1), b(2)}).Vector()); };
-    auto fb = [&](const Eigen::VectorXd& s) { return Eigen::VectorXd((Pose2{a(0), a(1), a(2)} * Pose2{s(0), s(1), s(2)}).Vector()); };
+    auto fa = [&](const Eigen::VectorXd& s) {
+      return Eigen::VectorXd((Pose2{s(0), s(1), s(2)} * Pose2{b(0), b(1), b(2)}).Vector());
+    };
+    auto fb = [&](const Eigen::VectorXd& s) {
+      return Eigen::VectorXd((Pose2{a(0), a(1), a(2)} * Pose2{s(0), s(1), s(2)}).Vector());
+    };
     auto fi = [&](const Eigen::VectorXd& s) { return Eigen::VectorXd(Pose2{s(0), s(1), s(2)}.Inverse().Vector()); };
     EXPECT_LT((ja - testing::NumericJacobian(fa, a, 1e-6, {2})).cwiseAbs().maxCoeff(), 1e-7);
     EXPECT_LT((jb - testing::NumericJacobian(fb, b, 1e-6, {2})).cwiseAbs().maxCoeff(), 1e-7);

@@ -31,10 +31,10 @@ TEST(Nees, AveragesTwoForAConsistentEstimator) {
 TEST(MatchToTruth, UsesSignaturesThenNearestWithinGate) {
   const std::vector<Eigen::Vector2d> truth{{0, 0}, {10, 0}, {20, 0}};
   LandmarkMap m;
-  m.landmarks.push_back({0, 2, {0.1, 0}, Eigen::Matrix2d::Identity()});   // signature 2 wins
-  m.landmarks.push_back({1, -1, {10.3, 0}, Eigen::Matrix2d::Identity()}); // nearest: 1
-  m.landmarks.push_back({2, -1, {10.5, 0}, Eigen::Matrix2d::Identity()}); // 1 taken already
-  m.landmarks.push_back({3, -1, {50, 0}, Eigen::Matrix2d::Identity()});   // outside the gate
+  m.landmarks.push_back({0, 2, {0.1, 0}, Eigen::Matrix2d::Identity()});    // signature 2 wins
+  m.landmarks.push_back({1, -1, {10.3, 0}, Eigen::Matrix2d::Identity()});  // nearest: 1
+  m.landmarks.push_back({2, -1, {10.5, 0}, Eigen::Matrix2d::Identity()});  // 1 taken already
+  m.landmarks.push_back({3, -1, {50, 0}, Eigen::Matrix2d::Identity()});    // outside the gate
   const auto match = MatchToTruth(m, truth, 2.0);
   EXPECT_EQ(match, (std::vector<int>{2, 1, -1, -1}));
 }

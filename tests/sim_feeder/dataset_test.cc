@@ -17,9 +17,9 @@ namespace fs = std::filesystem;
 // The datasets root CI has beside the checkout (or $MAPMESH_DATASETS).
 std::string DatasetsRoot() { return ResolveDatasetsRoot("", MAPMESH_SOURCE_DIR "/../shared/datasets"); }
 
-#define SKIP_WITHOUT(dir)                                                            \
-  if (!fs::is_directory(dir)) GTEST_SKIP() << "dataset not found at " << (dir)       \
-                                           << " (set MAPMESH_DATASETS to run this test)"
+#define SKIP_WITHOUT(dir)     \
+  if (!fs::is_directory(dir)) \
+  GTEST_SKIP() << "dataset not found at " << (dir) << " (set MAPMESH_DATASETS to run this test)"
 
 TEST(ParseRow, RealLinesWithTabsSpacesAndTrailingSpace) {
   std::vector<double> v;
@@ -109,7 +109,8 @@ TEST(Datasets, MissingDirectoryIsOneClearLine) {
 TEST(Mrclam, Dataset7StreamsMatchTheFiles) {
   const std::string dir = DatasetsRoot() + "/mrclam/MRCLAM_Dataset7";
   SKIP_WITHOUT(dir);
-  const Scenario sc = ParseScenario("source: {type: mrclam}\nrobots: {defaults: {sensor: {signatures: true}}}\n", "t.yaml");
+  const Scenario sc = ParseScenario("source: {type: mrclam}\nrobots: {defaults: {sensor: {signatures: true}}}\n",
+                                    "t.yaml");
   const ReplayData d = LoadMrclam(dir, sc);
   ASSERT_EQ(d.robots.size(), 5u);
   ASSERT_EQ(d.landmarks.size(), 15u);
@@ -174,7 +175,8 @@ TEST(VictoriaPark, VirtualRobotsShareTheRunWithOverlap) {
   const std::string dir = DatasetsRoot() + "/victoria_park";
   SKIP_WITHOUT(dir);
   const Scenario sc = ParseScenario(
-      "source: {type: victoria_park, overlap_s: 60}\nrobots: {defaults: {motion: {model: ackermann}}}\n", "t.yaml", {}, 4);
+      "source: {type: victoria_park, overlap_s: 60}\nrobots: {defaults: {motion: {model: ackermann}}}\n", "t.yaml", {},
+      4);
   const ReplayData d = LoadVictoriaPark(dir, sc);
   ASSERT_EQ(d.robots.size(), 4u);
   EXPECT_FALSE(d.headings_known);

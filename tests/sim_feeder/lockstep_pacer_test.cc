@@ -22,7 +22,8 @@ class LockstepPacerTest : public ::testing::Test {
     o.window_s = 1.0;
     o.stall_timeout_s = 10.0;
     o.holds = std::move(holds);
-    return LockstepPacer({1, 2}, o, [this](int pid) { return procs_.count(pid) ? procs_.at(pid) : ProcessState::kGone; });
+    return LockstepPacer({1, 2}, o,
+                         [this](int pid) { return procs_.count(pid) ? procs_.at(pid) : ProcessState::kGone; });
   }
   // Both agents report, are subscribed and have told their processes.
   void BringUp(LockstepPacer& p) {
@@ -148,7 +149,7 @@ TEST_F(LockstepPacerTest, AnAgentMatchedAnewWithoutRestartGetsWhatItHasNotProces
   p.Published(Od(1, 0.5));
   p.Published(Sc(1, 0.75));
   p.Published(Od(1, 1.0));
-  p.OnStatus(St(1, 1, 0.5));  // processed the first
+  p.OnStatus(St(1, 1, 0.5));               // processed the first
   EXPECT_TRUE(p.OnMatches(1, 1).empty());  // same match count: nothing
   const std::vector<SentLog::Message> again = p.OnMatches(1, 2);
   ASSERT_EQ(again.size(), 2u);

@@ -26,7 +26,7 @@ TEST(IsVisible, BoundingCircleRejectsTheBoxCorners) {
   // Thesis Fig. 34: in the box and in front, but beyond the range circle.
   EXPECT_FALSE(IsVisible({0, 0, 0}, {6.0, 6.0}, Lms200()));
   EXPECT_TRUE(IsVisible({0, 0, 0}, {5.0, 5.0}, Lms200()));
-  EXPECT_TRUE(IsVisible({2, 3, 0}, {10.0, 3.0}, Lms200()));   // exactly at range
+  EXPECT_TRUE(IsVisible({2, 3, 0}, {10.0, 3.0}, Lms200()));  // exactly at range
 }
 
 TEST(IsVisible, NarrowFieldOfView) {

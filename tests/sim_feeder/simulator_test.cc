@@ -66,10 +66,10 @@ TEST(Simulator, ProducesTheExpectedStreams) {
     }
     EXPECT_EQ(b.truth.size(), 3u);
   }
-  EXPECT_EQ(batches, 201);        // t = 0, 0.1, ..., 20
-  EXPECT_EQ(odom, 200 * 3);       // none at t = 0
-  EXPECT_EQ(scans, 40 * 3);       // every 5th step
-  EXPECT_EQ(links, 21);           // every second, from t = 0
+  EXPECT_EQ(batches, 201);   // t = 0, 0.1, ..., 20
+  EXPECT_EQ(odom, 200 * 3);  // none at t = 0
+  EXPECT_EQ(scans, 40 * 3);  // every 5th step
+  EXPECT_EQ(links, 21);      // every second, from t = 0
   EXPECT_NEAR(last, 20.0, 1e-9);
   const auto& seen = sim.Truth().seen;
   EXPECT_GT(std::count(seen.begin(), seen.end(), true), 0);

@@ -136,7 +136,8 @@ TEST_P(TinySpacingTest, EachCandidateIsTestedAgainstAFewNeighboursOnly) {
     ASSERT_TRUE(park.has_value());
     placed = park->landmarks.size();
   } else {
-    const auto pts = o.type == LandmarkLayout::kDisc ? GenerateDiscLandmarks(o, rng, &stats) : GenerateUniformLandmarks(o, rng, &stats);
+    const auto pts = o.type == LandmarkLayout::kDisc ? GenerateDiscLandmarks(o, rng, &stats)
+                                                     : GenerateUniformLandmarks(o, rng, &stats);
     ASSERT_TRUE(pts.has_value());
     placed = pts->size();
   }

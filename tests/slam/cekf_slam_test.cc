@@ -115,13 +115,15 @@ INSTANTIATE_TEST_SUITE_P(Seeds, CekfEqualsEkfTest, ::testing::Combine(::testing:
                          });
 
 TEST(EkfSlam, CovarianceStaysSymmetricPositiveSemiDefiniteOverALongRun) {
-  for (const auto& [seed, fej] : {std::pair{11, false}, std::pair{12, false}, std::pair{11, true}, std::pair{12, true}}) {
+  for (const auto& [seed, fej] :
+       {std::pair{11, false}, std::pair{12, false}, std::pair{11, true}, std::pair{12, true}}) {
     SCOPED_TRACE(::testing::Message() << "seed " << seed << (fej ? ", first-estimates Jacobians" : ""));
     const Scenario sc = RandomWorld(seed, 900);
     EkfSlam ekf(ThesisNoise(), {fej});
     CekfSlam cekf(ThesisNoise(), {/*region_half_m=*/5.0, /*reach_m=*/12.0}, {fej});
     Feed(sc, {&ekf, &cekf});
-    for (const LandmarkFilter* f : {static_cast<const LandmarkFilter*>(&ekf), static_cast<const LandmarkFilter*>(&cekf)}) {
+    for (const LandmarkFilter* f :
+         {static_cast<const LandmarkFilter*>(&ekf), static_cast<const LandmarkFilter*>(&cekf)}) {
       Eigen::VectorXd x;
       Eigen::MatrixXd p;
       std::vector<LandmarkId> ids;
@@ -308,7 +310,8 @@ TEST(EkfSlamFirstEstimates, UnobservableDirectionsGainNoInformation) {
         before = information(s, fej);
         slot[i] = s.Augment(z, kObsCov);
         after = information(s, fej);
-        largest_gain[fej] = std::max(largest_gain[fej], (after - before).eigenvalues().real().maxCoeff() / before.norm());
+        largest_gain[fej] = std::max(largest_gain[fej],
+                                     (after - before).eigenvalues().real().maxCoeff() / before.norm());
       }
     }
     EXPECT_EQ(s.landmarks(), static_cast<int>(world.size()));

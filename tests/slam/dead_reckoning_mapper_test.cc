@@ -37,7 +37,7 @@ TEST(DeadReckoningMapper, WithoutSignaturesJoinsTheNearestWithinTheGate) {
   o.association_gate_m = 0.5;
   DeadReckoningMapper m(o);
   m.Observe({Obs(5.0, 0.0, -1), Obs(5.0, 0.5, -1)});  // two landmarks ~2.5 m apart
-  m.Observe({Obs(5.2, 0.0, -1)});                      // 0.2 m from the first
+  m.Observe({Obs(5.2, 0.0, -1)});                     // 0.2 m from the first
   const LandmarkMap map = m.Map();
   ASSERT_EQ(map.size(), 2u);
   EXPECT_NEAR(map.landmarks[0].mean.x(), 5.1, 1e-12);

@@ -38,9 +38,7 @@ TEST_P(ObservationJacobianTest, MatchNumericalDifferentiation) {
     Matrix23 hr;
     Eigen::Matrix2d hm;
     ObserveRangeBearing({x(0), x(1), x(2)}, m, &hr, &hm);
-    auto fr = [&](const Eigen::VectorXd& s) {
-      return Eigen::VectorXd(ObserveRangeBearing({s(0), s(1), s(2)}, m));
-    };
+    auto fr = [&](const Eigen::VectorXd& s) { return Eigen::VectorXd(ObserveRangeBearing({s(0), s(1), s(2)}, m)); };
     auto fm = [&](const Eigen::VectorXd& s) {
       return Eigen::VectorXd(ObserveRangeBearing({x(0), x(1), x(2)}, Eigen::Vector2d(s)));
     };
@@ -51,9 +49,7 @@ TEST_P(ObservationJacobianTest, MatchNumericalDifferentiation) {
     Matrix23 gr;
     Eigen::Matrix2d gz;
     InverseRangeBearing({x(0), x(1), x(2)}, z, &gr, &gz);
-    auto gfr = [&](const Eigen::VectorXd& s) {
-      return Eigen::VectorXd(InverseRangeBearing({s(0), s(1), s(2)}, z));
-    };
+    auto gfr = [&](const Eigen::VectorXd& s) { return Eigen::VectorXd(InverseRangeBearing({s(0), s(1), s(2)}, z)); };
     auto gfz = [&](const Eigen::VectorXd& s) {
       return Eigen::VectorXd(InverseRangeBearing({x(0), x(1), x(2)}, Eigen::Vector2d(s)));
     };
