@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <set>
 
+#include "common/check.h"
+
 namespace mapmesh {
 MapExchange::MapExchange(RobotId self, std::uint32_t incarnation, const ExchangeOptions& options, std::uint64_t seed)
     : self_(self), incarnation_(incarnation), options_(options), rng_(seed) {}
@@ -108,12 +110,6 @@ void MapExchange::Drop(PeerState& p, double now) {
   p.last_attempt = now;
 }
 
-bool MapExchange::Spend() {
-  if (budget_ <= 0) return false;
-  --budget_;
-  return true;
-}
-
 bool MapExchange::AttemptDue(const PeerState& p, const LandmarkMap& own_local, double now) const {
   if (now - p.last_attempt < options_.align_period_s) return false;
   if (p.changed || Grew(own_local.size(), p.own_size_at_attempt)) return true;
@@ -123,7 +119,8 @@ bool MapExchange::AttemptDue(const PeerState& p, const LandmarkMap& own_local, d
 }
 
 bool MapExchange::Align(PeerState& p, const LandmarkMap& own_local, double now, bool reconsider_relay) {
-  if (!Spend()) return false;
+  MAPMESH_CHECK(budget_ > 0, "Update checks the alignment budget before aligning");
+  --budget_;
   const LandmarkMap& theirs = p.Map();
   const AlignmentResult r = AlignMaps(own_local, theirs, options_.align, rng_);
   p.report.last_verdict = r.verdict;
@@ -197,7 +194,7 @@ void MapExchange::Refine(PeerState& p, const LandmarkMap& own_local, double now)
 
 bool MapExchange::RefuteByRelay(const PeerState& p, const Pose2& to_own, PeerState& q, const LandmarkMap& own_local,
                                 double now) {
-  if (!options_.test_only.refute_by_relay || !q.report.aligned || !q.direct) return false;
+  if (!options_.test_only.refute_by_relay || !q.report.aligned) return false;  // q.direct is set: FirstConflict
   // At most once per align period for each relay: one that does not hold q's map must not keep
   // another, which does, from being heard.
   const auto checked = q.last_refute_check.find(p.report.key);

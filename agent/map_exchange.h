@@ -68,14 +68,12 @@ class MapExchange {
   std::vector<RobotId> StaleRobots() const;
 
  private:
-  // Aligns the peer's map to the own local map; when the answer is confirmed (confirm_alignments)
-  // stores the transform and source and returns true. Returns false at once, trying nothing,
-  // when this Update's alignment budget is spent.
+  // Aligns the peer's map to the own local map, taking one alignment from this Update's budget
+  // (the caller checks that one is left); when the answer is confirmed (confirm_alignments)
+  // stores the transform and source and returns true.
   bool Align(PeerState& p, const LandmarkMap& own_local, double now, bool reconsider_relay);
   // Whether a new incarnation of robot can be kept (max_incarnations), evicting one if need be.
   bool MakeRoomFor(RobotId robot, double now);
-  // Takes one alignment from this Update's budget; false when none is left.
-  bool Spend();
   bool Silent(const PeerState& p, double now) const { return p.Silent(now, options_.SilentAfterS()); }
   // An unaligned peer's alignment is due: after align_period_s, when its map changed or ours
   // grew by retry_growth (a frozen peer's map cannot change: whenever ours did).

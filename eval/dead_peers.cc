@@ -3,7 +3,7 @@
 #include <random>
 #include <set>
 
-#include "agent/map_exchange.h"
+#include "agent/exchange_options.h"
 #include "common/merge/map_alignment.h"
 #include "common/metrics/landmark_metrics.h"
 #include "common/metrics/trajectory_metrics.h"

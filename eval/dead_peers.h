@@ -16,7 +16,6 @@
 
 #include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
-#include "common/types/messages.h"
 
 namespace mapmesh {
 

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <memory>
-#include <set>
 
 #include "agent/agent_setup.h"
 #include "common/metrics/agent_evaluation.h"
@@ -68,11 +67,6 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
     for (; next_kill < kills.size() && kills[next_kill].first <= t; ++next_kill) {
       Slot& s = slots.at(kills[next_kill].second);
       if (!s.alive) continue;
-      BusSwarmResult::Snapshot snap{t, s.id, {}};
-      for (const auto& [id, other] : slots) {
-        if (other.alive && id != s.id) snap.globals[id] = other.node->global();
-      }
-      result.before_kills.push_back(std::move(snap));
       s.alive = false;
       latest.erase({s.id, MapKind::kLocal});  // a dead writer's data goes with it
       latest.erase({s.id, MapKind::kGlobal});

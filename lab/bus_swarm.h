@@ -50,13 +50,6 @@ struct BusSwarmResult {
   std::vector<BusAgentResult> agents;
   std::vector<Eigen::Vector2d> landmarks;  // truth
   std::vector<int> seen;                   // true landmarks some robot observed
-  // Every live agent's global map just before each kill (time, robot killed).
-  struct Snapshot {
-    double t = 0.0;
-    RobotId killed = 0;
-    std::map<RobotId, GlobalMap> globals;
-  };
-  std::vector<Snapshot> before_kills;
   double wall_s = 0.0;
 };
 

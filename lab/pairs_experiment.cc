@@ -1,7 +1,6 @@
 #include "lab/pairs_experiment.h"
 
 #include <algorithm>
-#include <cstdio>
 #include <sstream>
 
 #include "common/map/landmark_map.h"

@@ -104,11 +104,6 @@ bool AgentTracker::IsUp(RobotId id) const {
   return it != agents_.end() && !it->second.dead && !it->second.silent && it->second.seen && it->second.subscribed;
 }
 
-bool AgentTracker::IsSubscribed(RobotId id) const {
-  auto it = agents_.find(id);
-  return it != agents_.end() && it->second.subscribed;
-}
-
 bool AgentTracker::IsDead(RobotId id) const {
   auto it = agents_.find(id);
   return it != agents_.end() && it->second.dead;
@@ -147,11 +142,6 @@ std::vector<AgentStatus> AgentTracker::Statuses() const {
     if (s.incarnation) out.push_back(s.last);
   }
   return out;
-}
-
-std::optional<std::uint32_t> AgentTracker::dead_incarnation(RobotId id) const {
-  auto it = agents_.find(id);
-  return it == agents_.end() ? std::nullopt : it->second.stale_incarnation;
 }
 
 std::optional<ControlCommand> ParseControl(const std::string& line) {

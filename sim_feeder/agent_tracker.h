@@ -43,7 +43,6 @@ class AgentTracker {
   // Up: a status from the current incarnation has arrived and the sensor topics are matched.
   bool IsUp(RobotId id) const;
   bool IsDead(RobotId id) const;
-  bool IsSubscribed(RobotId id) const;
   bool IsSilent(RobotId id) const;
   // Agents that are silent (see above).
   std::vector<RobotId> Silent() const;
@@ -55,8 +54,6 @@ class AgentTracker {
   std::vector<RobotId> Up() const;
   // The latest status of each agent that has sent one.
   std::vector<AgentStatus> Statuses() const;
-  // Incarnation of the last dead process, to ignore its late statuses.
-  std::optional<std::uint32_t> dead_incarnation(RobotId id) const;
 
  private:
   struct State {

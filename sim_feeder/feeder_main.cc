@@ -16,7 +16,6 @@
 #include <thread>
 
 #include "common/app/process.h"
-#include "common/config/config_error.h"
 #include "common/config/scenario_limits.h"
 #include "common/io/run_files.h"
 #include "common/transport/session.h"

@@ -86,8 +86,6 @@ class YamlReader {
   // Rejects keys that were never read. Call once all known keys have been read.
   void Finish() const;
 
-  const std::string& path() const { return path_; }
-  const YamlSource& source() const { return *source_; }
   int LineOf(const YAML::Node& node) const;
   std::string KeyPath(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
 

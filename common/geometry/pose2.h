@@ -46,7 +46,6 @@ struct Pose2 {
     const double c = std::cos(theta), s = std::sin(theta);
     return {-c * x - s * y, s * x - c * y, WrapAngle(-theta)};
   }
-  Eigen::Vector2d Translation() const { return {x, y}; }
   Eigen::Matrix2d Rotation() const {
     const double c = std::cos(theta), s = std::sin(theta);
     Eigen::Matrix2d r;

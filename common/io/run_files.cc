@@ -1,7 +1,5 @@
 #include "common/io/run_files.h"
 
-#include <algorithm>
-#include <cstdio>
 #include <fstream>
 #include <stdexcept>
 

@@ -39,7 +39,7 @@ std::int32_t GetI24(const std::uint8_t* p) {
   return static_cast<std::int32_t>(u);
 }
 
-constexpr std::int32_t kI24Max = (1 << 23) - 1, kI24Min = -(1 << 23);
+constexpr std::int32_t kI24Max = (1 << 23) - 1;
 constexpr double kSigmaMin = 1e-5;  // m
 constexpr double kLogStep = 3e-4;
 constexpr std::uint16_t kSigmaCodeMax = 65534;  // 65535 is invalid

@@ -30,7 +30,6 @@ struct MapLimits {
 
 // Why a map is refused; kNone when it is within the limits.
 enum class MapLimitViolation { kNone = 0, kTooManyLandmarks, kOutOfWorld, kCovarianceTooLarge };
-inline constexpr int kMapLimitViolationCount = 4;
 
 std::string_view ToString(MapLimitViolation v);
 

@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 
 #include "common/map/landmark_map.h"
 
@@ -71,17 +70,6 @@ constexpr int kMaxSweeps = 100;
 Eigen::Matrix2d Symmetric(const Eigen::Matrix2d& m) { return 0.5 * (m + m.transpose()); }
 
 }  // namespace
-
-std::string_view ToString(FusionVerdict v) {
-  switch (v) {
-    case FusionVerdict::kFused: return "fused";
-    case FusionVerdict::kNoInputs: return "no_inputs";
-    case FusionVerdict::kNonFiniteMean: return "non_finite_mean";
-    case FusionVerdict::kInvalidCovariance: return "invalid_covariance";
-    case FusionVerdict::kSingularCovariance: return "singular_covariance";
-  }
-  return "unknown";
-}
 
 FusionVerdict CheckEstimate(const Gaussian2& g) {
   if (!g.mean.allFinite()) return FusionVerdict::kNonFiniteMean;

@@ -58,7 +58,6 @@ enum class FusionVerdict {
   kInvalidCovariance,   // not finite, not symmetric, or not positive semi-definite
   kSingularCovariance,  // positive semi-definite but not invertible: no information form
 };
-std::string_view ToString(FusionVerdict v);
 
 // Why an estimate cannot be fused, or kFused when it can.
 FusionVerdict CheckEstimate(const Gaussian2& g);

@@ -14,7 +14,6 @@
 #include <CGAL/property_map.h>
 
 #include <boost/iterator/counting_iterator.hpp>
-#include <tuple>
 
 namespace mapmesh {
 namespace {

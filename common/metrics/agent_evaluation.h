@@ -6,10 +6,8 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
-#include <vector>
 
 #include "common/geometry/pose2.h"
-#include "common/map/landmark_map.h"
 #include "common/metrics/trajectory_metrics.h"
 #include "common/types/messages.h"
 

@@ -3,7 +3,6 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <limits>
-#include <tuple>
 
 #include "common/check.h"
 #include "common/metrics/chi2.h"

@@ -1,7 +1,6 @@
 #include "common/slam/dead_reckoning_mapper.h"
 
 #include <cmath>
-#include <limits>
 
 namespace mapmesh {
 

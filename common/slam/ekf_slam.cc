@@ -1,7 +1,6 @@
 #include "common/slam/ekf_slam.h"
 
 #include <algorithm>
-#include <numeric>
 
 namespace mapmesh {
 

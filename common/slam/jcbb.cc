@@ -1,7 +1,6 @@
 #include "common/slam/jcbb.h"
 
 #include <algorithm>
-#include <cmath>
 #include <limits>
 
 #include "common/metrics/chi2.h"

@@ -78,7 +78,6 @@ class LocalSlam : public LocalMapper {
   Eigen::Matrix3d pose_cov() const override { return filter_->robot_cov(); }
   std::size_t size() const override { return filter_->size(); }
   const MapperStats& stats() const override { return stats_; }
-  const LandmarkFilter& filter() const { return *filter_; }
 
   // What became of each observation of the last scan, in the order given to Observe: the
   // landmark id it was fused into or started, or one of these.

@@ -100,12 +100,6 @@ bool RawWriter::WaitForAcks(double timeout_s) const {
 RawReader::RawReader(const Participant& p, const Topic& t, const Qos& qos)
     : Entity(Check(dds_create_reader(p.get(), t.get(), qos.get(), nullptr), "dds_create_reader")) {}
 
-std::uint32_t RawReader::MatchedWriters() const {
-  dds_subscription_matched_status_t st;
-  Check(dds_get_subscription_matched_status(e_, &st), "dds_get_subscription_matched_status");
-  return st.current_count;
-}
-
 GuardCondition::GuardCondition(const Participant& p)
     : Entity(Check(dds_create_guardcondition(p.get()), "dds_create_guardcondition")) {}
 

@@ -115,7 +115,6 @@ class RawWriter : public Entity {
 class RawReader : public Entity {
  public:
   RawReader(const Participant& p, const Topic& t, const Qos& qos);
-  std::uint32_t MatchedWriters() const;
 };
 
 // A guard condition: something a WaitSet can wait for, triggered from any thread.
