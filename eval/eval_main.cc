@@ -37,12 +37,39 @@ json QualityJson(const MapQuality& q) {
           {"frame", q.aligned ? "aligned" : "true_origin"}};
 }
 
+// What an agent left in its directory, read once.
+struct AgentFiles {
+  bool has_stats = false;
+  json stats = json::object();
+  std::optional<LandmarkMap> local;
+  json global_json;  // null when absent
+  std::optional<LandmarkMap> global;
+  std::optional<Pose2> local_in_world;  // the local map's frame fitted to the truth by its signatures
+};
+
+AgentFiles ReadAgent(const std::string& dir, const io::RunTruth& truth) {
+  AgentFiles f;
+  if (std::filesystem::exists(dir + "/stats.json")) {
+    f.has_stats = true;
+    f.stats = io::ReadJson(dir + "/stats.json");
+  }
+  if (std::filesystem::exists(dir + "/local_map.json")) {
+    f.local = io::MapFromJson(io::ReadJson(dir + "/local_map.json"));
+    f.local_in_world = MapFrameInWorld(*f.local, truth.landmarks);
+  }
+  if (std::filesystem::exists(dir + "/global_map.json")) {
+    f.global_json = io::ReadJson(dir + "/global_map.json");
+    f.global = io::MapFromJson(f.global_json);
+  }
+  return f;
+}
+
 // Errors of the agent's alignments against the truth, keyed by peer ("3"; an older
 // incarnation of a peer as "3@1"). trans_m is taken at the peer map's centroid, against the
 // true start poses of both frames; trans_fit_m and rot_fit_rad against the frames the two
 // maps are really in (their rigid fits to the truth), when both maps carry signatures.
 json AlignmentErrors(const json& stats, const io::RunTruth& truth, const std::optional<Pose2>& origin,
-                     const std::optional<Pose2>& own_fit, const std::string& run_dir) {
+                     const std::optional<Pose2>& own_fit, const std::map<RobotId, AgentFiles>& agents) {
   json out = json::object();
   if (!stats.contains("peers") || !origin || !truth.headings_known) return out;
   std::map<RobotId, std::uint32_t> latest;
@@ -67,11 +94,10 @@ json AlignmentErrors(const json& stats, const io::RunTruth& truth, const std::op
     peer.centroid = {p.at("centroid").at(0).get<double>(), p.at("centroid").at(1).get<double>()};
     // The peer's map as the run ended, when it is this incarnation's.
     std::optional<Pose2> peer_fit;
-    const std::string peer_dir = run_dir + "/agent_" + std::to_string(peer.robot);
-    if (own_fit && std::filesystem::exists(peer_dir + "/local_map.json") &&
-        std::filesystem::exists(peer_dir + "/stats.json") &&
-        io::ReadJson(peer_dir + "/stats.json").value("incarnation", 0u) == peer.incarnation) {
-      peer_fit = MapFrameInWorld(io::MapFromJson(io::ReadJson(peer_dir + "/local_map.json")), truth.landmarks);
+    const auto files = agents.find(peer.robot);
+    if (files != agents.end() && files->second.local && files->second.has_stats &&
+        files->second.stats.value("incarnation", 0u) == peer.incarnation) {
+      peer_fit = files->second.local_in_world;
     }
     const std::optional<PlacementError> e = ScorePlacement(peer, *origin, true_pose, own_fit, peer_fit);
     if (!e) continue;
@@ -116,14 +142,12 @@ json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::
 
 // For each peer incarnation the agent saw go silent for good (its writer gone), what its global
 // map holds of the last map received from it (dead_peers.h), in simulated worlds.
-json DeadPeersJson(const json& stats, const LandmarkMap& global, const std::string& dir, const io::RunTruth& truth,
-                   const std::optional<Pose2>& origin, double gate_m) {
+json DeadPeersJson(const json& stats, const std::optional<LandmarkMap>& local, const LandmarkMap& global,
+                   const std::string& dir, const io::RunTruth& truth, const std::optional<Pose2>& origin,
+                   double gate_m) {
   json out = json::array();
-  if (!stats.contains("peers") || !origin || !truth.headings_known ||
-      !std::filesystem::exists(dir + "/local_map.json")) {
-    return out;
-  }
-  const LandmarkMap own = io::MapFromJson(io::ReadJson(dir + "/local_map.json"));
+  if (!stats.contains("peers") || !origin || !truth.headings_known || !local) return out;
+  const LandmarkMap& own = *local;
   for (const json& p : stats.at("peers")) {
     if (!p.value("stale", false) || p.value("own_checkpoint", false)) continue;
     const RobotId robot = p.at("robot").get<RobotId>();
@@ -180,17 +204,21 @@ int Run(int argc, char** argv) {
   if (!reference_path.empty()) reference = io::MapFromJson(io::ReadJson(reference_path));
   std::mt19937_64 rng(1);
   const io::RunTruth truth = io::TruthFromJson(io::ReadJson(run_dir + "/truth.json"));
+  std::map<RobotId, AgentFiles> files;
+  for (const io::RobotTruth& robot : truth.robots) {
+    files[robot.id] = ReadAgent(run_dir + "/agent_" + std::to_string(robot.id), truth);
+  }
   json agents = json::object();
   for (const io::RobotTruth& robot : truth.robots) {
     const std::string dir = run_dir + "/agent_" + std::to_string(robot.id);
+    const AgentFiles& f = files.at(robot.id);
     json entry = json::object();
     // A map's frame is the robot's pose when its agent's session began: the start of the run,
     // or later for a restarted agent (its stats.json says when). Without a known pose the
     // map is rigidly aligned to the truth.
     std::optional<Pose2> origin = robot.start;
-    json stats = json::object();
-    if (std::filesystem::exists(dir + "/stats.json")) {
-      stats = io::ReadJson(dir + "/stats.json");
+    const json& stats = f.stats;
+    if (f.has_stats) {
       const json& t = stats.value("frame_origin_stamp", json());
       if (t.is_number() && truth.headings_known) origin = robot.PoseAt(t.get<double>());
       if (t.is_number() && !truth.headings_known) origin.reset();
@@ -198,15 +226,12 @@ int Run(int argc, char** argv) {
     // Without a known origin the local map is fitted to the truth by its signatures; the global
     // map shares the local map's frame but not its signatures (fused landmarks carry none), so it
     // is scored in the frame fitted from the local map.
-    std::optional<Pose2> local_fit;
-    if (!origin && std::filesystem::exists(dir + "/local_map.json")) {
-      local_fit = MapFrameInWorld(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks);
-    }
+    const std::optional<Pose2> local_fit = origin ? std::nullopt : f.local_in_world;
     std::optional<Pose2> local_to_reference;
     for (const char* kind : {"local", "global"}) {
-      const std::string path = dir + "/" + kind + "_map.json";
-      if (!std::filesystem::exists(path)) continue;
-      const LandmarkMap map = io::MapFromJson(io::ReadJson(path));
+      const std::optional<LandmarkMap>& file = std::string(kind) == "local" ? f.local : f.global;
+      if (!file) continue;
+      const LandmarkMap& map = *file;
       const bool fitted = !origin && local_fit && std::string(kind) == "global";
       entry[kind] = QualityJson(EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, fitted ? local_fit : origin,
                                                     gate_m));
@@ -228,8 +253,8 @@ int Run(int argc, char** argv) {
     // The global map restricted to the landmarks this agent mapped itself (its local map is
     // one of their inputs): fusion must not make them worse.
     if (entry.contains("global") && stats.contains("incarnation")) {
-      const json g = io::ReadJson(dir + "/global_map.json");
-      const LandmarkMap map = io::MapFromJson(g);
+      const json& g = f.global_json;
+      const LandmarkMap& map = *f.global;
       LandmarkMap own;
       const auto self_inc = stats.at("incarnation").get<std::uint32_t>();
       for (std::size_t i = 0; i < map.size(); ++i) {
@@ -242,12 +267,8 @@ int Run(int argc, char** argv) {
       }
       const MapQuality q = EvaluateOwnFrameMap(own, truth.landmarks, truth.seen, origin, gate_m);
       entry["global"]["rmse_own_landmarks_m"] = q.evaluated && q.matched > 0 ? json(q.rmse_m) : json();
-      const std::optional<Pose2> own_fit = std::filesystem::exists(dir + "/local_map.json")
-                                               ? MapFrameInWorld(io::MapFromJson(io::ReadJson(dir + "/local_map.json")),
-                                                                 truth.landmarks)
-                                               : std::nullopt;
-      entry["alignment_errors"] = AlignmentErrors(stats, truth, origin, own_fit, run_dir);
-      entry["dead_peers"] = DeadPeersJson(stats, map, dir, truth, origin, gate_m);
+      entry["alignment_errors"] = AlignmentErrors(stats, truth, origin, f.local_in_world, files);
+      entry["dead_peers"] = DeadPeersJson(stats, f.local, map, dir, truth, origin, gate_m);
     }
     // The estimated trajectory against the true one: in the true frame when the origin is
     // known, else after a rigid fit (GPS glitches dropped).
@@ -272,10 +293,7 @@ int Run(int argc, char** argv) {
     }
     // Where the final map frame lies in the world (for drawing): the true pose at its origin,
     // else its rigid fit by signatures, else unknown.
-    std::optional<Pose2> frame = origin;
-    if (!frame && std::filesystem::exists(dir + "/local_map.json")) {
-      frame = MapFrameInWorld(io::MapFromJson(io::ReadJson(dir + "/local_map.json")), truth.landmarks);
-    }
+    const std::optional<Pose2> frame = origin ? origin : f.local_in_world;
     entry["frame_in_world"] = frame ? json{frame->x, frame->y, frame->theta} : json();
     entry["history"] = HistoryJson(dir, robot, truth, gate_m);
     agents[std::to_string(robot.id)] = entry;
