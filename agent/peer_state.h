@@ -89,11 +89,4 @@ struct PeerState {
 
 using PeerStates = std::map<PeerKey, PeerState>;
 
-// The centroid of a map's landmarks (the origin for an empty map).
-inline Eigen::Vector2d Centroid(const LandmarkMap& m) {
-  Eigen::Vector2d c = Eigen::Vector2d::Zero();
-  for (const Landmark& l : m.landmarks) c += l.mean;
-  return m.empty() ? c : Eigen::Vector2d(c / static_cast<double>(m.size()));
-}
-
 }  // namespace mapmesh

@@ -58,12 +58,6 @@ std::vector<Eigen::Vector2d> InFrame(const std::vector<Eigen::Vector2d>& world, 
   return out;
 }
 
-Eigen::Vector2d Centroid(const LandmarkMap& m) {
-  Eigen::Vector2d c = Eigen::Vector2d::Zero();
-  for (const Landmark& l : m.landmarks) c += l.mean;
-  return m.empty() ? c : Eigen::Vector2d(c / static_cast<double>(m.size()));
-}
-
 }  // namespace
 
 FusionTrialResult RunFusionTrial(const std::vector<SlamRunResult>& robots, const FusionTrialOptions& o,

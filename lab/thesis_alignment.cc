@@ -25,12 +25,6 @@ std::ofstream Open(const std::string& path, const std::string& header) {
   return f;
 }
 
-Eigen::Vector2d Centroid(const LandmarkMap& m) {
-  Eigen::Vector2d c = Eigen::Vector2d::Zero();
-  for (const Landmark& l : m.landmarks) c += l.mean;
-  return m.empty() ? c : Eigen::Vector2d(c / static_cast<double>(m.size()));
-}
-
 struct Score {
   double thesis = 0.0;  // the thesis's success: share of the true pairs found as inliers
   double ours = 0.0;    // accepted and within 0.2 m (at B's centroid) and 1 deg

@@ -19,6 +19,12 @@ bool IsValidCovariance(const Eigen::Matrix2d& cov) {
   return cov(0, 0) >= 0.0 && cov(1, 1) >= 0.0 && det >= -1e-12 * scale * scale;
 }
 
+Eigen::Vector2d Centroid(const LandmarkMap& m) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const Landmark& l : m.landmarks) c += l.mean;
+  return m.empty() ? c : Eigen::Vector2d(c / static_cast<double>(m.size()));
+}
+
 LandmarkMap TransformMap(const LandmarkMap& map, const Pose2& pose) {
   LandmarkMap out = map;
   const Eigen::Matrix2d r = pose.Rotation();

@@ -41,6 +41,9 @@ bool IsValidCovariance(const Eigen::Matrix2d& cov);
 // The map expressed in a parent frame: means mapped by `pose`, covariances rotated.
 LandmarkMap TransformMap(const LandmarkMap& map, const Pose2& pose);
 
+// The centroid of a map's landmarks (the origin for an empty map).
+Eigen::Vector2d Centroid(const LandmarkMap& m);
+
 // The map with every signature cleared: what geometry-only alignment and matching see.
 LandmarkMap WithoutSignatures(LandmarkMap map);
 

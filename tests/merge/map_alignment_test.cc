@@ -22,12 +22,6 @@ lab::MapPairOptions Pair(int n, double overlap, double sigma) {
   return o;
 }
 
-Eigen::Vector2d Centroid(const LandmarkMap& m) {
-  Eigen::Vector2d c = Eigen::Vector2d::Zero();
-  for (const Landmark& l : m.landmarks) c += l.mean;
-  return m.empty() ? c : Eigen::Vector2d(c / static_cast<double>(m.size()));
-}
-
 class PlantedTransformTest : public ::testing::TestWithParam<int> {};
 
 TEST_P(PlantedTransformTest, IsRecoveredFromNoisyOverlappingMaps) {
