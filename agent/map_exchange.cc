@@ -175,13 +175,42 @@ bool MapExchange::RealignDue(const PeerState& p, const LandmarkMap& own_local, d
   return Grew(own_local.size(), p.own_size_at_attempt) || Grew(p.Map().size(), p.peer_size_at_attempt);
 }
 
-bool MapExchange::Verify(PeerState& p, const LandmarkMap& own_local, double now) {
+bool MapExchange::Verify(PeerState& p, const LandmarkMap& own_local, double now, bool judge_relay) {
   const AlignmentResult r = VerifyAlignment(own_local, p.Map(), p.report.to_own, options_.align);
   p.report.last_verdict = r.verdict;
   p.changed = false;
   if (!r.accepted()) return false;
-  Use(p, r, own_local, /*reconsider_relay=*/true, now);
+  Use(p, r, own_local, judge_relay, now);
   return true;
+}
+
+std::set<PeerKey> MapExchange::RelayTurns() const {
+  if (!options_.relay_global_maps) return {};
+  struct Due {
+    PeerKey key;
+    bool judged;
+    long growth;
+    double last;
+  };
+  std::vector<Due> due;
+  for (const auto& [key, p] : peers_) {
+    if (!p.report.aligned || p.report.stale || !p.has_global) continue;
+    if (p.relay_judged && p.relay_judged_version == p.global_version) continue;
+    due.push_back({key, p.relay_judged, static_cast<long>(p.global.size()) - static_cast<long>(p.relay_judged_size),
+                   p.last_relay_judged});
+  }
+  // Never judged first, then those that grew most, then those judged longest ago.
+  std::sort(due.begin(), due.end(), [](const Due& a, const Due& b) {
+    if (a.judged != b.judged) return !a.judged;
+    if (a.growth != b.growth) return a.growth > b.growth;
+    return a.last < b.last;
+  });
+  std::set<PeerKey> turns;
+  for (const Due& d : due) {
+    if (static_cast<int>(turns.size()) >= options_.max_relay_checks_per_update) break;
+    turns.insert(d.key);
+  }
+  return turns;
 }
 
 void MapExchange::Refine(PeerState& p, const LandmarkMap& own_local, double now) {
@@ -231,6 +260,11 @@ void MapExchange::ChooseSource(PeerState& p, const LandmarkMap& own_local, bool 
   // The peer's global map is in the peer's frame too: use it if it verifies where the peer's
   // local map aligned. Without reconsider_relay the earlier choice stays, at the new transform.
   if (reconsider_relay) {
+    p.relay_judged = true;
+    p.relay_judged_version = p.global_version;
+    p.relay_judged_size = p.global.size();
+    p.last_relay_judged = now;
+    ++p.report.relays_judged;
     p.report.relayed = false;
     if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
       const AlignmentResult g = VerifyAlignment(own_local, p.global, s.to_own, options_.align);
@@ -251,7 +285,8 @@ void MapExchange::ChooseSource(PeerState& p, const LandmarkMap& own_local, bool 
       }
     }
   }
-  if (p.report.relayed) s.map = p.global;
+  // A relay not judged again keeps the global map judged last (moved by the new transform).
+  if (p.report.relayed) s.map = reconsider_relay || !p.source ? p.global : p.source->map;
   // An earlier own incarnation's global map is frozen (it cannot echo anything back).
   if (p.report.own_checkpoint) p.direct = s;
   p.source = std::move(s);
@@ -272,10 +307,12 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
   for (auto it = turn; it != peers_.end(); ++it) order.push_back(it);
   for (auto it = peers_.begin(); it != turn; ++it) order.push_back(it);
   std::optional<PeerKey> starved;
+  const std::set<PeerKey> relay_turns = RelayTurns();
   for (auto it : order) {
     const PeerKey& key = it->first;
     PeerState& p = it->second;
     if (!p.has_local && !p.has_global) continue;
+    const bool relay_turn = relay_turns.count(key) > 0;
     if (!p.report.aligned) {
       if (!AttemptDue(p, own_local, now)) continue;
       if (budget_ <= 0) {
@@ -304,9 +341,10 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
       const Eigen::Vector2d at = p.report.centroid;
       const bool was_changed = p.changed;
       ++p.report.realignments;
-      // With no new map from the peer, the choice of its map stays: only its transform moves.
-      if (Align(p, own_local, now, /*reconsider_relay=*/was_changed)) {
-        if (was_changed) chosen.insert(key);
+      // With no new map from the peer, or not its turn, the choice of its map stays: only its
+      // transform moves.
+      if (Align(p, own_local, now, /*reconsider_relay=*/was_changed && relay_turn)) {
+        if (was_changed && relay_turn) chosen.insert(key);
         p.report.failures = 0;
         if (!relay_.Agree(p.report.to_own, before, at)) {
           ++p.report.corrections;
@@ -319,13 +357,13 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     // Aligned: every newer map is verified at the known transform before it is used. A
     // stale peer's maps no longer change: its verified state stays as it is.
     if (p.report.stale) continue;
-    if (!p.changed) {
+    if (!p.changed && !relay_turn) {
       if (options_.refine_period_s > 0.0 && now - p.last_refine >= options_.refine_period_s) Refine(p, own_local, now);
       continue;
     }
     ++p.report.verifications;
-    if (Verify(p, own_local, now)) {
-      chosen.insert(key);
+    if (Verify(p, own_local, now, relay_turn)) {
+      if (relay_turn) chosen.insert(key);
       p.report.failures = 0;
       continue;
     }
@@ -360,8 +398,8 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     }
     sources.push_back(*p.source);
   }
-  global_ = BuildGlobalMap(own_local, self_, sources, options_.global, incarnation_);
-  published_ = BuildGlobalMap(own_local, self_, direct, options_.global, incarnation_);
+  global_ = BuildGlobalMap(own_local, self_, sources, options_.global, incarnation_, &global_memo_);
+  published_ = BuildGlobalMap(own_local, self_, direct, options_.global, incarnation_, &published_memo_);
   return changed;
 }
 

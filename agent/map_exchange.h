@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <random>
+#include <set>
 #include <vector>
 
 #include "agent/exchange_options.h"
@@ -86,8 +87,12 @@ class MapExchange {
   bool RealignDue(const PeerState& p, const LandmarkMap& own_local, double now) const;
   // Uses an accepted (and confirmed) alignment r of the peer: its transform, and the source at it.
   void Use(PeerState& p, const AlignmentResult& r, const LandmarkMap& own_local, bool reconsider_relay, double now);
-  // Checks the peer's newest map at the known transform; on success refines it and the source.
-  bool Verify(PeerState& p, const LandmarkMap& own_local, double now);
+  // Checks the peer's newest map at the known transform; on success refines it and the source
+  // (judging its newest global map as a relay when judge_relay).
+  bool Verify(PeerState& p, const LandmarkMap& own_local, double now, bool judge_relay);
+  // The aligned peers whose newer global map is judged as a relay in this Update: at most
+  // max_relay_checks_per_update, never judged first, then those that grew most.
+  std::set<PeerKey> RelayTurns() const;
   // The peer's map is the one verified already, ours has moved on (loop closures, more landmarks):
   // refits the transform on our map as it is now, keeping the choice of source. A fit that fails
   // or disagrees changes nothing (the peer's next map is verified as usual).
@@ -114,6 +119,7 @@ class MapExchange {
   PeerKey next_turn_;     // the peer whose turn is first in the next Update (round robin)
   GlobalMap global_;
   GlobalMap published_;
+  AssociationMemo global_memo_, published_memo_;  // each map's ambiguous groups, from its last build
 };
 
 }  // namespace mapmesh

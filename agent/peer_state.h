@@ -42,6 +42,7 @@ struct PeerReport {
   Pose2 to_own;                // the peer's frame in ours
   Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();
   bool relayed = false;     // its global map is fused (not its local map)
+  int relays_judged = 0;    // times a global map of it was judged as a relay (max_relay_checks_per_update)
   int relay_conflicts = 0;  // times its global map disagreed with another peer's map (not relayed then)
   int refuted = 0;          // times our alignment of it lost to a relay's placement (then dropped, or re-placed
                             // when frozen) ...
@@ -71,6 +72,12 @@ struct PeerState {
   double last_attempt = -1e300;
   double last_refine = -1e300;  // last alignment, verification or refinement against our map
   std::size_t own_size_at_attempt = 0, peer_size_at_attempt = 0;
+  // The peer's global map last judged as a relay (RelayPolicy): its version and size, and when.
+  // A newer one waits for its turn (max_relay_checks_per_update); until then the one judged stays.
+  bool relay_judged = false;
+  std::uint32_t relay_judged_version = 0;
+  std::size_t relay_judged_size = 0;
+  double last_relay_judged = -1e300;
   // What the global map takes from this peer.
   std::optional<MapSource> source;
   std::optional<MapSource> direct;              // ... and the one-hop map (never a relayed global map)

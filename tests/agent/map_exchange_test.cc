@@ -579,6 +579,62 @@ TEST(MapExchange, AlignmentWorkIsBudgetedRoundRobin) {
   }
 }
 
+// Relays are judged max_relay_checks_per_update at a time, the one that grew most first; a
+// newer global map not judged yet is never fused (the one judged last stays), and its turn
+// comes.
+TEST(MapExchange, RelayChecksAreBudgetedAndANewerRelayIsFusedOnlyOnceJudged) {
+  LineOfThree line(25, 20);  // A hears C too
+  auto& [w, rng, la, lb, lc, b] = line;
+  const LandmarkMap good = b.published().map;
+  LandmarkMap bad = good, smaller = good;  // bad: C's landmarks (x >= 30) 3 m off
+  for (Landmark& l : bad.landmarks) {
+    if (kFrameB.Apply(l.mean).x() >= 30.0) l.mean += Eigen::Vector2d(3.0, 0.0);
+  }
+  smaller.landmarks.resize(good.size() - 5);
+  ExchangeOptions o = Immediate();
+  o.max_relay_checks_per_update = 1;
+  MapExchange a(1, 1, o, 7);
+  // Robots 2 and 4 are at the same place with the same maps; robot 4's first relay is smaller.
+  a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 10.0);
+  for (RobotId r : {2u, 4u}) a.OnPeerMap(r, 1, MapKind::kLocal, 1, 0.0, lb, 10.0);
+  a.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, good, 10.0);
+  a.OnPeerMap(4, 1, MapKind::kGlobal, 1, 0.0, smaller, 10.0);
+  a.Update(la, 10.0);  // first alignments judge their relays, whatever the budget
+  auto report = [&](RobotId r) {
+    for (const PeerReport& p : a.Peers()) {
+      if (p.key.robot == r) return p;
+    }
+    ADD_FAILURE() << "no peer " << r;
+    return PeerReport{};
+  };
+  ASSERT_EQ(a.AlignedRobots(), (std::vector<RobotId>{2, 3, 4}));
+  EXPECT_TRUE(report(2).relayed);
+  EXPECT_TRUE(report(4).relayed);
+  const int judged2 = report(2).relays_judged, judged4 = report(4).relays_judged;
+  EXPECT_GE(judged2, 1);
+  EXPECT_GE(judged4, 1);
+  const auto all_placed = [&] {
+    return w.PlacedIn(a.global().map, kFrameA, 0, 40, 0.3) == static_cast<int>(a.global().map.size());
+  };
+  EXPECT_TRUE(all_placed());
+  // Both send newer relays: robot 2's is wrong, robot 4's grew by 5 landmarks and goes first.
+  for (RobotId r : {2u, 4u}) a.OnPeerMap(r, 1, MapKind::kLocal, 2, 0.0, lb, 12.0);
+  a.OnPeerMap(2, 1, MapKind::kGlobal, 2, 0.0, bad, 12.0);
+  a.OnPeerMap(4, 1, MapKind::kGlobal, 2, 0.0, good, 12.0);
+  a.Update(la, 12.0);
+  EXPECT_EQ(report(4).relays_judged, judged4 + 1);
+  EXPECT_EQ(report(2).relays_judged, judged2);
+  EXPECT_TRUE(report(2).relayed);  // the relay judged last, not the newer one
+  EXPECT_TRUE(all_placed());
+  // Nothing new arrives: robot 2's newer relay has its turn, and is refused.
+  a.Update(la, 14.0);
+  EXPECT_EQ(report(2).relays_judged, judged2 + 1);
+  EXPECT_EQ(report(4).relays_judged, judged4 + 1);
+  EXPECT_FALSE(report(2).relayed);
+  EXPECT_EQ(report(2).relay_conflicts, 1);
+  EXPECT_TRUE(all_placed());
+}
+
 // A flood of made-up incarnations of one robot cannot grow the peer table without end: beyond
 // max_incarnations a newcomer takes the place of one that never contributed and went silent,
 // and is refused when every kept one still counts.
