@@ -4,6 +4,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -76,7 +77,60 @@ bool ValidTransform(const MapSource& s) {
   return Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(c).eigenvalues().minCoeff() >= -1e-12 * scale;
 }
 
+using Origin = std::array<std::uint32_t, 3>;  // robot, incarnation, landmark id
+
+Origin OriginOf(const LandmarkOrigin& o) { return {o.robot, o.incarnation, o.id}; }
+
+// An ambiguous group in canonical form: members ordered by origin, each with its candidate
+// clusters ordered by their anchors' origins.
+struct CanonicalGroup {
+  AssociationMemo::Key key;
+  std::vector<int> member;                 // canonical position -> index into the group
+  std::vector<std::vector<int>> clusters;  // canonical position -> its candidate clusters, in key order
+};
+
+CanonicalGroup Canonical(const std::vector<int>& group, const std::vector<std::vector<Edge>>& edges_of,
+                         const std::vector<Cluster>& clusters, const MapSource& src,
+                         const std::vector<Landmark>& moved) {
+  std::vector<std::pair<Origin, int>> members;
+  for (std::size_t i = 0; i < group.size(); ++i) {
+    members.push_back({Origin{src.robot, src.incarnation, moved[group[i]].id}, static_cast<int>(i)});
+  }
+  std::sort(members.begin(), members.end());
+  CanonicalGroup g;
+  for (const auto& [origin, i] : members) {
+    std::vector<std::pair<Origin, int>> cands;
+    for (const Edge& e : edges_of[group[i]]) cands.push_back({OriginOf(clusters[e.c].origins.front()), e.c});
+    std::sort(cands.begin(), cands.end());
+    g.key.insert(g.key.end(), origin.begin(), origin.end());
+    g.key.push_back(static_cast<std::uint32_t>(cands.size()));
+    g.member.push_back(i);
+    g.clusters.emplace_back();
+    for (const auto& [o, c] : cands) {
+      g.key.insert(g.key.end(), o.begin(), o.end());
+      g.clusters.back().push_back(c);
+    }
+  }
+  return g;
+}
+
 }  // namespace
+
+void AssociationMemo::BeginBuild() {
+  stats_ = {};
+  previous_ = std::move(current_);
+  current_.clear();
+}
+
+const std::vector<int>* AssociationMemo::Previous(const Key& group) const {
+  const auto it = previous_.find(group);
+  return it == previous_.end() ? nullptr : &it->second;
+}
+
+void AssociationMemo::Keep(Key group, std::vector<int> choice, bool reused) {
+  ++(reused ? stats_.reused : stats_.searched);
+  current_.insert_or_assign(std::move(group), std::move(choice));
+}
 
 Landmark TransformLandmark(const Landmark& l, const Pose2& t, const Eigen::Matrix3d& t_cov) {
   Landmark out = l;
@@ -89,8 +143,10 @@ Landmark TransformLandmark(const Landmark& l, const Pose2& t, const Eigen::Matri
 }
 
 GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const MapSource> sources,
-                         const GlobalMapOptions& o, std::uint32_t self_incarnation) {
+                         const GlobalMapOptions& o, std::uint32_t self_incarnation, AssociationMemo* memo) {
   GlobalMap g;
+  if (memo != nullptr) memo->BeginBuild();
+  std::vector<double> joint_gate{0.0};  // by pairings (from 1): the chi-squared quantile, 2 dof per pairing
   std::vector<Cluster> clusters;
   clusters.reserve(local.size());
   for (const Landmark& l : local.landmarks) {
@@ -164,19 +220,48 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
       std::sort(group.begin(), group.end());
       if (static_cast<int>(group.size()) <= o.max_jcbb_landmarks) {
         ++g.stats.ambiguous_groups;
+        const auto joint_d2 = [&](std::span<const JcbbPairing> pairs) {
+          return GroupJointD2(moved, jac, src.to_own_cov, clusters, group, pairs);
+        };
+        CanonicalGroup canonical;
+        if (memo != nullptr) {
+          canonical = Canonical(group, edges_of, clusters, src, moved);
+          if (const std::vector<int>* kept = memo->Previous(canonical.key)) {
+            // The same members with the same candidates: the earlier pairing stands while it
+            // is still jointly compatible.
+            std::vector<JcbbPairing> pairs;
+            for (std::size_t k = 0; k < kept->size(); ++k) {
+              if ((*kept)[k] >= 0) pairs.push_back({canonical.member[k], 0, canonical.clusters[k][(*kept)[k]]});
+            }
+            std::sort(pairs.begin(), pairs.end(),
+                      [](const JcbbPairing& a, const JcbbPairing& b) { return a.item < b.item; });
+            while (joint_gate.size() <= pairs.size())
+              joint_gate.push_back(Chi2Quantile(o.gate_probability, 2 * static_cast<int>(joint_gate.size())));
+            if (pairs.empty() || joint_d2(pairs) < joint_gate[pairs.size()]) {
+              for (const JcbbPairing& pr : pairs) assign[group[pr.item]] = pr.target;
+              memo->Keep(std::move(canonical.key), *kept, /*reused=*/true);
+              continue;
+            }
+          }
+        }
         std::vector<std::vector<int>> candidates;
         for (int s : group) {
           candidates.emplace_back();
           for (const Edge& e : edges_of[s]) candidates.back().push_back(e.c);
         }
-        const JcbbResult best = JointCompatibility(
-            candidates,
-            [&](std::span<const JcbbPairing> pairs) {
-              return GroupJointD2(moved, jac, src.to_own_cov, clusters, group, pairs);
-            },
-            o.gate_probability, o.max_jcbb_nodes);
+        const JcbbResult best = JointCompatibility(candidates, joint_d2, o.gate_probability, o.max_jcbb_nodes);
         for (std::size_t i = 0; i < group.size(); ++i) {
           if (best.option[i] >= 0) assign[group[i]] = candidates[i][best.option[i]];
+        }
+        if (memo != nullptr) {
+          std::vector<int> choice;
+          for (std::size_t k = 0; k < canonical.member.size(); ++k) {
+            const int chosen = assign[group[canonical.member[k]]];
+            const auto& cands = canonical.clusters[k];
+            const auto at = std::find(cands.begin(), cands.end(), chosen);
+            choice.push_back(at == cands.end() ? -1 : static_cast<int>(at - cands.begin()));
+          }
+          memo->Keep(std::move(canonical.key), std::move(choice), /*reused=*/false);
         }
       } else {
         ++g.stats.greedy_groups;

@@ -22,6 +22,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <map>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -83,10 +84,38 @@ struct GlobalMap {
   GlobalMapStats stats;
 };
 
+// What one build resolved by joint compatibility, for the next build of the same map: an
+// ambiguous group whose members (source landmarks, by origin) have the same candidate clusters
+// (by their anchors' origins) as in the previous build keeps the pairing chosen then, as long
+// as that pairing is still jointly compatible; only new or changed groups are searched. Maps
+// rebuilt every period from mostly unchanged sources then cost a gate pass, not a search.
+class AssociationMemo {
+ public:
+  using Key = std::vector<std::uint32_t>;  // the group: members and their candidates, by origin
+  struct Stats {
+    int reused = 0;    // groups that kept the previous build's pairing
+    int searched = 0;  // groups searched (new, changed, or no longer compatible)
+  };
+  // Starts a build: what the previous one kept can be looked up, and only that.
+  void BeginBuild();
+  // The pairing the previous build chose for this group (per member, the index of its
+  // candidate in key order, or -1), or null.
+  const std::vector<int>* Previous(const Key& group) const;
+  // Keeps this build's pairing of the group for the next build.
+  void Keep(Key group, std::vector<int> choice, bool reused);
+  const Stats& stats() const { return stats_; }  // of the last build
+
+ private:
+  std::map<Key, std::vector<int>> previous_, current_;
+  Stats stats_;
+};
+
 // Builds the global map of robot `self` from its local map and the sources (taken in the
-// order given; pass them sorted for reproducible results).
+// order given; pass them sorted for reproducible results). With a memo (kept from the previous
+// build of this map), unchanged ambiguous groups keep their pairing (AssociationMemo).
 GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const MapSource> sources,
-                         const GlobalMapOptions& options, std::uint32_t self_incarnation = 0);
+                         const GlobalMapOptions& options, std::uint32_t self_incarnation = 0,
+                         AssociationMemo* memo = nullptr);
 
 // The source's landmark moved into the own frame: mean T(m), covariance R C R^T + J P J^T,
 // with J the Jacobian of T(m) with respect to the transform (x, y, theta).

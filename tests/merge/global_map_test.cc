@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/LU>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -189,6 +190,92 @@ TEST(GlobalMap, JointCompatibilityResolvesWhatNearestNeighbourGetsWrong) {
     correct += gg.origins[i][1].id == static_cast<std::uint32_t>(std::lround(10 * (l->mean.x() + 0.6)));
   }
   EXPECT_LT(correct, 3);
+}
+
+// The pairing of each landmark of the global map, by the origins of its inputs.
+std::vector<std::vector<std::array<std::uint32_t, 3>>> Pairings(const GlobalMap& g) {
+  std::vector<std::vector<std::array<std::uint32_t, 3>>> out;
+  for (const auto& inputs : g.origins) {
+    out.emplace_back();
+    for (const LandmarkOrigin& o : inputs) out.back().push_back({o.robot, o.incarnation, o.id});
+  }
+  return out;
+}
+
+TEST(GlobalMap, AMemoKeepsUnchangedGroupsAndBuildsWhatAFreshBuildDoes) {
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    std::mt19937_64 rng(seed);
+    // Trees at random at least 0.5 m apart, alignments uncertain by 0.3 m: some ambiguous groups.
+    std::vector<Eigen::Vector2d> world;
+    std::uniform_real_distribution<double> u(0.0, 15.0);
+    while (world.size() < 80) {
+      const Eigen::Vector2d p(u(rng), u(rng));
+      if (std::all_of(world.begin(), world.end(), [&](const auto& q) { return (q - p).norm() > 0.5; }))
+        world.push_back(p);
+    }
+    const LandmarkMap local = NoisyMap(world, Range(0, 50), Pose2{}, 0.03, rng);
+    Eigen::Matrix3d tc = Eigen::Matrix3d::Zero();
+    tc.diagonal() << 0.09, 0.09, 1e-4;
+    std::vector<MapSource> sources;
+    for (RobotId r = 2; r <= 4; ++r) {
+      const Pose2 frame{1.0 * r, -0.5 * r, 0.1 * r};
+      sources.push_back({r, 0, NoisyMap(world, Range(10 * r - 10, 10 * r + 40), frame, 0.03, rng), frame, tc});
+    }
+    AssociationMemo memo;
+    const GlobalMap fresh = BuildGlobalMap(local, 1, sources, {});
+    const GlobalMap first = BuildGlobalMap(local, 1, sources, {}, 0, &memo);
+    const AssociationMemo::Stats searched = memo.stats();
+    ASSERT_GT(searched.searched, 0) << "seed " << seed;
+    EXPECT_EQ(searched.reused, 0);
+    EXPECT_EQ(Pairings(first), Pairings(fresh));
+    // The same input again: every group keeps its pairing, and the map is the same.
+    const GlobalMap again = BuildGlobalMap(local, 1, sources, {}, 0, &memo);
+    EXPECT_EQ(memo.stats().reused, searched.searched);
+    EXPECT_EQ(memo.stats().searched, 0);
+    EXPECT_EQ(Pairings(again), Pairings(fresh));
+    ASSERT_EQ(again.map.size(), fresh.map.size());
+    for (std::size_t i = 0; i < fresh.map.size(); ++i) {
+      EXPECT_EQ(again.map.landmarks[i].mean, fresh.map.landmarks[i].mean);
+      EXPECT_EQ(again.map.landmarks[i].cov, fresh.map.landmarks[i].cov);
+    }
+    // Every estimate moved a little, as from one map period to the next: the groups are the
+    // same, their pairings stand, and the map is what a fresh build of the new input gives.
+    LandmarkMap moved_local = local;
+    std::normal_distribution<double> n(0.0, 0.002);
+    for (Landmark& l : moved_local.landmarks) l.mean += Eigen::Vector2d(n(rng), n(rng));
+    for (MapSource& s : sources) {
+      for (Landmark& l : s.map.landmarks) l.mean += Eigen::Vector2d(n(rng), n(rng));
+    }
+    const GlobalMap moved = BuildGlobalMap(moved_local, 1, sources, {}, 0, &memo);
+    EXPECT_GT(memo.stats().reused, 0);
+    EXPECT_EQ(Pairings(moved), Pairings(BuildGlobalMap(moved_local, 1, sources, {})));
+  }
+}
+
+TEST(GlobalMap, AMemoSearchesAgainWhenTheKeptPairingIsNoLongerJointlyCompatible) {
+  // The group of JointCompatibilityResolvesWhatNearestNeighbourGetsWrong: peer landmarks 6
+  // and 16 both have local landmarks 0 and 1 as candidates.
+  LandmarkMap local, peer;
+  const Eigen::Matrix2d c = 0.005 * Eigen::Matrix2d::Identity();
+  for (double x : {0.0, 1.0, 10.0}) local.landmarks.push_back({static_cast<std::uint32_t>(x), -1, {x, 0.0}, c});
+  for (double x : {0.6, 1.6, 10.6}) peer.landmarks.push_back({static_cast<std::uint32_t>(x * 10), -1, {x, 0.0}, c});
+  Eigen::Matrix3d tc = Eigen::Matrix3d::Zero();
+  tc.diagonal() << 0.25, 1e-4, 1e-8;
+  std::vector<MapSource> src{{2, 0, peer, Pose2{}, tc}};
+  AssociationMemo memo;
+  const GlobalMap first = BuildGlobalMap(local, 1, src, {}, 0, &memo);
+  EXPECT_EQ(memo.stats().searched, 1);
+  // The peer's landmarks 6 and 16 trade places: same members, same candidates, but pairing 6
+  // with 0 and 16 with 1 now puts them 2 m apart relative to each other.
+  std::swap(src[0].map.landmarks[0].mean, src[0].map.landmarks[1].mean);
+  const GlobalMap second = BuildGlobalMap(local, 1, src, {}, 0, &memo);
+  EXPECT_EQ(memo.stats().reused, 0);
+  EXPECT_EQ(memo.stats().searched, 1);
+  const GlobalMap fresh = BuildGlobalMap(local, 1, src, {});
+  EXPECT_EQ(Pairings(second), Pairings(fresh));
+  ASSERT_EQ(second.origins[0].size(), 2u);
+  EXPECT_EQ(second.origins[0][1].id, 16u);  // local 0 now pairs with peer 16 (at 0.6)
+  EXPECT_NE(Pairings(second), Pairings(first));
 }
 
 TEST(GlobalMap, EstimatorDecidesHowSharedLandmarksShrink) {
