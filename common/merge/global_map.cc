@@ -34,29 +34,74 @@ struct Edge {
   double d2 = 0.0;  // individual squared Mahalanobis distance
 };
 
-// Joint squared distance of pairings of source landmarks (group[item]) with clusters (target).
-// The shared alignment error correlates the source landmarks.
-double GroupJointD2(const std::vector<Landmark>& moved, const std::vector<Eigen::Matrix<double, 2, 3>>& jac,
-                    const Eigen::Matrix3d& t_cov, const std::vector<Cluster>& clusters, const std::vector<int>& group,
-                    std::span<const JcbbPairing> pairs) {
-  const int n = static_cast<int>(pairs.size());
-  Eigen::VectorXd nu(2 * n);
-  Eigen::MatrixXd s = Eigen::MatrixXd::Zero(2 * n, 2 * n);
-  for (int a = 0; a < n; ++a) {
-    const int si = group[pairs[a].item];
-    const Cluster& ca = clusters[pairs[a].target];
-    nu.segment<2>(2 * a) = ca.anchor.mean - moved[si].mean;
-    s.block<2, 2>(2 * a, 2 * a) = ca.anchor.cov + moved[si].cov;
-    for (int b = a + 1; b < n; ++b) {
-      const Eigen::Matrix2d cross = jac[si] * t_cov * jac[group[pairs[b].item]].transpose();
-      s.block<2, 2>(2 * a, 2 * b) = cross;
-      s.block<2, 2>(2 * b, 2 * a) = cross.transpose();
-    }
+// Joint squared distance of pairings of source landmarks (group[item]) with clusters (target);
+// the shared alignment error correlates the source landmarks. JCBB asks depth first, each
+// hypothesis mostly the previous one plus a pairing: the Cholesky factor of the joint
+// covariance and the whitened innovation are kept for the pairings asked last, and the prefix
+// shared with them is extended by one 2-row block per pairing, O(n^2) each, instead of
+// factoring the whole matrix anew, O(n^3).
+class GroupJointD2 {
+ public:
+  GroupJointD2(const std::vector<Landmark>& moved, const std::vector<Eigen::Matrix<double, 2, 3>>& jac,
+               const Eigen::Matrix3d& t_cov, const std::vector<Cluster>& clusters, const std::vector<int>& group)
+      : moved_(moved), jac_(jac), t_cov_(t_cov), clusters_(clusters), group_(group) {
+    const int rows = 2 * static_cast<int>(group.size());
+    l_ = Eigen::MatrixXd::Zero(rows, rows);
+    y_ = Eigen::VectorXd::Zero(rows);
   }
-  const Eigen::LLT<Eigen::MatrixXd> llt(s);
-  if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
-  return nu.dot(llt.solve(nu));
-}
+
+  double operator()(std::span<const JcbbPairing> pairs) {
+    std::size_t keep = 0;
+    while (keep < pairs.size() && keep < prefix_.size() && pairs[keep].item == prefix_[keep].item &&
+           pairs[keep].target == prefix_[keep].target) {
+      ++keep;
+    }
+    prefix_.resize(keep);
+    d2_.resize(keep);
+    for (std::size_t k = keep; k < pairs.size(); ++k) {
+      prefix_.push_back(pairs[k]);
+      d2_.push_back(Extend(static_cast<int>(k)));
+    }
+    return d2_.empty() ? 0.0 : d2_.back();
+  }
+
+ private:
+  // Adds block row k (prefix_[k]) to the factor; returns the joint distance of pairings 0..k.
+  double Extend(int k) {
+    const double before = k == 0 ? 0.0 : d2_[k - 1];
+    if (!std::isfinite(before)) return before;
+    const int si = group_[prefix_[k].item];
+    const Cluster& c = clusters_[prefix_[k].target];
+    const int r = 2 * k;
+    // The new block column of the joint covariance above the diagonal, whitened: l = L^-1 b.
+    Eigen::Matrix<double, Eigen::Dynamic, 2> b(r, 2);
+    const Eigen::Matrix<double, 2, 3> jp = jac_[si] * t_cov_;
+    for (int a = 0; a < k; ++a) b.middleRows<2>(2 * a) = jac_[group_[prefix_[a].item]] * jp.transpose();
+    const auto lower = l_.topLeftCorner(r, r).triangularView<Eigen::Lower>();
+    if (r > 0) lower.solveInPlace(b);
+    const Eigen::Matrix2d schur = c.anchor.cov + moved_[si].cov - b.transpose() * b;
+    const Eigen::LLT<Eigen::Matrix2d> d(schur);
+    if (d.info() != Eigen::Success || !(d.matrixLLT().diagonal().array() > 0.0).all())
+      return std::numeric_limits<double>::infinity();
+    l_.block(r, 0, 2, r) = b.transpose();
+    l_.block<2, 2>(r, r) = d.matrixL();
+    const Eigen::Vector2d nu = c.anchor.mean - moved_[si].mean;
+    const Eigen::Vector2d rhs = r > 0 ? Eigen::Vector2d(nu - b.transpose() * y_.head(r)) : nu;
+    const Eigen::Vector2d yk = d.matrixL().solve(rhs);
+    y_.segment<2>(r) = yk;
+    return before + yk.squaredNorm();
+  }
+
+  const std::vector<Landmark>& moved_;
+  const std::vector<Eigen::Matrix<double, 2, 3>>& jac_;
+  const Eigen::Matrix3d& t_cov_;
+  const std::vector<Cluster>& clusters_;
+  const std::vector<int>& group_;
+  std::vector<JcbbPairing> prefix_;
+  std::vector<double> d2_;  // joint distance of pairings 0..k
+  Eigen::MatrixXd l_;       // lower Cholesky factor of the prefix's joint covariance
+  Eigen::VectorXd y_;       // L^-1 nu
+};
 
 bool Usable(const Landmark& l, GlobalMapStats& stats) {
   switch (CheckEstimate({l.mean, l.cov})) {
@@ -220,9 +265,8 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
       std::sort(group.begin(), group.end());
       if (static_cast<int>(group.size()) <= o.max_jcbb_landmarks) {
         ++g.stats.ambiguous_groups;
-        const auto joint_d2 = [&](std::span<const JcbbPairing> pairs) {
-          return GroupJointD2(moved, jac, src.to_own_cov, clusters, group, pairs);
-        };
+        GroupJointD2 incremental(moved, jac, src.to_own_cov, clusters, group);
+        const auto joint_d2 = [&](std::span<const JcbbPairing> pairs) { return incremental(pairs); };
         CanonicalGroup canonical;
         if (memo != nullptr) {
           canonical = Canonical(group, edges_of, clusters, src, moved);
