@@ -14,7 +14,9 @@ import time
 from pathlib import Path
 
 from .columns import format_table
+from . import ddsconfig
 from .domain import DomainLease
+from .run_error import RunError  # noqa: F401  (re-exported: sweep and scale raise it)
 from .progress import Progress
 from .rundir import AGENT_LOG, FEEDER, INJECT, REPORT, STATS, SUMMARY, TIMELINE, TRUTH, RunDir, agent_dir
 
@@ -23,14 +25,6 @@ REPO = Path(__file__).resolve().parents[2]
 # come first on PATH).
 PLOT_PYTHON = os.environ.get("MAPMESH_PLOT_PYTHON", "/usr/bin/python3")
 PR_SET_PDEATHSIG = 1
-
-
-class RunError(Exception):
-    """A failure with a one-line reason; `exit_code` is the launcher's exit status."""
-
-    def __init__(self, message, exit_code=1):
-        super().__init__(message)
-        self.exit_code = exit_code
 
 
 class Interrupted(Exception):
@@ -210,6 +204,11 @@ class SwarmRun:
             r = subprocess.run(cmd, capture_output=True, text=True)
             if r.returncode != 0:
                 raise RunError("--inject: " + last_line(r.stderr, "check failed").removeprefix("mapmesh-inject: "), 2)
+        # Every agent, the feeder and the injector join the run's domain.
+        changes, note = ddsconfig.choose(len(ids) + 1 + (1 if self.args.inject else 0))
+        os.environ.update(changes)
+        if note and not self.args.quiet:
+            print(f"swarm: {note}", file=sys.stderr)
 
     def agent_cmd(self, rid, incarnation):
         resume = ["--resume"] if incarnation > 1 else []
