@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <utility>
 
 #include "agent/agent_node.h"
 #include "agent/agent_setup.h"
@@ -81,23 +82,27 @@ json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
 }
 
 // One log line per alignment event (aligned, corrected, refuted, dropped), so that the log
-// tells how the global map came to be.
-void LogPeerEvents(const AgentNode& node, std::map<PeerKey, PeerReport>& last) {
+// tells how the global map came to be. Alignments change only when the agent publishes its
+// maps (MapExchange::Update): the peers are compared only then, not at every wake-up.
+void LogPeerEvents(const AgentNode& node, std::map<PeerKey, PeerReport>& last, std::uint64_t& updates) {
+  if (node.exchange().updates() == updates) return;
+  updates = node.exchange().updates();
   for (const PeerReport& p : node.exchange().Peers()) {
-    const PeerReport before = last.count(p.key) ? last[p.key] : PeerReport{};
-    last[p.key] = p;
+    auto [it, added] = last.try_emplace(p.key);
+    const PeerReport before = std::exchange(it->second, p);
     const double t = node.processed_until();
-    const std::string who = fmt::format("peer {}.{}{}", p.key.robot, p.key.incarnation,
-                                        p.own_checkpoint ? " (own checkpoint)" : "");
+    const auto who = [&] {
+      return fmt::format("peer {}.{}{}", p.key.robot, p.key.incarnation, p.own_checkpoint ? " (own checkpoint)" : "");
+    };
     if (p.replaced > before.replaced) {
-      spdlog::info("t={:.1f}s {}: frozen; re-placed where peer {}'s relay puts its landmarks", t, who, p.refuted_by);
+      spdlog::info("t={:.1f}s {}: frozen; re-placed where peer {}'s relay puts its landmarks", t, who(), p.refuted_by);
     } else if (p.refuted > before.refuted) {
-      spdlog::info("t={:.1f}s {}: our alignment refuted by peer {}'s relay; dropped", t, who, p.refuted_by);
+      spdlog::info("t={:.1f}s {}: our alignment refuted by peer {}'s relay; dropped", t, who(), p.refuted_by);
     } else if (p.drops > before.drops) {
-      spdlog::info("t={:.1f}s {}: alignment dropped after {} failed verifications", t, who, before.failures + 1);
+      spdlog::info("t={:.1f}s {}: alignment dropped after {} failed verifications", t, who(), before.failures + 1);
     }
     if (p.aligned && (!before.aligned || p.corrections > before.corrections)) {
-      spdlog::info("t={:.1f}s {}: {} at ({:.2f} m, {:.2f} m, {:.2f} deg){}", t, who,
+      spdlog::info("t={:.1f}s {}: {} at ({:.2f} m, {:.2f} m, {:.2f} deg){}", t, who(),
                    before.aligned ? "realigned" : "aligned", p.to_own.x, p.to_own.y, RadToDeg(p.to_own.theta),
                    p.relayed ? ", relaying its global map" : "");
     }
@@ -106,6 +111,7 @@ void LogPeerEvents(const AgentNode& node, std::map<PeerKey, PeerReport>& last) {
 
 // A warning line when the agent refuses input or cannot send its map (what and how many since
 // the last line), at most one every 5 wall seconds: a flood of bad input must not flood the log.
+// The counts are looked at once a wall second.
 class InputWatch {
  public:
   void Check(const AgentNode& node) {
@@ -127,7 +133,10 @@ class InputWatch {
       if (n > before) what += fmt::format("{}{} {}", what.empty() ? "" : ", ", n - before, name);
       last_[name] = n;
     }
-    if (what.empty()) return;
+    if (what.empty()) {
+      next_ = now + std::chrono::seconds(1);  // looked at once a second, not at every wake-up
+      return;
+    }
     if (s.maps_encode_failed > 0) what += fmt::format(" (last encoding error: {})", ToString(s.last_encode_error));
     spdlog::warn("t={:.1f}s input refused or lost: {}", node.processed_until(), what);
     next_ = now + std::chrono::seconds(5);
@@ -294,6 +303,7 @@ int Run(int argc, char** argv) {
   output.PublishStatus(node.Status());
   auto next_beat = Clock::now() + kStatusBeat;
   std::map<PeerKey, PeerReport> peer_events;
+  std::uint64_t peer_events_at = 0;  // the exchange's update they were taken at
   InputWatch input_watch;
   // Everything the readers hold, into the node.
   auto pump = [&] {
@@ -332,7 +342,7 @@ int Run(int argc, char** argv) {
   while (!shutdown.requested()) {
     waitset.Wait(0.1);
     pump();
-    LogPeerEvents(node, peer_events);
+    LogPeerEvents(node, peer_events, peer_events_at);
     input_watch.Check(node);
     if (checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {
       save_checkpoint();

@@ -293,6 +293,7 @@ void MapExchange::ChooseSource(PeerState& p, const LandmarkMap& own_local, bool 
 }
 
 bool MapExchange::Update(const LandmarkMap& own_local, double now) {
+  ++updates_;
   refuted_ = false;
   budget_ = options_.max_alignments_per_update;
   bool changed = false;

@@ -45,6 +45,8 @@ class MapExchange {
   // rebuilds the global map. Returns true if any alignment changed.
   bool Update(const LandmarkMap& own_local, double now);
 
+  // How many Updates ran: alignments and the global maps change only in one.
+  std::uint64_t updates() const { return updates_; }
   const GlobalMap& global() const { return global_; }
   // The one-hop global map: the own local map fused with aligned peers' local maps (and an
   // earlier own incarnation's maps). This is what the agent publishes as its GLOBAL map.
@@ -119,7 +121,8 @@ class MapExchange {
   PeerKey next_turn_;     // the peer whose turn is first in the next Update (round robin)
   GlobalMap global_;
   GlobalMap published_;
-  AssociationMemo global_memo_, published_memo_;  // each map's ambiguous groups, from its last build
+  AssociationMemo global_memo_, published_memo_;
+  std::uint64_t updates_ = 0;  // each map's ambiguous groups, from its last build
 };
 
 }  // namespace mapmesh
