@@ -16,7 +16,14 @@ from pathlib import Path
 from .run_error import RunError
 
 REPO = Path(__file__).resolve().parents[2]
+DEFAULT = REPO / "config" / "cyclonedds-loopback.xml"
 UNICAST = REPO / "config" / "cyclonedds-loopback-unicast.xml"
+# Beyond this many processes on one host, start-up (every process discovering every other on
+# a few cores) starves Cyclone's threads for longer than the default 1 s participant lease:
+# leases lapse and are renewed over and over, and Cyclone 0.10.2 crashed in its lease-expiry
+# path (SIGSEGV in 10 of 128 agents). Such runs get a participant lease of LARGE_SWARM_LEASE.
+LARGE_SWARM = 64
+LARGE_SWARM_LEASE = "10s"
 CYCLONE_DEFAULT_MAX_AUTO_INDEX = 9  # Cyclone's own default of Discovery/MaxAutoParticipantIndex
 
 
@@ -78,15 +85,27 @@ def participant_limit(uri):
     return limit, f"Discovery/MaxAutoParticipantIndex {limit - 1}"
 
 
-def choose(participants, env=None, probe=loopback_multicast_works):
+def choose(participants, env=None, probe=loopback_multicast_works, run_dir=None):
     """The environment changes a run of `participants` DDS processes needs, and a note for the
-    user (or None). Raises RunError when the configuration cannot hold them."""
+    user (or None). A large run on the default config gets its own copy of it in run_dir with a
+    longer participant lease. Raises RunError when the configuration cannot hold them."""
     env = os.environ if env is None else env
     uri = env.get("CYCLONEDDS_URI")
     changes, note = {}, None
     if not uri:
         if probe():
-            return changes, None
+            if participants <= LARGE_SWARM or run_dir is None:
+                return changes, None
+            text = DEFAULT.read_text()
+            longer = text.replace("<LeaseDuration>1s</LeaseDuration>", f"<LeaseDuration>{LARGE_SWARM_LEASE}"
+                                                                       "</LeaseDuration>")
+            if longer == text:
+                raise RunError(f"{DEFAULT}: no <LeaseDuration>1s</LeaseDuration> to lengthen for a large run", 2)
+            path = Path(run_dir) / "cyclonedds.xml"
+            path.write_text(longer)
+            changes["CYCLONEDDS_URI"] = f"file://{path}"
+            return changes, (f"{participants} DDS processes: participant leases of {LARGE_SWARM_LEASE} "
+                             f"({path.name} in the run directory)")
         uri = f"file://{UNICAST}"
         changes["CYCLONEDDS_URI"] = uri
         note = f"multicast on lo does not work here: unicast discovery ({UNICAST.name})"

@@ -205,7 +205,8 @@ class SwarmRun:
             if r.returncode != 0:
                 raise RunError("--inject: " + last_line(r.stderr, "check failed").removeprefix("mapmesh-inject: "), 2)
         # Every agent, the feeder and the injector join the run's domain.
-        changes, note = ddsconfig.choose(len(ids) + 1 + (1 if self.args.inject else 0))
+        self.out.mkdir(parents=True, exist_ok=True)
+        changes, note = ddsconfig.choose(len(ids) + 1 + (1 if self.args.inject else 0), run_dir=self.out)
         os.environ.update(changes)
         if note and not self.args.quiet:
             print(f"swarm: {note}", file=sys.stderr)

@@ -18,6 +18,7 @@ from .rundir import SUMMARY, read_json
 # to a few decimetres in the park, false ones lie along a row of trees, metres away.
 FALSE_ALIGNMENT_M = 2.0
 FALSE_ALIGNMENT_DEG = 5.0
+STARTUP_S_PER_AGENT = 2.0  # wall seconds the feeder waits for the agents to come up, per agent
 
 HEADER = ["agents", "exit_0", "wall_s", "rtf", "cpu_per_agent_mean_s", "cpu_per_agent_max_s", "rss_per_agent_mean_mb",
           "rss_per_agent_max_mb", "bytes_per_landmark", "peers_aligned_mean", "cpu_per_agent_per_peer_s",
@@ -83,7 +84,10 @@ def cmd_bench_scale(args):
     for n in sizes:
         run_dir = out / "runs" / str(n)
         cmd = [sys.executable, str(REPO / "scripts" / "swarm"), "run", args.scenario, "--out", str(run_dir),
-               "--agents", str(n), "--quiet", "--no-report", "--timeout", str(args.timeout)]
+               "--agents", str(n), "--quiet", "--no-report", "--timeout", str(args.timeout),
+               # N processes discovering each other on two cores take longer than the scenario's
+               # 30 s to come up (128 agents: about a minute); a --set of the same key wins.
+               "--set", f"feeder.startup_timeout_s={max(30.0, STARTUP_S_PER_AGENT * n):g}"]
         for s in args.set or []:
             cmd += ["--set", s]
         r = subprocess.run(cmd, capture_output=True, text=True)

@@ -50,6 +50,23 @@ class DdsConfigTest(unittest.TestCase):
             ddsconfig.choose(65, env={}, probe=lambda: False)
         self.assertIn("MaxAutoParticipantIndex 60", str(e.exception))
 
+    def test_a_large_run_on_the_default_config_gets_longer_participant_leases(self):
+        with tempfile.TemporaryDirectory() as d:
+            self.assertEqual(ddsconfig.choose(ddsconfig.LARGE_SWARM, env={}, probe=lambda: True, run_dir=d),
+                             ({}, None))
+            changes, note = ddsconfig.choose(ddsconfig.LARGE_SWARM + 1, env={}, probe=lambda: True, run_dir=d)
+            path = Path(d) / "cyclonedds.xml"
+            self.assertEqual(changes, {"CYCLONEDDS_URI": f"file://{path}"})
+            self.assertIn(ddsconfig.LARGE_SWARM_LEASE, note)
+            text = path.read_text()
+            self.assertIn(f"<LeaseDuration>{ddsconfig.LARGE_SWARM_LEASE}</LeaseDuration>", text)
+            self.assertEqual(text.replace(f"<LeaseDuration>{ddsconfig.LARGE_SWARM_LEASE}</LeaseDuration>",
+                                          "<LeaseDuration>1s</LeaseDuration>"), ddsconfig.DEFAULT.read_text())
+            self.assertEqual(ddsconfig.participant_limit(changes["CYCLONEDDS_URI"]), (None, None))
+            # A configuration the user chose is left alone.
+            self.assertEqual(ddsconfig.choose(200, env={"CYCLONEDDS_URI": changes["CYCLONEDDS_URI"]}, run_dir=d),
+                             ({}, None))
+
     def test_a_run_larger_than_the_configs_limit_is_one_line_naming_it(self):
         env = env_without_dds_uri()
         env["CYCLONEDDS_URI"] = f"file://{UNICAST}"
