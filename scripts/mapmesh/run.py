@@ -27,6 +27,10 @@ PLOT_PYTHON = os.environ.get("MAPMESH_PLOT_PYTHON", "/usr/bin/python3")
 PR_SET_PDEATHSIG = 1
 
 
+STOP_GRACE_S = 15.0  # wall seconds the agents have to write their outputs once asked to stop ...
+STOP_GRACE_S_PER_AGENT = 0.5  # ... or this much per agent, when that is longer
+
+
 class Interrupted(Exception):
     pass
 
@@ -411,9 +415,12 @@ class SwarmRun:
             if slot.current is not None and slot.current.poll() is None:
                 slot.current.stopped = True
                 slot.current.signal(signal.SIGTERM)
+        # All write their outputs at once: on a few cores a large swarm needs longer than one
+        # agent alone (128 agents: more than 15 s), so the wait is for all of them together.
+        deadline = time.monotonic() + max(STOP_GRACE_S, STOP_GRACE_S_PER_AGENT * len(self.agents))
         for slot in self.agents.values():
             if slot.current is not None:
-                slot.current.stop(15.0)
+                slot.current.stop(max(1.0, deadline - time.monotonic()))
         if self.feeder is not None:
             if self.feeder.poll() is None:
                 self.send("stop")
