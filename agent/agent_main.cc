@@ -88,8 +88,7 @@ void LogPeerEvents(const AgentNode& node, std::map<PeerKey, PeerReport>& last, s
   if (node.exchange().updates() == updates) return;
   updates = node.exchange().updates();
   for (const PeerReport& p : node.exchange().Peers()) {
-    auto [it, added] = last.try_emplace(p.key);
-    const PeerReport before = std::exchange(it->second, p);
+    const PeerReport before = std::exchange(last.try_emplace(p.key).first->second, p);
     const double t = node.processed_until();
     const auto who = [&] {
       return fmt::format("peer {}.{}{}", p.key.robot, p.key.incarnation, p.own_checkpoint ? " (own checkpoint)" : "");

@@ -121,8 +121,8 @@ class MapExchange {
   PeerKey next_turn_;     // the peer whose turn is first in the next Update (round robin)
   GlobalMap global_;
   GlobalMap published_;
-  AssociationMemo global_memo_, published_memo_;
-  std::uint64_t updates_ = 0;  // each map's ambiguous groups, from its last build
+  AssociationMemo global_memo_, published_memo_;  // each map's ambiguous groups, from its last build
+  std::uint64_t updates_ = 0;
 };
 
 }  // namespace mapmesh

@@ -158,17 +158,30 @@ TEST(GlobalMap, AKnownIdentitySurvivesPeersWithoutOneAndConflictingOnesAreDroppe
   EXPECT_EQ(g.map.landmarks[2].signature, 12);
 }
 
+// Local landmarks at x = 0, 1, 10 (ids 0, 1, 10) and one peer's at 0.6, 1.6, 10.6 (ids 6, 16,
+// 106), aligned by the identity with a covariance of 0.25 m^2 in x: the alignment is 0.6 m off,
+// and its covariance says so.
+struct NearestNeighbourTrap {
+  LandmarkMap local;
+  std::vector<MapSource> src;
+  NearestNeighbourTrap() {
+    LandmarkMap peer;
+    const Eigen::Matrix2d c = 0.005 * Eigen::Matrix2d::Identity();
+    for (double x : {0.0, 1.0, 10.0}) local.landmarks.push_back({static_cast<std::uint32_t>(x), -1, {x, 0.0}, c});
+    for (double x : {0.6, 1.6, 10.6}) peer.landmarks.push_back({static_cast<std::uint32_t>(x * 10), -1, {x, 0.0}, c});
+    Eigen::Matrix3d tc = Eigen::Matrix3d::Zero();
+    tc.diagonal() << 0.25, 1e-4, 1e-8;
+    src = {{2, 0, peer, Pose2{}, tc}};
+  }
+};
+
 TEST(GlobalMap, JointCompatibilityResolvesWhatNearestNeighbourGetsWrong) {
   // The alignment is 0.6 m off in x, and its covariance says so (sigma 0.5 m in x): the
   // peer's landmark at 0.6 is individually nearer to the local one at 1.0 than to its true
   // partner at 0.0. Only the assignment that shifts all three together is jointly compatible.
-  LandmarkMap local, peer;
-  const Eigen::Matrix2d c = 0.005 * Eigen::Matrix2d::Identity();
-  for (double x : {0.0, 1.0, 10.0}) local.landmarks.push_back({static_cast<std::uint32_t>(x), -1, {x, 0.0}, c});
-  for (double x : {0.6, 1.6, 10.6}) peer.landmarks.push_back({static_cast<std::uint32_t>(x * 10), -1, {x, 0.0}, c});
-  Eigen::Matrix3d tc = Eigen::Matrix3d::Zero();
-  tc.diagonal() << 0.25, 1e-4, 1e-8;
-  const std::vector<MapSource> src{{2, 0, peer, Pose2{}, tc}};
+  const NearestNeighbourTrap trap;
+  const LandmarkMap& local = trap.local;
+  const std::vector<MapSource>& src = trap.src;
   const GlobalMap g = BuildGlobalMap(local, 1, src, {});
   EXPECT_EQ(g.stats.ambiguous_groups, 1);
   EXPECT_EQ(g.stats.associated, 3);
@@ -255,13 +268,9 @@ TEST(GlobalMap, AMemoKeepsUnchangedGroupsAndBuildsWhatAFreshBuildDoes) {
 TEST(GlobalMap, AMemoSearchesAgainWhenTheKeptPairingIsNoLongerJointlyCompatible) {
   // The group of JointCompatibilityResolvesWhatNearestNeighbourGetsWrong: peer landmarks 6
   // and 16 both have local landmarks 0 and 1 as candidates.
-  LandmarkMap local, peer;
-  const Eigen::Matrix2d c = 0.005 * Eigen::Matrix2d::Identity();
-  for (double x : {0.0, 1.0, 10.0}) local.landmarks.push_back({static_cast<std::uint32_t>(x), -1, {x, 0.0}, c});
-  for (double x : {0.6, 1.6, 10.6}) peer.landmarks.push_back({static_cast<std::uint32_t>(x * 10), -1, {x, 0.0}, c});
-  Eigen::Matrix3d tc = Eigen::Matrix3d::Zero();
-  tc.diagonal() << 0.25, 1e-4, 1e-8;
-  std::vector<MapSource> src{{2, 0, peer, Pose2{}, tc}};
+  NearestNeighbourTrap trap;
+  const LandmarkMap& local = trap.local;
+  std::vector<MapSource>& src = trap.src;
   AssociationMemo memo;
   const GlobalMap first = BuildGlobalMap(local, 1, src, {}, 0, &memo);
   EXPECT_EQ(memo.stats().searched, 1);
