@@ -27,15 +27,7 @@ struct Pose2 {
   // Maps a point given in this pose's frame into the parent frame. When asked, also the
   // Jacobians of the result with respect to this pose (x, y, theta) and to the point.
   Eigen::Vector2d Apply(const Eigen::Vector2d& p, Eigen::Matrix<double, 2, 3>* j_pose = nullptr,
-                        Eigen::Matrix2d* j_point = nullptr) const {
-    const double c = std::cos(theta), s = std::sin(theta);
-    if (j_pose) {
-      *j_pose << 1.0, 0.0, -s * p.x() - c * p.y(),  //
-          0.0, 1.0, c * p.x() - s * p.y();
-    }
-    if (j_point) *j_point << c, -s, s, c;
-    return {x + c * p.x() - s * p.y(), y + s * p.x() + c * p.y()};
-  }
+                        Eigen::Matrix2d* j_point = nullptr) const;
   // Composition: (this * other) maps other's frame into this pose's parent frame.
   Pose2 operator*(const Pose2& o) const {
     const Eigen::Vector2d t = Apply({o.x, o.y});
@@ -46,14 +38,40 @@ struct Pose2 {
     const double c = std::cos(theta), s = std::sin(theta);
     return {-c * x - s * y, s * x - c * y, WrapAngle(-theta)};
   }
-  Eigen::Matrix2d Rotation() const {
-    const double c = std::cos(theta), s = std::sin(theta);
-    Eigen::Matrix2d r;
-    r << c, -s, s, c;
-    return r;
-  }
+  Eigen::Matrix2d Rotation() const;
   Eigen::Vector3d Vector() const { return {x, y, theta}; }
 };
+
+// A pose with its sine and cosine evaluated once, for loops that map many points: Apply and
+// Rotation give exactly Pose2's results.
+class PoseMap2 {
+ public:
+  explicit PoseMap2(const Pose2& p) : x_(p.x), y_(p.y), c_(std::cos(p.theta)), s_(std::sin(p.theta)) {}
+  Eigen::Vector2d Apply(const Eigen::Vector2d& p, Eigen::Matrix<double, 2, 3>* j_pose = nullptr,
+                        Eigen::Matrix2d* j_point = nullptr) const {
+    if (j_pose) {
+      *j_pose << 1.0, 0.0, -s_ * p.x() - c_ * p.y(),  //
+          0.0, 1.0, c_ * p.x() - s_ * p.y();
+    }
+    if (j_point) *j_point << c_, -s_, s_, c_;
+    return {x_ + c_ * p.x() - s_ * p.y(), y_ + s_ * p.x() + c_ * p.y()};
+  }
+  Eigen::Matrix2d Rotation() const {
+    Eigen::Matrix2d r;
+    r << c_, -s_, s_, c_;
+    return r;
+  }
+
+ private:
+  double x_, y_, c_, s_;
+};
+
+inline Eigen::Vector2d Pose2::Apply(const Eigen::Vector2d& p, Eigen::Matrix<double, 2, 3>* j_pose,
+                                    Eigen::Matrix2d* j_point) const {
+  return PoseMap2(*this).Apply(p, j_pose, j_point);
+}
+
+inline Eigen::Matrix2d Pose2::Rotation() const { return PoseMap2(*this).Rotation(); }
 
 // The pose a of the way from p to q (a in [0, 1]): positions linearly, the heading along the
 // shorter arc.

@@ -27,9 +27,10 @@ Eigen::Vector2d Centroid(const LandmarkMap& m) {
 
 LandmarkMap TransformMap(const LandmarkMap& map, const Pose2& pose) {
   LandmarkMap out = map;
-  const Eigen::Matrix2d r = pose.Rotation();
+  const PoseMap2 t(pose);
+  const Eigen::Matrix2d r = t.Rotation();
   for (Landmark& l : out.landmarks) {
-    l.mean = pose.Apply(l.mean);
+    l.mean = t.Apply(l.mean);
     l.cov = r * l.cov * r.transpose();
   }
   return out;

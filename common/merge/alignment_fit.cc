@@ -5,9 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <unordered_map>
 
-#include "common/merge/spatial.h"
+#include "common/merge/point_grid.h"
 #include "common/metrics/chi2.h"
 
 namespace mapmesh::alignment_detail {
@@ -19,11 +18,12 @@ Eigen::Matrix3d Information(const LandmarkMap& a, const LandmarkMap& b, const st
                             const Pose2& t, Eigen::Vector3d* gradient) {
   Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
   Eigen::Vector3d g = Eigen::Vector3d::Zero();
-  const Eigen::Matrix2d rot = t.Rotation();
+  const PoseMap2 tm(t);
+  const Eigen::Matrix2d rot = tm.Rotation();
   for (const auto& [ia, ib] : pairs) {
     const Landmark &la = a.landmarks[ia], &lb = b.landmarks[ib];
     Eigen::Matrix<double, 2, 3> j_apply;
-    const Eigen::Vector2d r = la.mean - t.Apply(lb.mean, &j_apply);
+    const Eigen::Vector2d r = la.mean - tm.Apply(lb.mean, &j_apply);
     const Eigen::Matrix2d c = la.cov + rot * lb.cov * rot.transpose();
     const Eigen::LDLT<Eigen::Matrix2d> ldlt(c);
     if (ldlt.info() != Eigen::Success || !(c.determinant() > 0)) continue;
@@ -77,6 +77,10 @@ Usable UsableLandmarks(const LandmarkMap& m) {
 }
 
 double PairD2(const Landmark& la, const Landmark& lb, const Pose2& t, Eigen::Vector2d* r) {
+  return PairD2(la, lb, PoseMap2(t), r);
+}
+
+double PairD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, Eigen::Vector2d* r) {
   const Eigen::Matrix2d rot = t.Rotation();
   const Eigen::Vector2d res = la.mean - t.Apply(lb.mean);
   const Eigen::Matrix2d c = la.cov + rot * lb.cov * rot.transpose();
@@ -101,17 +105,26 @@ LandmarkMap ForAlignment(const LandmarkMap& m, double floor_m, bool every_landma
 
 std::vector<std::pair<int, int>> OneToOne(std::vector<std::tuple<double, int, int>> scored) {
   std::sort(scored.begin(), scored.end());
-  std::unordered_map<int, bool> used_a, used_b;
+  int na = 0, nb = 0;
+  for (const auto& [d2, ia, ib] : scored) {
+    na = std::max(na, ia + 1);
+    nb = std::max(nb, ib + 1);
+  }
+  std::vector<char> used_a(na, 0), used_b(nb, 0);
   std::vector<std::pair<int, int>> out;
   for (const auto& [d2, ia, ib] : scored) {
     if (used_a[ia] || used_b[ib]) continue;
-    used_a[ia] = used_b[ib] = true;
+    used_a[ia] = used_b[ib] = 1;
     out.emplace_back(ia, ib);
   }
   return out;
 }
 
 double GatedD2(const Landmark& la, const Landmark& lb, const Pose2& t, const AlignmentOptions& o, double gate) {
+  return GatedD2(la, lb, PoseMap2(t), o, gate);
+}
+
+double GatedD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, const AlignmentOptions& o, double gate) {
   if (o.distance == ConsensusDistance::kEuclidean) {
     const double e = (la.mean - t.Apply(lb.mean)).norm();
     return e < o.euclidean_gate_m ? e * e : std::numeric_limits<double>::infinity();
@@ -129,19 +142,21 @@ void Conclude(const LandmarkMap& a_in, const LandmarkMap& b_in, const LandmarkMa
   if (guided) {
     const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
     if (!ua.points.empty() && !ub.points.empty()) {
-      const KdTree2 tree(ua.points);
+      const PointGrid2 grid(ua.points);
       for (int round = 0; round < 2; ++round) {
         std::vector<std::tuple<double, int, int>> scored;
         const double radius_scale = o.distance == ConsensusDistance::kEuclidean ? 0.0 : std::sqrt(gate);
+        const PoseMap2 tm(t);
         for (std::size_t j = 0; j < ub.points.size(); ++j) {
-          const Eigen::Vector2d p = t.Apply(ub.points[j]);
+          const Eigen::Vector2d p = tm.Apply(ub.points[j]);
           const double radius = o.distance == ConsensusDistance::kEuclidean
                                     ? o.euclidean_gate_m
                                     : radius_scale * std::sqrt(ua.max_sigma * ua.max_sigma + ub.sigma[j] * ub.sigma[j]);
-          for (int i : tree.InRadius(p, radius)) {
-            const double d2 = GatedD2(a.landmarks[ua.index[i]], b.landmarks[ub.index[j]], t, o, gate);
+          grid.Visit(p, radius, [&](int i) {
+            const double d2 = GatedD2(a.landmarks[ua.index[i]], b.landmarks[ub.index[j]], tm, o, gate);
             if (std::isfinite(d2)) scored.emplace_back(d2, ua.index[i], ub.index[j]);
-          }
+            return false;
+          });
         }
         inliers = OneToOne(std::move(scored));
         Refine(fit_a, fit_b, inliers, &t);
@@ -153,15 +168,17 @@ void Conclude(const LandmarkMap& a_in, const LandmarkMap& b_in, const LandmarkMa
   {
     const Usable ua = UsableLandmarks(a), ub = UsableLandmarks(b);
     if (!ua.points.empty()) {
-      const KdTree2 tree(ua.points);
+      const PointGrid2 grid(ua.points);
+      const PoseMap2 tm(t);
       for (const Eigen::Vector2d& p : ub.points) {
-        if (!tree.InRadius(t.Apply(p), o.coverage_radius_m).empty()) ++r.covered;
+        if (grid.AnyInRadius(tm.Apply(p), o.coverage_radius_m)) ++r.covered;
       }
     }
   }
   r.transform = t;
   r.inliers = inliers;
-  for (const auto& [ia, ib] : inliers) r.residual_chi2 += PairD2(a.landmarks[ia], b.landmarks[ib], t);
+  const PoseMap2 tm(t);
+  for (const auto& [ia, ib] : inliers) r.residual_chi2 += PairD2(a.landmarks[ia], b.landmarks[ib], tm);
   const int ni = static_cast<int>(inliers.size());
   if (ni < o.min_inliers) {
     r.verdict = AlignmentVerdict::kTooFewInliers;

@@ -8,7 +8,7 @@
 #include <cmath>
 #include <limits>
 
-#include "common/merge/spatial.h"
+#include "common/merge/point_grid.h"
 #include "common/metrics/chi2.h"
 #include "common/slam/jcbb.h"
 
@@ -178,12 +178,18 @@ void AssociationMemo::Keep(Key group, std::vector<int> choice, bool reused) {
 }
 
 Landmark TransformLandmark(const Landmark& l, const Pose2& t, const Eigen::Matrix3d& t_cov) {
+  return TransformLandmark(l, PoseMap2(t), t_cov, nullptr);
+}
+
+Landmark TransformLandmark(const Landmark& l, const PoseMap2& t, const Eigen::Matrix3d& t_cov,
+                           Eigen::Matrix<double, 2, 3>* j_pose) {
   Landmark out = l;
   const Eigen::Matrix2d r = t.Rotation();
   Eigen::Matrix<double, 2, 3> j;
   out.mean = t.Apply(l.mean, &j);
   out.cov = r * l.cov * r.transpose() + j * t_cov * j.transpose();
   out.cov = 0.5 * (out.cov + out.cov.transpose()).eval();
+  if (j_pose != nullptr) *j_pose = j;
   return out;
 }
 
@@ -211,10 +217,10 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
     // The source's usable landmarks, in the own frame.
     std::vector<Landmark> moved;
     std::vector<Eigen::Matrix<double, 2, 3>> jac;
+    const PoseMap2 to_own(src.to_own);
     for (const Landmark& l : src.map.landmarks) {
       if (!Usable(l, g.stats)) continue;
-      moved.push_back(TransformLandmark(l, src.to_own, src.to_own_cov));
-      src.to_own.Apply(l.mean, &jac.emplace_back());
+      moved.push_back(TransformLandmark(l, to_own, src.to_own_cov, &jac.emplace_back()));
     }
     // Gated candidates: a radius search on the anchors, then the Mahalanobis test.
     std::vector<std::vector<Edge>> edges_of(moved.size());
@@ -227,10 +233,10 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
         anchors.push_back(c.anchor.mean);
         max_anchor = std::max(max_anchor, LargestEigen(c.anchor.cov));
       }
-      const KdTree2 tree(anchors);
+      const PointGrid2 grid(anchors);
       for (std::size_t s = 0; s < moved.size(); ++s) {
         const double radius = std::sqrt(gate * (max_anchor + LargestEigen(moved[s].cov)));
-        for (int c : tree.InRadius(moved[s].mean, radius)) {
+        grid.Visit(moved[s].mean, radius, [&](int c) {
           const Eigen::Vector2d nu = clusters[c].anchor.mean - moved[s].mean;
           const Eigen::Matrix2d cov = clusters[c].anchor.cov + moved[s].cov;
           const double d2 = nu.dot(cov.inverse() * nu);
@@ -238,8 +244,10 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
             edges_of[s].push_back({static_cast<int>(s), c, d2});
             sources_of[c].push_back(static_cast<int>(s));
           }
-        }
-        std::sort(edges_of[s].begin(), edges_of[s].end(), [](const Edge& a, const Edge& b) { return a.d2 < b.d2; });
+          return false;
+        });
+        std::sort(edges_of[s].begin(), edges_of[s].end(),
+                  [](const Edge& a, const Edge& b) { return a.d2 != b.d2 ? a.d2 < b.d2 : a.c < b.c; });
       }
     }
     // Connected groups of source landmarks through shared candidate clusters.

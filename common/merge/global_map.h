@@ -120,5 +120,9 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
 // The source's landmark moved into the own frame: mean T(m), covariance R C R^T + J P J^T,
 // with J the Jacobian of T(m) with respect to the transform (x, y, theta).
 Landmark TransformLandmark(const Landmark& l, const Pose2& t, const Eigen::Matrix3d& t_cov);
+// The same with t's sine and cosine evaluated once (for a whole map), and the Jacobian of the
+// mean with respect to t when j_pose is given.
+Landmark TransformLandmark(const Landmark& l, const PoseMap2& t, const Eigen::Matrix3d& t_cov,
+                           Eigen::Matrix<double, 2, 3>* j_pose);
 
 }  // namespace mapmesh

@@ -56,7 +56,7 @@ AlignmentResult RansacAlign(const LandmarkMap& a_in, const LandmarkMap& b_in, co
     return r;
   }
   const double gate = Chi2Quantile(o.gate_probability, 2);
-  auto inlier_d2 = [&](const CandidatePair& c, const Pose2& t) {
+  auto inlier_d2 = [&](const CandidatePair& c, const PoseMap2& t) {
     return GatedD2(a.landmarks[c.a], b.landmarks[c.b], t, o, gate);
   };
   // Support: the landmarks the hypothesis pairs, each counted once on each side (where
@@ -78,12 +78,13 @@ AlignmentResult RansacAlign(const LandmarkMap& a_in, const LandmarkMap& b_in, co
   int shared_best = 0, shared_runner = 0;
   auto evaluate = [&](const Pose2& t) {
     Hypothesis h{t, 0, 0.0};
+    const PoseMap2 tm(t);
     int na = 0, nb = 0, pairs = 0;
     shared_best = shared_runner = 0;
     ++evaluation;
     for (std::size_t i = 0; i < cand.size(); ++i) {
       const CandidatePair& c = cand[i];
-      const double d2 = inlier_d2(c, t);
+      const double d2 = inlier_d2(c, tm);
       scratch[i] = std::isfinite(d2);
       if (!scratch[i]) continue;
       ++pairs;
@@ -163,8 +164,9 @@ AlignmentResult RansacAlign(const LandmarkMap& a_in, const LandmarkMap& b_in, co
 
   // Refine on the consensus, then (optionally) gather inliers among all landmarks.
   std::vector<std::tuple<double, int, int>> scored;
+  const PoseMap2 best_t(best.t);
   for (const CandidatePair& c : cand) {
-    const double d2 = inlier_d2(c, best.t);
+    const double d2 = inlier_d2(c, best_t);
     if (std::isfinite(d2)) scored.emplace_back(d2, c.a, c.b);
   }
   Conclude(a_in, b_in, a, b, best.t, OneToOne(std::move(scored)), o, o.guided_matching, r);

@@ -5,9 +5,7 @@
 #include <CGAL/Delaunay_triangulation_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Fuzzy_iso_box.h>
-#include <CGAL/Fuzzy_sphere.h>
 #include <CGAL/Kd_tree.h>
-#include <CGAL/Search_traits_2.h>
 #include <CGAL/Search_traits_3.h>
 #include <CGAL/Search_traits_adapter.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
@@ -39,11 +37,6 @@ using Point3 = Kernel::Point_3;
 using Traits3 = CGAL::Search_traits_adapter<int, IndexMap<Point3>, CGAL::Search_traits_3<Kernel>>;
 using Tree3 = CGAL::Kd_tree<Traits3>;
 using Box3 = CGAL::Fuzzy_iso_box<Traits3>;
-
-using Point2 = Kernel::Point_2;
-using Traits2 = CGAL::Search_traits_adapter<int, IndexMap<Point2>, CGAL::Search_traits_2<Kernel>>;
-using Tree2 = CGAL::Kd_tree<Traits2>;
-using Sphere2 = CGAL::Fuzzy_sphere<Traits2>;
 
 }  // namespace
 
@@ -85,29 +78,6 @@ std::vector<int> KdTree3::InBox(const Eigen::Vector3d& lo, const Eigen::Vector3d
   const Box3 box(Point3(lo.x(), lo.y(), lo.z()), Point3(hi.x(), hi.y(), hi.z()), 0.0,
                  Traits3(IndexMap<Point3>{&impl_->points}));
   impl_->tree->search(std::back_inserter(out), box);
-  return out;
-}
-
-struct KdTree2::Impl {
-  std::vector<Point2> points;
-  std::unique_ptr<Tree2> tree;
-};
-
-KdTree2::KdTree2(const std::vector<Eigen::Vector2d>& points) : impl_(std::make_unique<Impl>()) {
-  impl_->points.reserve(points.size());
-  for (const auto& p : points) impl_->points.emplace_back(p.x(), p.y());
-  impl_->tree = std::make_unique<Tree2>(boost::counting_iterator<int>(0),
-                                        boost::counting_iterator<int>(static_cast<int>(points.size())),
-                                        Tree2::Splitter(), Traits2(IndexMap<Point2>{&impl_->points}));
-  impl_->tree->build();
-}
-
-KdTree2::~KdTree2() = default;
-
-std::vector<int> KdTree2::InRadius(const Eigen::Vector2d& center, double radius) const {
-  std::vector<int> out;
-  const Sphere2 sphere(Point2(center.x(), center.y()), radius, 0.0, Traits2(IndexMap<Point2>{&impl_->points}));
-  impl_->tree->search(std::back_inserter(out), sphere);
   return out;
 }
 

@@ -29,19 +29,4 @@ class KdTree3 {
   std::unique_ptr<Impl> impl_;
 };
 
-// A k-d tree over 2D points answering radius queries (CGAL spatial searching).
-class KdTree2 {
- public:
-  explicit KdTree2(const std::vector<Eigen::Vector2d>& points);
-  ~KdTree2();
-  KdTree2(const KdTree2&) = delete;
-  KdTree2& operator=(const KdTree2&) = delete;
-  // Indices of the points within radius of center.
-  std::vector<int> InRadius(const Eigen::Vector2d& center, double radius) const;
-
- private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
-};
-
 }  // namespace mapmesh
