@@ -61,11 +61,14 @@ struct ExchangeOptions {
                                         // ones) per Update, round robin
   int max_relay_checks_per_update = 4;  // agent.max_relay_checks_per_update: relays (peers' newer global maps) judged
                                         // per Update, those that grew most first; the others keep the global map
-                                        // judged last (docs/EXCHANGE.md "Bounded work")
-  std::uint32_t version_slack = 64;     // a map's version may exceed the last one received by this plus
-                                        // MaxVersionsPerS() times the scenario seconds since (and any version that
-                                        // rate times now)
-  int max_incarnations = 8;             // incarnations kept per robot; a newer one evicts one never aligned and frozen
+                                        // judged last (docs/EXCHANGE.md "Bounded work") ...
+  int max_relay_comparisons_per_update = 64;  // agent.max_relay_comparisons_per_update: ... and fewer when judging
+                                              // them would compare more maps than this: a relay is compared with
+                                              // every aligned peer's map (one relay per Update at least)
+  std::uint32_t version_slack = 64;           // a map's version may exceed the last one received by this plus
+      // MaxVersionsPerS() times the scenario seconds since (and any version that
+      // rate times now)
+  int max_incarnations = 8;  // incarnations kept per robot; a newer one evicts one never aligned and frozen
   AlignmentOptions align = ExchangeAlignment();
   GlobalMapOptions global;
   ExchangeAblations test_only;  // all on outside unit tests
@@ -87,6 +90,8 @@ struct ExchangeOptions {
     r.GetZeroOrInRange("silent_after_s", silent_after_s, limits::kMinPeriodS, limits::kMaxPeriodS);
     r.GetInRange("max_alignments_per_update", max_alignments_per_update, 1, limits::kMaxAlignmentsPerUpdate);
     r.GetInRange("max_relay_checks_per_update", max_relay_checks_per_update, 1, limits::kMaxAlignmentsPerUpdate);
+    r.GetInRange("max_relay_comparisons_per_update", max_relay_comparisons_per_update, 1,
+                 limits::kMaxRelayComparisonsPerUpdate);
   }
 };
 

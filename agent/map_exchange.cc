@@ -205,9 +205,14 @@ std::set<PeerKey> MapExchange::RelayTurns() const {
     if (a.growth != b.growth) return a.growth > b.growth;
     return a.last < b.last;
   });
+  // Judging a relay compares it with every aligned peer's map (RelayPolicy::FirstConflict).
+  int witnesses = 0;
+  for (const auto& [key, p] : peers_) witnesses += p.direct && !p.direct->map.empty();
+  const int limit = std::min(options_.max_relay_checks_per_update,
+                             std::max(1, options_.max_relay_comparisons_per_update / std::max(1, witnesses)));
   std::set<PeerKey> turns;
   for (const Due& d : due) {
-    if (static_cast<int>(turns.size()) >= options_.max_relay_checks_per_update) break;
+    if (static_cast<int>(turns.size()) >= limit) break;
     turns.insert(d.key);
   }
   return turns;

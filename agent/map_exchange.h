@@ -93,7 +93,8 @@ class MapExchange {
   // (judging its newest global map as a relay when judge_relay).
   bool Verify(PeerState& p, const LandmarkMap& own_local, double now, bool judge_relay);
   // The aligned peers whose newer global map is judged as a relay in this Update: at most
-  // max_relay_checks_per_update, never judged first, then those that grew most.
+  // max_relay_checks_per_update (fewer where they would exceed max_relay_comparisons_per_update),
+  // never judged first, then those that grew most.
   std::set<PeerKey> RelayTurns() const;
   // The peer's map is the one verified already, ours has moved on (loop closures, more landmarks):
   // refits the transform on our map as it is now, keeping the choice of source. A fit that fails

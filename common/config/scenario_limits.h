@@ -9,17 +9,18 @@
 namespace mapmesh::limits {
 
 // Counts.
-inline constexpr int kMaxRobots = 1024;                 // robots.count, --agents, robots.list, virtual_robots
-inline constexpr int kMaxRobotId = 1000000;             // robots.list[].id
-inline constexpr int kMaxLandmarks = 100000;            // generator count, landmarks.list, CSV rows
-inline constexpr int kMaxWaypoints = 10000;             // path.points, path.count, lawnmower waypoints
-inline constexpr int kMaxTotalWaypoints = 1000000;      // all robots' waypoints together (16 MB)
-inline constexpr int kMaxParkPaths = 20;                // generator.paths
-inline constexpr int kMaxScanEverySteps = 100000;       // sensor.scan_every_steps
-inline constexpr int kMaxDropAfterFailures = 1000;      // agent.drop_after_failures
-inline constexpr int kMaxAlignmentsPerUpdate = 1000;    // agent.max_alignments_per_update, max_relay_checks_per_update
-inline constexpr std::size_t kMaxCsvBytes = 64u << 20;  // landmarks.csv file size
-inline constexpr std::size_t kMaxScenarioBytes = 16u << 20;  // the scenario file itself
+inline constexpr int kMaxRobots = 1024;               // robots.count, --agents, robots.list, virtual_robots
+inline constexpr int kMaxRobotId = 1000000;           // robots.list[].id
+inline constexpr int kMaxLandmarks = 100000;          // generator count, landmarks.list, CSV rows
+inline constexpr int kMaxWaypoints = 10000;           // path.points, path.count, lawnmower waypoints
+inline constexpr int kMaxTotalWaypoints = 1000000;    // all robots' waypoints together (16 MB)
+inline constexpr int kMaxParkPaths = 20;              // generator.paths
+inline constexpr int kMaxScanEverySteps = 100000;     // sensor.scan_every_steps
+inline constexpr int kMaxDropAfterFailures = 1000;    // agent.drop_after_failures
+inline constexpr int kMaxAlignmentsPerUpdate = 1000;  // agent.max_alignments_per_update, max_relay_checks_per_update
+inline constexpr int kMaxRelayComparisonsPerUpdate = 1000000;  // agent.max_relay_comparisons_per_update
+inline constexpr std::size_t kMaxCsvBytes = 64u << 20;         // landmarks.csv file size
+inline constexpr std::size_t kMaxScenarioBytes = 16u << 20;    // the scenario file itself
 
 // Places and lengths (metres).
 inline constexpr double kMaxCoordinateM = 1e5;  // |x|, |y| of every point, area, centre, start

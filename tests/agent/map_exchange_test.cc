@@ -579,10 +579,9 @@ TEST(MapExchange, AlignmentWorkIsBudgetedRoundRobin) {
   }
 }
 
-// Relays are judged max_relay_checks_per_update at a time, the one that grew most first; a
-// newer global map not judged yet is never fused (the one judged last stays), and its turn
-// comes.
-TEST(MapExchange, RelayChecksAreBudgetedAndANewerRelayIsFusedOnlyOnceJudged) {
+// Relays are judged one at a time under budget (o), the one that grew most first; a newer
+// global map not judged yet is never fused (the one judged last stays), and its turn comes.
+void OneRelayPerUpdate(ExchangeOptions o) {
   LineOfThree line(25, 20);  // A hears C too
   auto& [w, rng, la, lb, lc, b] = line;
   const LandmarkMap good = b.published().map;
@@ -591,8 +590,6 @@ TEST(MapExchange, RelayChecksAreBudgetedAndANewerRelayIsFusedOnlyOnceJudged) {
     if (kFrameB.Apply(l.mean).x() >= 30.0) l.mean += Eigen::Vector2d(3.0, 0.0);
   }
   smaller.landmarks.resize(good.size() - 5);
-  ExchangeOptions o = Immediate();
-  o.max_relay_checks_per_update = 1;
   MapExchange a(1, 1, o, 7);
   // Robots 2 and 4 are at the same place with the same maps; robot 4's first relay is smaller.
   a.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, lc, 10.0);
@@ -633,6 +630,20 @@ TEST(MapExchange, RelayChecksAreBudgetedAndANewerRelayIsFusedOnlyOnceJudged) {
   EXPECT_FALSE(report(2).relayed);
   EXPECT_EQ(report(2).relay_conflicts, 1);
   EXPECT_TRUE(all_placed());
+}
+
+TEST(MapExchange, RelayChecksAreBudgetedAndANewerRelayIsFusedOnlyOnceJudged) {
+  ExchangeOptions o = Immediate();
+  o.max_relay_checks_per_update = 1;
+  OneRelayPerUpdate(o);
+}
+
+// The same when the budget is in comparisons: with three aligned peers' maps to compare each
+// relay with, five comparisons allow one relay per update.
+TEST(MapExchange, RelayComparisonsAreBudgeted) {
+  ExchangeOptions o = Immediate();
+  o.max_relay_comparisons_per_update = 5;
+  OneRelayPerUpdate(o);
 }
 
 // A flood of made-up incarnations of one robot cannot grow the peer table without end: beyond
