@@ -47,8 +47,8 @@ using io::json;
 // Sends the agent's messages through DDS writers.
 class DdsOutput : public AgentOutput {
  public:
-  explicit DdsOutput(const tp::Participant& p)
-      : maps_(p, tp::kMapTopic, tp::MapQos()), status_(p, tp::kStatusTopic, tp::StatusQos()) {}
+  DdsOutput(const tp::Participant& p, double lease_s)
+      : maps_(p, tp::kMapTopic, tp::MapQos(lease_s)), status_(p, tp::kStatusTopic, tp::StatusQos(lease_s)) {}
   void PublishMap(const MapMessage& msg) override { maps_.Write(msg); }
   void PublishStatus(const AgentStatus& status) override { status_.Write(status); }
 
@@ -270,8 +270,9 @@ int Run(int argc, char** argv) {
   tp::Reader<Odometry> odom(p, tp::OdomTopic(self), tp::SensorQos());
   tp::Reader<Scan> scans(p, tp::ScanTopic(self), tp::SensorQos());
   tp::Reader<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
-  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos());
-  DdsOutput output(p);
+  const double lease_s = scenario.agent.LivelinessLeaseS(scenario.robots.size());
+  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos(lease_s));
+  DdsOutput output(p, lease_s);
   AgentNode node(scenario.agent, AgentRunFor(scenario, self), self, incarnation, output);
   if (checkpoint) {
     node.Resume(*checkpoint);
@@ -292,8 +293,8 @@ int Run(int argc, char** argv) {
   waitset.AttachReader(maps.raw(), 4);
   waitset.AttachGuard(stop, 5);
   shutdown.Watch(&stop);
-  spdlog::info("up: scenario {} domain {} config {} incarnation {}", scenario.name, po.domain, session.config_used(),
-               incarnation);
+  spdlog::info("up: scenario {} domain {} config {} incarnation {} liveliness lease {} s", scenario.name, po.domain,
+               session.config_used(), incarnation, lease_s);
 
   // Status also goes out on a wall-clock beat: the feeder learns we exist before any data,
   // and a lost best-effort status never stalls lockstep for long.

@@ -107,9 +107,10 @@ int Run(int argc, char** argv) {
 
   tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
   const tp::Participant& p = session.participant();
-  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos());
-  tp::Reader<AgentStatus> status(p, tp::kStatusTopic, tp::StatusQos());
-  tp::Writer<MapMessage> out(p, tp::kMapTopic, tp::MapQos());
+  const double lease_s = loaded->agent.LivelinessLeaseS(loaded->robots.size());
+  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos(lease_s));
+  tp::Reader<AgentStatus> status(p, tp::kStatusTopic, tp::StatusQos(lease_s));
+  tp::Writer<MapMessage> out(p, tp::kMapTopic, tp::MapQos(lease_s));
   tp::Writer<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
   std::map<RobotId, std::unique_ptr<tp::Writer<Odometry>>> odom;
   std::map<RobotId, std::unique_ptr<tp::Writer<Scan>>> scans;

@@ -102,7 +102,7 @@ struct Channels {
   Channels(const tp::Participant& p, const Scenario& sc)
       : links(p, tp::kLinksTopic, tp::LinksQos()),
         truth(p, tp::kTruthTopic, tp::TruthQos()),
-        status(p, tp::kStatusTopic, tp::StatusQos()) {
+        status(p, tp::kStatusTopic, tp::StatusQos(sc.agent.LivelinessLeaseS(sc.robots.size()))) {
     for (const RobotSpec& r : sc.robots) {
       odom.emplace(r.id, std::make_unique<tp::Writer<Odometry>>(p, tp::OdomTopic(r.id), tp::SensorQos()));
       scan.emplace(r.id, std::make_unique<tp::Writer<Scan>>(p, tp::ScanTopic(r.id), tp::SensorQos()));

@@ -35,6 +35,7 @@ inline constexpr double kMaxControlPeriodS = 10.0;
 inline constexpr double kMaxSimulationSteps = 1e7;  // duration_s / control_period_s
 inline constexpr double kMinPeriodS = 1e-3;         // every other period
 inline constexpr double kMaxPeriodS = 1e6;
+inline constexpr double kMinLeaseS = 0.1;               // agent.liveliness_lease_s: shorter leases would flood the host
 inline constexpr double kMaxOdometryDelayS = 5.0;       // source.odometry_delay_s
 inline constexpr double kMaxStartupTimeoutS = 86400.0;  // feeder.startup_timeout_s
 inline constexpr double kMinLockstepWindowS = 0.01;     // feeder.lockstep_window_s

@@ -26,7 +26,6 @@ class PointGrid2 {
   bool Visit(const Eigen::Vector2d& center, double radius, F&& f) const;
 
  private:
-
   std::vector<Eigen::Vector2d> points_;
   Eigen::Vector2d lo_ = Eigen::Vector2d::Zero();
   double cell_ = 1.0;

@@ -16,16 +16,21 @@ inline constexpr const char* kTruthTopic = "mapmesh/truth";
 inline constexpr const char* kMapTopic = "mapmesh/map";
 inline constexpr const char* kStatusTopic = "mapmesh/status";
 
-// Liveliness lease of agent writers: a dead agent is noticed after about this long.
-inline constexpr double kAgentLeaseS = 1.0;
+// The agents' map and status writers have a liveliness lease (AgentOptions::LivelinessLeaseS):
+// a dead agent is noticed after about that long. Writer and readers must use the same one.
 
 // Sensor streams: reliable, keep-all, so that nothing is dropped at any pace.
 inline Qos SensorQos() { return Qos().Reliable().KeepAll().Volatile(); }
 // Link table: only the latest matters; late joiners get it.
 inline Qos LinksQos() { return Qos().Reliable().KeepLast(1).TransientLocal(); }
 inline Qos TruthQos() { return Qos().BestEffort().KeepLast(1); }
-// Maps: latest per (robot, kind), kept for late joiners, liveliness tracks the sender.
-inline Qos MapQos() { return Qos().Reliable().KeepLast(1).TransientLocal().Liveliness(kAgentLeaseS).NoAutoDispose(); }
-inline Qos StatusQos() { return Qos().BestEffort().KeepLast(1).Liveliness(kAgentLeaseS); }
+// Maps: latest per (robot, kind), liveliness tracks the sender. Best-effort: every map is
+// superseded by the sender's next one a period later, and a reliable map topic cost a swarm of
+// 64 agents a fifth of its CPU in heartbeats and acknowledgements (docs/BENCHMARKS.md); for the
+// same reason a late joiner gets each peer's next map, not the last one sent.
+inline Qos MapQos(double lease_s) {
+  return Qos().BestEffort().KeepLast(1).Volatile().Liveliness(lease_s).NoAutoDispose();
+}
+inline Qos StatusQos(double lease_s) { return Qos().BestEffort().KeepLast(1).Liveliness(lease_s); }
 
 }  // namespace mapmesh::transport

@@ -68,6 +68,19 @@ TEST_F(ScenarioTest, MinimalScenarioGetsDefaults) {
   for (const auto& p : r.path.points) EXPECT_TRUE(s.world.bounds_m.Contains(p));
 }
 
+// The agents' liveliness lease: 1 s up to 16 robots, robots / 16 s beyond, unless given.
+TEST_F(ScenarioTest, LivelinessLeaseGrowsWithTheSwarmUnlessGiven) {
+  const std::string path = Write("min.yaml", kMinimal);
+  for (const auto& [agents, lease] : std::vector<std::pair<int, double>>{{1, 1.0}, {16, 1.0}, {24, 1.5}, {64, 4.0}}) {
+    const Scenario s = LoadScenario(path, {}, agents);
+    EXPECT_DOUBLE_EQ(s.agent.LivelinessLeaseS(s.robots.size()), lease) << agents;
+  }
+  const Scenario given = LoadScenario(path, {ParseOverride("agent.liveliness_lease_s=2.5")}, 64);
+  EXPECT_DOUBLE_EQ(given.agent.LivelinessLeaseS(given.robots.size()), 2.5);
+  EXPECT_NE(ErrorOf(kMinimal, {ParseOverride("agent.liveliness_lease_s=0.01")}).find("liveliness_lease_s"),
+            std::string::npos);
+}
+
 TEST_F(ScenarioTest, UnknownKeyNamesFileLineAndKey) {
   const std::string text = std::string(kMinimal) + "      sensor:\n        max_range_m: 5\n        colour: red\n";
   const std::string err = ErrorOf(text);
