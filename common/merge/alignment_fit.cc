@@ -76,10 +76,6 @@ Usable UsableLandmarks(const LandmarkMap& m) {
   return u;
 }
 
-double PairD2(const Landmark& la, const Landmark& lb, const Pose2& t, Eigen::Vector2d* r) {
-  return PairD2(la, lb, PoseMap2(t), r);
-}
-
 double PairD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, Eigen::Vector2d* r) {
   const Eigen::Matrix2d rot = t.Rotation();
   const Eigen::Vector2d res = la.mean - t.Apply(lb.mean);
@@ -118,10 +114,6 @@ std::vector<std::pair<int, int>> OneToOne(std::vector<std::tuple<double, int, in
     out.emplace_back(ia, ib);
   }
   return out;
-}
-
-double GatedD2(const Landmark& la, const Landmark& lb, const Pose2& t, const AlignmentOptions& o, double gate) {
-  return GatedD2(la, lb, PoseMap2(t), o, gate);
 }
 
 double GatedD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, const AlignmentOptions& o, double gate) {

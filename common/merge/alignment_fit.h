@@ -44,11 +44,9 @@ LandmarkMap ForAlignment(const LandmarkMap& m, double floor_m, bool every_landma
 std::vector<std::pair<int, int>> OneToOne(std::vector<std::tuple<double, int, int>> scored);
 
 // Residual a - T(b) of a pair and its squared Mahalanobis distance under T.
-double PairD2(const Landmark& la, const Landmark& lb, const Pose2& t, Eigen::Vector2d* r = nullptr);
 double PairD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, Eigen::Vector2d* r = nullptr);
 
 // Squared Mahalanobis (or Euclidean) distance of a pair under t, or infinity outside the gate.
-double GatedD2(const Landmark& la, const Landmark& lb, const Pose2& t, const AlignmentOptions& o, double gate);
 double GatedD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, const AlignmentOptions& o, double gate);
 
 // From a transform and its first inliers: guided matching (optional), refinement, the

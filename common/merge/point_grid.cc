@@ -41,16 +41,6 @@ PointGrid2::PointGrid2(const std::vector<Eigen::Vector2d>& points) : points_(poi
   }
 }
 
-std::vector<int> PointGrid2::InRadius(const Eigen::Vector2d& center, double radius) const {
-  std::vector<int> out;
-  Visit(center, radius, [&](int i) {
-    out.push_back(i);
-    return false;
-  });
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
 bool PointGrid2::AnyInRadius(const Eigen::Vector2d& center, double radius) const {
   return Visit(center, radius, [](int) { return true; });
 }

@@ -1,8 +1,8 @@
 #pragma once
 // Radius queries over a small set of 2D points (a map's landmarks, a global map's clusters):
 // the points are bucketed in a uniform grid of about one point per cell, so that a query reads
-// only the few cells its circle overlaps. For the hundreds of points of a map this is several
-// times faster than a k-d tree, and answers come in ascending index order.
+// only the few cells its circle overlaps. It replaced CGAL's k-d tree, whose walk and answer
+// vectors were 17 % of a 64-agent lab run (docs/BENCHMARKS.md, S1).
 
 #include <Eigen/Core>
 #include <algorithm>
@@ -15,15 +15,13 @@ class PointGrid2 {
  public:
   // Non-finite points are kept in the numbering but never found.
   explicit PointGrid2(const std::vector<Eigen::Vector2d>& points);
-  // Indices of the points within `radius` of center (distance <= radius), ascending. A
-  // negative or NaN radius finds nothing; an infinite one finds every finite point.
-  std::vector<int> InRadius(const Eigen::Vector2d& center, double radius) const;
-  // Whether InRadius would find any point.
-  bool AnyInRadius(const Eigen::Vector2d& center, double radius) const;
-  // Calls f(index) for each point InRadius would find, in no particular order, until f returns
-  // true; returns whether it did. No allocation: for the hot loops of alignment and fusion.
+  // Calls f(index) for each point within `radius` of center (distance <= radius), in no
+  // particular order, until f returns true; returns whether it did. A negative or NaN radius
+  // finds nothing; an infinite one finds every finite point. No allocation.
   template <typename F>
   bool Visit(const Eigen::Vector2d& center, double radius, F&& f) const;
+  // Whether Visit would find any point.
+  bool AnyInRadius(const Eigen::Vector2d& center, double radius) const;
 
  private:
   std::vector<Eigen::Vector2d> points_;
