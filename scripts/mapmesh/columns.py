@@ -20,6 +20,7 @@ class Column:
     boolean: bool = False       # a flag: yes/no in the printed table, 1/0 in sweep.csv
     count: bool = False         # a list: the printed table and sweep.csv show its length, so does the report
     plot: tuple[str, str] | None = None  # (panel title, y label) in the sweep plot (None: not drawn)
+    plot_fallback: str | None = None    # key of the column the plot draws instead where a sweep.csv lacks this one
 
     def value(self, agent):
         return lookup(agent, self.key)
@@ -50,11 +51,20 @@ COLUMNS = [
     Column("exit_code", table="exit", html="exit"),
     Column("restarts", table="restarts", html="restarts"),
     Column("local.landmarks", table="lm_local", html="local landmarks", csv="lm_local"),
-    Column("local.rmse_m", table="rmse_local", table_format=".3f", html="local RMSE (m)", csv="rmse_local_m"),
+    # A map's accuracy (issue 19): first its RMSE after a least-squares rigid fit of the map to the
+    # landmark truth (mapmesh-eval's rmse_aligned_m), then beside it the RMSE in the robot's true
+    # map frame, which adds the map's heading drift.
+    Column("local.rmse_aligned_m", table="rmse_local_fit", table_format=".3f",
+           html="local RMSE after rigid fit (m)", csv="rmse_local_aligned_m"),
+    Column("local.rmse_m", table="rmse_local", table_format=".3f", html="local RMSE, true frame (m)",
+           csv="rmse_local_m"),
     Column("local.nees_mean", html="local NEES", csv="nees_local"),
     Column("global.landmarks", table="lm_global", html="global landmarks", csv="lm_global"),
-    Column("global.rmse_m", table="rmse_global", table_format=".3f", html="global RMSE (m)", csv="rmse_global_m",
-           plot=("global RMSE", "RMSE (m)")),
+    Column("global.rmse_aligned_m", table="rmse_global_fit", table_format=".3f",
+           html="global RMSE after rigid fit (m)", csv="rmse_global_aligned_m",
+           plot=("global RMSE after rigid fit", "RMSE (m)"), plot_fallback="global.rmse_m"),
+    Column("global.rmse_m", table="rmse_global", table_format=".3f", html="global RMSE, true frame (m)",
+           csv="rmse_global_m"),
     Column("global.nees_mean", html="global NEES", csv="nees_global",
            plot=("global mean NEES", "mean NEES (2 expected)")),
     Column("global.coverage", table="cov_global", table_format=".2f", html="global coverage", csv="coverage_global",
@@ -73,8 +83,9 @@ TABLE_COLUMNS = [c for c in COLUMNS if c.table]
 HTML_COLUMNS = [c for c in COLUMNS if c.html]
 # sweep.csv: the swept parameter, "seed", these agent columns in this order, then the run's "wall_s".
 SWEEP_COLUMNS = [BY_KEY[k] for k in ("id", "alive_at_end", "local.landmarks", "global.landmarks", "global.coverage",
-                                     "global.nees_mean", "global.rmse_m", "local.rmse_m", "local.nees_mean",
-                                     "peers_aligned", "bytes_sent")]
+                                     "global.nees_mean", "global.rmse_aligned_m", "global.rmse_m",
+                                     "local.rmse_aligned_m", "local.rmse_m", "local.nees_mean", "peers_aligned",
+                                     "bytes_sent")]
 SWEEP_HEADER = ["seed"] + [c.csv for c in SWEEP_COLUMNS] + ["wall_s"]
 # The sweep plot's panels, left to right.
 PLOT_COLUMNS = [c for c in SWEEP_COLUMNS if c.plot]

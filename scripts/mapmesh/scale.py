@@ -22,7 +22,8 @@ STARTUP_S_PER_AGENT = 2.0  # wall seconds the feeder waits for the agents to com
 
 HEADER = ["agents", "exit_0", "wall_s", "rtf", "cpu_per_agent_mean_s", "cpu_per_agent_max_s", "rss_per_agent_mean_mb",
           "rss_per_agent_max_mb", "bytes_per_landmark", "peers_aligned_mean", "cpu_per_agent_per_peer_s",
-          "coverage_global_mean", "rmse_global_aligned_mean_m", "false_alignments", "alignments_scored"]
+          "coverage_global_mean", "rmse_global_aligned_mean_m", "rmse_global_mean_m", "false_alignments",
+          "alignments_scored"]
 
 
 def _mean(values):
@@ -62,7 +63,10 @@ def scale_row(n, summary):
         "peers_aligned_mean": round(peers_mean, 1),
         "cpu_per_agent_per_peer_s": round(cpu_mean / peers_mean, 4) if peers_mean > 0 else "",
         "coverage_global_mean": round(metric("global", "coverage"), 3),
+        # Map accuracy (issue 19): after a rigid fit of each map to the truth, then in the robots'
+        # true frames (heading drift included).
         "rmse_global_aligned_mean_m": round(metric("global", "rmse_aligned_m"), 3),
+        "rmse_global_mean_m": round(metric("global", "rmse_m"), 3),
         "false_alignments": false,
         "alignments_scored": scored,
     }

@@ -10,7 +10,10 @@ script and no external URL). Prints the page's path on stdout.
 The page shows:
   - the run: scenario, simulated duration, wall time, real-time factor, kills, restarts and pauses;
   - the summary table (table#summary: one row per agent, cells data-key="<summary path>" with
-    the exact JSON value in data-value) and a table of peers and events;
+    the exact JSON value in data-value) and a table of peers and events. A map's accuracy figure
+    is its RMSE after a least-squares rigid fit of the map to the landmark truth
+    (rmse_aligned_m); its RMSE in the robot's true map frame (rmse_m), which adds the map's
+    heading drift, is shown beside it (the table, each map figure's title and caption);
   - per agent, its maps in the world frame: true landmarks (grey, darker when some robot saw
     them), true trajectory, the estimated local and global maps with their 95 % ellipses and
     the estimated trajectory, placed by the agent's frame_in_world from summary.json. When a
@@ -89,6 +92,15 @@ def cell_text(value, count=False):
 
 def seconds(v):
     return DASH if v is None else f"{v:.1f} s"
+
+
+def rmse_text(agent):
+    """An agent's map accuracy in words: the RMSE after a rigid fit of each map to the truth
+    first, the RMSE in the robot's true map frame beside it."""
+    loc, glo = agent.get("local") or {}, agent.get("global") or {}
+    return (f"RMSE after rigid fit local {cell_text(loc.get('rmse_aligned_m'))} m / global "
+            f"{cell_text(glo.get('rmse_aligned_m'))} m (true frame {cell_text(loc.get('rmse_m'))} m / "
+            f"{cell_text(glo.get('rmse_m'))} m)")
 
 
 # ----- geometry -----------------------------------------------------------------------------
@@ -214,7 +226,7 @@ def map_figure(run, agent, path):
     theta = frame[2] if in_world else 0.0
 
     fig, ax = plt.subplots(figsize=(11, 8.5))
-    fig.subplots_adjust(left=0.07, right=0.76, top=0.92, bottom=0.07)
+    fig.subplots_adjust(left=0.07, right=0.76, top=0.90, bottom=0.07)
     handles = []
     extent = []  # points the view must hold
     if in_world and run.truth:
@@ -287,8 +299,7 @@ def map_figure(run, agent, path):
     ax.set_ylabel("y (m)")
     loc, glo = agent.get("local") or {}, agent.get("global") or {}
     ax.set_title(f"agent {rid} \u2013 {frame_text}\nlandmarks local {cell_text(loc.get('landmarks'))} / "
-                 f"global {cell_text(glo.get('landmarks'))};  RMSE local {cell_text(loc.get('rmse_m'))} m / "
-                 f"global {cell_text(glo.get('rmse_m'))} m", fontsize=11)
+                 f"global {cell_text(glo.get('landmarks'))}\n{rmse_text(agent)}", fontsize=11)
     if handles:
         ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9, frameon=False)
     fig.savefig(path, dpi=DPI)
@@ -540,7 +551,7 @@ def summary_table(run):
 
 def peers_table(run, frames):
     head = ["agent", "map frame", "killed at (s)", "restarted at (s)", "paused at (s)", "peers aligned", "peers stale",
-            "maps dropped", "bytes received", "local trajectory RMSE (m)", "global RMSE own landmarks (m)",
+            "maps dropped", "bytes received", "local trajectory RMSE (m)", "global RMSE own landmarks, true frame (m)",
             "worst alignment error (m)"]
     out = ['<table id="peers">', "<tr>" + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr>"]
     for a in run.agents:
@@ -583,7 +594,7 @@ def write_report(d):
         maps.append(figure_html(f"report/{name}", f"maps of agent {rid}",
                                 f"Agent {rid} ({frames[rid]}): true landmarks (grey; darker: seen by some robot), "
                                 "true trajectory (black), local map (blue dots) and global map (orange +) with 95 % "
-                                "ellipses, estimated trajectory (purple, dashed).", agent=rid))
+                                f"ellipses, estimated trajectory (purple, dashed). {rmse_text(a)}.", agent=rid))
 
     if run.timeline is not None:
         tl = timeline_entries(run)
@@ -630,8 +641,10 @@ def write_report(d):
 {f'<ul class="note" id="notes">{notes}</ul>' if notes else ''}
 <h2>Summary</h2>
 <p>Metrics against the truth (mapmesh-eval); {DASH} where there is none. RMSE and NEES over matched
-landmarks; coverage is the share of the true landmarks some robot saw that the map holds. Red rows:
-agents not alive at the end.</p>
+landmarks; coverage is the share of the true landmarks some robot saw that the map holds. A map's
+accuracy is its RMSE after a least-squares rigid fit of the map to the landmark truth; the RMSE
+in the robot's true map frame beside it also holds the heading error the map built up (its
+heading drift). Red rows: agents not alive at the end.</p>
 {summary_table(run)}
 <h2>Peers and events</h2>
 {peers_table(run, frames)}

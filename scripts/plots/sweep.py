@@ -5,11 +5,14 @@ Usage: /usr/bin/python3 scripts/plots/sweep.py DIR      (reads DIR/sweep.csv, wr
 
 sweep.csv has one row per run and agent (or per run): its first column is the swept parameter,
 named by its scenario path (e.g. radio.range_m), and it has the columns coverage_global,
-nees_global and rmse_global_m (as `swarm sweep` writes them; the summary.json paths
-global.coverage, global.nees_mean and global.rmse_m are accepted too, with '.' or '_'). Other
-columns (seed, agent, ...) are ignored, apart from counting seeds and agents in the title.
-Empty, null, None and nan cells are skipped. For each metric a panel shows, against the parameter
-value, the mean over the seeds and agents as a line and their min-max as a shaded band.
+nees_global and rmse_global_aligned_m (as `swarm sweep` writes them; the summary.json paths
+global.coverage, global.nees_mean and global.rmse_aligned_m are accepted too, with '.' or '_').
+The RMSE panel draws the global map's RMSE after a least-squares rigid fit to the landmark truth,
+the primary accuracy figure (issue 19); a sweep.csv written before it, which has only the RMSE
+in the robot's true frame (rmse_global_m), gets that one, titled so, and a note on stderr. Other
+columns (seed, agent, the true-frame RMSE, ...) are ignored, apart from counting seeds and agents
+in the title. Empty, null, None and nan cells are skipped. For each metric a panel shows, against
+the parameter value, the mean over the seeds and agents as a line and their min-max as a shaded band.
 A parameter whose values are not all numbers is plotted as categories in order of appearance.
 Prints the figure's path on stdout.
 Needs Debian's python3-matplotlib and python3-numpy (scripts/install-deps installs them)."""
@@ -22,10 +25,13 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
 from plotlib import directory_argument, plt, rows  # noqa: E402
-from mapmesh.columns import PLOT_COLUMNS  # noqa: E402
+from mapmesh.columns import BY_KEY, PLOT_COLUMNS  # noqa: E402
 
 # (column names, first preferred: sweep.csv's, then the summary.json path; panel title; y label)
 METRICS = [((c.csv, c.key), *c.plot) for c in PLOT_COLUMNS]
+# Per metric, what an older sweep.csv without it offers instead: (column names, panel title).
+FALLBACKS = {c.csv: ((BY_KEY[c.plot_fallback].csv, c.plot_fallback), BY_KEY[c.plot_fallback].html.replace(" (m)", ""))
+             for c in PLOT_COLUMNS if c.plot_fallback}
 NEES_EXPECTED = 2.0
 MISSING = {"", "null", "none", "nan", "-", "\u2013"}
 
@@ -93,6 +99,13 @@ def main(argv):
         return 1
     param = header[0]
     columns = {names[0]: find_column(header, *names) for names, _, _ in METRICS}
+    titles = {names[0]: title for names, title, _ in METRICS}
+    for metric, (names, title) in FALLBACKS.items():
+        found = find_column(header, *names)
+        if columns[metric] is None and found:
+            columns[metric], titles[metric] = found, title
+            print(f"sweep.py: {csv_path}: no column {metric} (a sweep.csv written before the rigid-fit RMSE): "
+                  f"drawing {found}, the {title}", file=sys.stderr)
     if not any(columns.values()):
         print(f"sweep.py: {csv_path}: none of the columns {', '.join(columns)}", file=sys.stderr)
         return 1
@@ -108,8 +121,8 @@ def main(argv):
 
     fig, axes = plt.subplots(1, len(METRICS), figsize=(15, 4.8))
     fig.subplots_adjust(left=0.05, right=0.98, top=0.82, bottom=0.13, wspace=0.25)
-    for ax, ((metric, _), title, ylabel) in zip(axes, METRICS):
-        col = columns[metric]
+    for ax, ((metric, _), _, ylabel) in zip(axes, METRICS):
+        col, title = columns[metric], titles[metric]
         points = aggregate(data, col) if col else []
         if points:
             xs = [p[0] if numeric else categories.index(p[0]) for p in points]

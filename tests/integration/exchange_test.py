@@ -7,7 +7,7 @@ import math
 import subprocess
 import unittest
 
-from report_test import check_png, check_report, check_sweep
+from report_test import SWEEP_HEADER, check_png, check_report, check_sweep
 from swarm_test import REPO, SWARM, SwarmCase
 
 SCENARIOS = REPO / "scenarios"
@@ -215,7 +215,7 @@ class ExperimentOutputTest(SwarmCase):
                                     "--out", str(d)], capture_output=True, text=True, timeout=280)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         rows = (d / "sweep.csv").read_text().splitlines()
-        self.assertEqual(rows[0].split(",")[0], "radio.range_m")
+        self.assertEqual(rows[0].split(","), ["radio.range_m"] + SWEEP_HEADER)
         self.assertEqual(len(rows) - 1, 3 * 2 * 4)  # values x seeds x agents
         check_png(self, d / "sweep.png")
         check_sweep(self, d)

@@ -18,8 +18,10 @@ import csv
 import json
 import math
 import random
+import re
 import struct
 import subprocess
+import sys
 import tempfile
 import unittest
 from html.parser import HTMLParser
@@ -30,11 +32,23 @@ PYTHON = "/usr/bin/python3"
 REPORT = REPO / "scripts" / "plots" / "report.py"
 SWEEP = REPO / "scripts" / "plots" / "sweep.py"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+sys.path.insert(0, str(REPO / "scripts"))
+from mapmesh import columns  # noqa: E402
 TIMELINE_IMAGES = ["report/exchanges.png", "report/nees.png", "report/coverage.png", "report/bytes.png"]
-# The summary table's columns (data-key = path in a summary.json agent).
-SUMMARY_KEYS = ["id", "alive_at_end", "exit_code", "restarts", "local.landmarks", "local.rmse_m", "local.nees_mean",
-                "global.landmarks", "global.rmse_m", "global.nees_mean", "global.coverage", "peers_aligned",
-                "maps_received", "bytes_sent", "bytes_per_landmark", "cpu_s", "max_rss_mb"]
+# The summary table's columns (data-key = path in a summary.json agent) and their headers: a
+# map's RMSE after a rigid fit to the truth first, its RMSE in the true frame beside it.
+SUMMARY_KEYS = ["id", "alive_at_end", "exit_code", "restarts", "local.landmarks", "local.rmse_aligned_m",
+                "local.rmse_m", "local.nees_mean", "global.landmarks", "global.rmse_aligned_m", "global.rmse_m",
+                "global.nees_mean", "global.coverage", "peers_aligned", "maps_received", "bytes_sent",
+                "bytes_per_landmark", "cpu_s", "max_rss_mb"]
+SUMMARY_HEADERS = ["agent", "alive", "exit", "restarts", "local landmarks", "local RMSE after rigid fit (m)",
+                   "local RMSE, true frame (m)", "local NEES", "global landmarks", "global RMSE after rigid fit (m)",
+                   "global RMSE, true frame (m)", "global NEES", "global coverage", "peers aligned", "maps received",
+                   "bytes sent", "bytes / landmark", "CPU (s)", "max RSS (MB)"]
+# sweep.csv as `swarm sweep` writes it, after the swept parameter.
+SWEEP_HEADER = ["seed", "agent", "alive", "lm_local", "lm_global", "coverage_global", "nees_global",
+                "rmse_global_aligned_m", "rmse_global_m", "rmse_local_aligned_m", "rmse_local_m", "nees_local",
+                "peers_aligned", "bytes_sent", "wall_s"]
 DASH = "\u2013"
 
 
@@ -123,6 +137,7 @@ def make_fake_run(d):
         _write(adir / "stats.json", {"id": rid, "incarnation": 2 if rid == 3 else 1,
                                      "frame_origin_stamp": origin_stamp[rid], "final": True})
         glob_metrics = {"landmarks": 0 if rid == 2 else len(glob), "rmse_m": 0.21 + 0.1 * rid,
+                        "rmse_aligned_m": 0.0715 * rid,
                         "nees_mean": 1.7 + rid / 3, "coverage": round(len(seen) * 0.9 / len(seen), 3),
                         "consistent_ratio": 0.95, "rmse_own_landmarks_m": 0.2}
         if rid == 2:
@@ -134,7 +149,8 @@ def make_fake_run(d):
             "final_state": True,
             "frame_in_world": None if rid == 2 else frame,
             "local": {"landmarks": len(local), "matched": len(local), "rmse_m": 0.123456789 * rid,
-                      "rmse_aligned_m": 0.05, "nees_mean": None if rid == 3 else 2.0 + rid / 7,
+                      "rmse_aligned_m": None if rid == 2 else 0.0456 * rid,
+                      "nees_mean": None if rid == 3 else 2.0 + rid / 7,
                       "consistent_ratio": 0.97, "coverage": len(sensed[rid]) / len(seen),
                       "trajectory_rmse_m": 0.3, "frame": "true_origin"},
             "global": glob_metrics,
@@ -199,7 +215,12 @@ class _Page(HTMLParser):
         self.ids = set()
         self.table_rows = {}  # data-agent -> [(data-key, data-value, text)]
         self.header_keys = []
+        self.header_texts = []
+        self.captions = {}  # data-agent of a figure's image -> its caption
         self._in_summary = False
+        self._header = None
+        self._caption = None
+        self._figure_agent = None
         self._row = None
         self._cell = None
 
@@ -214,6 +235,9 @@ class _Page(HTMLParser):
             self.scripts += 1
         if tag == "img":
             self.images.append(a)
+            self._figure_agent = a.get("data-agent")
+        if tag == "figcaption":
+            self._caption = ""
         if tag == "table" and a.get("id") == "summary":
             self._in_summary = True
         if not self._in_summary:
@@ -222,10 +246,18 @@ class _Page(HTMLParser):
             self._row = self.table_rows.setdefault(a["data-agent"], [])
         elif tag == "th" and "data-key" in a:
             self.header_keys.append(a["data-key"])
+            self._header = ""
         elif tag == "td" and self._row is not None:
             self._cell = [a.get("data-key"), a.get("data-value"), ""]
 
     def handle_endtag(self, tag):
+        if tag == "figcaption" and self._caption is not None:
+            if self._figure_agent is not None:
+                self.captions[self._figure_agent] = self._caption
+            self._caption = self._figure_agent = None
+        if tag == "th" and self._header is not None:
+            self.header_texts.append(self._header)
+            self._header = None
         if tag == "table" and self._in_summary:
             self._in_summary = False
         elif tag == "td" and self._cell is not None:
@@ -237,6 +269,10 @@ class _Page(HTMLParser):
     def handle_data(self, data):
         if self._cell is not None:
             self._cell[2] += data
+        if self._header is not None:
+            self._header += data
+        if self._caption is not None:
+            self._caption += data
 
 
 def png_size(path):
@@ -315,6 +351,7 @@ def check_report(testcase, run_dir, run=True):
         testcase.assertIn("no-timeline", page.ids)
 
     testcase.assertEqual(page.header_keys, SUMMARY_KEYS)
+    testcase.assertEqual(page.header_texts, SUMMARY_HEADERS)
     testcase.assertEqual(sorted(page.table_rows), sorted(str(a["id"]) for a in summary["agents"]))
     for a in summary["agents"]:
         cells = page.table_rows[str(a["id"])]
@@ -324,13 +361,20 @@ def check_report(testcase, run_dir, run=True):
             expected = _lookup(a, key)
             testcase.assertEqual(json.loads(data_value), expected, where)
             _check_cell_text(testcase, expected, text, where)
+        # Each map figure's caption quotes the RMSE after a rigid fit first, the true-frame one beside.
+        m = re.search(r"RMSE after rigid fit local (\S+) m / global (\S+) m \(true frame (\S+) m / (\S+) m\)",
+                      page.captions.get(str(a["id"]), ""))
+        testcase.assertIsNotNone(m, f"agent {a['id']}: {page.captions.get(str(a['id']))}")
+        for key, text in zip(("local.rmse_aligned_m", "global.rmse_aligned_m", "local.rmse_m", "global.rmse_m"),
+                             m.groups()):
+            _check_cell_text(testcase, _lookup(a, key), text, f"agent {a['id']} caption {key}")
     return page
 
 
 def make_fake_sweep(d, param="radio.range_m"):
     """Writes d/sweep.csv as `swarm sweep` does (scripts/mapmesh/sweep.py: the parameter, then
-    seed, agent, ... coverage_global, nees_global, rmse_global_m ...): param in {0, 10, 20,
-    40, 80} x 3 seeds x 3 agents, with a few empty cells; returns the rows written."""
+    SWEEP_HEADER): param in {0, 10, 20, 40, 80} x 3 seeds x 3 agents, with a few empty cells;
+    returns the rows written."""
     d = Path(d)
     d.mkdir(parents=True, exist_ok=True)
     rng = random.Random(3)
@@ -342,9 +386,11 @@ def make_fake_sweep(d, param="radio.range_m"):
                 nees = "" if value == 0 and agent == 2 else round(rng.uniform(1, 3 + 5 * share), 4)  # an empty cell
                 out.append({param: value, "seed": seed, "agent": agent, "alive": 1, "lm_local": 40,
                             "lm_global": 90, "coverage_global": round(0.3 + 0.6 * share + rng.uniform(-0.05, 0.05), 4),
-                            "nees_global": nees, "rmse_global_m": round(rng.uniform(0.1, 0.3 + share), 4),
+                            "nees_global": nees, "rmse_global_aligned_m": round(rng.uniform(0.03, 0.1 + share), 4),
+                            "rmse_global_m": round(rng.uniform(0.1, 0.3 + share), 4), "rmse_local_aligned_m": 0.05,
                             "rmse_local_m": 0.2, "nees_local": 1.9, "peers_aligned": 2, "bytes_sent": 1000,
                             "wall_s": 3.2})
+    assert list(out[0]) == [param] + SWEEP_HEADER
     with open(d / "sweep.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(out[0]))
         w.writeheader()
@@ -352,10 +398,17 @@ def make_fake_sweep(d, param="radio.range_m"):
     return out
 
 
-def check_sweep(testcase, d):
-    """Runs sweep.py on d and checks d/sweep.png."""
+def check_sweep(testcase, d, old_rmse=False):
+    """Runs sweep.py on d and checks d/sweep.png; old_rmse: sweep.csv has only the true-frame
+    RMSE (written before the rigid-fit one), which sweep.py says on stderr it draws instead."""
     r = subprocess.run([PYTHON, str(SWEEP), str(d)], capture_output=True, text=True, timeout=120)
     testcase.assertEqual(r.returncode, 0, r.stderr)
+    if old_rmse:
+        testcase.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+        testcase.assertIn("no column rmse_global_aligned_m", r.stderr)
+        testcase.assertIn("the global RMSE, true frame", r.stderr)
+    else:
+        testcase.assertNotIn("no column", r.stderr)
     testcase.assertEqual(r.stdout.strip().splitlines()[-1], str(Path(d) / "sweep.png"))
     width, _ = check_png(testcase, Path(d) / "sweep.png", min_bytes=10_000)
     testcase.assertGreaterEqual(width, 800)
@@ -410,6 +463,10 @@ class ReportTest(unittest.TestCase):
 
 class SweepTest(unittest.TestCase):
     def test_sweep_figure(self):
+        # What `swarm sweep` writes: the rigid-fit RMSE before the true-frame one, global then local.
+        self.assertEqual(columns.SWEEP_HEADER, SWEEP_HEADER)
+        self.assertEqual([c.csv for c in columns.PLOT_COLUMNS],
+                         ["coverage_global", "nees_global", "rmse_global_aligned_m"])
         with tempfile.TemporaryDirectory(prefix="mapmesh_sweep_") as tmp:
             make_fake_sweep(tmp)
             check_sweep(self, tmp)
@@ -425,7 +482,7 @@ class SweepTest(unittest.TestCase):
                     w.writerow({"fusion.method": ["ci", "ml", "info", "ci", "ml"][r["fusion.method"] // 20],
                                 "seed": r["seed"], "global_coverage": r["coverage_global"],
                                 "global_rmse_m": r["rmse_global_m"]})
-            check_sweep(self, tmp)
+            check_sweep(self, tmp, old_rmse=True)
 
     def test_no_metric_columns_is_one_line(self):
         with tempfile.TemporaryDirectory(prefix="mapmesh_sweep_") as tmp:

@@ -167,20 +167,26 @@ class BenchScaleTest(unittest.TestCase):
             self.assertIn("--sizes", r.stderr)
 
     def test_false_alignments_are_counted_from_the_fit_errors(self):
-        def agent(errors, exit_code=0):
+        def agent(errors, exit_code=0, rmse_aligned=0.1, rmse=0.4):
             return {"exit_code": exit_code, "cpu_s": 2.0, "max_rss_mb": 10.0, "bytes_per_landmark": 16.0,
-                    "peers_aligned": list(range(len(errors))), "global": {"coverage": 0.5, "rmse_aligned_m": 0.1},
+                    "peers_aligned": list(range(len(errors))),
+                    "global": {"coverage": 0.5, "rmse_aligned_m": rmse_aligned, "rmse_m": rmse},
                     "alignment_errors": {str(i): e for i, e in enumerate(errors)}}
         good = {"trans_fit_m": 0.2, "rot_fit_rad": 0.01}
         far = {"trans_fit_m": 35.0, "rot_fit_rad": 0.01}
         turned = {"trans_fit_m": 0.3, "rot_fit_rad": 0.2}  # 11 degrees
         row = scale_row(2, {"wall_s": 10.0, "real_time_factor": 20.0,
-                            "agents": [agent([good, far]), agent([turned, good, good, good], exit_code=1)]})
+                            "agents": [agent([good, far]),
+                                       agent([turned, good, good, good], exit_code=1, rmse_aligned=0.2, rmse=None)]})
         self.assertEqual(row["false_alignments"], 2)
         self.assertEqual(row["alignments_scored"], 6)
         self.assertEqual(row["exit_0"], 1)
         self.assertEqual(row["peers_aligned_mean"], 3.0)
         self.assertAlmostEqual(row["cpu_per_agent_per_peer_s"], 2.0 / 3.0, places=3)
+        # Map accuracy: the mean RMSE after a rigid fit first, the true-frame one beside it (nulls skipped).
+        self.assertEqual(row["rmse_global_aligned_mean_m"], 0.15)
+        self.assertEqual(row["rmse_global_mean_m"], 0.4)
+        self.assertEqual(HEADER[HEADER.index("rmse_global_aligned_mean_m") + 1], "rmse_global_mean_m")
 
 
 if __name__ == "__main__":

@@ -17,6 +17,10 @@ BIN = Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
 DATASETS = Path(os.environ.get("MAPMESH_DATASETS", REPO.parent / "shared" / "datasets"))
 SWARM = [sys.executable, str(REPO / "scripts" / "swarm")]
 DATA = Path(__file__).resolve().parent / "data"
+# The table `swarm run` prints: a map's RMSE after a rigid fit to the truth first, the RMSE in
+# the robot's true frame beside it.
+TABLE_HEADER = ["id", "alive", "exit", "restarts", "lm_local", "rmse_local_fit", "rmse_local", "lm_global",
+                "rmse_global_fit", "rmse_global", "cov_global", "peers", "maps_rx", "kB_tx", "kB_rx", "cpu_s", "rss_MB"]
 
 
 def run_measured(cmd, timeout=30):
@@ -81,8 +85,19 @@ class PipelineTest(SwarmCase):
             self.assertGreater(a["max_rss_mb"], 0.0)
         for key in ["scenario", "sim_duration_s", "wall_s", "real_time_factor", "agents"]:
             self.assertIn(key, s)
-        # The table is printed, one line per agent.
+        # The table is printed, one line per agent, its cells what summary.json says.
+        lines = r.stdout.splitlines()
+        header = next(i for i, line in enumerate(lines) if line.split()[:2] == ["id", "alive"])
+        self.assertEqual(lines[header].split(), TABLE_HEADER)
+        rows = [line.split() for line in lines[header + 1:header + 4]]
         self.assertEqual(sum(1 for line in r.stdout.splitlines() if line.strip()[:1].isdigit()), 3)
+        for a, row in zip(s["agents"], rows):
+            cells = dict(zip(TABLE_HEADER, row))
+            self.assertEqual(int(cells["id"]), a["id"])
+            for name, kind in (("local", "local"), ("global", "global")):
+                self.assertIsNotNone(a[kind]["rmse_aligned_m"])
+                self.assertEqual(cells[f"rmse_{name}_fit"], f"{a[kind]['rmse_aligned_m']:.3f}")
+                self.assertEqual(cells[f"rmse_{name}"], f"{a[kind]['rmse_m']:.3f}")
         truth = json.loads((self.out / "truth.json").read_text())
         self.assertEqual(len(truth["robots"]), 3)
         self.assertEqual(len(truth["landmarks"]), 60)
