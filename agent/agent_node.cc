@@ -6,6 +6,7 @@
 #include "common/check.h"
 #include "common/slam/dead_reckoning_mapper.h"
 #include "common/slam/local_slam.h"
+#include "common/slam/submap_slam.h"
 
 namespace mapmesh {
 namespace {
@@ -24,6 +25,9 @@ std::unique_ptr<LocalMapper> MakeLocalMapper(const AgentOptions& options, const 
     o.sigma_range_m = sensor.sigma_range_m;
     o.sigma_bearing_rad = sensor.sigma_bearing_rad;
     return std::make_unique<DeadReckoningMapper>(o);
+  }
+  if (options.slam.filter == SlamMethod::kCekfSubmaps) {
+    return std::make_unique<SubmapSlam>(noise, options.slam.ForSensor(sensor));
   }
   return std::make_unique<LocalSlam>(noise, options.slam.ForSensor(sensor));
 }

@@ -15,11 +15,13 @@
 
 namespace mapmesh {
 
-// The agent's local estimator (agent.slam): the filters of LocalSlam, or the dead-reckoning
-// baseline.
-enum class SlamMethod { kCekf, kEkf, kDeadReckoning };
-inline constexpr ChoiceTable<SlamMethod, 3> kSlamMethods{
-    {{SlamMethod::kCekf, "cekf"}, {SlamMethod::kEkf, "ekf"}, {SlamMethod::kDeadReckoning, "dead_reckoning"}}};
+// The agent's local estimator (agent.slam): the filters of LocalSlam, the compressed EKF in
+// submaps joined by least squares (SubmapSlam), or the dead-reckoning baseline.
+enum class SlamMethod { kCekf, kEkf, kCekfSubmaps, kDeadReckoning };
+inline constexpr ChoiceTable<SlamMethod, 4> kSlamMethods{{{SlamMethod::kCekf, "cekf"},
+                                                          {SlamMethod::kEkf, "ekf"},
+                                                          {SlamMethod::kCekfSubmaps, "cekf_submaps"},
+                                                          {SlamMethod::kDeadReckoning, "dead_reckoning"}}};
 
 // What happened to the observations a local mapper was given.
 struct MapperStats {

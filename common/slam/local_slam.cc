@@ -13,7 +13,8 @@
 namespace mapmesh {
 
 LocalSlam::LocalSlam(const FilterNoise& noise, const LocalSlamOptions& options) : noise_(noise), options_(options) {
-  MAPMESH_CHECK(options.filter != SlamMethod::kDeadReckoning, "LocalSlam runs the ekf or the cekf");
+  MAPMESH_CHECK(options.filter == SlamMethod::kEkf || options.filter == SlamMethod::kCekf,
+                "LocalSlam runs the ekf or the cekf");
   MAPMESH_CHECK(options.association.method != AssociationMethod::kAuto, "resolve the association method (ForSensor)");
   if (options.filter == SlamMethod::kEkf) {
     filter_ = std::make_unique<EkfSlam>(noise, options.ekf);
@@ -137,6 +138,12 @@ void LocalSlam::Observe(const std::vector<Observation>& obs, double stamp) {
 }
 
 double ShapeSigma(const LandmarkMap& map, const LandmarkFilter& filter) {
+  return ShapeSigma(map, [&](std::size_t i, std::size_t j) {
+    return filter.CrossCov(map.landmarks[i].id, map.landmarks[j].id);
+  });
+}
+
+double ShapeSigma(const LandmarkMap& map, const std::function<Eigen::Matrix2d(std::size_t, std::size_t)>& cross_cov) {
   const std::size_t n = map.size();
   if (n < 2) return 0.0;
   std::vector<Eigen::Vector2d> points;
@@ -171,7 +178,7 @@ double ShapeSigma(const LandmarkMap& map, const LandmarkFilter& filter) {
   for (std::size_t i = 0; i < n; ++i) {
     if (nearest[i] < 0) continue;
     const Landmark &a = map.landmarks[i], &b = map.landmarks[nearest[i]];
-    const Eigen::Matrix2d c = filter.CrossCov(a.id, b.id);
+    const Eigen::Matrix2d c = cross_cov(i, static_cast<std::size_t>(nearest[i]));
     const Eigen::Matrix2d d = a.cov + b.cov - c - c.transpose();
     const double tr = d.trace(), det = d.determinant();
     const double largest = 0.5 * tr + std::sqrt(std::max(0.0, 0.25 * tr * tr - det));

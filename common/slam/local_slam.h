@@ -2,6 +2,7 @@
 // An agent's local map: a landmark filter (full or compressed EKF) with data association,
 // outlier gating and, optionally, tentative landmarks that need a second sighting.
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -10,6 +11,7 @@
 #include "common/slam/data_association.h"
 #include "common/slam/landmark_filter.h"
 #include "common/slam/local_mapper.h"
+#include "common/slam/submap_joiner.h"
 
 namespace mapmesh {
 
@@ -21,9 +23,32 @@ struct SensorSpec {
   bool signatures = false;  // it reports which landmark it saw
 };
 
+// When agent.slam is cekf_submaps, a submap ends (and the next starts afresh, the robot at its
+// origin with zero covariance) after the first scan at which any of these holds (0: not used).
+struct SubmapOptions {
+  double distance_m = 10.0;         // agent.submap_distance_m: the robot has travelled this far in it
+  double duration_s = 0.0;          // agent.submap_duration_s: it has lasted this long
+  int landmarks = 0;                // agent.submap_landmarks: it holds this many landmarks
+  double heading_sigma_deg = 5.0;   // agent.submap_heading_sigma_deg: the robot's heading standard deviation in
+                                    // it has grown this large (before the EKF linearises at a poor heading)
+  double association_gate = 13.82;  // unknown association: chi-square (2 dof) gate of a submap's landmark
+                                    // against the joined map's (99.9 %)
+  JoinerOptions join;               // agent.join_window: submaps relinearised at each join
+
+  template <typename Reader>
+  void Read(Reader& r) {
+    r.GetInRange("submap_distance_m", distance_m, 0.0, limits::kMaxLengthM);
+    r.GetInRange("submap_duration_s", duration_s, 0.0, limits::kMaxPeriodS);
+    r.GetInRange("submap_landmarks", landmarks, 0, 1000000);
+    r.GetInRange("submap_heading_sigma_deg", heading_sigma_deg, 0.0, 180.0);
+    r.GetInRange("join_window", join.window, 1, 100000);
+  }
+};
+
 struct LocalSlamOptions {
-  SlamMethod filter = SlamMethod::kCekf;  // agent.slam (LocalSlam runs kCekf or kEkf; kDeadReckoning is the
-                                          // baseline mapper)
+  SlamMethod filter = SlamMethod::kCekf;  // agent.slam (LocalSlam runs kCekf or kEkf; SubmapSlam runs kCekfSubmaps;
+                                          // kDeadReckoning is the baseline mapper)
+  SubmapOptions submaps;
   AssociationOptions association;
   EkfOptions ekf;  // linearisation, of either filter
   CekfOptions cekf;
@@ -60,11 +85,14 @@ struct LocalSlamOptions {
     r.GetInRange("max_range_m", max_range_m, 0.0, limits::kMaxLengthM);
     cekf.Read(r);
     ekf.Read(r);
+    submaps.Read(r);
   }
 };
 
-// The map's shape precision (LandmarkMap::shape_sigma_m) from the filter's cross-covariances
-// between each landmark and its nearest neighbour (found through the Delaunay triangulation).
+// The map's shape precision (LandmarkMap::shape_sigma_m) from the cross-covariances between
+// each landmark and its nearest neighbour (found through the Delaunay triangulation): those of
+// a filter, or cross_cov(i, j) of the map's landmarks i and j.
+double ShapeSigma(const LandmarkMap& map, const std::function<Eigen::Matrix2d(std::size_t, std::size_t)>& cross_cov);
 double ShapeSigma(const LandmarkMap& map, const LandmarkFilter& filter);
 
 class LocalSlam : public LocalMapper {
@@ -78,6 +106,11 @@ class LocalSlam : public LocalMapper {
   Eigen::Matrix3d pose_cov() const override { return filter_->robot_cov(); }
   std::size_t size() const override { return filter_->size(); }
   const MapperStats& stats() const override { return stats_; }
+  // The whole state, x = [robot, landmarks by increasing id], and its covariance.
+  void FullState(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<LandmarkId>* ids) const {
+    filter_->FullState(x, p, ids);
+  }
+  const LocalSlamOptions& options() const { return options_; }
 
   // What became of each observation of the last scan, in the order given to Observe: the
   // landmark id it was fused into or started, or one of these.

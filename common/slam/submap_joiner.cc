@@ -88,8 +88,8 @@ namespace {
 // One factor linearised at a state: the whitened Jacobian over its variables and the residual.
 struct Linearised {
   std::vector<std::pair<std::uint64_t, int>> vars;  // (variable, size), in the Jacobian's column order
-  Eigen::MatrixXd a;                               // sqrt_info * dh/dx
-  Eigen::VectorXd r;                               // sqrt_info * (z - h)
+  Eigen::MatrixXd a;                                // sqrt_info * dh/dx
+  Eigen::VectorXd r;                                // sqrt_info * (z - h)
 };
 
 }  // namespace
@@ -221,7 +221,8 @@ JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state
         int rj = 0;
         for (std::size_t k = 0; k < offs.size(); ++k) {
           for (int r = 0; r < sizes[i]; ++r) {
-            for (int c = 0; c < sizes[k]; ++c) triplets.emplace_back(offs[i] + r, offs[k] + c, prior_.h(ri + r, rj + c));
+            for (int c = 0; c < sizes[k]; ++c)
+              triplets.emplace_back(offs[i] + r, offs[k] + c, prior_.h(ri + r, rj + c));
           }
           rj += sizes[k];
         }
@@ -250,18 +251,21 @@ JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state
       analysed = true;
     }
     llt.factorize(h);
-    if (llt.info() != Eigen::Success) break;
+    if (llt.info() != Eigen::Success) {
+      break;
+    }
     const Eigen::VectorXd dx = llt.solve(b);
     ++out.iterations;
     // Gauss-Newton step, halved while it raises the cost (far from the minimum).
     const State before = *state;
     const double allowed = cost + 1e-12 * std::max(1.0, cost);
-    double scale = 1.0;
+    double scale = 1.0, relative_drop = 0.0;
     bool accepted = false;
     for (int tries = 0; tries < 8 && !accepted; ++tries) {
       apply(dx, scale);
       const double next = assemble();
       if (next <= allowed) {
+        relative_drop = (cost - next) / std::max(cost, 1e-300);
         cost = next;
         accepted = true;
       } else {
@@ -274,7 +278,7 @@ JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state
       out.converged = dx.cwiseAbs().maxCoeff() < 1e3 * options_.tolerance;
       break;
     }
-    if (scale * dx.cwiseAbs().maxCoeff() < options_.tolerance) {
+    if (scale * dx.cwiseAbs().maxCoeff() < options_.tolerance || relative_drop < options_.tolerance) {
       out.converged = true;
       break;
     }
@@ -315,6 +319,9 @@ JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state
   if (!frames.empty()) {
     const Eigen::Matrix3d ec = cols.block<3, 3>(end_offset, nl);
     out.end_cov = 0.5 * (ec + ec.transpose());
+    out.end_cross = cols.block(end_offset, 0, 3, nl);
+  } else {
+    out.end_cross = Eigen::MatrixXd::Zero(3, nl);
   }
   return out;
 }

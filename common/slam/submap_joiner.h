@@ -43,9 +43,10 @@ Eigen::VectorXd PredictSubmap(const Pose2& origin, const Pose2& end, const std::
                               Eigen::MatrixXd* jacobian = nullptr);
 
 struct JoinerOptions {
-  int window = 8;            // agent.join_window: submaps relinearised; older ones are marginalised
-  int max_iterations = 20;   // Gauss-Newton iterations per solve
-  double tolerance = 1e-10;  // stop when no state entry moves more than this (m or rad)
+  int window = 8;           // agent.join_window: submaps relinearised; older ones are marginalised
+  int max_iterations = 20;  // Gauss-Newton iterations per solve
+  double tolerance = 1e-8;  // stop when no state entry moves more than this (m or rad), or the cost falls by
+                            // less than this share
 };
 
 // The joined estimate: every landmark's mean and the landmarks' joint covariance, and the pose
@@ -56,7 +57,8 @@ struct JoinedMap {
   Eigen::MatrixXd cov;  // 2n x 2n, in keys' order
   Pose2 end;            // the end pose of the last submap joined
   Eigen::Matrix3d end_cov = Eigen::Matrix3d::Zero();
-  int iterations = 0;   // Gauss-Newton iterations this solve took
+  Eigen::MatrixXd end_cross;  // 3 x 2n: covariance of the end pose with the landmarks
+  int iterations = 0;         // Gauss-Newton iterations this solve took
   bool converged = true;
 
   Eigen::Matrix2d Cov(std::size_t i) const { return cov.block<2, 2>(2 * i, 2 * i); }
@@ -90,9 +92,9 @@ class SubmapJoiner {
 
  private:
   struct Factor {
-    std::size_t frame;             // the submap's index k: it joins X_k and X_{k+1}
+    std::size_t frame;  // the submap's index k: it joins X_k and X_{k+1}
     Eigen::VectorXd z;
-    Eigen::MatrixXd sqrt_info;     // lower triangular L^-1, with p = L L^T
+    Eigen::MatrixXd sqrt_info;  // lower triangular L^-1, with p = L L^T
     std::vector<std::uint32_t> keys;
   };
   // A variable of the linear systems: a landmark by its key, or a frame by PoseVar(index).
@@ -107,7 +109,7 @@ class SubmapJoiner {
     Eigen::VectorXd g;
   };
   struct State {
-    std::unordered_map<std::size_t, Pose2> poses;                 // frames in the window (X_0 is fixed)
+    std::unordered_map<std::size_t, Pose2> poses;  // frames in the window (X_0 is fixed)
     std::unordered_map<std::uint32_t, Eigen::Vector2d> landmarks;
   };
 

@@ -45,13 +45,12 @@ TEST(SlamQuality, ThesisDefaultScenarioIsConsistent) {
 struct Means {
   double landmark_nees = 0.0, pose_nees = 0.0, rmse = 0.0, aligned = 0.0;
 };
-Means MeansOverSeeds(const std::string& scenario, const std::string& key, bool value, int seeds) {
+Means MeansOverSeeds(const std::string& scenario, const std::string& key, const std::string& value, int seeds) {
   Means m;
   int n = 0;
   for (int seed = 1; seed <= seeds; ++seed) {
     const Scenario sc = LoadScenario(std::string(MAPMESH_SOURCE_DIR "/scenarios/") + scenario,
-                                     {ParseOverride("seed=" + std::to_string(seed)),
-                                      ParseOverride(key + "=" + (value ? "true" : "false"))});
+                                     {ParseOverride("seed=" + std::to_string(seed)), ParseOverride(key + "=" + value)});
     for (const lab::SlamRunResult& r : lab::RunSlam(sc, {})) {
       EXPECT_TRUE(r.map_evaluated);
       EXPECT_FALSE(r.map_aligned);
@@ -64,9 +63,11 @@ Means MeansOverSeeds(const std::string& scenario, const std::string& key, bool v
   }
   for (double* v : {&m.landmark_nees, &m.pose_nees, &m.rmse, &m.aligned}) *v /= n;
   std::printf("%s, %d seeds, %s=%s: landmark NEES %.2f, pose NEES %.2f, landmark RMSE %.3f m (aligned %.3f m)\n",
-              scenario.c_str(), seeds, key.c_str(), value ? "true" : "false", m.landmark_nees, m.pose_nees, m.rmse,
-              m.aligned);
+              scenario.c_str(), seeds, key.c_str(), value.c_str(), m.landmark_nees, m.pose_nees, m.rmse, m.aligned);
   return m;
+}
+Means MeansOverSeeds(const std::string& scenario, const std::string& key, bool value, int seeds) {
+  return MeansOverSeeds(scenario, key, std::string(value ? "true" : "false"), seeds);
 }
 
 // The park runs (200 s, 4 robots, 20 seeds): the standard EKF grows overconfident (landmark
@@ -98,6 +99,20 @@ TEST(SlamQuality, TheFrameAtTheFirstLandmarkKeepsTheHeadingErrorBeforeItOutOfThe
   EXPECT_LT(first_landmark.aligned, 1.1 * start.aligned);
   EXPECT_GE(first_landmark.landmark_nees, 1.0);
   EXPECT_LE(first_landmark.landmark_nees, 3.0);
+}
+
+// Submaps joined by least squares (agent.slam: cekf_submaps) against the one long compressed
+// EKF, 20 seeds of the park runs and of the circle pair's full lap: consistent (landmark NEES
+// in [1, 3]) and no less accurate after a rigid fit (the scoring figure) or in the true frame.
+TEST(SlamQuality, JoinedSubmapsAreConsistentAndNoLessAccurate) {
+  for (const char* scenario : {"park4.yaml", "thesis_circle_pair.yaml"}) {
+    const Means cekf = MeansOverSeeds(scenario, "agent.slam", std::string("cekf"), 20);
+    const Means joined = MeansOverSeeds(scenario, "agent.slam", std::string("cekf_submaps"), 20);
+    EXPECT_GE(joined.landmark_nees, 1.0) << scenario;
+    EXPECT_LE(joined.landmark_nees, 3.0) << scenario;
+    EXPECT_LE(joined.aligned, 1.02 * cekf.aligned) << scenario;
+    EXPECT_LE(joined.rmse, 1.02 * cekf.rmse) << scenario;
+  }
 }
 
 }  // namespace

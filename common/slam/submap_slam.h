@@ -1,0 +1,67 @@
+#pragma once
+// The compressed EKF in submaps joined by least squares (agent.slam: cekf_submaps; Downs 3.1
+// and 4.3, Huang et al.'s I-SLSJF). The filter (LocalSlam, compressed EKF) runs in a submap
+// that starts afresh, the robot at its origin with zero covariance, and ends at a trigger
+// (SubmapOptions: distance, duration, landmark count, heading uncertainty). Each finished
+// submap, its end pose and landmarks with their joint covariance, goes to the SubmapJoiner,
+// which relinearises them all. An EKF never runs long enough for its linearisation error to
+// grow, and the joiner undoes the rest.
+//
+// The map is the joined map of the finished submaps and the open one, with marginal
+// covariances, in the first submap's frame (the estimator's frame). Landmark ids are keys of
+// the joined map: the signature with known association; otherwise a submap's landmarks are
+// matched to the joined map's when they close (chi-square gate, unique), or get new keys.
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "common/slam/local_slam.h"
+#include "common/slam/submap_joiner.h"
+
+namespace mapmesh {
+
+class SubmapSlam : public LocalMapper {
+ public:
+  SubmapSlam(const FilterNoise& noise, const LocalSlamOptions& options);
+
+  void Predict(const OdometryControl& u, double dt) override;
+  void Observe(const std::vector<Observation>& obs, double stamp) override;
+  LandmarkMap Map() const override;
+  Pose2 pose() const override;
+  Eigen::Matrix3d pose_cov() const override;
+  std::size_t size() const override;
+  const MapperStats& stats() const override;
+
+  std::size_t submaps_closed() const { return joiner_.submaps(); }
+  const SubmapJoiner& joiner() const { return joiner_; }
+  // The joined solution the map was last made from (the open submap included).
+  const JoinedMap& joined() const;
+
+ private:
+  // The open submap as the joiner takes it: keys assigned, nothing if it holds no information.
+  std::optional<SubmapEstimate> OpenSubmap() const;
+  // Keys for the open submap's landmarks (ids): matched into the joined map, or new ones
+  // counted from next_key_; -1 for a landmark to leave out (ambiguous).
+  std::vector<std::int64_t> Keys(const Eigen::VectorXd& x, const Eigen::MatrixXd& p,
+                                 const std::vector<LandmarkId>& ids) const;
+  bool ShouldClose() const;
+  void Close();
+
+  FilterNoise noise_;
+  LocalSlamOptions options_;  // for the submaps' filter (kCekf)
+  SubmapOptions submap_;
+  bool known_association_;
+  std::unique_ptr<LocalSlam> current_;
+  SubmapJoiner joiner_;
+  std::uint32_t next_key_ = 0;  // unknown association: the next new landmark's key
+  double travelled_m_ = 0.0, elapsed_s_ = 0.0;
+  MapperStats closed_stats_;
+  mutable MapperStats stats_;
+  // The map, made when asked and kept until the next Predict or Observe.
+  mutable bool fresh_ = false;
+  mutable JoinedMap joined_;
+  mutable LandmarkMap map_;
+};
+
+}  // namespace mapmesh
