@@ -110,7 +110,6 @@ class LocalSlam : public LocalMapper {
   void FullState(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<LandmarkId>* ids) const {
     filter_->FullState(x, p, ids);
   }
-  const LocalSlamOptions& options() const { return options_; }
 
   // What became of each observation of the last scan, in the order given to Observe: the
   // landmark id it was fused into or started, or one of these.

@@ -83,17 +83,6 @@ void SubmapJoiner::Initialise(const Factor& f, State* state) {
   }
 }
 
-namespace {
-
-// One factor linearised at a state: the whitened Jacobian over its variables and the residual.
-struct Linearised {
-  std::vector<std::pair<std::uint64_t, int>> vars;  // (variable, size), in the Jacobian's column order
-  Eigen::MatrixXd a;                                // sqrt_info * dh/dx
-  Eigen::VectorXd r;                                // sqrt_info * (z - h)
-};
-
-}  // namespace
-
 Eigen::VectorXd PredictSubmap(const Pose2& origin, const Pose2& end, const std::vector<Eigen::Vector2d>& landmarks,
                               Eigen::MatrixXd* jacobian) {
   const auto nl = static_cast<Eigen::Index>(landmarks.size());
@@ -123,30 +112,62 @@ Eigen::VectorXd PredictSubmap(const Pose2& origin, const Pose2& end, const std::
   return h;
 }
 
-namespace {
-
-// Linearises a factor (frames X_k, X_k+1 and its landmarks) at the given poses and landmarks.
-// X_0 is fixed: a factor of frame 0 has no columns for it.
-template <typename PoseOf, typename LandmarkOf>
-Linearised LineariseFactor(std::size_t frame, const Eigen::VectorXd& z, const Eigen::MatrixXd& sqrt_info,
-                           const std::vector<std::uint32_t>& keys, std::uint64_t pose_bit, const PoseOf& pose_of,
-                           const LandmarkOf& landmark_of) {
-  const bool moving_origin = frame > 0;
+SubmapJoiner::Linearised SubmapJoiner::Linearise(const Factor& f, const State& state) {
+  const bool moving_origin = f.frame > 0;
   std::vector<Eigen::Vector2d> points;
-  points.reserve(keys.size());
-  for (std::uint32_t k : keys) points.push_back(landmark_of(k));
+  points.reserve(f.keys.size());
+  for (std::uint32_t k : f.keys) points.push_back(state.landmarks.at(k));
   Eigen::MatrixXd j;
-  const Eigen::VectorXd h = PredictSubmap(moving_origin ? pose_of(frame) : Pose2{}, pose_of(frame + 1), points, &j);
-  Eigen::VectorXd e = z - h;
+  const Eigen::VectorXd h = PredictSubmap(moving_origin ? state.poses.at(f.frame) : Pose2{},
+                                          state.poses.at(f.frame + 1), points, &j);
+  Eigen::VectorXd e = f.z - h;
   e(2) = WrapAngle(e(2));
   Linearised out;
-  if (moving_origin) out.vars.push_back({pose_bit | frame, 3});
-  out.vars.push_back({pose_bit | (frame + 1), 3});
-  for (std::uint32_t k : keys) out.vars.push_back({k, 2});
+  if (moving_origin) out.vars.push_back({PoseVar(f.frame), 3});
+  out.vars.push_back({PoseVar(f.frame + 1), 3});
+  for (std::uint32_t k : f.keys) out.vars.push_back({k, 2});
   const auto first = moving_origin ? 0 : 3;
-  out.a = sqrt_info.triangularView<Eigen::Lower>() * j.rightCols(j.cols() - first);
-  out.r = sqrt_info.triangularView<Eigen::Lower>() * e;
+  out.a = f.sqrt_info.triangularView<Eigen::Lower>() * j.rightCols(j.cols() - first);
+  out.r = f.sqrt_info.triangularView<Eigen::Lower>() * e;
   return out;
+}
+
+Eigen::VectorXd SubmapJoiner::ValueOf(const State& state, Var var) {
+  if (var & kPoseBit) return state.poses.at(var & ~kPoseBit).Vector();
+  return state.landmarks.at(static_cast<std::uint32_t>(var));
+}
+
+Eigen::VectorXd SubmapJoiner::PriorOffset(const State& state) const {
+  Eigen::VectorXd d(prior_.x0.size());
+  Eigen::Index at = 0;
+  for (Var v : prior_.vars) {
+    const Eigen::VectorXd x = ValueOf(state, v);
+    d.segment(at, x.size()) = x - prior_.x0.segment(at, x.size());
+    if (v & kPoseBit) d(at + 2) = WrapAngle(d(at + 2));
+    at += x.size();
+  }
+  return d;
+}
+
+namespace {
+
+// Adds a linearised factor's normal equations (A'A dx = A'r) to a system: A'r to b, and each
+// block of A'A through add_block(row, col, block).
+template <typename Lin, typename OffsetOf, typename AddBlock>
+void AddNormalEquations(const Lin& lin, const OffsetOf& offset_of, Eigen::VectorXd& b, const AddBlock& add_block) {
+  const Eigen::MatrixXd hl = lin.a.transpose() * lin.a;
+  const Eigen::VectorXd bl = lin.a.transpose() * lin.r;
+  int ci = 0;
+  for (const auto& [vi, si] : lin.vars) {
+    const int oi = offset_of(vi);
+    b.segment(oi, si) += bl.segment(ci, si);
+    int cj = 0;
+    for (const auto& [vj, sj] : lin.vars) {
+      add_block(oi, offset_of(vj), hl.block(ci, cj, si, sj));
+      cj += sj;
+    }
+    ci += si;
+  }
 }
 
 }  // namespace
@@ -164,13 +185,7 @@ JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state
   for (std::uint32_t k : keys) layout.Add(k, 2);
   const int n = layout.dim();
 
-  auto pose_of = [&](std::size_t k) { return state->poses.at(k); };
-  auto landmark_of = [&](std::uint32_t k) { return state->landmarks.at(k); };
-  // The state's value of a variable as a vector, and the difference x - x0 of a prior variable.
-  auto value_of = [&](std::uint64_t var) -> Eigen::VectorXd {
-    if (var & kPoseBit) return state->poses.at(var & ~kPoseBit).Vector();
-    return state->landmarks.at(static_cast<std::uint32_t>(var));
-  };
+  auto offset_of = [&](Var v) { return layout.Offset(v); };
 
   Eigen::SimplicialLLT<Eigen::SparseMatrix<double>> llt;
   Eigen::SparseMatrix<double> h(n, n);
@@ -180,38 +195,23 @@ JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state
     std::vector<Eigen::Triplet<double>> triplets;
     b.setZero();
     double cost = 0.0;
-    for (const Factor& f : factors) {
-      const Linearised lin = LineariseFactor(f.frame, f.z, f.sqrt_info, f.keys, kPoseBit, pose_of, landmark_of);
-      const Eigen::MatrixXd hl = lin.a.transpose() * lin.a;
-      const Eigen::VectorXd bl = lin.a.transpose() * lin.r;
-      cost += 0.5 * lin.r.squaredNorm();
-      int ci = 0;
-      for (const auto& [vi, si] : lin.vars) {
-        const int oi = layout.Offset(vi);
-        b.segment(oi, si) += bl.segment(ci, si);
-        int cj = 0;
-        for (const auto& [vj, sj] : lin.vars) {
-          const int oj = layout.Offset(vj);
-          for (int r = 0; r < si; ++r) {
-            for (int c = 0; c < sj; ++c) triplets.emplace_back(oi + r, oj + c, hl(ci + r, cj + c));
-          }
-          cj += sj;
-        }
-        ci += si;
+    auto add_block = [&](int row, int col, const Eigen::MatrixXd& block) {
+      for (Eigen::Index r = 0; r < block.rows(); ++r) {
+        for (Eigen::Index c = 0; c < block.cols(); ++c) triplets.emplace_back(row + r, col + c, block(r, c));
       }
+    };
+    for (const Factor& f : factors) {
+      const Linearised lin = Linearise(f, *state);
+      cost += 0.5 * lin.r.squaredNorm();
+      AddNormalEquations(lin, offset_of, b, add_block);
     }
     if (!prior_.vars.empty()) {
       // d = x - x0 with angles wrapped; cost 1/2 d'Hd - g'd; b gets g - H d.
+      const Eigen::VectorXd d = PriorOffset(*state);
       std::vector<int> offs, sizes;
-      Eigen::VectorXd d(prior_.x0.size());
-      Eigen::Index at = 0;
-      for (std::uint64_t v : prior_.vars) {
-        const Eigen::VectorXd x = value_of(v);
-        d.segment(at, x.size()) = x - prior_.x0.segment(at, x.size());
-        if (v & kPoseBit) d(at + 2) = WrapAngle(d(at + 2));
+      for (Var v : prior_.vars) {
         offs.push_back(layout.Offset(v));
-        sizes.push_back(static_cast<int>(x.size()));
-        at += x.size();
+        sizes.push_back((v & kPoseBit) ? 3 : 2);
       }
       const Eigen::VectorXd grad = prior_.g - prior_.h * d;
       cost += 0.5 * d.dot(prior_.h * d) - prior_.g.dot(d);
@@ -220,10 +220,7 @@ JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state
         b.segment(offs[i], sizes[i]) += grad.segment(ri, sizes[i]);
         int rj = 0;
         for (std::size_t k = 0; k < offs.size(); ++k) {
-          for (int r = 0; r < sizes[i]; ++r) {
-            for (int c = 0; c < sizes[k]; ++c)
-              triplets.emplace_back(offs[i] + r, offs[k] + c, prior_.h(ri + r, rj + c));
-          }
+          add_block(offs[i], offs[k], prior_.h.block(ri, rj, sizes[i], sizes[k]));
           rj += sizes[k];
         }
         ri += sizes[i];
@@ -244,16 +241,10 @@ JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state
   JoinedMap out;
   out.converged = false;
   double cost = assemble();
-  bool analysed = false;
+  llt.analyzePattern(h);  // the pattern stays: the same factors over the same variables
   for (int it = 0; it < options_.max_iterations; ++it) {
-    if (!analysed) {
-      llt.analyzePattern(h);
-      analysed = true;
-    }
     llt.factorize(h);
-    if (llt.info() != Eigen::Success) {
-      break;
-    }
+    if (llt.info() != Eigen::Success) break;
     const Eigen::VectorXd dx = llt.solve(b);
     ++out.iterations;
     // Gauss-Newton step, halved while it raises the cost (far from the minimum).
@@ -347,9 +338,7 @@ JoinedMap SubmapJoiner::Solve(const SubmapEstimate* open) const {
 void SubmapJoiner::Marginalise() {
   const Factor f = factors_.front();
   const std::size_t a = f.frame;
-  auto pose_of = [&](std::size_t k) { return state_.poses.at(k); };
-  auto landmark_of = [&](std::uint32_t k) { return state_.landmarks.at(k); };
-  const Linearised lin = LineariseFactor(f.frame, f.z, f.sqrt_info, f.keys, kPoseBit, pose_of, landmark_of);
+  const Linearised lin = Linearise(f, state_);
 
   // The variables: the prior's, then the factor's new ones.
   Layout layout;
@@ -359,44 +348,25 @@ void SubmapJoiner::Marginalise() {
   Eigen::MatrixXd h = Eigen::MatrixXd::Zero(n, n);
   Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
   Eigen::VectorXd x(n);
-  auto value_of = [&](std::uint64_t var) -> Eigen::VectorXd {
-    if (var & kPoseBit) return state_.poses.at(var & ~kPoseBit).Vector();
-    return state_.landmarks.at(static_cast<std::uint32_t>(var));
-  };
   std::vector<std::uint64_t> vars = prior_.vars;
   for (const auto& [v, size] : lin.vars) {
     if (std::find(vars.begin(), vars.end(), v) == vars.end()) vars.push_back(v);
   }
   for (std::uint64_t v : vars) {
-    const Eigen::VectorXd value = value_of(v);
+    const Eigen::VectorXd value = ValueOf(state_, v);
     x.segment(layout.Offset(v), value.size()) = value;
   }
   // The prior, at the current state (its variables are the layout's first rows, in order).
   if (!prior_.vars.empty()) {
     const Eigen::Index np = prior_.x0.size();
-    Eigen::VectorXd d = x.head(np) - prior_.x0;
-    Eigen::Index at = 0;
-    for (std::uint64_t v : prior_.vars) {
-      if (v & kPoseBit) d(at + 2) = WrapAngle(d(at + 2));
-      at += (v & kPoseBit) ? 3 : 2;
-    }
+    const Eigen::VectorXd d = PriorOffset(state_);
     h.topLeftCorner(np, np) = prior_.h;
     b.head(np) = prior_.g - prior_.h * d;
   }
   // The factor.
-  const Eigen::MatrixXd hl = lin.a.transpose() * lin.a;
-  const Eigen::VectorXd bl = lin.a.transpose() * lin.r;
-  int ci = 0;
-  for (const auto& [vi, si] : lin.vars) {
-    const int oi = layout.Offset(vi);
-    b.segment(oi, si) += bl.segment(ci, si);
-    int cj = 0;
-    for (const auto& [vj, sj] : lin.vars) {
-      h.block(oi, layout.Offset(vj), si, sj) += hl.block(ci, cj, si, sj);
-      cj += sj;
-    }
-    ci += si;
-  }
+  AddNormalEquations(
+      lin, [&](Var v) { return layout.Offset(v); }, b,
+      [&](int row, int col, const Eigen::MatrixXd& block) { h.block(row, col, block.rows(), block.cols()) += block; });
 
   // Eliminate the factor's origin frame X_a (nothing else refers to it now), by a Schur complement.
   std::vector<int> keep;

@@ -113,7 +113,20 @@ class SubmapJoiner {
     std::unordered_map<std::uint32_t, Eigen::Vector2d> landmarks;
   };
 
+  // A factor linearised at a state: the whitened Jacobian over its variables and the residual.
+  struct Linearised {
+    std::vector<std::pair<Var, int>> vars;  // (variable, size), in the Jacobian's column order
+    Eigen::MatrixXd a;                      // sqrt_info * dh/dx
+    Eigen::VectorXd r;                      // sqrt_info * (z - h)
+  };
+
   static Factor MakeFactor(const SubmapEstimate& s, std::size_t frame);
+  // Linearises f at the state (X_0 is fixed: a factor of frame 0 has no columns for it).
+  static Linearised Linearise(const Factor& f, const State& state);
+  // The state's value of a variable.
+  static Eigen::VectorXd ValueOf(const State& state, Var var);
+  // x - x0 over the prior's variables at the state, angles wrapped.
+  Eigen::VectorXd PriorOffset(const State& state) const;
   // Initial values of what a new factor brings (its end frame, landmarks not seen before).
   static void Initialise(const Factor& f, State* state);
   // Gauss-Newton on state over factors and the prior; then the solution with covariances.

@@ -186,32 +186,28 @@ void SubmapSlam::Close() {
   fresh_ = false;
 }
 
-const JoinedMap& SubmapSlam::joined() const {
-  Map();
-  return joined_;
-}
-
 LandmarkMap SubmapSlam::Map() const {
   if (fresh_) return map_;
   const std::optional<SubmapEstimate> open = OpenSubmap();
+  JoinedMap joined;
   if (open) {
-    joined_ = joiner_.Solve(&*open);
+    joined = joiner_.Solve(&*open);
   } else if (joiner_.submaps() > 0) {
-    joined_ = joiner_.last();
+    joined = joiner_.last();
   } else {
-    joined_ = JoinedMap{};
+    joined = JoinedMap{};
   }
   map_ = LandmarkMap{};
-  map_.landmarks.reserve(joined_.keys.size());
-  for (std::size_t i = 0; i < joined_.keys.size(); ++i) {
+  map_.landmarks.reserve(joined.keys.size());
+  for (std::size_t i = 0; i < joined.keys.size(); ++i) {
     Landmark l;
-    l.id = joined_.keys[i];
+    l.id = joined.keys[i];
     l.signature = known_association_ ? static_cast<std::int32_t>(l.id) : -1;
-    l.mean = joined_.means[i];
-    l.cov = joined_.Cov(i);
+    l.mean = joined.means[i];
+    l.cov = joined.Cov(i);
     map_.landmarks.push_back(l);
   }
-  map_.shape_sigma_m = ShapeSigma(map_, [&](std::size_t i, std::size_t j) { return joined_.CrossCov(i, j); });
+  map_.shape_sigma_m = ShapeSigma(map_, [&](std::size_t i, std::size_t j) { return joined.CrossCov(i, j); });
   fresh_ = true;
   return map_;
 }

@@ -35,8 +35,6 @@ class SubmapSlam : public LocalMapper {
 
   std::size_t submaps_closed() const { return joiner_.submaps(); }
   const SubmapJoiner& joiner() const { return joiner_; }
-  // The joined solution the map was last made from (the open submap included).
-  const JoinedMap& joined() const;
 
  private:
   // The open submap as the joiner takes it: keys assigned, nothing if it holds no information.
@@ -60,7 +58,6 @@ class SubmapSlam : public LocalMapper {
   mutable MapperStats stats_;
   // The map, made when asked and kept until the next Predict or Observe.
   mutable bool fresh_ = false;
-  mutable JoinedMap joined_;
   mutable LandmarkMap map_;
 };
 

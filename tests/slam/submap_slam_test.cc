@@ -6,16 +6,12 @@
 
 #include "common/config/scenario.h"
 #include "sim_feeder/simulator.h"
+#include "tests/testing/filter_noise.h"
 
 namespace mapmesh {
 namespace {
 
-FilterNoise Noise() {
-  FilterNoise n;
-  n.control_cov = Eigen::Vector2d(0.03 * 0.03, 0.05 * 0.05).asDiagonal();
-  n.obs_cov = Eigen::Vector2d(0.05 * 0.05, std::pow(DegToRad(1.0), 2)).asDiagonal();
-  return n;
-}
+FilterNoise Noise() { return testing::TestFilterNoise(); }
 
 LocalSlamOptions Options(bool known = true) {
   LocalSlamOptions o;
