@@ -236,9 +236,10 @@ int Run(int argc, char** argv) {
       entry[kind] = QualityJson(EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, fitted ? local_fit : origin,
                                                     gate_m));
       if (fitted) entry[kind]["frame"] = "local_map_fit";
-      // The same map after a least-squares rigid fit to the truth, whatever its origin: the
-      // error of its shape alone.
-      const MapQuality aligned = EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, std::nullopt, gate_m);
+      // The same map after a least-squares rigid fit of all of it to the truth, whatever its
+      // origin: the error of its shape alone (relayed landmarks included in a global map).
+      const MapQuality aligned = EvaluateFittedMap(map, truth.landmarks, truth.seen, origin ? origin : f.local_in_world,
+                                                   gate_m);
       entry[kind]["rmse_aligned_m"] = aligned.evaluated ? json(aligned.rmse_m) : json();
       if (reference) {
         // The global map is in the local map's frame: it is placed where the local map aligned.

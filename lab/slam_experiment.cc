@@ -147,7 +147,7 @@ std::vector<SlamRunResult> RunSlam(const Scenario& scenario_in, const SlamRunOpt
       r.landmark_nees = q.nees_mean;
       r.consistent_ratio = q.consistent_ratio;
       r.coverage = q.coverage;
-      const MapQuality aligned = EvaluateOwnFrameMap(map, world.landmarks, seen, std::nullopt);
+      const MapQuality aligned = EvaluateFittedMap(map, world.landmarks, seen, origin);
       if (aligned.evaluated) r.landmark_rmse_aligned_m = aligned.rmse_m;
     }
     // Pose errors at every scan, when the frame's true origin is known.

@@ -114,14 +114,34 @@ std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<E
 MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
                                const std::vector<int>& seen, const std::optional<Pose2>& origin, double gate_m) {
   if (origin) return EvaluateMap(TransformMap(map, *origin), truth, seen, gate_m);
-  const std::optional<Pose2> fit = MapFrameInWorld(map, truth);
-  if (!fit) {
+  return EvaluateFittedMap(map, truth, seen, std::nullopt, gate_m);
+}
+
+MapQuality EvaluateFittedMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
+                             const std::vector<int>& seen, const std::optional<Pose2>& initial, double gate_m) {
+  std::optional<Pose2> frame = initial ? initial : MapFrameInWorld(map, truth);
+  std::vector<int> last;
+  // Each round matches in the current placement and refits on the matches; a few rounds settle
+  // it (the matches of signature-carrying landmarks never change).
+  for (int round = 0; frame && round < 20; ++round) {
+    const std::vector<int> match = MatchToTruth(TransformMap(map, *frame), truth, gate_m);
+    if (match == last) break;
+    std::vector<Eigen::Vector2d> src, dst;
+    for (std::size_t i = 0; i < map.size(); ++i) {
+      if (match[i] < 0) continue;
+      src.push_back(map.landmarks[i].mean);
+      dst.push_back(truth[match[i]]);
+    }
+    frame = FitRigid2D(src, dst);
+    last = match;
+  }
+  if (!frame) {
     MapQuality q;
     q.evaluated = false;
     q.landmarks = static_cast<int>(map.size());
     return q;
   }
-  MapQuality q = EvaluateMap(TransformMap(map, *fit), truth, seen, gate_m);
+  MapQuality q = EvaluateMap(TransformMap(map, *frame), truth, seen, gate_m);
   q.aligned = true;
   return q;
 }

@@ -59,8 +59,17 @@ MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d
 std::optional<Pose2> MapFrameInWorld(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth);
 
 // Quality of a map given in its own frame. It is moved into the truth frame by `origin` (the
-// true pose of the frame) when known; otherwise by MapFrameInWorld, and then aligned is true.
+// true pose of the frame) when known; otherwise by EvaluateFittedMap, and then aligned is true.
 MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
                                const std::vector<int>& seen, const std::optional<Pose2>& origin, double gate_m = 2.0);
+
+// Quality of a map after the least-squares rigid fit of the whole map to the truth (the scoring
+// convention's rmse_aligned_m): every landmark matched to the truth (by signature, else the
+// nearest true landmark within gate_m) takes part, relayed ones without signatures included.
+// The fit starts from `initial` (where the map frame is thought to lie), else from
+// MapFrameInWorld, and alternates matching and fitting until the matches stop changing.
+// evaluated is false when there is no start or fewer than two landmarks match.
+MapQuality EvaluateFittedMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
+                             const std::vector<int>& seen, const std::optional<Pose2>& initial, double gate_m = 2.0);
 
 }  // namespace mapmesh
