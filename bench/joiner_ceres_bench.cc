@@ -23,8 +23,8 @@ namespace {
 // heading difference wrapped. Parameter blocks: X_k, X_k+1 (3 each), then each landmark (2).
 class SubmapResidual : public ceres::CostFunction {
  public:
-  explicit SubmapResidual(const SubmapEstimate& s) : x_(s.x), whiten_(s.p.llt().matrixL().solve(
-                                                                    Eigen::MatrixXd::Identity(s.x.size(), s.x.size()))) {
+  explicit SubmapResidual(const SubmapEstimate& s)
+      : x_(s.x), whiten_(s.p.llt().matrixL().solve(Eigen::MatrixXd::Identity(s.x.size(), s.x.size()))) {
     set_num_residuals(static_cast<int>(s.x.size()));
     mutable_parameter_block_sizes()->assign({3, 3});
     for (std::size_t j = 0; j < s.keys.size(); ++j) mutable_parameter_block_sizes()->push_back(2);

@@ -23,7 +23,8 @@ inline std::vector<SubmapEstimate> MakeJoinerSubmaps() {
   std::vector<Eigen::Vector2d> world;
   for (int i = 0; i < 300; ++i) world.emplace_back(u(rng), u(rng));
   std::vector<Pose2> frames = {{}};
-  for (int k = 0; k < kJoinerSubmaps; ++k) frames.push_back(frames.back() * Pose2{2.0, 0.0, 2.0 * M_PI / kJoinerSubmaps * 2.0});
+  for (int k = 0; k < kJoinerSubmaps; ++k)
+    frames.push_back(frames.back() * Pose2{2.0, 0.0, 2.0 * M_PI / kJoinerSubmaps * 2.0});
   std::vector<SubmapEstimate> out;
   for (int k = 0; k < kJoinerSubmaps; ++k) {
     std::vector<std::pair<double, int>> by_distance;
