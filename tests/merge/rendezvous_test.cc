@@ -110,5 +110,144 @@ TEST(Rendezvous, RejectsNonFiniteInput) {
   EXPECT_FALSE(RendezvousAlign(in).has_value());
 }
 
+// Sightings of a peer robot moving through its own frame, seen from the own frame's robot:
+// each one pairs where the observer placed it (own frame) with where the peer's estimate puts
+// it (peer frame), both drawn with the noise their covariances state.
+std::vector<SightingPair> Sightings(const Pose2& peer_to_own, int n, std::mt19937_64& rng, double noise = 1.0) {
+  std::normal_distribution<double> g(0, 1);
+  const Eigen::Matrix3d observer_cov = Eigen::Vector3d(0.02, 0.02, 0.0004).asDiagonal();
+  const Eigen::Matrix2d peer_cov = Eigen::Vector2d(0.03, 0.01).asDiagonal();
+  const double sr = 0.05, sb = 0.01;
+  std::vector<SightingPair> out;
+  for (int k = 0; k < n; ++k) {
+    const Eigen::Vector2d peer_true(0.7 * k, 2.0 * std::sin(0.4 * k));  // in the peer's frame
+    const Eigen::Vector2d in_own = peer_to_own.Apply(peer_true);
+    const Pose2 observer{in_own.x() - 3.0, in_own.y() + 1.0, 0.3};
+    const Eigen::Vector2d rel = observer.Inverse().Apply(in_own);
+    // The observer's estimated pose and the measurement, each off by its stated noise.
+    const Pose2 observed{observer.x + noise * std::sqrt(0.02) * g(rng), observer.y + noise * std::sqrt(0.02) * g(rng),
+                         observer.theta + noise * 0.02 * g(rng)};
+    const double range = rel.norm() + noise * sr * g(rng), bearing = std::atan2(rel.y(), rel.x()) + noise * sb * g(rng);
+    SightingPair p;
+    p.stamp = k;
+    p.own = *SightedPosition(observed, observer_cov, range, bearing, sr, sb);
+    p.peer.mean = peer_true + noise * Eigen::Vector2d(std::sqrt(0.03) * g(rng), 0.1 * g(rng));
+    p.peer.cov = peer_cov;
+    out.push_back(p);
+  }
+  return out;
+}
+
+TEST(SightedPosition, CovarianceIsTheFirstOrderPropagation) {
+  const Pose2 observer{1, 2, 0.7};
+  const Eigen::Matrix3d cov = (Eigen::Matrix3d() << 0.04, 0.01, 0.002, 0.01, 0.03, -0.001, 0.002, -0.001, 0.005)
+                                  .finished();
+  const double range = 4.0, bearing = -0.6, sr = 0.1, sb = 0.03;
+  const auto p = SightedPosition(observer, cov, range, bearing, sr, sb);
+  ASSERT_TRUE(p.has_value());
+  EXPECT_NEAR((p->mean - observer.Apply({range * std::cos(bearing), range * std::sin(bearing)})).norm(), 0.0, 1e-12);
+  // Jacobian with respect to (x, y, theta, range, bearing), numerically.
+  auto f = [](const Eigen::VectorXd& s) {
+    const Eigen::Vector2d m = Pose2{s(0), s(1), s(2)}.Apply({s(3) * std::cos(s(4)), s(3) * std::sin(s(4))});
+    return Eigen::VectorXd(m);
+  };
+  Eigen::VectorXd x(5);
+  x << observer.x, observer.y, observer.theta, range, bearing;
+  const Eigen::MatrixXd j = testing::NumericJacobian(f, x);
+  Eigen::MatrixXd in = Eigen::MatrixXd::Zero(5, 5);
+  in.topLeftCorner<3, 3>() = cov;
+  in(3, 3) = sr * sr;
+  in(4, 4) = sb * sb;
+  EXPECT_LT((p->cov - j * in * j.transpose()).cwiseAbs().maxCoeff(), 1e-8);
+  EXPECT_FALSE(SightedPosition(observer, cov, range, std::nan(""), sr, sb).has_value());
+  EXPECT_FALSE(SightedPosition(observer, cov, range, bearing, 0.0, sb).has_value());
+}
+
+TEST(FitRendezvous, RecoversTheTransformConsistentlyFromNoisySightings) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-30, 30), ua(-M_PI, M_PI);
+  double nees = 0;
+  const int kRuns = 300;
+  for (int run = 0; run < kRuns; ++run) {
+    const Pose2 truth{u(rng), u(rng), ua(rng)};
+    const auto pairs = Sightings(truth, 12, rng);
+    const RendezvousFit fit = FitRendezvous(pairs, {}, {});
+    ASSERT_TRUE(fit.accepted()) << ToString(fit.verdict) << " run " << run;
+    const Eigen::Vector3d e(fit.transform.x - truth.x, fit.transform.y - truth.y,
+                            WrapAngle(fit.transform.theta - truth.theta));
+    nees += e.dot(fit.cov.ldlt().solve(e));
+  }
+  // Covariance Intersection of the sightings is conservative for independent ones (their
+  // average information, not the sum): NEES well under 3, never above.
+  nees /= kRuns;
+  RecordProperty("nees", std::to_string(nees));
+  EXPECT_LT(nees, 3.0);
+  EXPECT_GT(nees, 0.05);  // ... but not so inflated that it says nothing
+}
+
+TEST(FitRendezvous, LeavesOutASightingWithAPeerPoseFiveMetresOff) {
+  std::mt19937_64 rng(12);
+  const Pose2 truth{4, -7, 1.1};
+  auto pairs = Sightings(truth, 10, rng);
+  pairs[4].peer.mean.x() += 5.0;
+  const RendezvousFit fit = FitRendezvous(pairs, {}, {});
+  ASSERT_TRUE(fit.accepted()) << ToString(fit.verdict);
+  EXPECT_EQ(fit.inlier_pairs, 9);
+  EXPECT_LT(std::hypot(fit.transform.x - truth.x, fit.transform.y - truth.y), 0.3);
+  EXPECT_LT(std::abs(WrapAngle(fit.transform.theta - truth.theta)), 0.03);
+}
+
+TEST(FitRendezvous, RefusesWhatDoesNotFixTheTransform) {
+  std::mt19937_64 rng(13);
+  const Pose2 truth{4, -7, 1.1};
+  auto pairs = Sightings(truth, 10, rng);
+  EXPECT_EQ(FitRendezvous(std::span(pairs).first(2), {}, {}).verdict, RendezvousVerdict::kTooFewSightings);
+  // All from one spot in the peer's frame: the rotation is free.
+  auto still = pairs;
+  for (auto& p : still) p.peer.mean = pairs[0].peer.mean;
+  EXPECT_EQ(FitRendezvous(still, {}, {}).verdict, RendezvousVerdict::kNoBaseline);
+  // Half of them 5 m off in different directions: the other half still decides ...
+  auto wild = pairs;
+  for (std::size_t i = 0; i < wild.size(); i += 2)
+    wild[i].peer.mean += Eigen::Vector2d(5.0 * std::cos(i), 5.0 * std::sin(i));
+  const RendezvousFit half = FitRendezvous(wild, {}, {});
+  ASSERT_TRUE(half.accepted()) << ToString(half.verdict);
+  EXPECT_EQ(half.inlier_pairs, 5);
+  EXPECT_LT(std::hypot(half.transform.x - truth.x, half.transform.y - truth.y), 0.3);
+  // ... but with six of ten off, no transform has the support of half of them.
+  wild = pairs;
+  for (std::size_t i = 0; i < wild.size(); ++i) {
+    if (i % 3 != 0) wild[i].peer.mean += Eigen::Vector2d(5.0 * std::cos(i), 5.0 * std::sin(i));
+  }
+  const RendezvousVerdict v = FitRendezvous(wild, {}, {}).verdict;
+  EXPECT_TRUE(v == RendezvousVerdict::kTooFewInliers || v == RendezvousVerdict::kResidualsTooLarge) << ToString(v);
+  // Covariances that claim ten times the precision: the residuals give them away.
+  auto overconfident = pairs;
+  for (auto& p : overconfident) {
+    p.own.cov /= 400.0;
+    p.peer.cov /= 400.0;
+  }
+  const RendezvousVerdict o = FitRendezvous(overconfident, {}, {}).verdict;
+  EXPECT_TRUE(o == RendezvousVerdict::kTooFewInliers || o == RendezvousVerdict::kResidualsTooLarge) << ToString(o);
+}
+
+TEST(FitRendezvous, OneMutualRendezvousFixesTheRotationOfSightingsFromOneSpot) {
+  const Pose2 truth{3, -4, 0.8};
+  const RendezvousInput in = Scene(truth, {2, 1, 0.4}, {-1, 3, -2.0});
+  const RendezvousResult m = *RendezvousAlign(in);
+  SightingPair p;
+  p.peer.mean = {-1, 3};
+  p.peer.cov = in.cov2.topLeftCorner<2, 2>();
+  p.own.mean = truth.Apply(p.peer.mean);
+  p.own.cov = Eigen::Matrix2d::Identity() * 0.01;
+  const std::vector<SightingPair> one{p};
+  const std::vector<RendezvousResult> mutual{m};
+  const RendezvousFit fit = FitRendezvous(one, mutual, {});
+  ASSERT_TRUE(fit.accepted()) << ToString(fit.verdict);
+  EXPECT_EQ(fit.inlier_mutual, 1);
+  EXPECT_NEAR(fit.transform.x, truth.x, 1e-6);
+  EXPECT_NEAR(WrapAngle(fit.transform.theta - truth.theta), 0.0, 1e-6);
+}
+
 }  // namespace
 }  // namespace mapmesh
