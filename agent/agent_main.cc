@@ -37,7 +37,10 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerReport, own_checkpoint, origin_stamp, loc
                                    ever_aligned, aligned_since, dropped, stale, stale_since, frozen, silent, last_heard,
                                    relayed, relay_conflicts, refuted, refuted_by, replaced, superseded, refuted_answers,
                                    attempts, unconfirmed, verifications, failures, rejected, drops, realignments,
-                                   refinements, corrections)
+                                   refinements, corrections, rendezvous_fits, rendezvous_refused, rendezvous_unjudged,
+                                   rendezvous_confirmed)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(RendezvousStats, sightings_sent, answers_sent, sightings_used, answers_used, mutual,
+                                   refused, unmatched, fits, fits_accepted)
 
 namespace {
 
@@ -48,13 +51,17 @@ using io::json;
 class DdsOutput : public AgentOutput {
  public:
   DdsOutput(const tp::Participant& p, double lease_s)
-      : maps_(p, tp::kMapTopic, tp::MapQos(lease_s)), status_(p, tp::kStatusTopic, tp::StatusQos(lease_s)) {}
+      : maps_(p, tp::kMapTopic, tp::MapQos(lease_s)),
+        status_(p, tp::kStatusTopic, tp::StatusQos(lease_s)),
+        sightings_(p, tp::kSightingTopic, tp::SightingQos()) {}
   void PublishMap(const MapMessage& msg) override { maps_.Write(msg); }
   void PublishStatus(const AgentStatus& status) override { status_.Write(status); }
+  void PublishSighting(const Sighting& s) override { sightings_.Write(s); }
 
  private:
   tp::Writer<MapMessage> maps_;
   tp::Writer<AgentStatus> status_;
+  tp::Writer<Sighting> sightings_;
 };
 
 // A map keyed by robot as a JSON object (keys are strings).
@@ -75,7 +82,9 @@ json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"transform", {p.to_own.x, p.to_own.y, p.to_own.theta}},
               {"transform_cov", {c(0, 0), c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2)}},
               {"centroid", {p.centroid.x(), p.centroid.y()}},
-              {"last_verdict", std::string(ToString(p.last_verdict))}});
+              {"last_verdict", std::string(ToString(p.last_verdict))},
+              {"aligned_by", ToString(p.aligned_by)},
+              {"first_aligned_by", ToString(p.first_aligned_by)}});
     peers.push_back(std::move(j));
   }
   return {{"peers", peers}, {"peers_lost_wall", ByRobot(lost_wall)}};
@@ -173,7 +182,14 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
             {"maps_refused", refused},
             {"maps_received_from", ByRobot(s.maps_received_from)},
             {"peers_aligned", status.peers_aligned},
-            {"peers_stale", status.peers_stale}});
+            {"peers_stale", status.peers_stale},
+            {"sightings",
+             {{"sent", s.sightings_sent},
+              {"bytes_sent", s.sighting_bytes_sent},
+              {"received", s.sightings_received},
+              {"gated", s.sightings_gated},
+              {"implausible", s.sightings_implausible},
+              {"tracker", node.rendezvous_stats()}}}});
   j.update(PeersJson(node, lost_wall));
   return j;
 }
@@ -272,6 +288,7 @@ int Run(int argc, char** argv) {
   tp::Reader<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
   const double lease_s = scenario.agent.LivelinessLeaseS(scenario.robots.size());
   tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos(lease_s));
+  tp::Reader<Sighting> sightings(p, tp::kSightingTopic, tp::SightingQos());
   DdsOutput output(p, lease_s);
   AgentNode node(scenario.agent, AgentRunFor(scenario, self), self, incarnation, output);
   if (checkpoint) {
@@ -291,6 +308,7 @@ int Run(int argc, char** argv) {
   waitset.AttachReader(scans.raw(), 2);
   waitset.AttachReader(links.raw(), 3);
   waitset.AttachReader(maps.raw(), 4);
+  waitset.AttachReader(sightings.raw(), 6);
   waitset.AttachGuard(stop, 5);
   shutdown.Watch(&stop);
   spdlog::info("up: scenario {} domain {} config {} incarnation {} liveliness lease {} s", scenario.name, po.domain,
@@ -315,6 +333,9 @@ int Run(int argc, char** argv) {
     }
     for (const auto& s : odom.Take()) {
       if (s.valid) node.OnOdometry(s.value);
+    }
+    for (const auto& s : sightings.Take()) {
+      if (s.valid) node.OnSighting(s.value);
     }
     for (const auto& s : maps.Take()) {
       if (s.valid) node.OnMap(s.value);

@@ -14,6 +14,8 @@ namespace {
 // MapMessage fields besides the payload: robot_id, kind, version, stamp, sequence length.
 constexpr std::size_t kMapMessageFixedBytes = 4 + 1 + 4 + 4 + 8 + 8 + 4;  // keys, incarnation, version, stamps,
                                                                           // payload length
+// A Sighting on the wire: ids, kind, stamp, pose, covariance, measurement and sigmas.
+constexpr std::size_t kSightingWireBytes = 4 + 4 + 1 + 4 + 4 + 8 + 3 * 8 + 6 * 8 + 4 * 8;
 
 }  // namespace
 
@@ -82,7 +84,13 @@ AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId s
                                        run.end_s + options.max_stamp_jump_s}),
       mapper_(MakeLocalMapper(options, run.noise, run.sensor)),
       trajectory_period_s_(run.trajectory_period_s),
-      exchange_(self, incarnation, options.exchange, run.seed * 2654435761ULL + self * 40503ULL + incarnation) {}
+      exchange_(self, incarnation, options.exchange, run.seed * 2654435761ULL + self * 40503ULL + incarnation),
+      sighting_gate_(self,
+                     RadioGateOptions{run.loss_probability, run.bandwidth_bytes_per_s, options.max_stamp_jump_s,
+                                      run.end_s + options.max_stamp_jump_s},
+                     run.seed * 998244353ULL + self * 104729ULL + incarnation),
+      rendezvous_(self, incarnation, run.robots, options.rendezvous, run.sensor.sigma_range_m,
+                  run.sensor.sigma_bearing_rad) {}
 
 void AgentNode::OnOdometry(const Odometry& odom) { sync_.OnOdometry(odom); }
 
@@ -90,13 +98,47 @@ void AgentNode::OnScan(const Scan& scan) { sync_.OnScan(scan); }
 
 void AgentNode::Move(const OdometryControl& u, double dt) { mapper_->Predict(u, dt); }
 
-void AgentNode::ApplyScan(const Scan& scan, double stamp) { mapper_->Observe(scan.obs, stamp); }
+void AgentNode::ApplyScan(const Scan& scan, double stamp) {
+  mapper_->Observe(scan.obs, stamp);
+  if (!sync_.frame_fixed() || !options_.exchange.ByRendezvous()) return;
+  const Pose2 pose = mapper_->pose();
+  const Eigen::Matrix3d cov = mapper_->pose_cov();
+  rendezvous_.OnPose(stamp, pose, cov);
+  PublishSightings(rendezvous_.OnScan(scan.obs, stamp, pose, cov));
+}
+
+void AgentNode::PublishSightings(const std::vector<Sighting>& out) {
+  for (const Sighting& s : out) {
+    ++stats_.sightings_sent;
+    stats_.sighting_bytes_sent += kSightingWireBytes;
+    out_.PublishSighting(s);
+  }
+}
+
+void AgentNode::OnSighting(const Sighting& msg) {
+  if (msg.robot_id == self_ || !options_.exchange.ByRendezvous()) return;
+  if (!InRun(msg.robot_id) || !std::isfinite(msg.stamp) || msg.stamp > Clock() + options_.max_stamp_jump_s) {
+    ++stats_.sightings_implausible;
+    return;
+  }
+  if (sighting_gate_.Admit(msg.robot_id, kSightingWireBytes, msg.stamp) != GateVerdict::kPass) {
+    ++stats_.sightings_gated;
+    return;
+  }
+  ++stats_.sightings_received;
+  rendezvous_.OnMessage(msg);
+}
 
 void AgentNode::IntervalDone(const Odometry& odom) { AfterInterval(odom); }
 
 bool AgentNode::Mapped() const { return mapper_->size() > 0; }
 
 void AgentNode::AfterInterval(const Odometry& odom) {
+  if (sync_.frame_fixed() && options_.exchange.ByRendezvous()) {
+    rendezvous_.OnPose(sync_.processed_until(), mapper_->pose(), mapper_->pose_cov());
+    PublishSightings(rendezvous_.Advance(sync_.processed_until()));
+    for (const auto& [key, fit] : rendezvous_.TakeFits()) exchange_.OnRendezvous(key, fit);
+  }
   // Before the frame is fixed the robot's place in it is not known yet.
   if (sync_.frame_fixed() && sync_.processed_until() + 1e-9 >= next_trajectory_s_) {
     trajectory_.push_back({sync_.processed_until(), mapper_->pose()});
@@ -159,6 +201,7 @@ void AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t vers
 
 void AgentNode::OnLinks(const RadioLinks& links) {
   gate_.UpdateLinks(links, sync_.processed_until());
+  sighting_gate_.UpdateLinks(links, sync_.processed_until());
   stats_.links_refused = gate_.links_refused();
 }
 

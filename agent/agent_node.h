@@ -15,6 +15,7 @@
 #include "agent/agent_options.h"
 #include "agent/map_exchange.h"
 #include "agent/radio_gate.h"
+#include "agent/rendezvous_tracker.h"
 #include "agent/sensor_sync.h"
 #include "common/io/checkpoint.h"
 #include "common/map/landmark_map.h"
@@ -31,6 +32,8 @@ class AgentOutput {
   virtual ~AgentOutput() = default;
   virtual void PublishMap(const MapMessage& msg) = 0;
   virtual void PublishStatus(const AgentStatus& status) = 0;
+  // Robot sightings and answers (rendezvous_tracker.h); outputs that do not carry them drop them.
+  virtual void PublishSighting(const Sighting& /*sighting*/) {}
 };
 
 // What an agent knows of its run besides its own options (agent/agent_setup.h derives it from
@@ -87,6 +90,11 @@ struct AgentStats {
   std::uint64_t landmarks_sent = 0;       // over all maps sent
   std::uint64_t payload_bytes_sent = 0;   // their encoded payloads
   std::map<RobotId, std::uint32_t> maps_received_from;
+  std::uint32_t sightings_sent = 0;         // robot sightings and answers published (rendezvous)
+  std::uint64_t sighting_bytes_sent = 0;    // ... their bytes on the wire
+  std::uint32_t sightings_received = 0;     // peers' sightings and answers that passed the radio gate
+  std::uint32_t sightings_gated = 0;        // ... that it dropped (out of range, lost, busy)
+  std::uint32_t sightings_implausible = 0;  // ... refused before it: unknown sender or a stamp ahead of ours
   std::uint32_t MapsRejected() const;
   // Encoded bytes per landmark sent (header included), 0 before anything was sent.
   double BytesPerLandmark() const;
@@ -104,6 +112,8 @@ class AgentNode : private SensorSync::Sink {
   void OnScan(const Scan& scan);
   void OnLinks(const RadioLinks& links);
   void OnMap(const MapMessage& msg);
+  // A peer's robot sighting or answer (rendezvous): through the radio gate to the tracker.
+  void OnSighting(const Sighting& msg);
   // A peer's map writer came back (alive) or went away (liveliness lost or disposed).
   // Returns false, and does nothing, for the agent itself and robots not in the scenario.
   bool OnPeerLiveliness(RobotId robot, bool alive);
@@ -134,6 +144,7 @@ class AgentNode : private SensorSync::Sink {
   };
   const std::vector<PoseStamp>& trajectory() const { return trajectory_; }
   const MapExchange& exchange() const { return exchange_; }
+  const RendezvousStats& rendezvous_stats() const { return rendezvous_.stats(); }
   const GlobalMap& global() const { return exchange_.global(); }
   std::uint32_t incarnation() const { return incarnation_; }
 
@@ -168,6 +179,10 @@ class AgentNode : private SensorSync::Sink {
   std::uint32_t local_version_ = 0, global_version_ = 0;
   AgentStats stats_;
   MapExchange exchange_;
+  RadioGate sighting_gate_;  // the radio gate for sightings: its own loss draws, so maps see the same ones
+  RendezvousTracker rendezvous_;
+  // Publishes sightings and answers (when the run aligns by rendezvous).
+  void PublishSightings(const std::vector<Sighting>& out);
 };
 
 }  // namespace mapmesh

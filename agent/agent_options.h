@@ -8,6 +8,7 @@
 #include <cstddef>
 
 #include "agent/exchange_options.h"
+#include "agent/rendezvous_tracker.h"
 #include "agent/sensor_sync.h"
 #include "common/config/scenario_limits.h"
 #include "common/map/map_limits.h"
@@ -21,6 +22,7 @@ struct AgentOptions {
   DeadReckoningOptions dead_reckoning;  // slam: dead_reckoning
   SensorSync::Options sync;             // frame_at_first_landmark
   ExchangeOptions exchange;             // map_publish_period_s, fusion, alignment schedule, relay, silence
+  RendezvousOptions rendezvous;         // rendezvous_period_s
   MapLimits peer_limits;                // what a peer's map may be: landmarks, extent, uncertainty
   double status_period_s = 1.0;         // status_period_s: scenario seconds between status reports
   double checkpoint_period_s = 10.0;    // checkpoint_period_s: scenario seconds between checkpoints (0: none)
@@ -44,6 +46,7 @@ struct AgentOptions {
     dead_reckoning.Read(r);
     sync.Read(r);
     exchange.Read(r);
+    rendezvous.Read(r);
     peer_limits.Read(r);
     r.GetInRange("status_period_s", status_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
     r.GetZeroOrInRange("checkpoint_period_s", checkpoint_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);

@@ -7,6 +7,7 @@
 #include "common/config/scenario_limits.h"
 #include "common/merge/global_map.h"
 #include "common/merge/map_alignment.h"
+#include "common/types/choice.h"
 
 namespace mapmesh {
 
@@ -30,7 +31,16 @@ struct ExchangeAblations {
   bool refute_by_relay = true;     // a better supported relay refutes our direct alignment
 };
 
+// Where alignments come from (agent.align_by): map overlap (triangles and RANSAC), rendezvous
+// (robots that saw each other, rendezvous_tracker.h), or both. Either is verified against the maps.
+enum class AlignBy { kBoth, kOverlap, kRendezvous };
+inline constexpr ChoiceTable<AlignBy, 3> kAlignBy{
+    {{AlignBy::kBoth, "both"}, {AlignBy::kOverlap, "overlap"}, {AlignBy::kRendezvous, "rendezvous"}}};
+
 struct ExchangeOptions {
+  AlignBy align_by = AlignBy::kBoth;  // agent.align_by
+  bool ByOverlap() const { return align_by != AlignBy::kRendezvous; }
+  bool ByRendezvous() const { return align_by != AlignBy::kOverlap; }
   double align_period_s = 5.0;     // agent.align_period_s: an unaligned peer is tried again this often, when its
                                    // map changed ...
   double retry_growth = 0.2;       // ... or ours grew by this share
@@ -70,6 +80,12 @@ struct ExchangeOptions {
       // rate times now)
   int max_incarnations = 8;  // incarnations kept per robot; a newer one evicts one never aligned and frozen
   AlignmentOptions align = ExchangeAlignment();
+  // A rendezvous fit is verified by the maps at it with this many inliers (not align.min_inliers):
+  // a blind search over the whole map must beat every chance match there, a check at a transform
+  // found independently only the few near it. In the park, robots that meet have mapped 3-5
+  // common trees, and every one of them matches; laid 5 m off, none does.
+  int rendezvous_min_inliers = 3;
+  double rendezvous_gate_probability = 0.999;  // the maps' transform must lie within this gate of the fit
   GlobalMapOptions global;
   ExchangeAblations test_only;  // all on outside unit tests
 
@@ -82,6 +98,7 @@ struct ExchangeOptions {
   template <typename Reader>
   void Read(Reader& r) {
     global.Read(r);
+    r.GetChoice("align_by", align_by, kAlignBy);
     r.GetInRange("align_period_s", align_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
     r.GetZeroOrInRange("refine_period_s", refine_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
     r.GetInRange("drop_after_failures", drop_after_failures, 1, limits::kMaxDropAfterFailures);

@@ -3,11 +3,18 @@
 #include <algorithm>
 #include <set>
 
+#include <Eigen/Cholesky>
+
 #include "common/check.h"
+#include "common/metrics/chi2.h"
 
 namespace mapmesh {
 MapExchange::MapExchange(RobotId self, std::uint32_t incarnation, const ExchangeOptions& options, std::uint64_t seed)
-    : self_(self), incarnation_(incarnation), options_(options), rng_(seed) {}
+    : self_(self),
+      incarnation_(incarnation),
+      options_(options),
+      rng_(seed),
+      rendezvous_gate_(Chi2Quantile(options.rendezvous_gate_probability, 3)) {}
 
 MapExchange::Receipt MapExchange::OnPeerMap(RobotId robot, std::uint32_t incarnation, MapKind kind,
                                             std::uint32_t version, double origin_stamp, LandmarkMap map, double now) {
@@ -184,6 +191,80 @@ bool MapExchange::Verify(PeerState& p, const LandmarkMap& own_local, double now,
   return true;
 }
 
+void MapExchange::OnRendezvous(const PeerKey& key, const RendezvousFit& fit) {
+  if (!options_.ByRendezvous() || !fit.accepted()) return;
+  const auto it = peers_.find(key);
+  if (it == peers_.end() || it->second.report.own_checkpoint) return;
+  AlignmentResult r;
+  r.verdict = AlignmentVerdict::kAccepted;
+  r.transform = fit.transform;
+  r.cov = fit.cov;
+  it->second.rendezvous = r;
+  ++it->second.report.rendezvous_fits;
+}
+
+bool MapExchange::AlignByRendezvous(PeerState& p, const LandmarkMap& own_local, double now) {
+  const AlignmentResult fit = *p.rendezvous;
+  p.rendezvous.reset();
+  const LandmarkMap& theirs = p.Map();
+  const Eigen::Vector2d at = Centroid(theirs);
+  // Verified like an overlap answer, at the fit: the maps laid over each other there must match
+  // (guided matching, the residual and overlap tests). The maps' own fit at it is the answer,
+  // and the two independent kinds of evidence agreeing confirm it. Sightings alone never
+  // suffice: a peer that reports every pose shifted by the same error is consistent with
+  // itself, and only its map can give it away.
+  AlignmentOptions guided = options_.align;
+  guided.min_inliers = options_.rendezvous_min_inliers;
+  // Sightings place a peer to decimetres and degrees (MRCLAM: 0.05-0.7 m, 1-14 deg), wider than
+  // the landmark gates: first the peer's map is laid over ours with the fit's covariance in
+  // every landmark, so that guided matching finds the pairs the fit's error hides; then the
+  // transform they give is verified on the maps as they are.
+  AlignmentResult v;
+  {
+    LandmarkMap moved = theirs;
+    const PoseMap2 tm(fit.transform);
+    for (Landmark& l : moved.landmarks) l = TransformLandmark(l, tm, fit.cov, nullptr);
+    moved.shape_sigma_m = 0.0;  // the fit's error is not a shape error: compare with the marginals
+    const AlignmentResult near = VerifyAlignment(own_local, moved, Pose2{}, guided);
+    v = VerifyAlignment(own_local, theirs, near.accepted() ? near.transform * fit.transform : fit.transform, guided);
+  }
+  if (!v.accepted() || !WithinFit(v, fit)) {
+    const bool unjudged = v.covered < guided.min_inliers;
+    ++(unjudged ? p.report.rendezvous_unjudged : p.report.rendezvous_refused);
+    return false;
+  }
+  if (std::any_of(p.refuted.begin(), p.refuted.end(),
+                  [&](const Pose2& t) { return relay_.Agree(t, v.transform, at); })) {
+    ++p.report.refuted_answers;
+    return false;
+  }
+  ++p.report.rendezvous_confirmed;
+  p.candidate.reset();
+  Use(p, v, own_local, /*reconsider_relay=*/true, now);
+  return true;
+}
+
+bool MapExchange::WithinFit(const AlignmentResult& v, const AlignmentResult& fit) const {
+  const Eigen::Vector3d d(v.transform.x - fit.transform.x, v.transform.y - fit.transform.y,
+                          WrapAngle(v.transform.theta - fit.transform.theta));
+  const Eigen::Matrix3d s = fit.cov + v.cov;
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(s);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return false;
+  return d.dot(ldlt.solve(d)) <= rendezvous_gate_;
+}
+
+void MapExchange::MarkAligned(PeerState& p, AlignmentSource by, double now) {
+  p.report.aligned = true;
+  p.report.dropped = false;
+  p.report.failures = 0;
+  p.report.aligned_by = by;
+  if (!p.report.ever_aligned) {
+    p.report.aligned_since = now;
+    p.report.first_aligned_by = by;
+  }
+  p.report.ever_aligned = true;
+}
+
 std::set<PeerKey> MapExchange::RelayTurns() const {
   if (!options_.relay_global_maps) return {};
   struct Due {
@@ -320,7 +401,13 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     if (!p.has_local && !p.has_global) continue;
     const bool relay_turn = relay_turns.count(key) > 0;
     if (!p.report.aligned) {
-      if (!AttemptDue(p, own_local, now)) continue;
+      if (p.rendezvous && AlignByRendezvous(p, own_local, now)) {
+        chosen.insert(key);
+        MarkAligned(p, AlignmentSource::kRendezvous, now);
+        changed = true;
+        continue;
+      }
+      if (!options_.ByOverlap() || !AttemptDue(p, own_local, now)) continue;
       if (budget_ <= 0) {
         if (!starved) starved = key;
         continue;
@@ -328,21 +415,20 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
       ++p.report.attempts;
       if (Align(p, own_local, now, /*reconsider_relay=*/true)) {
         chosen.insert(key);
-        p.report.aligned = true;
-        p.report.dropped = false;
-        p.report.failures = 0;
-        if (!p.report.ever_aligned) p.report.aligned_since = now;
-        p.report.ever_aligned = true;
+        MarkAligned(p, AlignmentSource::kOverlap, now);
         changed = true;
       }
       continue;
     }
+    // Aligned by overlap: later rendezvous fits add nothing (verification refines the transform).
+    if (p.report.aligned_by == AlignmentSource::kOverlap) p.rendezvous.reset();
     // Aligned, and both maps grew since the last full alignment: align afresh. A transform
     // accepted on small maps can be a coincidence that verification at that same transform
     // keeps passing in a dense map; with more landmarks the true alignment has the larger
     // support. An accepted answer replaces the transform; otherwise verification goes on.
-    if (RealignDue(p, own_local, now) && budget_ <= 0 && !starved) starved = key;
-    if (budget_ > 0 && RealignDue(p, own_local, now)) {
+    const bool realign_due = options_.ByOverlap() && RealignDue(p, own_local, now);
+    if (realign_due && budget_ <= 0 && !starved) starved = key;
+    if (budget_ > 0 && realign_due) {
       const Pose2 before = p.report.to_own;
       const Eigen::Vector2d at = p.report.centroid;
       const bool was_changed = p.changed;
@@ -352,6 +438,7 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
       if (Align(p, own_local, now, /*reconsider_relay=*/was_changed && relay_turn)) {
         if (was_changed && relay_turn) chosen.insert(key);
         p.report.failures = 0;
+        p.report.aligned_by = AlignmentSource::kOverlap;
         if (!relay_.Agree(p.report.to_own, before, at)) {
           ++p.report.corrections;
           changed = true;

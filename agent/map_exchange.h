@@ -21,6 +21,7 @@
 #include "agent/peer_state.h"
 #include "agent/relay_policy.h"
 #include "common/merge/global_map.h"
+#include "common/merge/rendezvous.h"
 
 namespace mapmesh {
 
@@ -38,6 +39,12 @@ class MapExchange {
                     LandmarkMap map, double now);
   // The peer's writer came back (true) or went away (false): every incarnation of the robot.
   void OnPeerLiveliness(RobotId robot, bool alive, double now);
+  // A rendezvous fit of a peer frame (rendezvous_tracker.h), weighed in the next Update of an
+  // unaligned peer: verified against the maps at the fit (VerifyAlignment), it aligns the peer
+  // when they match there; where they do not, or overlap too little to tell, it is refused
+  // (counted apart). Ignored unless align_by includes rendezvous; kept only for peers whose map
+  // arrived.
+  void OnRendezvous(const PeerKey& key, const RendezvousFit& fit);
   // An earlier incarnation of this agent, from its checkpoint: aligned like any peer.
   void AddOwnCheckpoint(std::uint32_t incarnation, double origin_stamp, LandmarkMap local, LandmarkMap global);
 
@@ -75,6 +82,14 @@ class MapExchange {
   // (the caller checks that one is left); when the answer is confirmed (confirm_alignments)
   // stores the transform and source and returns true.
   bool Align(PeerState& p, const LandmarkMap& own_local, double now, bool reconsider_relay);
+  // Weighs the peer's newest rendezvous fit against the maps; when they confirm it, uses it and
+  // returns true.
+  bool AlignByRendezvous(PeerState& p, const LandmarkMap& own_local, double now);
+  // Whether the maps' transform v lies within the rendezvous fit's uncertainty (chi-square gate
+  // on the difference, with both covariances).
+  bool WithinFit(const AlignmentResult& v, const AlignmentResult& fit) const;
+  // Marks a peer aligned by the answer just used.
+  void MarkAligned(PeerState& p, AlignmentSource by, double now);
   // Whether a new incarnation of robot can be kept (max_incarnations), evicting one if need be.
   bool MakeRoomFor(RobotId robot, double now);
   bool Silent(const PeerState& p, double now) const { return p.Silent(now, options_.SilentAfterS()); }
@@ -124,6 +139,7 @@ class MapExchange {
   GlobalMap published_;
   AssociationMemo global_memo_, published_memo_;  // each map's ambiguous groups, from its last build
   std::uint64_t updates_ = 0;
+  double rendezvous_gate_;  // chi-square 3 dof at rendezvous_gate_probability
 };
 
 }  // namespace mapmesh

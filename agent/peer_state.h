@@ -24,6 +24,12 @@ struct PeerKey {
   auto operator<=>(const PeerKey&) const = default;
 };
 
+// Which kind of evidence an alignment came from.
+enum class AlignmentSource : std::uint8_t { kNone = 0, kOverlap, kRendezvous };
+inline const char* ToString(AlignmentSource s) {
+  return s == AlignmentSource::kOverlap ? "overlap" : s == AlignmentSource::kRendezvous ? "rendezvous" : "none";
+}
+
 // What the agent knows about one peer incarnation (for status, stats and tests).
 struct PeerReport {
   PeerKey key;
@@ -60,6 +66,12 @@ struct PeerReport {
   int corrections = 0;   // ... that replaced a transform they disagreed with
   int refinements = 0;   // transforms refined on our newer own map alone (refine_period_s)
   AlignmentVerdict last_verdict = AlignmentVerdict::kTooFewLandmarks;
+  AlignmentSource aligned_by = AlignmentSource::kNone;  // of the alignment accepted last (verification keeps it)
+  AlignmentSource first_aligned_by = AlignmentSource::kNone;
+  int rendezvous_fits = 0;       // rendezvous fits of this frame that the sightings accepted ...
+  int rendezvous_refused = 0;    // ... that the maps contradicted (laid over each other there, they did not match)
+  int rendezvous_unjudged = 0;   // ... not used: the maps overlapped too little there to tell
+  int rendezvous_confirmed = 0;  // ... that the maps confirmed: used
 };
 
 struct PeerState {
@@ -85,6 +97,7 @@ struct PeerState {
   std::vector<Pose2> refuted;                   // alignments that lost to a relay's placement
   std::optional<PeerKey> superseded_by;         // frozen, re-placed by this relay (see MapExchange::Update)
   std::map<PeerKey, double> last_refute_check;  // by relay: when its placement of this peer was last weighed
+  std::optional<AlignmentResult> rendezvous;    // the newest accepted rendezvous fit, not yet weighed
 
   // The map aligned: the peer's local map, or its global map when it sent no local one.
   const LandmarkMap& Map() const { return has_local && !local.empty() ? local : global; }

@@ -17,7 +17,9 @@ class Outbox : public AgentOutput {
  public:
   void PublishMap(const MapMessage& m) override { maps.push_back(m); }
   void PublishStatus(const AgentStatus&) override {}
+  void PublishSighting(const Sighting& s) override { sightings.push_back(s); }
   std::vector<MapMessage> maps;
+  std::vector<Sighting> sightings;
 };
 
 struct Slot {
@@ -59,6 +61,10 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
   std::map<RobotId, std::vector<GroundTruth>> truth;
   std::optional<RadioLinks> links;
   std::map<std::pair<RobotId, MapKind>, MapMessage> latest;  // what a late joiner gets (transient-local)
+  // The worst transform each agent (incarnation) used for each peer frame, against the truth then.
+  std::map<std::pair<std::pair<RobotId, std::uint32_t>, PeerKey>, BusAgentResult::WorstAlignment> used;
+  std::map<RobotId, std::uint64_t> sampled_update;
+  const std::vector<Eigen::Vector2d>& landmark_truth = feed.source->Truth().landmarks;
   BusSwarmResult result;
 
   while (!feed.source->Done()) {
@@ -101,6 +107,25 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
       s.checkpoint = s.node->Checkpoint();
       s.next_checkpoint_s = s.node->processed_until() + checkpoint_period;
     }
+    for (auto& [id, s] : slots) {
+      if (landmark_truth.empty() || !s.alive || s.node->exchange().updates() == sampled_update[id]) continue;
+      sampled_update[id] = s.node->exchange().updates();
+      std::optional<std::optional<Pose2>> own_now;
+      for (const PeerReport& p : s.node->exchange().Peers()) {
+        if (!p.aligned || p.own_checkpoint) continue;
+        const Slot& peer = slots.at(p.key.robot);
+        if (!peer.alive || peer.incarnation != p.key.incarnation) continue;
+        if (!own_now) own_now = MapFrameInWorld(s.node->LocalMap(), landmark_truth);
+        const std::optional<Pose2> peer_now = MapFrameInWorld(peer.node->LocalMap(), landmark_truth);
+        if (!*own_now || !peer_now) continue;
+        const TransformError e = CompareTransforms(p.to_own, (*own_now)->Inverse() * *peer_now, p.centroid);
+        BusAgentResult::WorstAlignment& w = used[{{id, s.incarnation}, p.key}];
+        w.peer = p.key;
+        ++w.transforms;
+        w.translation_m = std::max(w.translation_m, e.translation_m);
+        w.rotation_rad = std::max(w.rotation_rad, e.rotation_rad);
+      }
+    }
     // Deliver, in robot order, everything published in this step.
     std::vector<MapMessage> bus;
     for (auto& [id, s] : slots) {
@@ -112,6 +137,24 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
       latest[{m.robot_id, m.kind}] = m;
       for (auto& [id, s] : slots) {
         if (s.alive && id != m.robot_id) s.node->OnMap(m);
+      }
+    }
+    std::vector<Sighting> sightings;
+    for (auto& [id, s] : slots) {
+      if (!s.out) continue;
+      if (o.sightings_withheld.count(id)) s.out->sightings.clear();
+      for (Sighting m : s.out->sightings) {
+        if (const auto off = o.sighting_offsets.find(id); off != o.sighting_offsets.end()) {
+          m.x += off->second.x();
+          m.y += off->second.y();
+        }
+        sightings.push_back(m);
+      }
+      s.out->sightings.clear();
+    }
+    for (const Sighting& m : sightings) {
+      for (auto& [id, s] : slots) {
+        if (s.alive && id != m.robot_id) s.node->OnSighting(m);
       }
     }
   }
@@ -164,6 +207,9 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
         err.fit_rotation_rad = e->from_fit->rotation_rad;
       }
       r.alignment_errors.push_back(err);
+    }
+    for (const auto& [k, w] : used) {
+      if (k.first == std::make_pair(id, s.incarnation)) r.worst_alignments.push_back(w);
     }
     result.agents.push_back(std::move(r));
   }

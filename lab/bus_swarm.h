@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -21,6 +22,10 @@ struct BusSwarmOptions {
   std::string datasets_root;
   std::vector<std::pair<double, RobotId>> kills;     // (scenario time, robot)
   std::vector<std::pair<double, RobotId>> restarts;  // from the robot's last checkpoint
+  // A lying peer: every sighting and answer this robot publishes reports its pose moved by
+  // this much (m) in its map frame (a fault for tests: rendezvous verification must refuse it).
+  std::map<RobotId, Eigen::Vector2d> sighting_offsets;
+  std::set<RobotId> sightings_withheld;  // robots whose sightings and answers never reach the others
 };
 
 // One agent at the end of the run (its last incarnation).
@@ -44,6 +49,16 @@ struct BusAgentResult {
     double fit_translation_m = -1.0, fit_rotation_rad = -1.0;  // -1: maps without signatures
   };
   std::vector<AlignmentError> alignment_errors;
+  // Every transform this agent used for a peer frame during the run (sampled after each
+  // exchange update), against the frames the two local maps were really in then (their rigid
+  // fits to the landmark truth): the worst, per peer frame. A false alignment, however
+  // short-lived, shows here. Empty without landmark truth.
+  struct WorstAlignment {
+    PeerKey peer;
+    int transforms = 0;  // samples
+    double translation_m = 0.0, rotation_rad = 0.0;
+  };
+  std::vector<WorstAlignment> worst_alignments;
 };
 
 struct BusSwarmResult {

@@ -206,6 +206,43 @@ int RunBusCommand(const app::ProcessOptions& po, const std::vector<std::string>&
                 metric(a.global_quality.consistent_ratio, "%.2f").c_str(),
                 metric(a.global_quality.coverage, "%.2f").c_str(), peers.c_str());
   }
+  // When each peer frame was first aligned, and by what.
+  std::printf(
+      "first alignments (peer.incarnation@scenario s by source; rendezvous fits: refused/unjudged/confirmed):\n");
+  for (const auto& a : r.agents) {
+    std::string line;
+    for (const PeerReport& p : a.peers) {
+      if (p.own_checkpoint) continue;
+      char buf[128];
+      if (p.ever_aligned) {
+        std::snprintf(buf, sizeof buf, " %u.%u@%.1f %s", p.key.robot, p.key.incarnation, p.aligned_since,
+                      ToString(p.first_aligned_by));
+      } else {
+        std::snprintf(buf, sizeof buf, " %u.%u never", p.key.robot, p.key.incarnation);
+      }
+      line += buf;
+      if (p.rendezvous_fits > 0) {
+        std::snprintf(buf, sizeof buf, "(%d/%d/%d)", p.rendezvous_refused, p.rendezvous_unjudged,
+                      p.rendezvous_confirmed);
+        line += buf;
+      }
+    }
+    std::printf("%3u%s\n", a.robot, line.c_str());
+  }
+  if (truth) {
+    std::printf(
+        "worst transform used per peer frame, against the maps' fits to the truth at the time (m/deg, samples):\n");
+    for (const auto& a : r.agents) {
+      std::string line;
+      for (const auto& w : a.worst_alignments) {
+        char buf[96];
+        std::snprintf(buf, sizeof buf, " %u.%u(%.2f/%.2f, %d)", w.peer.robot, w.peer.incarnation, w.translation_m,
+                      RadToDeg(w.rotation_rad), w.transforms);
+        line += buf;
+      }
+      std::printf("%3u%s\n", a.robot, line.c_str());
+    }
+  }
   return 0;
 }
 

@@ -23,7 +23,11 @@ Simulator::Simulator(const Scenario& scenario, World world)
   last_step_ = static_cast<std::uint64_t>(std::floor(scenario_.duration_s / dt_ + 1e-9));
   robots_.reserve(scenario_.robots.size());
   for (const RobotSpec& spec : scenario_.robots) {
-    Robot r{&spec, spec.start, {}, std::mt19937_64(scenario_.seed * 6364136223846793005ULL + spec.id)};
+    Robot r{&spec,
+            spec.start,
+            {},
+            std::mt19937_64(scenario_.seed * 6364136223846793005ULL + spec.id),
+            std::mt19937_64(scenario_.seed * 1442695040888963407ULL + spec.id * 2862933555777941757ULL + 1)};
     robots_.push_back(std::move(r));
     truth_.starts.emplace_back(spec.id, spec.start);
   }
@@ -46,6 +50,30 @@ Scan Simulator::Sense(Robot& r, double stamp) {
   s.obs = SenseLandmarks(r.pose, truth_.landmarks, r.spec->sensor, r.rng, &seen_scratch_);
   for (int i : seen_scratch_) truth_.seen[i] = true;
   return s;
+}
+
+void Simulator::SenseRobots(std::vector<Scan>& scans, std::size_t first) {
+  std::normal_distribution<double> n01(0.0, 1.0);
+  for (std::size_t k = first; k < scans.size(); ++k) {
+    Scan& s = scans[k];
+    Robot* me = nullptr;
+    for (Robot& r : robots_) {
+      if (r.spec->id == s.robot_id) me = &r;
+    }
+    if (me == nullptr || !me->spec->sensor.sees_robots) continue;
+    const SensorOptions& sensor = me->spec->sensor;
+    for (const Robot& other : robots_) {
+      if (&other == me) continue;
+      const Eigen::Vector2d at(other.pose.x, other.pose.y);
+      if (!IsVisible(me->pose, at, sensor)) continue;
+      Observation o = RangeBearing(me->pose, at);
+      o.range = std::max(0.0, o.range + sensor.sigma_range_m * n01(me->sight_rng));
+      o.bearing = WrapAngle(o.bearing + DegToRad(sensor.sigma_bearing_deg) * n01(me->sight_rng));
+      o.signature = static_cast<std::int32_t>(other.spec->id);
+      o.kind = ObservationKind::kRobot;
+      s.obs.push_back(o);
+    }
+  }
 }
 
 FeedBatch Simulator::Next() {
@@ -81,6 +109,8 @@ FeedBatch Simulator::Next() {
       b.odom.push_back(o);
     }
   }
+  // Every robot has moved: the scans of this step see the others where they are now.
+  SenseRobots(b.scans, 0);
   for (const Robot& r : robots_) {
     b.truth.push_back({r.spec->id, b.stamp, r.pose.x, r.pose.y, r.pose.theta});
   }

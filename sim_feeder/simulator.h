@@ -33,6 +33,7 @@ class Simulator : public FeedSource {
     Pose2 pose;
     FollowerState follower;
     std::mt19937_64 rng;
+    std::mt19937_64 sight_rng;  // robot sightings: a stream of their own
     std::uint32_t odom_seq = 0;
     std::uint32_t scan_seq = 0;
     std::uint32_t start_scans = 0;  // taken from the start pose: announced by the first odometry
@@ -40,6 +41,8 @@ class Simulator : public FeedSource {
   // One scan of robot r from its true pose at `stamp`.
   Scan Sense(Robot& r, double stamp);
   RadioLinks Links(double stamp) const;
+  // Appends to every scan of this step the other robots its robot sees (at their poses now).
+  void SenseRobots(std::vector<Scan>& scans, std::size_t first);
 
   Scenario scenario_;
   WorldTruth truth_;

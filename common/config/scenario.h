@@ -104,6 +104,8 @@ struct SensorOptions {
   bool scan_at_start = false;      // simulation: also scan from the start pose, before the first control
                                    // step (anchors the map frame before any odometry noise)
   bool signatures = false;         // share landmark identities (known correspondence)
+  bool sees_robots = true;         // simulation: scans also carry the other robots in view (kind robot,
+                                   // signature = robot id), drawn from a generator of their own
   static SensorOptions ThesisDefaults() { return {}; }
   static SensorOptions DownsDefaults();
 };

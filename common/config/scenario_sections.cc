@@ -275,6 +275,7 @@ void ReadSensor(YamlReader s, SensorOptions& o) {
   s.GetInRange("sigma_bearing_deg", o.sigma_bearing_deg, 0.0, limits::kMaxSigmaBearingDeg);
   s.GetInRange("scan_every_steps", o.scan_every_steps, 1, limits::kMaxScanEverySteps);
   s.Get("scan_at_start", o.scan_at_start);
+  s.Get("sees_robots", o.sees_robots);
   s.Get("signatures", o.signatures);
   s.Finish();
 }

@@ -138,4 +138,42 @@ AgentStatus FromMsg(const mapmesh_msg_AgentStatus& m) {
   return s;
 }
 
+mapmesh_msg_Sighting ToMsg(const Sighting& v, MsgScratch&) {
+  mapmesh_msg_Sighting m{};
+  m.robot_id = v.robot_id;
+  m.incarnation = v.incarnation;
+  m.kind = static_cast<std::uint8_t>(v.kind);
+  m.other = v.other;
+  m.other_incarnation = v.other_incarnation;
+  m.stamp = v.stamp;
+  m.x = v.x;
+  m.y = v.y;
+  m.theta = v.theta;
+  for (std::size_t i = 0; i < v.cov.size(); ++i) m.cov[i] = v.cov[i];
+  m.range = v.range;
+  m.bearing = v.bearing;
+  m.sigma_range = v.sigma_range;
+  m.sigma_bearing = v.sigma_bearing;
+  return m;
+}
+
+Sighting FromMsg(const mapmesh_msg_Sighting& m) {
+  Sighting v;
+  v.robot_id = m.robot_id;
+  v.incarnation = m.incarnation;
+  v.kind = m.kind == 1 ? SightingKind::kAnswer : SightingKind::kSighting;
+  v.other = m.other;
+  v.other_incarnation = m.other_incarnation;
+  v.stamp = m.stamp;
+  v.x = m.x;
+  v.y = m.y;
+  v.theta = m.theta;
+  for (std::size_t i = 0; i < v.cov.size(); ++i) v.cov[i] = m.cov[i];
+  v.range = m.range;
+  v.bearing = m.bearing;
+  v.sigma_range = m.sigma_range;
+  v.sigma_bearing = m.sigma_bearing;
+  return v;
+}
+
 }  // namespace mapmesh::transport

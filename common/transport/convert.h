@@ -24,6 +24,7 @@ MAPMESH_WIRE(RadioLinks, mapmesh_msg_RadioLinks);
 MAPMESH_WIRE(GroundTruth, mapmesh_msg_GroundTruth);
 MAPMESH_WIRE(MapMessage, mapmesh_msg_MapMessage);
 MAPMESH_WIRE(AgentStatus, mapmesh_msg_AgentStatus);
+MAPMESH_WIRE(Sighting, mapmesh_msg_Sighting);
 #undef MAPMESH_WIRE
 
 // Scratch storage for the sequences of a message being written.
@@ -39,6 +40,7 @@ mapmesh_msg_RadioLinks ToMsg(const RadioLinks& v, MsgScratch& scratch);
 mapmesh_msg_GroundTruth ToMsg(const GroundTruth& v, MsgScratch& scratch);
 mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch& scratch);
 mapmesh_msg_AgentStatus ToMsg(const AgentStatus& v, MsgScratch& scratch);
+mapmesh_msg_Sighting ToMsg(const Sighting& v, MsgScratch& scratch);
 
 Odometry FromMsg(const mapmesh_msg_Odometry& m);
 Scan FromMsg(const mapmesh_msg_Scan& m);
@@ -46,5 +48,6 @@ RadioLinks FromMsg(const mapmesh_msg_RadioLinks& m);
 GroundTruth FromMsg(const mapmesh_msg_GroundTruth& m);
 MapMessage FromMsg(const mapmesh_msg_MapMessage& m);
 AgentStatus FromMsg(const mapmesh_msg_AgentStatus& m);
+Sighting FromMsg(const mapmesh_msg_Sighting& m);
 
 }  // namespace mapmesh::transport

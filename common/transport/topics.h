@@ -15,6 +15,7 @@ inline constexpr const char* kLinksTopic = "mapmesh/links";
 inline constexpr const char* kTruthTopic = "mapmesh/truth";
 inline constexpr const char* kMapTopic = "mapmesh/map";
 inline constexpr const char* kStatusTopic = "mapmesh/status";
+inline constexpr const char* kSightingTopic = "mapmesh/sighting";
 
 // The agents' map and status writers have a liveliness lease (AgentOptions::LivelinessLeaseS):
 // a dead agent is noticed after about that long. Writer and readers must use the same one.
@@ -31,6 +32,9 @@ inline Qos TruthQos() { return Qos().BestEffort().KeepLast(1); }
 inline Qos MapQos(double lease_s) {
   return Qos().BestEffort().KeepLast(1).Volatile().Liveliness(lease_s).NoAutoDispose();
 }
+// Robot sightings and their answers: rare (at most one per peer and agent.rendezvous_period_s),
+// each one useful on its own; best-effort like the maps, a few kept per publisher.
+inline Qos SightingQos() { return Qos().BestEffort().KeepLast(16).Volatile(); }
 inline Qos StatusQos(double lease_s) { return Qos().BestEffort().KeepLast(1).Liveliness(lease_s); }
 
 }  // namespace mapmesh::transport

@@ -2,6 +2,7 @@
 // Value types exchanged between the feeder, the agents and the launcher. They mirror
 // idl/mapmesh.idl; transport/convert.h maps between the two.
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -57,6 +58,24 @@ struct GroundTruth {
   RobotId robot_id = 0;
   double stamp = 0.0;
   double x = 0.0, y = 0.0, theta = 0.0;
+};
+
+// Robots that see each other (thesis 3.3.1): an agent that sights a peer publishes the
+// sighting with its own pose estimate then; the sighted peer answers with its pose estimate at
+// that stamp. Each side then holds one point of the sighted robot in both map frames.
+enum class SightingKind : std::uint8_t { kSighting = 0, kAnswer = 1 };
+
+struct Sighting {
+  RobotId robot_id = 0;           // the publisher
+  std::uint32_t incarnation = 0;  // its process start: its map frame
+  SightingKind kind = SightingKind::kSighting;
+  RobotId other = 0;                     // the robot sighted; for an answer, the robot whose sighting it answers
+  std::uint32_t other_incarnation = 0;   // answer: the incarnation that sighting came from
+  double stamp = 0.0;                    // s, when the sighting was taken
+  double x = 0.0, y = 0.0, theta = 0.0;  // the publisher's pose estimate in its map frame at stamp
+  std::array<double, 6> cov{};           // its covariance: xx, xy, xt, yy, yt, tt
+  double range = 0.0, bearing = 0.0;     // sighting: the measurement (m, rad)
+  double sigma_range = 0.0, sigma_bearing = 0.0;  // sighting: the publisher's sensor noise (m, rad)
 };
 
 enum class MapKind : std::uint8_t { kLocal = 0, kGlobal = 1 };
