@@ -6,6 +6,7 @@
 #include <Eigen/Cholesky>
 
 #include "common/check.h"
+#include "common/merge/map_joining.h"
 #include "common/metrics/chi2.h"
 
 namespace mapmesh {
@@ -490,6 +491,16 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
       if (p.report.superseded) continue;
     }
     sources.push_back(*p.source);
+  }
+  if (options_.global.method == FusionMethod::kJoining) {
+    // Least-squares joining of the one-hop local maps only (map_joining.h: each robot's
+    // measurements enter once); the gates of a CI build give the association.
+    GlobalMapOptions association = options_.global;
+    association.method = FusionMethod::kCiConstant;
+    const GlobalMap associated = BuildGlobalMap(own_local, self_, direct, association, incarnation_, &published_memo_);
+    global_ = JoinMaps(own_local, self_, incarnation_, direct, associated);
+    published_ = global_;
+    return changed;
   }
   global_ = BuildGlobalMap(own_local, self_, sources, options_.global, incarnation_, &global_memo_);
   published_ = BuildGlobalMap(own_local, self_, direct, options_.global, incarnation_, &published_memo_);

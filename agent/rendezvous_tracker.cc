@@ -163,8 +163,9 @@ RendezvousTracker::Frame& RendezvousTracker::FrameOf(const PeerKey& key, double 
     for (auto f = frames_.lower_bound({key.robot, 0}); f != frames_.end() && f->first.robot == key.robot; ++f)
       same.push_back(f);
     if (static_cast<int>(same.size()) >= options_.max_frames_per_robot) {
-      frames_.erase(*std::min_element(same.begin(), same.end(),
-                                      [](const auto& a, const auto& b) { return a->second.updated < b->second.updated; }));
+      frames_.erase(*std::min_element(same.begin(), same.end(), [](const auto& a, const auto& b) {
+        return a->second.updated < b->second.updated;
+      }));
     }
     it = frames_.emplace(key, Frame{}).first;
   }

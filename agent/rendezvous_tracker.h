@@ -24,14 +24,14 @@
 namespace mapmesh {
 
 struct RendezvousOptions {
-  double period_s = 1.0;           // agent.rendezvous_period_s: at most one sighting of each peer published this often
-  double window_s = 60.0;          // own poses and sightings are kept this long (later answers find nothing)
-  double mutual_within_s = 0.25;   // two robots' sightings of each other this close in time: a mutual rendezvous
-  double max_pose_gap_s = 1.0;     // the own pose at a stamp is interpolated between poses at most this far apart
-  int max_pairs = 30;              // per peer frame, the newest correspondences kept ...
-  int max_mutual = 10;             // ... and mutual rendezvous
-  int max_pending = 256;           // peers' sightings waiting for us to reach their stamp (the oldest go first)
-  int max_frames_per_robot = 8;    // peer frames tracked per robot (the least recently updated go first)
+  double period_s = 1.0;          // agent.rendezvous_period_s: at most one sighting of each peer published this often
+  double window_s = 60.0;         // own poses and sightings are kept this long (later answers find nothing)
+  double mutual_within_s = 0.25;  // two robots' sightings of each other this close in time: a mutual rendezvous
+  double max_pose_gap_s = 1.0;    // the own pose at a stamp is interpolated between poses at most this far apart
+  int max_pairs = 30;             // per peer frame, the newest correspondences kept ...
+  int max_mutual = 10;            // ... and mutual rendezvous
+  int max_pending = 256;          // peers' sightings waiting for us to reach their stamp (the oldest go first)
+  int max_frames_per_robot = 8;   // peer frames tracked per robot (the least recently updated go first)
   RendezvousFitOptions fit;
 
   template <typename Reader>
@@ -41,13 +41,13 @@ struct RendezvousOptions {
 };
 
 struct RendezvousStats {
-  std::uint32_t sightings_sent = 0;     // own sightings of peers published
-  std::uint32_t answers_sent = 0;       // own poses sent in answer to a peer's sighting
-  std::uint32_t sightings_used = 0;     // peers' sightings of us made correspondences
-  std::uint32_t answers_used = 0;       // peers' answers to our sightings made correspondences
-  std::uint32_t mutual = 0;             // mutual rendezvous found
-  std::uint32_t refused = 0;            // malformed messages (non-finite, bad covariance or sigmas)
-  std::uint32_t unmatched = 0;          // answers to no sighting of ours; sightings of us outside our pose history
+  std::uint32_t sightings_sent = 0;  // own sightings of peers published
+  std::uint32_t answers_sent = 0;    // own poses sent in answer to a peer's sighting
+  std::uint32_t sightings_used = 0;  // peers' sightings of us made correspondences
+  std::uint32_t answers_used = 0;    // peers' answers to our sightings made correspondences
+  std::uint32_t mutual = 0;          // mutual rendezvous found
+  std::uint32_t refused = 0;         // malformed messages (non-finite, bad covariance or sigmas)
+  std::uint32_t unmatched = 0;       // answers to no sighting of ours; sightings of us outside our pose history
   std::uint32_t fits = 0, fits_accepted = 0;
 };
 

@@ -185,6 +185,7 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
     if (!world.landmarks.empty()) {
       r.local_quality = EvaluateOwnFrameMap(r.local, world.landmarks, result.seen, r.origin_truth);
       r.global_quality = EvaluateOwnFrameMap(r.global.map, world.landmarks, result.seen, r.origin_truth);
+      r.global_fitted = EvaluateOwnFrameMap(r.global.map, world.landmarks, result.seen, std::nullopt);
     }
     const TruePoseAt true_pose = [&](RobotId robot, double t) { return TruthAt(truth[robot], t); };
     const std::optional<Pose2> own_fit = world.landmarks.empty() ? std::nullopt

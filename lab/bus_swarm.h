@@ -39,6 +39,7 @@ struct BusAgentResult {
   std::vector<PeerReport> peers;
   AgentStats stats;
   MapQuality local_quality, global_quality;  // in its own frame (when the origin is known)
+  MapQuality global_fitted;                  // after a rigid fit of the whole global map to the truth
   // Errors of its alignments against the truth, per aligned peer incarnation.
   // Against the true start poses of both frames (at the peer map's centroid), and against
   // the frames the two maps are really in (each map's rigid fit to the landmark truth): the

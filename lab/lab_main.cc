@@ -208,7 +208,7 @@ int RunBusCommand(const app::ProcessOptions& po, const std::vector<std::string>&
   }
   // When each peer frame was first aligned, and by what.
   std::printf(
-      "first alignments (peer.incarnation@scenario s by source; rendezvous fits: refused/unjudged/confirmed):\n");
+      "\nfirst alignments (peer.incarnation@scenario s by source; rendezvous fits: refused/unjudged/confirmed):\n");
   for (const auto& a : r.agents) {
     std::string line;
     for (const PeerReport& p : a.peers) {
@@ -230,6 +230,14 @@ int RunBusCommand(const app::ProcessOptions& po, const std::vector<std::string>&
     std::printf("%3u%s\n", a.robot, line.c_str());
   }
   if (truth) {
+    std::printf("\nglobal maps after a rigid fit to the truth (rmse m, nees, landmarks matched):\n");
+    double sum = 0.0;
+    for (const auto& a : r.agents) {
+      std::printf("%3u %.3f %.2f %d\n", a.robot, a.global_fitted.rmse_m, a.global_fitted.nees_mean,
+                  a.global_fitted.matched);
+      sum += a.global_fitted.rmse_m;
+    }
+    std::printf("mean %.3f\n\n", r.agents.empty() ? 0.0 : sum / static_cast<double>(r.agents.size()));
     std::printf(
         "worst transform used per peer frame, against the maps' fits to the truth at the time (m/deg, samples):\n");
     for (const auto& a : r.agents) {

@@ -171,7 +171,7 @@ std::optional<Gaussian2> FusePair(const Gaussian2& a, const Gaussian2& b, Fusion
     return Gaussian2{cov * (ia * a.mean + ib * b.mean), cov};
   }
   double w = 0.5;
-  if (method != FusionMethod::kCiConstant) {
+  if (method != FusionMethod::kCiConstant && method != FusionMethod::kJoining) {
     const CiCriterion c = method == FusionMethod::kCiDeterminant ? CiCriterion::kDeterminant : CiCriterion::kTrace;
     w = 0.5 + LineOptimum(0.5 * (ia + ib), ia - ib, -0.5, 0.5, c);
   }

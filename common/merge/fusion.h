@@ -33,14 +33,17 @@ enum class FusionMethod {
   kCiConstant,     // equal weights
   kCiDeterminant,  // weights minimising det of the fused covariance
   kCiTrace,        // weights minimising its trace
+  kJoining,        // not a per-landmark rule: the agent joins the maps by least squares (map_joining.h);
+                   // where one landmark's estimates are fused on their own, as kCiConstant
 };
-inline constexpr ChoiceTable<FusionMethod, 5> kFusionMethods{{{FusionMethod::kMaximumLikelihood, "ml"},
+inline constexpr ChoiceTable<FusionMethod, 6> kFusionMethods{{{FusionMethod::kMaximumLikelihood, "ml"},
                                                               {FusionMethod::kInformation, "information"},
                                                               {FusionMethod::kCiConstant, "ci"},
                                                               {FusionMethod::kCiDeterminant, "ci_det"},
-                                                              {FusionMethod::kCiTrace, "ci_trace"}}};
+                                                              {FusionMethod::kCiTrace, "ci_trace"},
+                                                              {FusionMethod::kJoining, "joining"}}};
 inline std::string_view ToString(FusionMethod m) { return NameOf(kFusionMethods, m); }
-// "ml", "information", "ci", "ci_det", "ci_trace"; nullopt for anything else.
+// "ml", "information", "ci", "ci_det", "ci_trace", "joining"; nullopt for anything else.
 inline std::optional<FusionMethod> ParseFusionMethod(std::string_view name) {
   return ParseChoice(kFusionMethods, name);
 }

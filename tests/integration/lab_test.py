@@ -16,6 +16,8 @@ def bus(scenario):
     header = next(i for i, line in enumerate(lines) if line.split()[:2] == ["id", "alive"])
     rows = {}
     for line in lines[header + 1:]:
+        if not line.strip():
+            break  # the table ends; first alignments and worst transforms follow
         f = line.split()
         rows[int(f[0])] = {"alive": f[1], "lm_loc": int(f[3]), "rmse_loc": f[4], "lm_glob": int(f[5]),
                            "rmse_glb": f[6], "cov_glb": f[9], "peers": " ".join(f[10:])}

@@ -13,8 +13,8 @@ namespace mapmesh::lab {
 namespace {
 
 BusSwarmResult RunPark(const std::string& align_by, const BusSwarmOptions& o = {}) {
-  const Scenario sc =
-      LoadScenario(MAPMESH_SOURCE_DIR "/scenarios/park4.yaml", {ParseOverride("agent.align_by=" + align_by)});
+  const Scenario sc = LoadScenario(MAPMESH_SOURCE_DIR "/scenarios/park4.yaml",
+                                   {ParseOverride("agent.align_by=" + align_by)});
   return RunBusSwarm(sc, o);
 }
 
@@ -90,8 +90,8 @@ TEST(RendezvousSwarm, APeerReportingItsPoseFiveMetresOffIsRefused) {
   for (std::size_t i = 0; i < lied.agents.size(); ++i) {
     const BusAgentResult &a = lied.agents[i], &b = reference.agents[i];
     if (a.robot == kLiar) continue;
-    std::printf("agent %u: global rmse %.3f (reference %.3f), %zu landmarks (%zu)\n", a.robot,
-                a.global_quality.rmse_m, b.global_quality.rmse_m, a.global.map.size(), b.global.map.size());
+    std::printf("agent %u: global rmse %.3f (reference %.3f), %zu landmarks (%zu)\n", a.robot, a.global_quality.rmse_m,
+                b.global_quality.rmse_m, a.global.map.size(), b.global.map.size());
     EXPECT_LE(a.global_quality.rmse_m, b.global_quality.rmse_m + 0.01) << "agent " << a.robot;
     EXPECT_GE(a.global_quality.consistent_ratio, b.global_quality.consistent_ratio - 0.01) << "agent " << a.robot;
   }
