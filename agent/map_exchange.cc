@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <set>
 
-#include <Eigen/Cholesky>
-
 #include "common/check.h"
 #include "common/merge/map_joining.h"
 #include "common/metrics/chi2.h"
@@ -217,19 +215,9 @@ bool MapExchange::AlignByRendezvous(PeerState& p, const LandmarkMap& own_local, 
   AlignmentOptions guided = options_.align;
   guided.min_inliers = options_.rendezvous_min_inliers;
   // Sightings place a peer to decimetres and degrees (MRCLAM: 0.05-0.7 m, 1-14 deg), wider than
-  // the landmark gates: first the peer's map is laid over ours with the fit's covariance in
-  // every landmark, so that guided matching finds the pairs the fit's error hides; then the
-  // transform they give is verified on the maps as they are.
-  AlignmentResult v;
-  {
-    LandmarkMap moved = theirs;
-    const PoseMap2 tm(fit.transform);
-    for (Landmark& l : moved.landmarks) l = TransformLandmark(l, tm, fit.cov, nullptr);
-    moved.shape_sigma_m = 0.0;  // the fit's error is not a shape error: compare with the marginals
-    const AlignmentResult near = VerifyAlignment(own_local, moved, Pose2{}, guided);
-    v = VerifyAlignment(own_local, theirs, near.accepted() ? near.transform * fit.transform : fit.transform, guided);
-  }
-  if (!v.accepted() || !WithinFit(v, fit)) {
+  // the landmark gates: the guided matching allows for the fit's covariance.
+  const AlignmentResult v = VerifyUncertainAlignment(own_local, theirs, fit.transform, fit.cov, guided);
+  if (!v.accepted() || TransformDistance2(v.transform, v.cov, fit.transform, fit.cov) > rendezvous_gate_) {
     const bool unjudged = v.covered < guided.min_inliers;
     ++(unjudged ? p.report.rendezvous_unjudged : p.report.rendezvous_refused);
     return false;
@@ -243,15 +231,6 @@ bool MapExchange::AlignByRendezvous(PeerState& p, const LandmarkMap& own_local, 
   p.candidate.reset();
   Use(p, v, own_local, /*reconsider_relay=*/true, now);
   return true;
-}
-
-bool MapExchange::WithinFit(const AlignmentResult& v, const AlignmentResult& fit) const {
-  const Eigen::Vector3d d(v.transform.x - fit.transform.x, v.transform.y - fit.transform.y,
-                          WrapAngle(v.transform.theta - fit.transform.theta));
-  const Eigen::Matrix3d s = fit.cov + v.cov;
-  const Eigen::LDLT<Eigen::Matrix3d> ldlt(s);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return false;
-  return d.dot(ldlt.solve(d)) <= rendezvous_gate_;
 }
 
 void MapExchange::MarkAligned(PeerState& p, AlignmentSource by, double now) {

@@ -85,9 +85,6 @@ class MapExchange {
   // Weighs the peer's newest rendezvous fit against the maps; when they confirm it, uses it and
   // returns true.
   bool AlignByRendezvous(PeerState& p, const LandmarkMap& own_local, double now);
-  // Whether the maps' transform v lies within the rendezvous fit's uncertainty (chi-square gate
-  // on the difference, with both covariances).
-  bool WithinFit(const AlignmentResult& v, const AlignmentResult& fit) const;
   // Marks a peer aligned by the answer just used.
   void MarkAligned(PeerState& p, AlignmentSource by, double now);
   // Whether a new incarnation of robot can be kept (max_incarnations), evicting one if need be.
@@ -139,7 +136,8 @@ class MapExchange {
   GlobalMap published_;
   AssociationMemo global_memo_, published_memo_;  // each map's ambiguous groups, from its last build
   std::uint64_t updates_ = 0;
-  double rendezvous_gate_;  // chi-square 3 dof at rendezvous_gate_probability
+  double rendezvous_gate_;  // chi-square 3 dof at rendezvous_gate_probability: the maps' transform must lie
+                            // this close to the rendezvous fit (TransformDistance2)
 };
 
 }  // namespace mapmesh

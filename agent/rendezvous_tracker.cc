@@ -94,8 +94,7 @@ bool RendezvousTracker::PoseAtStamp(double t, PoseAt* out) const {
   if (b.t - a.t > options_.max_pose_gap_s) return false;
   const double f = (t - a.t) / (b.t - a.t);
   out->t = t;
-  out->pose = {a.pose.x + f * (b.pose.x - a.pose.x), a.pose.y + f * (b.pose.y - a.pose.y),
-               WrapAngle(a.pose.theta + f * WrapAngle(b.pose.theta - a.pose.theta))};
+  out->pose = Interpolate(a.pose, b.pose, f);
   out->cov = (1 - f) * a.cov + f * b.cov;
   return true;
 }

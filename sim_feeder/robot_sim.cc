@@ -64,16 +64,20 @@ Observation RangeBearing(const Pose2& pose, const Eigen::Vector2d& point) {
   return o;
 }
 
+void AddSensorNoise(Observation& o, const SensorOptions& sensor, std::normal_distribution<double>& n01,
+                    std::mt19937_64& rng) {
+  o.range = std::max(0.0, o.range + sensor.sigma_range_m * n01(rng));
+  o.bearing = WrapAngle(o.bearing + DegToRad(sensor.sigma_bearing_deg) * n01(rng));
+}
+
 std::vector<Observation> SenseLandmarks(const Pose2& pose, const std::vector<Eigen::Vector2d>& landmarks,
                                         const SensorOptions& sensor, std::mt19937_64& rng, std::vector<int>* indices) {
   std::normal_distribution<double> n01(0.0, 1.0);
-  const double sb = DegToRad(sensor.sigma_bearing_deg);
   std::vector<Observation> out;
   for (std::size_t i = 0; i < landmarks.size(); ++i) {
     if (!IsVisible(pose, landmarks[i], sensor)) continue;
     Observation o = RangeBearing(pose, landmarks[i]);
-    o.range = std::max(0.0, o.range + sensor.sigma_range_m * n01(rng));
-    o.bearing = WrapAngle(o.bearing + sb * n01(rng));
+    AddSensorNoise(o, sensor, n01, rng);
     o.signature = sensor.signatures ? static_cast<std::int32_t>(i) : -1;
     o.kind = ObservationKind::kLandmark;
     out.push_back(o);

@@ -33,6 +33,11 @@ bool IsVisible(const Pose2& pose, const Eigen::Vector2d& landmark, const SensorO
 // Noise-free range and bearing to a point (thesis eq. 100).
 Observation RangeBearing(const Pose2& pose, const Eigen::Vector2d& point);
 
+// o with the sensor's Gaussian range and bearing noise added (range first, then bearing), drawn
+// with n01 (a standard normal kept across calls: it caches every second draw) from rng.
+void AddSensorNoise(Observation& o, const SensorOptions& sensor, std::normal_distribution<double>& n01,
+                    std::mt19937_64& rng);
+
 // Observations of every visible landmark, with Gaussian range and bearing noise.
 // Signatures are the landmark indices when sensor.signatures is set, else -1. When
 // indices is given, the index of each observed landmark is appended to it.

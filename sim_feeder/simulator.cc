@@ -67,8 +67,7 @@ void Simulator::SenseRobots(std::vector<Scan>& scans, std::size_t first) {
       const Eigen::Vector2d at(other.pose.x, other.pose.y);
       if (!IsVisible(me->pose, at, sensor)) continue;
       Observation o = RangeBearing(me->pose, at);
-      o.range = std::max(0.0, o.range + sensor.sigma_range_m * n01(me->sight_rng));
-      o.bearing = WrapAngle(o.bearing + DegToRad(sensor.sigma_bearing_deg) * n01(me->sight_rng));
+      AddSensorNoise(o, sensor, n01, me->sight_rng);
       o.signature = static_cast<std::int32_t>(other.spec->id);
       o.kind = ObservationKind::kRobot;
       s.obs.push_back(o);

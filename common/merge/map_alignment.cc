@@ -7,6 +7,7 @@
 
 #include "common/geometry/rigid_fit.h"
 #include "common/merge/alignment_fit.h"
+#include "common/merge/global_map.h"
 #include "common/metrics/chi2.h"
 
 namespace mapmesh {
@@ -186,6 +187,16 @@ AlignmentResult VerifyAlignment(const LandmarkMap& a_in, const LandmarkMap& b_in
   }
   Conclude(a_in, b_in, a, b, guess, {}, o, /*guided=*/true, r);
   return r;
+}
+
+AlignmentResult VerifyUncertainAlignment(const LandmarkMap& a, const LandmarkMap& b, const Pose2& guess,
+                                         const Eigen::Matrix3d& guess_cov, const AlignmentOptions& o) {
+  LandmarkMap moved = b;
+  const PoseMap2 tm(guess);
+  for (Landmark& l : moved.landmarks) l = TransformLandmark(l, tm, guess_cov, nullptr);
+  moved.shape_sigma_m = 0.0;  // the guess's error is not a shape error: compare with the marginals
+  const AlignmentResult near = VerifyAlignment(a, moved, Pose2{}, o);
+  return VerifyAlignment(a, b, near.accepted() ? near.transform * guess : guess, o);
 }
 
 AlignmentResult AlignMaps(const LandmarkMap& a, const LandmarkMap& b, const AlignmentOptions& o, std::mt19937_64& rng) {

@@ -125,6 +125,13 @@ AlignmentResult RansacAlign(const LandmarkMap& a, const LandmarkMap& b, const st
 AlignmentResult VerifyAlignment(const LandmarkMap& a, const LandmarkMap& b, const Pose2& guess,
                                 const AlignmentOptions& options);
 
+// The same for a guess known only to guess_cov (from other evidence, e.g. robots' sightings of
+// each other), whose error may exceed the landmark gates: guided matching first runs with b laid
+// over a at the guess and the guess's covariance added to every landmark of b, then the transform
+// that gives is verified on the maps as they are. Ambiguity is not tested.
+AlignmentResult VerifyUncertainAlignment(const LandmarkMap& a, const LandmarkMap& b, const Pose2& guess,
+                                         const Eigen::Matrix3d& guess_cov, const AlignmentOptions& options);
+
 // The whole pipeline: triangles, matching, RANSAC.
 AlignmentResult AlignMaps(const LandmarkMap& a, const LandmarkMap& b, const AlignmentOptions& options,
                           std::mt19937_64& rng);

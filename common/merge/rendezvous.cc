@@ -4,6 +4,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "common/geometry/rigid_fit.h"
@@ -46,6 +47,14 @@ std::optional<RendezvousResult> RendezvousAlign(const RendezvousInput& in) {
   r.cov = a1 * in.cov1 * a1.transpose() + a2 * in.cov2 * a2.transpose() + a_z * z_var.asDiagonal() * a_z.transpose();
   r.cov = 0.5 * (r.cov + r.cov.transpose()).eval();
   return r;
+}
+
+double TransformDistance2(const Pose2& a, const Eigen::Matrix3d& cov_a, const Pose2& b, const Eigen::Matrix3d& cov_b) {
+  const Eigen::Vector3d d(a.x - b.x, a.y - b.y, WrapAngle(a.theta - b.theta));
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(cov_a + cov_b);
+  if (!d.allFinite() || ldlt.info() != Eigen::Success || !ldlt.isPositive())
+    return std::numeric_limits<double>::infinity();
+  return d.dot(ldlt.solve(d));
 }
 
 std::string_view ToString(RendezvousVerdict v) {

@@ -36,6 +36,11 @@ struct RendezvousResult {
 // nullopt for non-finite input or non-positive range sigmas.
 std::optional<RendezvousResult> RendezvousAlign(const RendezvousInput& in);
 
+// Squared Mahalanobis distance between two estimates of one transform (x, y, theta; the angle
+// difference wrapped) under the sum of their covariances; infinity when that is not positive
+// definite.
+double TransformDistance2(const Pose2& a, const Eigen::Matrix3d& cov_a, const Pose2& b, const Eigen::Matrix3d& cov_b);
+
 // A point estimate with its covariance.
 struct PointEstimate {
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
