@@ -11,6 +11,7 @@
 #include "common/merge/fusion.h"
 #include "common/merge/global_map.h"
 #include "common/merge/map_alignment.h"
+#include "common/merge/map_joining.h"
 #include "common/slam/cekf_slam.h"
 #include "common/slam/ekf_slam.h"
 #include "common/slam/observation_model.h"
@@ -291,8 +292,10 @@ BENCHMARK(BM_CiGoldenSection)->Arg(1000)->Unit(benchmark::kMicrosecond);
 
 // A full global-map rebuild: a 500-landmark local map and 4 peers' 500-landmark maps of the
 // same area (each with its own noise and frame), every peer aligned with a small transform
-// covariance; CI with the determinant-minimising weight.
-void BM_GlobalMapRebuild(benchmark::State& state) {
+// covariance; CI with the determinant-minimising weight (the baseline), or that build followed
+// by the least-squares joining of the same maps (`fusion: joining`, which needs the CI build's
+// association).
+void GlobalMapRebuild(benchmark::State& state, bool joining) {
   const int n = static_cast<int>(state.range(1)), peers = static_cast<int>(state.range(0));
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> u(0.0, 80.0), ua(-3.1, 3.1), ut(-50.0, 50.0);
@@ -325,13 +328,17 @@ void BM_GlobalMapRebuild(benchmark::State& state) {
   o.method = FusionMethod::kCiDeterminant;
   std::size_t size = 0;
   for (auto _ : state) {
-    const GlobalMap gm = BuildGlobalMap(local, 1, sources, o);
+    GlobalMap gm = BuildGlobalMap(local, 1, sources, o);
+    if (joining) gm = JoinMaps(local, 1, 0, sources, gm);
     size = gm.map.size();
     benchmark::DoNotOptimize(size);
   }
   state.counters["landmarks"] = static_cast<double>(size);
 }
-BENCHMARK(BM_GlobalMapRebuild)->Args({4, 500})->Unit(benchmark::kMillisecond);
+void BM_GlobalMapRebuild(benchmark::State& state) { GlobalMapRebuild(state, false); }
+void BM_GlobalMapRebuildJoining(benchmark::State& state) { GlobalMapRebuild(state, true); }
+BENCHMARK(BM_GlobalMapRebuild)->Args({4, 15})->Args({4, 500})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_GlobalMapRebuildJoining)->Args({4, 15})->Args({4, 500})->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace mapmesh

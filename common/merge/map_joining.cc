@@ -15,7 +15,8 @@ struct Observed {
   int landmark;  // global index
   int source;    // -1: the own map
   Eigen::Vector2d z;
-  Eigen::Matrix2d w;  // information
+  Eigen::Matrix2d w;    // information
+  double weight = 1.0;  // the robust kernel's weight at the last estimate
 };
 
 bool Information(const Eigen::Matrix2d& cov, Eigen::Matrix2d* w) {
@@ -29,7 +30,8 @@ bool Information(const Eigen::Matrix2d& cov, Eigen::Matrix2d* w) {
 }  // namespace
 
 GlobalMap JoinMaps(const LandmarkMap& local, RobotId self, std::uint32_t self_incarnation,
-                   std::span<const MapSource> sources, const GlobalMap& associated, JoiningStats* stats) {
+                   std::span<const MapSource> sources, const GlobalMap& associated, JoiningStats* stats,
+                   const JoiningOptions& options) {
   JoiningStats st;
   GlobalMap out = associated;
   const int k_count = static_cast<int>(associated.map.size());
@@ -79,7 +81,7 @@ GlobalMap JoinMaps(const LandmarkMap& local, RobotId self, std::uint32_t self_in
 
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
   Eigen::SparseMatrix<double> h(n, n);
-  for (int iter = 0; iter < 10; ++iter) {
+  for (int iter = 0; iter < options.max_iterations; ++iter) {
     std::vector<Eigen::Triplet<double>> trip;
     Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
     auto add_block = [&](int r0, int c0, const Eigen::MatrixXd& m) {
@@ -89,7 +91,7 @@ GlobalMap JoinMaps(const LandmarkMap& local, RobotId self, std::uint32_t self_in
     };
     for (const Observed& o : obs) {
       const int gi = 2 * o.landmark;
-      const Eigen::Matrix2d& w = o.w;
+      const Eigen::Matrix2d w = o.w * o.weight;
       if (o.source < 0) {
         add_block(gi, gi, w);
         b.segment<2>(gi) += w * (o.z - g[o.landmark]);
@@ -142,7 +144,22 @@ GlobalMap JoinMaps(const LandmarkMap& local, RobotId self, std::uint32_t self_in
       t[s] = {t[s].x + d(0), t[s].y + d(1), WrapAngle(t[s].theta + d(2))};
     }
     st.iterations = iter + 1;
-    if (dx.lpNorm<Eigen::Infinity>() < 1e-7) {
+    // Reweighted for the first `reweightings` steps: each measurement's Huber weight from its
+    // Mahalanobis residual at the new estimate. The weights are then held, and Gauss-Newton
+    // converges on the weighted problem (plain reweighting to the end converges only linearly,
+    // slowly where a landmark has just two copies).
+    const bool reweighting = options.huber > 0.0 && iter < options.reweightings;
+    if (reweighting) {
+      st.downweighted = 0;
+      for (Observed& o : obs) {
+        const Eigen::Vector2d pred = o.source < 0 ? g[o.landmark] : t[o.source].Inverse().Apply(g[o.landmark]);
+        const Eigen::Vector2d e = o.z - pred;
+        const double r = std::sqrt(e.dot(o.w * e));
+        o.weight = r > options.huber ? options.huber / r : 1.0;
+        st.downweighted += o.weight < 1.0 ? 1 : 0;
+      }
+    }
+    if (!reweighting && dx.lpNorm<Eigen::Infinity>() < 1e-7) {
       st.converged = true;
       break;
     }

@@ -76,6 +76,61 @@ TEST(MapJoining, JointLeastSquaresIsConsistentOnIndependentMaps) {
   EXPECT_LT(std::sqrt(sq_joined / n), 0.9 * std::sqrt(sq_own / n));
 }
 
+// Three maps of the same landmarks; in the second peer's, one landmark sits 1 m from where the
+// others put it (a biased stretch of its map). Plain least squares moves the joined landmark
+// by a third of that; the Huber kernel leaves it with the two maps that agree, and the other
+// landmarks are unaffected either way.
+TEST(MapJoining, HuberKernelKeepsOneBiasedLandmarkCopyFromDraggingTheJoinedLandmark) {
+  std::mt19937_64 rng(23);
+  const Pose2 t2{5, -3, 0.6}, t3{-4, 2, -1.1};
+  const Scene a = MakeScene(t2, rng);
+  Scene b = MakeScene(t3, rng);
+  const std::uint32_t biased = 14;
+  std::vector<MapSource> sources(2);
+  sources[0].robot = 2;
+  sources[0].map = a.peer;
+  sources[0].to_own = t2;
+  sources[1].robot = 3;
+  sources[1].map = b.peer;
+  sources[1].to_own = t3;
+  for (MapSource& src : sources) {
+    src.incarnation = 1;
+    src.to_own_cov = Eigen::Vector3d(0.01, 0.01, 1e-4).asDiagonal();
+  }
+  // b's own map is not used; its peer map gives the third robot's map of a's landmarks (with b's
+  // noise, moved onto a's truth positions).
+  for (std::uint32_t i = 0; i < 30; ++i) {
+    const Eigen::Vector2d noise = b.peer.landmarks[i].mean - t3.Inverse().Apply(b.landmarks[i]);
+    sources[1].map.landmarks[i].mean = t3.Inverse().Apply(a.landmarks[i]) + noise;
+  }
+  // The association is the true one (built before the bias, which the CI gates would refuse).
+  const GlobalMap ci = BuildGlobalMap(a.own, 1, sources, {}, 1);
+  ASSERT_EQ(ci.map.size(), 30u);
+  sources[1].map.landmarks[biased].mean += Eigen::Vector2d(0.0, 1.0);
+  auto error_of = [&](const GlobalMap& m, std::int32_t signature) {
+    for (const Landmark& l : m.map.landmarks)
+      if (l.signature == signature) return (l.mean - a.landmarks[static_cast<std::size_t>(signature)]).norm();
+    return 1e9;
+  };
+  JoiningOptions plain;
+  plain.huber = 0.0;
+  JoiningStats st_plain, st_huber;
+  const GlobalMap lsq = JoinMaps(a.own, 1, 1, sources, ci, &st_plain, plain);
+  const GlobalMap robust = JoinMaps(a.own, 1, 1, sources, ci, &st_huber);
+  ASSERT_TRUE(st_plain.solved);
+  ASSERT_TRUE(st_huber.solved);
+  EXPECT_TRUE(st_huber.converged);
+  EXPECT_EQ(st_plain.downweighted, 0);
+  EXPECT_GE(st_huber.downweighted, 1);
+  const auto sig = static_cast<std::int32_t>(biased);
+  EXPECT_GT(error_of(lsq, sig), 0.2);
+  EXPECT_LT(error_of(robust, sig), 0.6 * error_of(lsq, sig));
+  double worst_other = 0;
+  for (std::int32_t i = 0; i < 30; ++i)
+    if (i != sig) worst_other = std::max(worst_other, error_of(robust, i));
+  EXPECT_LT(worst_other, 0.6);
+}
+
 TEST(MapJoining, WithoutSourcesTheOwnMapIsUnchanged) {
   std::mt19937_64 rng(22);
   const Scene s = MakeScene({1, 2, 0.3}, rng);
