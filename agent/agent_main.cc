@@ -50,10 +50,10 @@ using io::json;
 // Sends the agent's messages through DDS writers.
 class DdsOutput : public AgentOutput {
  public:
-  DdsOutput(const tp::Participant& p, double lease_s)
-      : maps_(p, tp::kMapTopic, tp::MapQos(lease_s)),
-        status_(p, tp::kStatusTopic, tp::StatusQos(lease_s)),
-        sightings_(p, tp::kSightingTopic, tp::SightingQos()) {}
+  DdsOutput(const tp::Participant& p, double lease_s, RobotId self)
+      : maps_(p, tp::kMapTopic, tp::MapQos(lease_s).Partition(tp::RobotPartition(self))),
+        status_(p, tp::kStatusTopic, tp::StatusQos(lease_s).Partition(tp::RobotPartition(self))),
+        sightings_(p, tp::kSightingTopic, tp::SightingQos().Partition(tp::RobotPartition(self))) {}
   void PublishMap(const MapMessage& msg) override { maps_.Write(msg); }
   void PublishStatus(const AgentStatus& status) override { status_.Write(status); }
   void PublishSighting(const Sighting& s) override { sightings_.Write(s); }
@@ -155,7 +155,14 @@ class InputWatch {
   std::chrono::steady_clock::time_point next_{};
 };
 
-json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall) {
+// Samples refused because their robot id was not their writer's partition's (topics.h):
+// someone publishing as another robot. By topic, then by the robot claimed.
+struct SenderRefusals {
+  std::map<RobotId, std::uint64_t> maps, sightings;
+  bool warned = false;
+};
+
+json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall, const SenderRefusals& refusals) {
   const AgentStats& s = node.stats();
   json rejected = json::object();
   for (int i = 1; i < kMapDecodeErrorCount; ++i) {
@@ -168,28 +175,30 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
   const AgentStatus status = node.Status();
   json j = s;
   j.update(node.sync_stats());
-  j.update({{"id", node.id()},
-            {"incarnation", node.incarnation()},
-            {"processed_until", node.processed_until()},
-            {"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
-            {"pose", {pose.x, pose.y, pose.theta}},
-            {"local_landmarks", node.LocalMap().size()},
-            {"global_landmarks", node.global().map.size()},
-            {"observations", node.mapper().stats()},
-            {"bytes_per_landmark", s.BytesPerLandmark()},
-            {"maps_dropped", s.MapsDropped()},
-            {"maps_rejected", rejected},
-            {"maps_refused", refused},
-            {"maps_received_from", ByRobot(s.maps_received_from)},
-            {"peers_aligned", status.peers_aligned},
-            {"peers_stale", status.peers_stale},
-            {"sightings",
-             {{"sent", s.sightings_sent},
-              {"bytes_sent", s.sighting_bytes_sent},
-              {"received", s.sightings_received},
-              {"gated", s.sightings_gated},
-              {"implausible", s.sightings_implausible},
-              {"tracker", node.rendezvous_stats()}}}});
+  j.update(
+      {{"id", node.id()},
+       {"incarnation", node.incarnation()},
+       {"processed_until", node.processed_until()},
+       {"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
+       {"pose", {pose.x, pose.y, pose.theta}},
+       {"local_landmarks", node.LocalMap().size()},
+       {"global_landmarks", node.global().map.size()},
+       {"observations", node.mapper().stats()},
+       {"bytes_per_landmark", s.BytesPerLandmark()},
+       {"maps_dropped", s.MapsDropped()},
+       {"maps_rejected", rejected},
+       {"maps_refused", refused},
+       {"maps_received_from", ByRobot(s.maps_received_from)},
+       {"peers_aligned", status.peers_aligned},
+       {"peers_stale", status.peers_stale},
+       {"sightings",
+        {{"sent", s.sightings_sent},
+         {"bytes_sent", s.sighting_bytes_sent},
+         {"received", s.sightings_received},
+         {"gated", s.sightings_gated},
+         {"implausible", s.sightings_implausible},
+         {"tracker", node.rendezvous_stats()}}},
+       {"impersonations_refused", {{"maps", ByRobot(refusals.maps)}, {"sightings", ByRobot(refusals.sightings)}}}});
   j.update(PeersJson(node, lost_wall));
   return j;
 }
@@ -197,13 +206,13 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
 // The agent's maps, statistics and trajectory. Written at every checkpoint too (final false),
 // so that an agent killed without warning leaves its last state behind.
 void WriteOutputs(const AgentNode& node, const std::string& dir, const std::map<RobotId, double>& lost_wall,
-                  bool final) {
+                  const SenderRefusals& refusals, bool final) {
   std::filesystem::create_directories(dir + "/snapshots");
   const json local = io::MapToJson(node.LocalMap());
   const json global = io::GlobalMapToJson(node.global());
   io::WriteJsonAtomic(dir + "/local_map.json", local);
   io::WriteJsonAtomic(dir + "/global_map.json", global);
-  json stats = StatsJson(node, lost_wall);
+  json stats = StatsJson(node, lost_wall, refusals);
   stats["final"] = final;
   io::WriteJsonAtomic(dir + "/stats.json", stats);
   // The history of the run for plots over time: both maps as they were now, and one line of
@@ -287,9 +296,10 @@ int Run(int argc, char** argv) {
   tp::Reader<Scan> scans(p, tp::ScanTopic(self), tp::SensorQos());
   tp::Reader<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
   const double lease_s = scenario.agent.LivelinessLeaseS(scenario.robots.size());
-  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos(lease_s));
-  tp::Reader<Sighting> sightings(p, tp::kSightingTopic, tp::SightingQos());
-  DdsOutput output(p, lease_s);
+  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos(lease_s).Partition(tp::kEveryRobotPartition));
+  tp::Reader<Sighting> sightings(p, tp::kSightingTopic, tp::SightingQos().Partition(tp::kEveryRobotPartition));
+  tp::WriterPartitions map_writers(maps.raw()), sighting_writers(sightings.raw());
+  DdsOutput output(p, lease_s, self);
   AgentNode node(scenario.agent, AgentRunFor(scenario, self), self, incarnation, output);
   if (checkpoint) {
     node.Resume(*checkpoint);
@@ -323,6 +333,19 @@ int Run(int argc, char** argv) {
   std::map<PeerKey, PeerReport> peer_events;
   std::uint64_t peer_events_at = 0;  // the exchange's update they were taken at
   InputWatch input_watch;
+  SenderRefusals refusals;
+  auto speaks_for = [&](tp::WriterPartitions& writers, dds_instance_handle_t publication, RobotId robot,
+                        std::map<RobotId, std::uint64_t>& refused) {
+    if (tp::SpeaksFor(writers.Of(publication), robot)) return true;
+    ++refused[robot];
+    if (!refusals.warned) {
+      spdlog::warn("refused a sample claiming robot {} from a writer outside partition {} (counted in stats.json "
+                   "impersonations_refused)",
+                   robot, tp::RobotPartition(robot));
+      refusals.warned = true;
+    }
+    return false;
+  };
   // Everything the readers hold, into the node.
   auto pump = [&] {
     for (const auto& s : links.Take()) {
@@ -335,10 +358,11 @@ int Run(int argc, char** argv) {
       if (s.valid) node.OnOdometry(s.value);
     }
     for (const auto& s : sightings.Take()) {
-      if (s.valid) node.OnSighting(s.value);
+      if (s.valid && speaks_for(sighting_writers, s.publication, s.value.robot_id, refusals.sightings))
+        node.OnSighting(s.value);
     }
     for (const auto& s : maps.Take()) {
-      if (s.valid) node.OnMap(s.value);
+      if (s.valid && speaks_for(map_writers, s.publication, s.value.robot_id, refusals.maps)) node.OnMap(s.value);
       // A peer's writer is gone: an invalid sample carries that, or the state of its last
       // sample when that was still unread.
       if (!s.alive && node.OnPeerLiveliness(s.value.robot_id, false)) {
@@ -367,7 +391,7 @@ int Run(int argc, char** argv) {
     input_watch.Check(node);
     if (checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {
       save_checkpoint();
-      WriteOutputs(node, out_dir, lost_wall, /*final=*/false);
+      WriteOutputs(node, out_dir, lost_wall, refusals, /*final=*/false);
       next_checkpoint = node.processed_until() + checkpoint_period;
     }
     if (Clock::now() >= next_beat) {
@@ -379,7 +403,7 @@ int Run(int argc, char** argv) {
   // feeder's count of what it sent equals what arrived plus what was lost.
   pump();
   spdlog::info("signal {}: writing outputs to {}", shutdown.signal(), out_dir);
-  WriteOutputs(node, out_dir, lost_wall, /*final=*/true);
+  WriteOutputs(node, out_dir, lost_wall, refusals, /*final=*/true);
   if (checkpoint_period > 0) save_checkpoint();
   const AgentStats& st = node.stats();
   spdlog::info("done: t={:.1f}s odom={} scans={} landmarks={} global={} maps_received={} maps_dropped={}",

@@ -76,6 +76,11 @@ int Run(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   cli.add_option("--unknown-id", unknown_id, "robot id of unknown_sender maps (default: the largest id + 1000)");
   cli.add_option("--seed", seed, "seed of the random maps and shuffles (default: the scenario's)");
+  unsigned as_robot = 0;
+  cli.add_option("--as-robot", as_robot,
+                 "write every map in robot N's DDS partition, whatever robot it claims (an impersonator holding N's "
+                 "certificate; agents refuse a map whose robot is not its partition's); default: each claimed "
+                 "robot's own partition");
   bool check = false;
   cli.add_flag("--check", check, "only validate the arguments and the scenario, then exit");
   cli.add_option("--report", report_path, "write what was sent, per case and sender, to this JSON file at exit");
@@ -108,18 +113,48 @@ int Run(int argc, char** argv) {
   tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
   const tp::Participant& p = session.participant();
   const double lease_s = loaded->agent.LivelinessLeaseS(loaded->robots.size());
-  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos(lease_s));
-  tp::Reader<AgentStatus> status(p, tp::kStatusTopic, tp::StatusQos(lease_s));
-  tp::Writer<MapMessage> out(p, tp::kMapTopic, tp::MapQos(lease_s));
-  tp::Writer<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
+  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos(lease_s).Partition(tp::kEveryRobotPartition));
+  tp::Reader<AgentStatus> status(p, tp::kStatusTopic, tp::StatusQos(lease_s).Partition(tp::kEveryRobotPartition));
+  // Writers for every robot are made up front (so that readers have matched them before the
+  // first message). Under DDS Security a participant's own permissions may forbid one
+  // (dds_create_writer fails): what it would have written is counted as denied.
+  std::map<RobotId, std::unique_ptr<tp::Writer<MapMessage>>> out;  // by partition robot
+  std::unique_ptr<tp::Writer<RadioLinks>> links;
   std::map<RobotId, std::unique_ptr<tp::Writer<Odometry>>> odom;
   std::map<RobotId, std::unique_ptr<tp::Writer<Scan>>> scans;
+  std::map<std::string, int> denied;  // messages not sent, by topic
+  auto make = [&](auto& slot, const std::string& topic, auto create) {
+    try {
+      slot = create();
+    } catch (const tp::DdsError& e) {
+      spdlog::warn("cannot write {}: {}", topic, e.what());
+    }
+  };
+  auto map_topic = [](RobotId part) { return std::string(tp::kMapTopic) + "@" + tp::RobotPartition(part); };
+  std::vector<RobotId> partitions{as_robot ? static_cast<RobotId>(as_robot) : static_cast<RobotId>(unknown_id)};
   for (const RobotSpec& r : loaded->robots) {
-    odom.emplace(r.id, std::make_unique<tp::Writer<Odometry>>(p, tp::OdomTopic(r.id), tp::SensorQos()));
-    scans.emplace(r.id, std::make_unique<tp::Writer<Scan>>(p, tp::ScanTopic(r.id), tp::SensorQos()));
+    if (!as_robot) partitions.push_back(r.id);
+    make(odom[r.id], tp::OdomTopic(r.id),
+         [&] { return std::make_unique<tp::Writer<Odometry>>(p, tp::OdomTopic(r.id), tp::SensorQos()); });
+    make(scans[r.id], tp::ScanTopic(r.id),
+         [&] { return std::make_unique<tp::Writer<Scan>>(p, tp::ScanTopic(r.id), tp::SensorQos()); });
   }
+  for (RobotId part : partitions) {
+    make(out[part], map_topic(part), [&] {
+      return std::make_unique<tp::Writer<MapMessage>>(p, tp::kMapTopic,
+                                                      tp::MapQos(lease_s).Partition(tp::RobotPartition(part)));
+    });
+  }
+  make(links, tp::kLinksTopic,
+       [&] { return std::make_unique<tp::Writer<RadioLinks>>(p, tp::kLinksTopic, tp::LinksQos()); });
+  auto use = [&](auto& slot, const std::string& topic) -> decltype(slot.get()) {
+    if (!slot) ++denied[topic];
+    return slot.get();
+  };
   std::vector<RobotId> robots;
-  for (const RobotSpec& r : loaded->robots) robots.push_back(r.id);
+  for (const RobotSpec& r : loaded->robots) {
+    if (r.id != as_robot) robots.push_back(r.id);  // an impersonator claims only the others
+  }
   MapInjector injector(robots, *cases, unknown_id, seed.value_or(loaded->seed));
   tp::GuardCondition stop(p);
   tp::WaitSet waitset(p);
@@ -153,13 +188,14 @@ int Run(int argc, char** argv) {
           [&](const auto& x) {
             using T = std::decay_t<decltype(x)>;
             if constexpr (std::is_same_v<T, MapMessage>) {
-              out.WriteAndUnregister(x);
+              const RobotId part = as_robot ? static_cast<RobotId>(as_robot) : x.robot_id;
+              if (auto* w = use(out[part], map_topic(part))) w->WriteAndUnregister(x);
             } else if constexpr (std::is_same_v<T, Odometry>) {
-              odom.at(x.robot_id)->Write(x);
+              if (auto* w = use(odom[x.robot_id], tp::OdomTopic(x.robot_id))) w->Write(x);
             } else if constexpr (std::is_same_v<T, Scan>) {
-              scans.at(x.robot_id)->Write(x);
+              if (auto* w = use(scans[x.robot_id], tp::ScanTopic(x.robot_id))) w->Write(x);
             } else {
-              links.Write(x);
+              if (auto* w = use(links, tp::kLinksTopic)) w->Write(x);
             }
           },
           *m);
@@ -167,7 +203,21 @@ int Run(int argc, char** argv) {
     }
   }
   spdlog::info("done: {} messages sent", sent);
-  if (!report_path.empty()) io::WriteJsonAtomic(report_path, ReportJson(injector));
+  if (!report_path.empty()) {
+    json report = ReportJson(injector);
+    report["denied_by_own_permissions"] = denied;
+    // Readers that ever matched each writer: 0 where DDS Security kept every reader from it.
+    json matched = json::object();
+    for (const auto& [part, w] : out)
+      if (w) matched[map_topic(part)] = w->raw().TotalMatchedReaders();
+    for (const auto& [id, w] : odom)
+      if (w) matched[tp::OdomTopic(id)] = w->raw().TotalMatchedReaders();
+    for (const auto& [id, w] : scans)
+      if (w) matched[tp::ScanTopic(id)] = w->raw().TotalMatchedReaders();
+    if (links) matched[tp::kLinksTopic] = links->raw().TotalMatchedReaders();
+    report["readers_matched"] = matched;
+    io::WriteJsonAtomic(report_path, report);
+  }
   return 0;
 }
 

@@ -102,7 +102,9 @@ struct Channels {
   Channels(const tp::Participant& p, const Scenario& sc)
       : links(p, tp::kLinksTopic, tp::LinksQos()),
         truth(p, tp::kTruthTopic, tp::TruthQos()),
-        status(p, tp::kStatusTopic, tp::StatusQos(sc.agent.LivelinessLeaseS(sc.robots.size()))) {
+        status(p, tp::kStatusTopic,
+               tp::StatusQos(sc.agent.LivelinessLeaseS(sc.robots.size())).Partition(tp::kEveryRobotPartition)),
+        status_writers(status.raw()) {
     for (const RobotSpec& r : sc.robots) {
       odom.emplace(r.id, std::make_unique<tp::Writer<Odometry>>(p, tp::OdomTopic(r.id), tp::SensorQos()));
       scan.emplace(r.id, std::make_unique<tp::Writer<Scan>>(p, tp::ScanTopic(r.id), tp::SensorQos()));
@@ -119,6 +121,7 @@ struct Channels {
   tp::Writer<RadioLinks> links;
   tp::Writer<GroundTruth> truth;
   tp::Reader<AgentStatus> status;
+  tp::WriterPartitions status_writers;  // a status counts only from its robot's partition
 };
 
 // The feeder's DDS side around the pacer: reads what the agents and the launcher say, and
@@ -135,6 +138,10 @@ class Feeder {
     if (shutdown_.requested()) throw Interrupted();
     for (const auto& s : ch_.status.Take()) {
       const RobotId id = s.value.robot_id;
+      if (s.valid && !tp::SpeaksFor(ch_.status_writers.Of(s.publication), id)) {
+        spdlog::warn("refused a status claiming agent {} from a writer outside its partition", id);
+        continue;
+      }
       if (s.valid) {
         spdlog::trace("status {} inc {} t {:.2f}", id, s.value.incarnation, s.value.processed_until);
         if (pacer_.OnStatus(s.value)) spdlog::info("agent {} speaks again", id);

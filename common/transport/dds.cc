@@ -60,6 +60,11 @@ Qos& Qos::NoAutoDispose() {
   return *this;
 }
 
+Qos& Qos::Partition(const std::string& name) {
+  dds_qset_partition1(q_, name.c_str());
+  return *this;
+}
+
 Domain::Domain(dds_domainid_t id, const std::string& config)
     : Entity(Check(dds_create_domain(id, config.c_str()), "dds_create_domain")) {}
 
@@ -99,6 +104,42 @@ bool RawWriter::WaitForAcks(double timeout_s) const {
 
 RawReader::RawReader(const Participant& p, const Topic& t, const Qos& qos)
     : Entity(Check(dds_create_reader(p.get(), t.get(), qos.get(), nullptr), "dds_create_reader")) {}
+
+bool WriterPartitions::Lookup(dds_instance_handle_t publication) {
+  dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(reader_, publication);
+  if (!ep) return false;
+  std::vector<std::string> names;
+  uint32_t n = 0;
+  char** ps = nullptr;
+  if (ep->qos && dds_qget_partition(ep->qos, &n, &ps)) {
+    for (uint32_t i = 0; i < n; ++i) {
+      names.emplace_back(ps[i]);
+      dds_free(ps[i]);
+    }
+    dds_free(ps);
+  }
+  dds_builtintopic_free_endpoint(ep);
+  partitions_[publication] = std::move(names);
+  return true;
+}
+
+void WriterPartitions::Refresh() {
+  dds_subscription_matched_status_t st;
+  if (dds_get_subscription_matched_status(reader_, &st) < 0 || st.total_count == seen_total_) return;
+  seen_total_ = st.total_count;
+  std::vector<dds_instance_handle_t> handles(st.current_count + 16);
+  const dds_return_t n = dds_get_matched_publications(reader_, handles.data(), handles.size());
+  for (dds_return_t i = 0; i < n && i < static_cast<dds_return_t>(handles.size()); ++i) {
+    if (!partitions_.count(handles[i])) Lookup(handles[i]);
+  }
+}
+
+const std::vector<std::string>* WriterPartitions::Of(dds_instance_handle_t publication) {
+  Refresh();
+  auto it = partitions_.find(publication);
+  if (it == partitions_.end() && Lookup(publication)) it = partitions_.find(publication);
+  return it == partitions_.end() ? nullptr : &it->second;
+}
 
 GuardCondition::GuardCondition(const Participant& p)
     : Entity(Check(dds_create_guardcondition(p.get()), "dds_create_guardcondition")) {}

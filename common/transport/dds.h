@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -71,6 +72,9 @@ class Qos {
   Qos& Liveliness(double lease_s);
   // Writers only: do not dispose instances when the writer goes away.
   Qos& NoAutoDispose();
+  // The one DDS partition of a writer, or the partition expression (wildcards allowed) of a
+  // reader; readers match only writers whose partition matches.
+  Qos& Partition(const std::string& name);
 
   const dds_qos_t* get() const { return q_; }
 
@@ -115,6 +119,23 @@ class RawWriter : public Entity {
 class RawReader : public Entity {
  public:
   RawReader(const Participant& p, const Topic& t, const Qos& qos);
+};
+
+// The partitions of the writers a reader is matched with, by publication handle (a taken
+// sample's dds_sample_info_t::publication_handle). Every matched writer is looked up when the
+// reader's matches change, so a writer that went away after its sample arrived is still known.
+class WriterPartitions {
+ public:
+  explicit WriterPartitions(const RawReader& reader) : reader_(reader.get()) {}
+  // The writer's partitions; nullptr when the writer was never seen matched.
+  const std::vector<std::string>* Of(dds_instance_handle_t publication);
+
+ private:
+  void Refresh();
+  bool Lookup(dds_instance_handle_t publication);
+  dds_entity_t reader_;
+  std::uint32_t seen_total_ = 0;
+  std::map<dds_instance_handle_t, std::vector<std::string>> partitions_;
 };
 
 // A guard condition: something a WaitSet can wait for, triggered from any thread.

@@ -3,6 +3,7 @@
 // Odometry and scans use one topic per robot, so an agent receives only its own streams.
 
 #include <string>
+#include <vector>
 
 #include "common/transport/dds.h"
 #include "common/types/messages.h"
@@ -16,6 +17,18 @@ inline constexpr const char* kTruthTopic = "mapmesh/truth";
 inline constexpr const char* kMapTopic = "mapmesh/map";
 inline constexpr const char* kStatusTopic = "mapmesh/status";
 inline constexpr const char* kSightingTopic = "mapmesh/sighting";
+
+// Each agent writes its maps, status and sightings in the DDS partition of its robot,
+// "robot<id>", and readers read every such partition. A sample whose robot id is not its
+// writer's partition's is refused (SpeaksFor): under DDS Security (scripts/swarm run --secure)
+// a participant's permissions allow it only its own robot's partition, so no peer can publish
+// as another robot.
+inline std::string RobotPartition(RobotId id) { return "robot" + std::to_string(id); }
+inline constexpr const char* kEveryRobotPartition = "robot*";
+// Whether a writer with these partitions may speak for robot id: its only partition is id's.
+inline bool SpeaksFor(const std::vector<std::string>* writer_partitions, RobotId id) {
+  return writer_partitions && writer_partitions->size() == 1 && writer_partitions->front() == RobotPartition(id);
+}
 
 // The agents' map and status writers have a liveliness lease (AgentOptions::LivelinessLeaseS):
 // a dead agent is noticed after about that long. Writer and readers must use the same one.

@@ -40,7 +40,8 @@ template <typename T>
 struct Sample {
   T value;
   bool valid = true;
-  bool alive = true;  // instance state ALIVE
+  bool alive = true;                      // instance state ALIVE
+  dds_instance_handle_t publication = 0;  // the writer (see WriterPartitions)
 };
 
 template <typename T>
@@ -60,7 +61,7 @@ class Reader {
       for (dds_return_t i = 0; i < n; ++i) {
         using Msg = typename Wire<T>::Msg;
         out.push_back({FromMsg(*static_cast<const Msg*>(buf[i])), info[i].valid_data,
-                       info[i].instance_state == DDS_IST_ALIVE});
+                       info[i].instance_state == DDS_IST_ALIVE, info[i].publication_handle});
       }
       if (n > 0) Check(dds_return_loan(raw_.get(), buf, n), "dds_return_loan");
       if (n < kBatch) break;

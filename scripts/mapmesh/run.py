@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from .columns import format_table
-from . import ddsconfig
+from . import ddsconfig, secure
 from .domain import DomainLease
 from .run_error import RunError  # noqa: F401  (re-exported: sweep and scale raise it)
 from .progress import Progress
@@ -185,6 +185,7 @@ class SwarmRun:
         self.agents = {}
         self.lease = None
         self.info = None
+        self.security = None  # secure.RunSecurity with --secure
 
     # ----- set-up -------------------------------------------------------------------------
     def check_scenario(self):
@@ -202,6 +203,11 @@ class SwarmRun:
                 raise RunError(f"--kill/--restart/--pause {rid}@{t}: after the end of the run "
                                f"({self.info['duration']} s)", 2)
 
+        who = self.args.inject_identity
+        if who != "none" and not (self.args.inject and self.args.secure):
+            raise RunError(f"--inject-identity {who}: needs --inject and --secure", 2)
+        if who.startswith("agent") and int(who[5:]) not in ids:
+            raise RunError(f"--inject-identity {who}: no robot {who[5:]} in this run (robots {sorted(ids)})", 2)
         if self.args.inject:
             cmd = [binary("mapmesh-inject"), "--scenario", self.scenario, "--cases", self.args.inject,
                    "--check"] + self.common
@@ -220,6 +226,8 @@ class SwarmRun:
         cmd = [binary("mapmesh-agent"), "--scenario", self.scenario, "--id", str(rid),
                "--domain", str(self.lease.id), "--out", str(self.out / agent_dir(rid)),
                "--incarnation", str(incarnation)] + resume + self.common
+        if self.security:
+            cmd += ["--dds-config", str(self.security.agent_config(rid))]
         return cmd
 
     def spawn(self, cmd, log_path, append=False, **kw):
@@ -244,6 +252,11 @@ class SwarmRun:
         cmd = [binary("mapmesh-inject"), "--scenario", self.scenario, "--domain", str(self.lease.id),
                "--cases", self.args.inject, "--period-s", str(self.args.inject_period),
                "--report", str(self.out / INJECT)] + self.common
+        who = self.args.inject_identity
+        if self.security and who == "forged":
+            cmd += ["--dds-config", str(self.security.forged_config())]
+        elif self.security and who.startswith("agent"):
+            cmd += ["--dds-config", str(self.security.agent_config(int(who[5:]))), "--as-robot", who[5:]]
         self.injector = self.spawn(cmd, self.out / "inject.log")
 
     # ----- the run ------------------------------------------------------------------------
@@ -253,6 +266,9 @@ class SwarmRun:
         for stale in [SUMMARY, TRUTH, FEEDER, TIMELINE, REPORT, INJECT]:
             (self.out / stale).unlink(missing_ok=True)
         self.lease = DomainLease()
+        if self.args.secure:
+            base = os.environ.get("CYCLONEDDS_URI", f"file://{ddsconfig.DEFAULT}").removeprefix("file://")
+            self.security = secure.RunSecurity(self.out, self.lease.id, base)
         wall_start = time.monotonic()
         interrupted = False
         try:
@@ -264,6 +280,8 @@ class SwarmRun:
             holds = sorted({t for t, _ in self.kills + self.restarts} | {t for t, _, _ in self.pauses})
             cmd = [binary("mapmesh-feeder"), "--scenario", self.scenario, "--domain", str(self.lease.id),
                    "--out", str(self.out), "--events", "--control"] + self.common
+            if self.security:
+                cmd += ["--dds-config", str(self.security.feeder_config())]
             if self.args.pace:
                 cmd += ["--pace", self.args.pace]
             if self.args.rate:

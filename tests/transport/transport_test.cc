@@ -134,6 +134,47 @@ TEST_F(TransportTest, LinksTruthStatusRoundTrip) {
   EXPECT_DOUBLE_EQ(truths[0].y, 4.0);
 }
 
+// Agents write maps in their robot's partition and read every robot's: the reader learns each
+// sample's writer partition, and SpeaksFor refuses a sample claiming another robot. A writer
+// outside the robots' partitions is not matched at all.
+TEST_F(TransportTest, ReadersKnowEachSamplesWriterPartition) {
+  Writer<MapMessage> robot2(p(), kMapTopic, MapQos(1.0).Partition(RobotPartition(2)));
+  Writer<MapMessage> unpartitioned(p(), kMapTopic, MapQos(1.0));
+  Reader<MapMessage> r(p(), kMapTopic, MapQos(1.0).Partition(kEveryRobotPartition));
+  WriterPartitions writers(r.raw());
+  WaitMatched(robot2);
+  EXPECT_EQ(unpartitioned.raw().MatchedReaders(), 0u);
+  MapMessage m;
+  m.payload = {1, 2, 3};
+  WaitSet ws(p());
+  ws.AttachReader(r.raw(), 1);
+  std::map<RobotId, int> spoke, refused;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while ((spoke[2] == 0 || refused[3] == 0) && std::chrono::steady_clock::now() < deadline) {
+    for (RobotId claimed : {2u, 3u}) {
+      m.robot_id = claimed;
+      ++m.version;
+      robot2.Write(m);
+      unpartitioned.Write(m);
+    }
+    ws.Wait(0.05);
+    for (const auto& s : r.Take()) {
+      if (!s.valid) continue;
+      const std::vector<std::string>* parts = writers.Of(s.publication);
+      ASSERT_NE(parts, nullptr);
+      EXPECT_EQ(*parts, std::vector<std::string>{"robot2"});
+      ++(SpeaksFor(parts, s.value.robot_id) ? spoke : refused)[s.value.robot_id];
+    }
+  }
+  EXPECT_GT(spoke[2], 0);
+  EXPECT_GT(refused[3], 0);
+  EXPECT_EQ(spoke[3], 0);
+  EXPECT_EQ(refused[2], 0);
+  EXPECT_FALSE(SpeaksFor(nullptr, 2));
+  const std::vector<std::string> two{"robot2", "robot3"};
+  EXPECT_FALSE(SpeaksFor(&two, 2));  // one partition only
+}
+
 // Maps are best-effort and volatile: a participant that joins later gets each sender's next
 // map, not the ones sent before; what arrives comes in order, per (robot, kind).
 TEST_F(TransportTest, LateJoinerGetsTheNextMapPerSenderAndKind) {

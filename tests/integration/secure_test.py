@@ -1,0 +1,141 @@
+"""Authenticated peers (E1), through real processes: `swarm run --secure` (DDS Security with a run
+CA, encrypted topics and per-participant permissions) gives the plain run's maps, and rogue
+participants publishing forged maps and sensor data during a secure run are never heard."""
+
+import json
+import os
+import shutil
+import stat
+import sys
+import unittest
+
+from swarm_test import REPO, SwarmCase
+
+sys.path.insert(0, str(REPO / "scripts"))
+from mapmesh import secure  # noqa: E402
+from mapmesh.run_error import RunError  # noqa: E402
+
+PARK4 = REPO / "scenarios" / "park4.yaml"
+
+
+def missing_tools():
+    if not shutil.which("openssl"):
+        return "openssl is not installed"
+    try:
+        secure.plugin_paths()
+    except RunError as e:
+        return str(e)
+    return None
+
+
+@unittest.skipIf(missing_tools(), f"--secure cannot run here: {missing_tools()}")
+class SecureRunCase(SwarmCase):
+    def run_ok(self, name, *args):
+        self.out = self.out.parent / name
+        r = self.swarm(PARK4, *args, "--no-report")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        return {a["id"]: a for a in self.summary()["agents"]}
+
+    def stats(self, rid):
+        return json.loads((self.out / f"agent_{rid}" / "stats.json").read_text())
+
+
+class SecureTest(SecureRunCase):
+    def test_secure_run_gives_the_plain_runs_maps_and_keeps_its_keys_private(self):
+        plain = self.run_ok("plain")
+        secured = self.run_ok("secure", "--secure")
+        sec = self.out / "security"
+        self.assertEqual(stat.S_IMODE(os.stat(sec).st_mode), 0o700)
+        keys = sorted(p.name for p in sec.glob("*.key"))
+        self.assertEqual(keys, ["agent1.key", "agent2.key", "agent3.key", "agent4.key", "ca.key", "feeder.key"])
+        for k in sec.glob("*.key"):
+            self.assertEqual(stat.S_IMODE(os.stat(k).st_mode), 0o600, k)
+        for rid, a in secured.items():
+            with self.subTest(agent=rid):
+                p = plain[rid]
+                self.assertEqual(a["exit_code"], 0)
+                log = (self.out / f"agent_{rid}" / "agent.log").read_text()
+                self.assertIn(f"config {sec / f'agent{rid}.cyclonedds.xml'}", log)
+                # The same sensor streams reach it: the same local map.
+                self.assertEqual(a["odom_processed"], p["odom_processed"])
+                self.assertEqual(a["local"]["landmarks"], p["local"]["landmarks"])
+                self.assertAlmostEqual(a["local"]["rmse_m"], p["local"]["rmse_m"], places=9)
+                # The exchange works as well as in the clean run. Coverage within 5 %; the global
+                # RMSE after a rigid fit within 25 %: in either mode, now and then one or two of
+                # park4's agents end on a second outcome of their exchange (agent 2 0.112 m
+                # instead of 0.093, agent 4 0.123 instead of 0.118, seen in plain and secure runs
+                # alike), so 5 % would test the exchange's timing, not security
+                # (docs/SECURITY.md has the repeated figures).
+                self.assertGreaterEqual(a["global"]["coverage"], 0.95 * p["global"]["coverage"])
+                self.assertLessEqual(a["global"]["rmse_aligned_m"], 1.25 * p["global"]["rmse_aligned_m"])
+                self.assertGreater(a["maps_received"], 0)
+
+
+class RogueTest(SecureRunCase):
+    def injected(self):
+        return json.loads((self.out / "inject.json").read_text())
+
+    def assert_nothing_reached_the_agents(self, agents):
+        for rid, a in agents.items():
+            with self.subTest(agent=rid):
+                self.assertEqual(a["exit_code"], 0)
+                st = self.stats(rid)
+                # In a plain run with the same injector every one of these counts is above zero
+                # (faults_test.HostileInputTest): here none of its messages arrived.
+                self.assertEqual(sum(st["maps_rejected"].values()), 0, st["maps_rejected"])
+                self.assertEqual(sum(st["maps_refused"].values()), 0, st["maps_refused"])
+                self.assertEqual(st["odom_implausible"], 0)
+                self.assertEqual(st["links_refused"], 0)
+                self.assertEqual(st["observations"]["out_of_range"], 0)
+                self.assertEqual(st["impersonations_refused"], {"maps": {}, "sightings": {}})
+
+    def assert_maps_as_clean(self, agents, clean):
+        for rid, a in agents.items():
+            with self.subTest(agent=rid):
+                self.assertEqual(a["local"]["landmarks"], clean[rid]["local"]["landmarks"])
+                self.assertGreaterEqual(a["global"]["coverage"], 0.95 * clean[rid]["global"]["coverage"])
+                self.assertLessEqual(a["global"]["rmse_aligned_m"], 1.25 * clean[rid]["global"]["rmse_aligned_m"])
+
+    def test_participants_without_a_valid_certificate_are_never_heard(self):
+        clean = self.run_ok("clean", "--secure")
+        for who in ["none", "forged"]:
+            with self.subTest(identity=who):
+                agents = self.run_ok(who, "--secure", "--inject", "all", "--inject-period", "0.05",
+                                     "--inject-identity", who)
+                report = self.injected()
+                self.assertEqual(self.summary()["injector_exit_code"], 0)
+                self.assertGreater(sum(c["sent"] for c in report["cases"].values()), 0)
+                self.assertEqual(report["denied_by_own_permissions"], {})  # it did write everything
+                # DDS matched none of its writers with any agent's or the feeder's reader (a map
+                # writer matches only the injector's own map reader).
+                for topic, n in report["readers_matched"].items():
+                    self.assertLessEqual(n, 1 if topic.startswith("mapmesh/map@") else 0, topic)
+                self.assert_nothing_reached_the_agents(agents)
+                self.assert_maps_as_clean(agents, clean)
+
+    def test_a_valid_certificate_cannot_speak_for_another_robot(self):
+        clean = self.run_ok("clean", "--secure")
+        agents = self.run_ok("agent2", "--secure", "--inject", "all", "--inject-period", "0.05",
+                             "--inject-identity", "agent2")
+        report = self.injected()
+        # Robot 2's permissions forbid it the sensor topics and links: its own DDS refused them.
+        denied = report["denied_by_own_permissions"]
+        for topic in ["mapmesh/links", "mapmesh/odom/1", "mapmesh/scan/3"]:
+            self.assertGreater(denied.get(topic, 0), 0, denied)
+        # Its maps, claiming robots 1, 3, 4 and an unknown one, go out in robot 2's partition,
+        # the only one it may publish in, and reach every agent, which refuses each of them.
+        self.assertGreater(report["readers_matched"]["mapmesh/map@robot2"], 1)
+        for rid, a in agents.items():
+            with self.subTest(agent=rid):
+                st = self.stats(rid)
+                refused = st["impersonations_refused"]["maps"]
+                for claimed in ["1", "3", "4"]:
+                    self.assertGreater(refused.get(claimed, 0), 0, refused)
+                self.assertNotIn("2", refused)
+                self.assertEqual(sum(st["maps_rejected"].values()), 0, st["maps_rejected"])
+                self.assertEqual(sum(st["maps_refused"].values()), 0, st["maps_refused"])
+        self.assert_maps_as_clean(agents, clean)
+
+
+if __name__ == "__main__":
+    unittest.main()
