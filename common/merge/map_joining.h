@@ -39,8 +39,7 @@ struct JoiningOptions {
 };
 
 struct JoiningStats {
-  int downweighted = 0;
-  double variance_factor = 1.0;  // measurements the robust kernel weighs less than 1 at the end
+  int downweighted = 0;  // measurements the robust kernel weighs less than 1 at the end
   int iterations = 0;
   bool converged = false;
   int unknowns = 0;
