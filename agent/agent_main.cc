@@ -5,10 +5,12 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <utility>
 
 #include "agent/agent_node.h"
@@ -47,18 +49,33 @@ namespace {
 namespace tp = transport;
 using io::json;
 
-// Sends the agent's messages through DDS writers.
+// Sends the agent's messages through DDS writers. The status is best-effort, and the feeder's
+// lockstep barrier waits for it: each status the node publishes is sent once more a moment
+// later (with what the node then knows), so that one lost datagram on a lossy link does not
+// hold the barrier until the next beat.
 class DdsOutput : public AgentOutput {
  public:
+  using Clock = std::chrono::steady_clock;
+  static constexpr auto kStatusRepeat = std::chrono::milliseconds(30);
+
   DdsOutput(const tp::Participant& p, double lease_s, RobotId self)
       : maps_(p, tp::kMapTopic, tp::MapQos(lease_s).Partition(tp::RobotPartition(self))),
         status_(p, tp::kStatusTopic, tp::StatusQos(lease_s).Partition(tp::RobotPartition(self))),
         sightings_(p, tp::kSightingTopic, tp::SightingQos().Partition(tp::RobotPartition(self))) {}
   void PublishMap(const MapMessage& msg) override { maps_.Write(msg); }
-  void PublishStatus(const AgentStatus& status) override { status_.Write(status); }
+  void PublishStatus(const AgentStatus& status) override {
+    status_.Write(status);
+    repeat_at_ = Clock::now() + kStatusRepeat;
+  }
   void PublishSighting(const Sighting& s) override { sightings_.Write(s); }
+  // A status sent on the launcher's beat or as a repeat: no repeat of its own.
+  void SendStatus(const AgentStatus& status) { status_.Write(status); }
+  // When the last status published by the node is due to be repeated (nullopt: none is).
+  std::optional<Clock::time_point> RepeatDue() const { return repeat_at_; }
+  void RepeatDone() { repeat_at_.reset(); }
 
  private:
+  std::optional<Clock::time_point> repeat_at_;
   tp::Writer<MapMessage> maps_;
   tp::Writer<AgentStatus> status_;
   tp::Writer<Sighting> sightings_;
@@ -328,7 +345,7 @@ int Run(int argc, char** argv) {
   // and a lost best-effort status never stalls lockstep for long.
   using Clock = std::chrono::steady_clock;
   constexpr auto kStatusBeat = std::chrono::milliseconds(200);
-  output.PublishStatus(node.Status());
+  output.SendStatus(node.Status());
   auto next_beat = Clock::now() + kStatusBeat;
   std::map<PeerKey, PeerReport> peer_events;
   std::uint64_t peer_events_at = 0;  // the exchange's update they were taken at
@@ -385,7 +402,11 @@ int Run(int argc, char** argv) {
     }
   };
   while (!shutdown.requested()) {
-    waitset.Wait(0.1);
+    double wait_s = 0.1;
+    if (const auto due = output.RepeatDue()) {
+      wait_s = std::clamp(std::chrono::duration<double>(*due - Clock::now()).count(), 0.0, wait_s);
+    }
+    waitset.Wait(wait_s);
     pump();
     LogPeerEvents(node, peer_events, peer_events_at);
     input_watch.Check(node);
@@ -394,8 +415,12 @@ int Run(int argc, char** argv) {
       WriteOutputs(node, out_dir, lost_wall, refusals, /*final=*/false);
       next_checkpoint = node.processed_until() + checkpoint_period;
     }
+    if (const auto due = output.RepeatDue(); due && Clock::now() >= *due) {
+      output.SendStatus(node.Status());
+      output.RepeatDone();
+    }
     if (Clock::now() >= next_beat) {
-      output.PublishStatus(node.Status());
+      output.SendStatus(node.Status());
       next_beat = Clock::now() + kStatusBeat;
     }
   }

@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from .columns import format_table
-from . import ddsconfig, secure
+from . import ddsconfig, netns, secure
 from .domain import DomainLease
 from .run_error import RunError  # noqa: F401  (re-exported: sweep and scale raise it)
 from .progress import Progress
@@ -46,14 +46,17 @@ def binary(name):
     return str(path)
 
 
-def _child_setup():
+def _child_setup(netns_path=None):
     # Own process group (a terminal's Ctrl-C reaches only the launcher, which stops the
-    # children in order), and die with the launcher even if it is SIGKILLed.
+    # children in order), and die with the launcher even if it is SIGKILLed. With --hosts
+    # netns, also move into the host's network namespace.
     os.setpgrp()
     try:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
     except OSError:
         pass
+    if netns_path:
+        netns.enter(netns_path)
 
 
 def parse_schedule(items, what):
@@ -186,6 +189,8 @@ class SwarmRun:
         self.lease = None
         self.info = None
         self.security = None  # secure.RunSecurity with --secure
+        self.hosts = None  # netns.Hosts with --hosts netns
+        self.dds_config = None  # the Cyclone config every process is given (--hosts netns)
 
     # ----- set-up -------------------------------------------------------------------------
     def check_scenario(self):
@@ -214,8 +219,15 @@ class SwarmRun:
             r = subprocess.run(cmd, capture_output=True, text=True)
             if r.returncode != 0:
                 raise RunError("--inject: " + last_line(r.stderr, "check failed").removeprefix("mapmesh-inject: "), 2)
+        net = getattr(self.args, "hosts", "loopback")
+        if net == "netns":
+            netns.require(self.args.net_loss, self.args.net_rate)
+        elif self.args.net_loss or self.args.net_rate:
+            raise RunError("--net-loss and --net-rate act on the hosts' links: they need --hosts netns", 2)
         # Every agent, the feeder and the injector join the run's domain.
         self.out.mkdir(parents=True, exist_ok=True)
+        if net == "netns":
+            return  # the hosts' own config (execute) holds any number of processes
         changes, note = ddsconfig.choose(len(ids) + 1 + (1 if self.args.inject else 0), run_dir=self.out)
         os.environ.update(changes)
         if note and not self.args.quiet:
@@ -228,13 +240,17 @@ class SwarmRun:
                "--incarnation", str(incarnation)] + resume + self.common
         if self.security:
             cmd += ["--dds-config", str(self.security.agent_config(rid))]
+        elif self.dds_config:
+            cmd += ["--dds-config", str(self.dds_config)]
         return cmd
 
-    def spawn(self, cmd, log_path, append=False, **kw):
+    def spawn(self, cmd, log_path, append=False, host=None, **kw):
+        """Starts cmd with its output in log_path; with --hosts netns, in namespace `host`."""
+        path = self.hosts.path(host) if self.hosts else None
         log = open(log_path, "ab" if append else "wb")
         try:
-            p = subprocess.Popen(cmd, stdout=kw.pop("stdout", log), stderr=log, preexec_fn=_child_setup,
-                                 cwd=REPO, **kw)
+            p = subprocess.Popen(cmd, stdout=kw.pop("stdout", log), stderr=log,
+                                 preexec_fn=lambda: _child_setup(path), cwd=REPO, **kw)
         finally:
             log.close()
         return Proc(p)
@@ -246,7 +262,7 @@ class SwarmRun:
             shutil.rmtree(self.out / agent_dir(rid), ignore_errors=True)
         (self.out / agent_dir(rid)).mkdir(parents=True, exist_ok=True)
         slot.procs.append(self.spawn(self.agent_cmd(rid, incarnation), self.out / agent_dir(rid) / AGENT_LOG,
-                                     append=incarnation > 1))
+                                     append=incarnation > 1, host=f"agent{rid}"))
 
     def start_injector(self):
         cmd = [binary("mapmesh-inject"), "--scenario", self.scenario, "--domain", str(self.lease.id),
@@ -257,7 +273,9 @@ class SwarmRun:
             cmd += ["--dds-config", str(self.security.forged_config())]
         elif self.security and who.startswith("agent"):
             cmd += ["--dds-config", str(self.security.agent_config(int(who[5:]))), "--as-robot", who[5:]]
-        self.injector = self.spawn(cmd, self.out / "inject.log")
+        elif self.dds_config:
+            cmd += ["--dds-config", str(self.dds_config)]
+        self.injector = self.spawn(cmd, self.out / "inject.log", host="inject")
 
     # ----- the run ------------------------------------------------------------------------
     def execute(self):
@@ -266,12 +284,14 @@ class SwarmRun:
         for stale in [SUMMARY, TRUTH, FEEDER, TIMELINE, REPORT, INJECT]:
             (self.out / stale).unlink(missing_ok=True)
         self.lease = DomainLease()
-        if self.args.secure:
-            base = os.environ.get("CYCLONEDDS_URI", f"file://{ddsconfig.DEFAULT}").removeprefix("file://")
-            self.security = secure.RunSecurity(self.out, self.lease.id, base)
         wall_start = time.monotonic()
         interrupted = False
         try:
+            if getattr(self.args, "hosts", "loopback") == "netns":
+                self.start_hosts()
+            if self.args.secure:
+                base = self.dds_config or os.environ.get("CYCLONEDDS_URI", f"file://{ddsconfig.DEFAULT}")
+                self.security = secure.RunSecurity(self.out, self.lease.id, str(base).removeprefix("file://"))
             for rid in self.info["robots"]:
                 self.agents[rid] = AgentSlot(rid)
                 self.start_agent(rid)
@@ -282,13 +302,16 @@ class SwarmRun:
                    "--out", str(self.out), "--events", "--control"] + self.common
             if self.security:
                 cmd += ["--dds-config", str(self.security.feeder_config())]
+            elif self.dds_config:
+                cmd += ["--dds-config", str(self.dds_config)]
             if self.args.pace:
                 cmd += ["--pace", self.args.pace]
             if self.args.rate:
                 cmd += ["--rate", str(self.args.rate)]
             for t in holds:
                 cmd += ["--hold-at", str(t)]
-            self.feeder = self.spawn(cmd, self.out / "feeder.log", stdout=subprocess.PIPE, stdin=subprocess.PIPE)
+            self.feeder = self.spawn(cmd, self.out / "feeder.log", stdout=subprocess.PIPE, stdin=subprocess.PIPE,
+                                     host="feeder")
             # The feeder tells a paused agent (its process exists) from a dead one by its process.
             for rid, slot in self.agents.items():
                 self.send(f"pid {rid} {slot.current.pid}")
@@ -296,10 +319,27 @@ class SwarmRun:
         except Interrupted:
             interrupted = True
         finally:
-            self.stop_all()
-            self.lease.close()
+            try:
+                self.stop_all()
+            finally:
+                if self.hosts:
+                    self.hosts.close()
+                self.lease.close()
         wall_s = time.monotonic() - wall_start
         return self.summarise(wall_s, interrupted)
+
+    def start_hosts(self):
+        """--hosts netns: a namespace per agent, for the feeder and for the injector, on one
+        bridge, and the Cyclone config that names their interface."""
+        names = [f"agent{rid}" for rid in self.info["robots"]] + ["feeder"] + (["inject"] if self.args.inject else [])
+        self.hosts = netns.Hosts(names, loss_percent=self.args.net_loss, rate_mbit=self.args.net_rate)
+        self.hosts.create()
+        self.dds_config = self.hosts.cyclone_config(self.out, len(names))
+        if not self.args.quiet:
+            extra = "".join([f", {self.args.net_loss:g} % UDP loss on receipt" if self.args.net_loss else "",
+                             f", {self.args.net_rate:g} Mbit/s per host" if self.args.net_rate else ""])
+            print(f"swarm: {len(names)} hosts in network namespaces {self.hosts.tag}-* on one bridge{extra}",
+                  file=sys.stderr)
 
     def send(self, line):
         try:
@@ -530,6 +570,7 @@ class SwarmRun:
             "agents": agents,
             "failed_agents": [a["id"] for a in agents if a["failed"]],
         }
+        summary["network"] = self.hosts.summary() if self.hosts else {"hosts": "loopback"}
         if self.args.inject:
             summary["injected"] = run.read_if_present(INJECT)
             summary["injector_exit_code"] = self.injector.returncode if self.injector else None
@@ -572,6 +613,8 @@ def cmd_run(args):
     run = SwarmRun(args)
     summary = run.execute()
     print(format_table(summary))
+    if summary["network"]["hosts"] == "netns":
+        print(describe_network(summary["network"]))
     print(f"summary: {Path(args.out) / SUMMARY}")
     if not args.no_report and not summary["interrupted"]:
         report = write_report(args.out)
@@ -583,6 +626,17 @@ def cmd_run(args):
         print(failure_message(summary, args.out), file=sys.stderr)
         return 1
     return 0
+
+
+def describe_network(net):
+    """One line on the hosts of a --hosts netns run and what their kernels dropped."""
+    line = f"network: {len(net['per_host'])} hosts in namespaces {net['tag']}-* on one bridge"
+    if net.get("rate_mbit"):
+        line += f", {net['rate_mbit']:g} Mbit/s each"
+    if net.get("loss_percent"):
+        line += (f"; their kernels dropped {net['udp_dropped']} of {net['udp_received']} UDP datagrams received "
+                 f"({net['udp_dropped_percent']} %, asked {net['loss_percent']:g} %)")
+    return line
 
 
 def failure_message(summary, out):
