@@ -38,11 +38,9 @@ _runs_in_this_process = 0
 
 
 def _tool(name):
-    for d in ["", "/usr/sbin/", "/sbin/"]:
-        path = shutil.which(name) if not d else (d + name if os.access(d + name, os.X_OK) else None)
-        if path:
-            return path
-    return None
+    """The path of tool NAME: on PATH, or in the sbin directories a non-root PATH may lack."""
+    return shutil.which(name) or next((p for p in (f"/usr/sbin/{name}", f"/sbin/{name}") if os.access(p, os.X_OK)),
+                                      None)
 
 
 def require(loss_percent, rate_mbit, euid=None, tool=_tool):
