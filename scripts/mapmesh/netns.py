@@ -306,14 +306,25 @@ class Hosts:
 
 
 def probe():
-    """None when network namespaces can be made here, else why not (for tests that skip)."""
+    """None when this host can run --hosts netns with loss and a rate (root, the tools, and a
+    kernel that gives namespaces, veth, tbf and nftables), else why not, in one line (for
+    tests that skip)."""
     try:
         require(5, 1)
     except RunError as e:
         return str(e)
     name = f"mm{os.getpid()}r0-probe"
-    r = subprocess.run([_tool("ip"), "netns", "add", name], capture_output=True, text=True)
-    if r.returncode != 0:
-        return f"cannot create a network namespace: {r.stderr.strip()}"
-    delete_namespaces([name])
+    steps = [([_tool("ip"), "netns", "add", name], None),
+             ([_tool("ip"), "-n", name, "link", "add", "name", "p0", "type", "veth", "peer", "name", "p1"], None),
+             ([_tool("tc"), "-n", name, "qdisc", "add", "dev", "p0", "root", "tbf", "rate", "1mbit", "burst", "16000",
+               "latency", "100ms"], None),
+             ([_tool("ip"), "netns", "exec", name, _tool("nft"), "-f", "-"], nft_rules(5))]
+    try:
+        for cmd, stdin in steps:
+            r = subprocess.run(cmd, input=stdin, capture_output=True, text=True)
+            if r.returncode != 0:
+                tail = (r.stderr.strip().splitlines() or [f"exit code {r.returncode}"])[-1]
+                return f"{Path(cmd[0]).name} {cmd[1] if cmd[1] != '-n' else cmd[3]} failed here: {tail}"
+    finally:
+        delete_namespaces([name])
     return None
