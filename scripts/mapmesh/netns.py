@@ -26,6 +26,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+from . import ddsconfig
 from .run_error import RunError
 
 CLONE_NEWNET = 0x40000000
@@ -186,16 +187,9 @@ def nft_counts(listing):
     return out
 
 
-REAPER = """
-import subprocess, sys
-sys.stdin.buffer.read()  # until the launcher's end closes the pipe
-names = sys.argv[1:]
-ip = names.pop(0)
-present = set(subprocess.run([ip, "netns", "list"], capture_output=True, text=True).stdout.split())
-batch = "".join(f"netns del {n}\\n" for n in names if n in present)
-if batch:
-    subprocess.run([ip, "-force", "-batch", "-"], input=batch, text=True, capture_output=True)
-"""
+# The reaper: waits until the launcher's end closes its stdin, then deletes the namespaces.
+REAPER = ("import sys; sys.path.insert(0, sys.argv[1]); from mapmesh import netns; sys.stdin.buffer.read(); "
+          "netns.delete_namespaces(sys.argv[2:])")
 
 
 class Hosts:
@@ -222,7 +216,8 @@ class Hosts:
         return [self.names[h] for h in self.hosts] + [self.hub]
 
     def _start_reaper(self):
-        self.reaper = subprocess.Popen([sys.executable, "-c", REAPER, self.ip] + self.all_names(),
+        self.reaper = subprocess.Popen([sys.executable, "-c", REAPER, str(Path(__file__).resolve().parents[1])] +
+                                       self.all_names(),
                                        stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                        start_new_session=True, close_fds=True)
 
@@ -254,7 +249,6 @@ class Hosts:
 
     def cyclone_config(self, directory, participants):
         """The Cyclone config every host uses (it names eth0, no loopback), written to DIRECTORY."""
-        from . import ddsconfig
         return ddsconfig.for_interface(IFACE, participants, Path(directory) / "cyclonedds-netns.xml")
 
     def _read_counts(self):
@@ -314,17 +308,14 @@ def probe():
     except RunError as e:
         return str(e)
     name = f"mm{os.getpid()}r0-probe"
-    steps = [([_tool("ip"), "netns", "add", name], None),
-             ([_tool("ip"), "-n", name, "link", "add", "name", "p0", "type", "veth", "peer", "name", "p1"], None),
-             ([_tool("tc"), "-n", name, "qdisc", "add", "dev", "p0", "root", "tbf", "rate", "1mbit", "burst", "16000",
-               "latency", "100ms"], None),
-             ([_tool("ip"), "netns", "exec", name, _tool("nft"), "-f", "-"], nft_rules(5))]
     try:
-        for cmd, stdin in steps:
-            r = subprocess.run(cmd, input=stdin, capture_output=True, text=True)
-            if r.returncode != 0:
-                tail = (r.stderr.strip().splitlines() or [f"exit code {r.returncode}"])[-1]
-                return f"{Path(cmd[0]).name} {cmd[1] if cmd[1] != '-n' else cmd[3]} failed here: {tail}"
+        _run([_tool("ip"), "netns", "add", name], "ip netns add")
+        _run([_tool("ip"), "-n", name, "link", "add", "name", "p0", "type", "veth", "peer", "name", "p1"], "veth")
+        _run([_tool("tc"), "-n", name, "qdisc", "add", "dev", "p0", "root", "tbf", "rate", "1mbit", "burst", "16000",
+              "latency", "100ms"], "tc tbf")
+        _run([_tool("ip"), "netns", "exec", name, _tool("nft"), "-f", "-"], "nftables", nft_rules(5))
+    except RunError as e:
+        return str(e)
     finally:
         delete_namespaces([name])
     return None
