@@ -123,8 +123,14 @@ def leftovers(tag, marker=None):
                 holders[inode] = fd
         links = []
         for fd in holders.values():
-            r = subprocess.run([_tool("ip") or "ip", "-o", "link", "show"], capture_output=True, text=True,
-                               preexec_fn=lambda fd=fd: enter(fd))
+            try:
+                r = subprocess.run([_tool("ip") or "ip", "-o", "link", "show"], capture_output=True, text=True,
+                                   preexec_fn=lambda fd=fd: enter(fd))
+            except subprocess.SubprocessError:
+                # setns refuses a namespace that is being destroyed (its last process just
+                # exited); its links go with it. (The run's own links are made by root in this
+                # user namespace, so a namespace of another one cannot hold them.)
+                continue
             links += [line.split(":")[1].strip() for line in r.stdout.splitlines() if f" alias {tag}-" in line]
     finally:
         for fd in holders.values():
