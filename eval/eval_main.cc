@@ -187,6 +187,47 @@ json ReferenceJson(const ReferenceQuality& q) {
   return j;
 }
 
+// The run's reference maps (DIR/reference.json, written by mapmesh-lab reference): the
+// centralized batch optimum and each robot's own, with the frame each is in.
+struct BatchReferenceMaps {
+  std::optional<LandmarkMap> central;
+  bool central_in_world = false;
+  std::map<RobotId, LandmarkMap> own;
+  std::map<RobotId, bool> own_in_world;
+};
+
+std::optional<BatchReferenceMaps> ReadBatchReference(const std::string& path) {
+  if (!std::filesystem::exists(path)) return std::nullopt;
+  const json j = io::ReadJson(path);
+  if (!j.value("available", false)) return std::nullopt;
+  BatchReferenceMaps r;
+  if (j.contains("central") && j.at("central").contains("map")) {
+    r.central = io::MapFromJson(j.at("central").at("map"));
+    r.central_in_world = j.at("central").value("frame", "") == "world";
+  }
+  const json own = j.value("own_batch", json::object());
+  for (const auto& [id, m] : own.items()) {
+    if (!m.contains("map")) continue;
+    const RobotId robot = static_cast<RobotId>(std::stoul(id));
+    r.own[robot] = io::MapFromJson(m.at("map"));
+    r.own_in_world[robot] = m.value("frame", "") == "world";
+  }
+  return r;
+}
+
+// A reference map on the landmarks `scored` matched (its truth_matched), after a rigid fit of
+// those to the truth: the RMSE the optimum reaches on the same landmarks; null when fewer than
+// two are shared.
+json SameLandmarksRmse(const LandmarkMap& reference, bool in_world, const MapQuality& scored, const io::RunTruth& truth,
+                       double gate_m) {
+  if (!scored.evaluated) return json();
+  const LandmarkMap same = RestrictToTruth(reference, scored.truth_matched);
+  if (same.size() < 2) return json();
+  const MapQuality q = EvaluateFittedMap(same, truth.landmarks, truth.seen,
+                                         in_world ? std::optional<Pose2>(Pose2{}) : std::nullopt, gate_m);
+  return q.evaluated && q.rmse_m > 0 ? json(q.rmse_m) : json();
+}
+
 int Run(int argc, char** argv) {
   CLI::App cli{"mapmesh-eval: scores a run's maps against its ground truth (JSON on stdout)"};
   std::string run_dir;
@@ -204,6 +245,7 @@ int Run(int argc, char** argv) {
   if (!reference_path.empty()) reference = io::MapFromJson(io::ReadJson(reference_path));
   std::mt19937_64 rng(1);
   const io::RunTruth truth = io::TruthFromJson(io::ReadJson(run_dir + "/truth.json"));
+  const std::optional<BatchReferenceMaps> batch = ReadBatchReference(run_dir + "/reference.json");
   std::map<RobotId, AgentFiles> files;
   for (const io::RobotTruth& robot : truth.robots) {
     files[robot.id] = ReadAgent(run_dir + "/agent_" + std::to_string(robot.id), truth);
@@ -241,6 +283,24 @@ int Run(int argc, char** argv) {
       const MapQuality aligned = EvaluateFittedMap(map, truth.landmarks, truth.seen, origin ? origin : f.local_in_world,
                                                    gate_m);
       entry[kind]["rmse_aligned_m"] = aligned.evaluated ? json(aligned.rmse_m) : json();
+      // The limit on the same landmarks (docs/EXPERIMENTS.md "The limit"): the global map against
+      // the centralized batch optimum, the local map against the robot's own batch optimum; and
+      // the ratio of the two RMSEs after a rigid fit, the map's gap to its limit.
+      if (batch) {
+        const bool local = std::string(kind) == "local";
+        const auto own = batch->own.find(robot.id);
+        json limit;
+        if (!local && batch->central) {
+          limit = SameLandmarksRmse(*batch->central, batch->central_in_world, aligned, truth, gate_m);
+          entry[kind]["central_rmse_aligned_m"] = limit;
+        } else if (local && own != batch->own.end()) {
+          limit = SameLandmarksRmse(own->second, batch->own_in_world.at(robot.id), aligned, truth, gate_m);
+          entry[kind]["own_batch_rmse_aligned_m"] = limit;
+        }
+        if (limit.is_number() && aligned.evaluated) {
+          entry[local ? "gap_to_own_batch" : "gap_to_central"] = aligned.rmse_m / limit.get<double>();
+        }
+      }
       if (reference) {
         // The global map is in the local map's frame: it is placed where the local map aligned.
         const ReferenceQuality rq = CompareToReference(map, *reference, gate_m, AlignmentOptions{}, rng,

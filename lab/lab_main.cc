@@ -11,10 +11,12 @@
 #include <map>
 
 #include "common/app/process.h"
+#include "common/io/run_files.h"
 #include "lab/alignment_experiment.h"
 #include "lab/bus_swarm.h"
 #include "lab/fusion_experiment.h"
 #include "lab/pairs_experiment.h"
+#include "lab/reference.h"
 #include "lab/slam_experiment.h"
 #include "lab/thesis_alignment.h"
 #include "lab/thesis_fusion.h"
@@ -254,6 +256,81 @@ int RunBusCommand(const app::ProcessOptions& po, const std::vector<std::string>&
   return 0;
 }
 
+// One reference map's figures (and, with with_map, the map itself), as reference.json holds
+// them (docs/EXPERIMENTS.md "The limit").
+io::json ReferenceMapJson(const lab::ReferenceMap& m, bool with_map) {
+  const BatchSolution& s = m.solution;
+  io::json j = {{"landmarks", m.landmarks},
+                {"matched", m.matched},
+                {"rmse_aligned_m", m.evaluated ? io::json(m.rmse_aligned_m) : io::json()},
+                {"rmse_m", m.rmse_m ? io::json(*m.rmse_m) : io::json()},
+                {"nees_mean", m.evaluated && s.covariance_ok ? io::json(m.nees_mean) : io::json()},
+                {"consistent_ratio", m.evaluated && s.covariance_ok ? io::json(m.consistent_ratio) : io::json()},
+                {"frame", m.rmse_m ? "world" : "aligned"},
+                {"solve_s", m.solve_s},
+                {"solves", s.solves},
+                {"iterations", s.report.iterations},
+                {"converged", s.report.converged},
+                {"stop", s.report.stop},
+                {"chi2_per_dof", s.chi2_per_dof},
+                {"variables", s.variables},
+                {"observations", s.observations},
+                {"covariance_ok", s.covariance_ok}};
+  if (with_map) j["map"] = io::MapToJson(s.map);
+  return j;
+}
+
+io::json ReferenceJson(const lab::Reference& r) {
+  io::json j = {{"available", r.available},
+                {"why_none", r.available ? io::json() : io::json(r.why_none)},
+                {"total_s", r.total_s}};
+  if (!r.available) return j;
+  j["loss"] = r.loss;
+  j["central"] = ReferenceMapJson(r.central, true);
+  io::json own = io::json::object();
+  for (const auto& [id, m] : r.own) own[std::to_string(id)] = ReferenceMapJson(m, true);
+  j["own_batch"] = own;
+  j["known_pose"] = r.known_pose ? ReferenceMapJson(*r.known_pose, true) : io::json();
+  io::json own_known = io::json::object();
+  for (const auto& [id, m] : r.own_known_pose) own_known[std::to_string(id)] = ReferenceMapJson(m, false);
+  j["own_known_pose"] = own_known;
+  if (!r.known_pose) j["known_pose_why_none"] = r.known_pose_why_none;
+  return j;
+}
+
+int RunReferenceCommand(const app::ProcessOptions& po, const std::string& datasets, const std::string& loss,
+                        double loss_scale, bool no_known_pose, const std::string& out_path) {
+  const std::optional<Scenario> sc = app::LoadScenarioOrReport("mapmesh-lab", po);
+  if (!sc) return 2;
+  lab::ReferenceOptions options;
+  options.datasets_root = ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot());
+  options.known_pose = !no_known_pose;
+  if (loss == "none") options.robust = RobustKernel{};
+  if (loss == "huber") options.robust = RobustKernel{RobustLoss::kHuber, loss_scale > 0 ? loss_scale : 1.345};
+  if (loss == "cauchy") options.robust = RobustKernel{RobustLoss::kCauchy, loss_scale > 0 ? loss_scale : 2.0};
+  const lab::Reference r = lab::ComputeReference(*sc, options);
+  const io::json j = ReferenceJson(r);
+  if (out_path.empty()) {
+    std::printf("%s\n", j.dump(1).c_str());
+  } else {
+    io::WriteJsonAtomic(out_path, j);
+  }
+  if (!r.available) {
+    std::fprintf(stderr, "mapmesh-lab: no reference for %s: %s\n", sc->name.c_str(), r.why_none.c_str());
+    return 0;
+  }
+  auto line = [](const char* what, const lab::ReferenceMap& m) {
+    std::fprintf(stderr, "%-11s %4d landmarks  %.4f m after a rigid fit  NEES %.2f  %s in %.2f s\n", what, m.landmarks,
+                 m.rmse_aligned_m, m.nees_mean, m.solution.report.converged ? "converged" : "NOT converged", m.solve_s);
+  };
+  line("central", r.central);
+  if (r.known_pose) line("known poses", *r.known_pose);
+  for (const auto& [id, m] : r.own) line(("robot " + std::to_string(id)).c_str(), m);
+  for (const auto& [id, m] : r.own_known_pose) line(("known " + std::to_string(id)).c_str(), m);
+  std::fprintf(stderr, "loss %s; %.2f s in all\n", r.loss.c_str(), r.total_s);
+  return 0;
+}
+
 int Run(int argc, char** argv) {
   CLI::App cli{"mapmesh-lab: in-process experiments and Monte Carlo studies (CSV out)"};
   cli.require_subcommand(1);
@@ -352,7 +429,31 @@ int Run(int argc, char** argv) {
   bus->add_option("--kill", bus_kills, "kill agent ID at scenario time T (ID@T, repeatable)");
   bus->add_option("--restart", bus_restarts, "restart agent ID at T from its last checkpoint (ID@T, repeatable)");
   bus->add_option("--datasets", bus_datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
+  app::ProcessOptions ref_po;
+  std::string ref_datasets, ref_loss = "auto", ref_out;
+  double ref_loss_scale = 0.0;
+  bool ref_no_known = false;
+  CLI::App* reference = cli.add_subcommand(
+      "reference",
+      "the limit of a scenario's data: the centralized batch optimum, each robot's own batch optimum and the "
+      "known-pose map, scored against the truth (JSON; docs/EXPERIMENTS.md \"The limit\")");
+  app::AddScenarioOptions(*reference, ref_po);
+  reference->add_option("--datasets", ref_datasets,
+                        "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
+  reference
+      ->add_option("--loss", ref_loss,
+                   "loss on each observation: auto (none for simulated worlds, cauchy for datasets), none, "
+                   "huber, cauchy")
+      ->check(CLI::IsMember({"auto", "none", "huber", "cauchy"}));
+  reference
+      ->add_option("--loss-scale", ref_loss_scale,
+                   "the loss's scale in standard deviations (default: huber 1.345, cauchy 2)")
+      ->check(CLI::PositiveNumber);
+  reference->add_flag("--no-known-pose", ref_no_known, "skip the known-pose map");
+  reference->add_option("--out", ref_out, "write the JSON here (default: stdout)");
   if (auto code = app::ParseArgs(cli, "mapmesh-lab", argc, argv)) return *code;
+  if (reference->parsed())
+    return RunReferenceCommand(ref_po, ref_datasets, ref_loss, ref_loss_scale, ref_no_known, ref_out);
   if (bus->parsed()) return RunBusCommand(bus_po, bus_kills, bus_restarts, bus_datasets);
   if (thesis_fusion->parsed()) {
     tf.scenarios_dir = MAPMESH_SOURCE_DIR "/scenarios";

@@ -107,4 +107,23 @@ inline Pose2 Invert(const Pose2& a, Eigen::Matrix3d* j_a) {
   return a.Inverse();
 }
 
+// a^-1 * b, the pose of b in a's frame (GTSAM's between), with its Jacobians with respect to a
+// and to b: d = R(a)^T (t_b - t_a), theta = wrap(theta_b - theta_a).
+inline Pose2 Between(const Pose2& a, const Pose2& b, Eigen::Matrix3d* j_a = nullptr, Eigen::Matrix3d* j_b = nullptr) {
+  const double c = std::cos(a.theta), s = std::sin(a.theta);
+  const double dx = b.x - a.x, dy = b.y - a.y;
+  const Pose2 out{c * dx + s * dy, -s * dx + c * dy, WrapAngle(b.theta - a.theta)};
+  if (j_a) {
+    *j_a << -c, -s, out.y,  //
+        s, -c, -out.x,      //
+        0, 0, -1;
+  }
+  if (j_b) {
+    *j_b << c, s, 0,  //
+        -s, c, 0,     //
+        0, 0, 1;
+  }
+  return out;
+}
+
 }  // namespace mapmesh

@@ -92,6 +92,7 @@ MapQuality EvaluateMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d
   }
   int denom = 0, covered = 0;
   for (std::size_t j = 0; j < truth.size(); ++j) {
+    if (present[j]) q.truth_matched.push_back(static_cast<int>(j));
     if (!counted[j]) continue;
     ++denom;
     if (present[j]) ++covered;
@@ -144,6 +145,15 @@ MapQuality EvaluateFittedMap(const LandmarkMap& map, const std::vector<Eigen::Ve
   MapQuality q = EvaluateMap(TransformMap(map, *frame), truth, seen, gate_m);
   q.aligned = true;
   return q;
+}
+
+LandmarkMap RestrictToTruth(const LandmarkMap& map, const std::vector<int>& truth_indices) {
+  LandmarkMap out;
+  out.shape_sigma_m = map.shape_sigma_m;
+  for (const Landmark& l : map.landmarks) {
+    if (std::binary_search(truth_indices.begin(), truth_indices.end(), l.signature)) out.landmarks.push_back(l);
+  }
+  return out;
 }
 
 }  // namespace mapmesh

@@ -39,14 +39,15 @@ AssociationScore ScoreAssociations(const std::vector<std::pair<int, int>>& predi
 std::vector<int> MatchToTruth(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth, double gate_m);
 
 struct MapQuality {
-  bool evaluated = true;          // false: the map could not be placed in the truth frame
-  bool aligned = false;           // placed by a rigid fit to the truth rather than a known origin
-  int landmarks = 0;              // landmarks in the map
-  int matched = 0;                // of which have a true counterpart
-  double rmse_m = 0.0;            // over matched landmarks
-  double nees_mean = 0.0;         // over matched landmarks
-  double consistent_ratio = 0.0;  // share of matched landmarks with NEES below kChi2Dof2P95
-  double coverage = 0.0;          // share of `seen` true landmarks that the map contains
+  bool evaluated = true;           // false: the map could not be placed in the truth frame
+  bool aligned = false;            // placed by a rigid fit to the truth rather than a known origin
+  int landmarks = 0;               // landmarks in the map
+  int matched = 0;                 // of which have a true counterpart
+  double rmse_m = 0.0;             // over matched landmarks
+  double nees_mean = 0.0;          // over matched landmarks
+  double consistent_ratio = 0.0;   // share of matched landmarks with NEES below kChi2Dof2P95
+  double coverage = 0.0;           // share of `seen` true landmarks that the map contains
+  std::vector<int> truth_matched;  // the true landmarks the map holds (indices into truth, increasing)
 };
 
 // Quality of a map already expressed in the truth frame. seen lists the true landmarks that
@@ -71,5 +72,9 @@ MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::
 // evaluated is false when there is no start or fewer than two landmarks match.
 MapQuality EvaluateFittedMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
                              const std::vector<int>& seen, const std::optional<Pose2>& initial, double gate_m = 2.0);
+
+// The landmarks of a map whose signature is among truth_indices (increasing): a reference map (whose
+// signatures are the true landmarks' indices) on the landmarks another map holds.
+LandmarkMap RestrictToTruth(const LandmarkMap& map, const std::vector<int>& truth_indices);
 
 }  // namespace mapmesh

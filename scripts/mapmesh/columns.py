@@ -69,6 +69,16 @@ COLUMNS = [
            plot=("global mean NEES", "mean NEES (2 expected)")),
     Column("global.coverage", table="cov_global", table_format=".2f", html="global coverage", csv="coverage_global",
            plot=("global coverage", "share of the seen true landmarks")),
+    # Each map against its limit on the same landmarks (docs/EXPERIMENTS.md "The limit"): the RMSE
+    # after a rigid fit over that of the centralized batch optimum (global map) or of the robot's
+    # own batch optimum (local map); 1 is the limit.
+    Column("global.central_rmse_aligned_m", html="centralized optimum on the same landmarks (m)",
+           csv="rmse_central_same_m"),
+    Column("gap_to_central", table="gap_central", table_format=".2f",
+           html="global RMSE / centralized optimum", csv="gap_to_central",
+           plot=("global RMSE over the centralized optimum", "ratio (1: the limit)")),
+    Column("gap_to_own_batch", table="gap_own", table_format=".2f", html="local RMSE / own batch optimum",
+           csv="gap_to_own_batch"),
     Column("peers_aligned", table="peers", html="peers aligned", csv="peers_aligned", count=True),
     Column("maps_received", table="maps_rx", html="maps received"),
     Column("bytes_sent", table="kB_tx", table_format=".1f", table_scale=1000, html="bytes sent", csv="bytes_sent"),
@@ -84,8 +94,9 @@ HTML_COLUMNS = [c for c in COLUMNS if c.html]
 # sweep.csv: the swept parameter, "seed", these agent columns in this order, then the run's "wall_s".
 SWEEP_COLUMNS = [BY_KEY[k] for k in ("id", "alive_at_end", "local.landmarks", "global.landmarks", "global.coverage",
                                      "global.nees_mean", "global.rmse_aligned_m", "global.rmse_m",
-                                     "local.rmse_aligned_m", "local.rmse_m", "local.nees_mean", "peers_aligned",
-                                     "bytes_sent")]
+                                     "local.rmse_aligned_m", "local.rmse_m", "local.nees_mean",
+                                     "global.central_rmse_aligned_m", "gap_to_central", "gap_to_own_batch",
+                                     "peers_aligned", "bytes_sent")]
 SWEEP_HEADER = ["seed"] + [c.csv for c in SWEEP_COLUMNS] + ["wall_s"]
 # The sweep plot's panels, left to right.
 PLOT_COLUMNS = [c for c in SWEEP_COLUMNS if c.plot]

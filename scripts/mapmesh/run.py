@@ -18,7 +18,7 @@ from . import ddsconfig, netns, secure
 from .domain import DomainLease
 from .run_error import RunError  # noqa: F401  (re-exported: sweep and scale raise it)
 from .progress import Progress
-from .rundir import AGENT_LOG, FEEDER, INJECT, REPORT, STATS, SUMMARY, TIMELINE, TRUTH, RunDir, agent_dir
+from .rundir import AGENT_LOG, FEEDER, INJECT, REFERENCE, REPORT, STATS, SUMMARY, TIMELINE, TRUTH, RunDir, agent_dir
 
 REPO = Path(__file__).resolve().parents[2]
 # Plots need matplotlib and numpy from Debian, which /usr/bin/python3 has (another python3 may
@@ -281,7 +281,7 @@ class SwarmRun:
     def execute(self):
         self.check_scenario()
         self.out.mkdir(parents=True, exist_ok=True)
-        for stale in [SUMMARY, TRUTH, FEEDER, TIMELINE, REPORT, INJECT]:
+        for stale in [SUMMARY, TRUTH, FEEDER, TIMELINE, REPORT, INJECT, REFERENCE]:
             (self.out / stale).unlink(missing_ok=True)
         self.lease = DomainLease()
         wall_start = time.monotonic()
@@ -492,8 +492,34 @@ class SwarmRun:
                     pass
 
     # ----- results ------------------------------------------------------------------------
+    def compute_reference(self, interrupted):
+        """DIR/reference.json by `mapmesh-lab reference` on the run's scenario (the same --agents and
+        --set): the centralized batch optimum, each robot's own and the known-pose map, after the
+        run so that it takes nothing from the agents. What summary.json's `reference` holds (the
+        maps left out), with the wall time it took."""
+        if getattr(self.args, "no_reference", False):
+            return {"available": False, "why_none": "skipped (--no-reference)"}
+        if interrupted:
+            return {"available": False, "why_none": "the run was interrupted"}
+        try:
+            lab = binary("mapmesh-lab")
+        except RunError as e:  # nothing else of the run is lost for want of it (the table's last line says why)
+            return {"available": False, "why_none": str(e)}
+        if not self.args.quiet:
+            print("computing the reference (the centralized batch optimum; --no-reference skips it)", flush=True)
+        start = time.monotonic()
+        cmd = [lab, "reference", "--scenario", self.scenario, "--out", str(self.out / REFERENCE)] + self.common
+        r = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+        wall = round(time.monotonic() - start, 3)
+        if r.returncode != 0 or not (self.out / REFERENCE).exists():
+            reason = last_line(r.stderr, f"exit code {r.returncode}").removeprefix("mapmesh-lab: ")
+            return {"available": False, "why_none": f"mapmesh-lab reference failed: {reason}", "wall_s": wall}
+        ref = RunDir(self.out).read(REFERENCE)
+        return dict(strip_maps(ref), wall_s=wall)
+
     def summarise(self, wall_s, interrupted):
         run = RunDir(self.out)
+        reference = self.compute_reference(interrupted)
         scores = {}
         if run.path(TRUTH).exists():
             r = subprocess.run([binary("mapmesh-eval"), "--run", str(self.out)], capture_output=True, text=True)
@@ -519,6 +545,11 @@ class SwarmRun:
                 "final_state": bool(stats.get("final", False)),
                 "local": score.get("local"),
                 "global": score.get("global"),
+                # The map against the limit on the same landmarks (RMSE after a rigid fit over the
+                # optimum's): the global map over the centralized batch optimum, the local map over
+                # the robot's own batch optimum (docs/EXPERIMENTS.md "The limit").
+                "gap_to_central": score.get("gap_to_central"),
+                "gap_to_own_batch": score.get("gap_to_own_batch"),
                 "peers_aligned": stats.get("peers_aligned", []),
                 "peers_stale": stats.get("peers_stale", []),
                 "alignment_errors": score.get("alignment_errors", {}),
@@ -570,6 +601,7 @@ class SwarmRun:
             "agents": agents,
             "failed_agents": [a["id"] for a in agents if a["failed"]],
         }
+        summary["reference"] = reference
         summary["network"] = self.hosts.summary() if self.hosts else {"hosts": "loopback"}
         if self.args.inject:
             summary["injected"] = run.read_if_present(INJECT)
@@ -580,6 +612,30 @@ class SwarmRun:
                     "agents": {str(rid): scores.get(str(rid), {}).get("history", []) for rid in self.agents}}
         write_json(run.path(TIMELINE), timeline)
         return summary
+
+
+def strip_maps(value):
+    """A reference.json without its maps (every "map" key, at any depth)."""
+    if isinstance(value, dict):
+        return {k: strip_maps(v) for k, v in value.items() if k != "map"}
+    return value
+
+
+def describe_reference(ref):
+    """One line on the run's reference: the centralized optimum and the known-pose map, or why
+    there is none."""
+    if not ref or not ref.get("available"):
+        return f"reference: none ({(ref or {}).get('why_none', 'not computed')})"
+    c = ref["central"]
+    line = f"reference: centralized batch optimum {c['rmse_aligned_m']:.3f} m after a rigid fit"
+    if c.get("nees_mean") is not None:
+        line += f" (NEES {c['nees_mean']:.2f})"
+    if not c.get("converged"):
+        line += " NOT CONVERGED"
+    k = ref.get("known_pose")
+    if k:
+        line += f", known poses {k['rmse_aligned_m']:.3f} m"
+    return line + f"; solved in {ref.get('wall_s', ref.get('total_s', 0.0)):.1f} s"
 
 
 def write_json(path, value):
@@ -613,6 +669,7 @@ def cmd_run(args):
     run = SwarmRun(args)
     summary = run.execute()
     print(format_table(summary))
+    print(describe_reference(summary.get("reference")))
     if summary["network"]["hosts"] == "netns":
         print(describe_network(summary["network"]))
     print(f"summary: {Path(args.out) / SUMMARY}")

@@ -13,6 +13,7 @@ TRUTH = "truth.json"
 TIMELINE = "timeline.json"
 FEEDER = "feeder.json"
 INJECT = "inject.json"
+REFERENCE = "reference.json"  # the limit of the run's data (mapmesh-lab reference)
 REPORT = "report.html"
 # Each agent's files, in its directory agent_dir(id).
 STATS = "stats.json"

@@ -25,6 +25,8 @@ def _run_one(args, value, seed, run_dir):
         cmd += ["--agents", str(args.agents)]
     for s in args.set or []:
         cmd += ["--set", s]
+    if getattr(args, "no_reference", False):
+        cmd += ["--no-reference"]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if not (run_dir / SUMMARY).exists():
         reason = last_line(r.stderr, f"exit code {r.returncode}")

@@ -9,6 +9,9 @@ script and no external URL). Prints the page's path on stdout.
 
 The page shows:
   - the run: scenario, simulated duration, wall time, real-time factor, kills, restarts and pauses;
+  - the limit (table#reference-table): the centralized batch optimum of the run's data, the
+    known-pose map and each robot's own batch optimum (summary.json `reference`), or why there
+    is none; the summary table's gap columns divide each map's RMSE by its limit's;
   - the summary table (table#summary: one row per agent, cells data-key="<summary path>" with
     the exact JSON value in data-value) and a table of peers and events. A map's accuracy figure
     is its RMSE after a least-squares rigid fit of the map to the landmark truth
@@ -578,6 +581,36 @@ def figure_html(src, alt, caption, agent=None):
             f"<figcaption>{esc(caption)}</figcaption></figure>")
 
 
+def reference_html(ref):
+    """The run's reference (summary.json `reference`): the centralized batch optimum of all the
+    robots' data, the known-pose map and each robot's own batch optimum, or why there is none."""
+    if not ref:
+        return '<p class="note" id="reference">No reference in this summary (a run of an older build).</p>'
+    if not ref.get("available"):
+        return (f'<p class="note" id="reference">No reference for this run: {esc(ref.get("why_none", "?"))}.</p>')
+
+    def row(name, m):
+        if not m:
+            return ""
+        cells = (name, cell_text(m.get("landmarks")), cell_text(m.get("rmse_aligned_m")), cell_text(m.get("rmse_m")),
+                 cell_text(m.get("nees_mean")), "yes" if m.get("converged") else "NO", cell_text(m.get("solve_s")))
+        return "<tr>" + "".join(f"<td>{esc(v)}</td>" for v in cells) + "</tr>"
+
+    rows = [row("centralized batch optimum (all robots' data)", ref.get("central")),
+            row("known poses (every observation from the true pose)", ref.get("known_pose"))]
+    rows += [row(f"robot {rid}'s own batch optimum", m) for rid, m in sorted(
+        (ref.get("own_batch") or {}).items(), key=lambda kv: int(kv[0]))]
+    return f"""<p id="reference">What the run's data allows, from the feeder's own streams: every odometry
+and range-bearing reading in one sparse least-squares problem with known association (loss
+{esc(ref.get('loss', 'none'))}), solved in {esc(seconds(ref.get('wall_s', ref.get('total_s'))))}. The summary's
+<i>global RMSE / centralized optimum</i> divides each global map's RMSE after a rigid fit by the
+optimum's on the same landmarks, and <i>local RMSE / own batch optimum</i> each local map's by its
+robot's own optimum's: 1 is the limit.</p>
+<table id="reference-table"><tr><th>map</th><th>landmarks</th><th>RMSE after rigid fit (m)</th>
+<th>RMSE, world frame (m)</th><th>NEES</th><th>converged</th><th>solve (s)</th></tr>
+{''.join(rows)}</table>"""
+
+
 def write_report(d):
     run = Run(d)
     out = run.dir / "report"
@@ -627,6 +660,7 @@ def write_report(d):
              + f" Kills: {esc(events_text(run.kills))}. Restarts: {esc(events_text(run.restarts))}."
              + (f" Pauses: {esc(pauses_text(s.get('pauses')))}." if s.get("pauses") else "")
              + (" <b>The run was interrupted.</b>" if s.get("interrupted") else ""))
+    limit = reference_html(s.get("reference"))
     notes = "".join(f"<li>{esc(n)}</li>" for n in dict.fromkeys(run.notes))
     page = f"""<!DOCTYPE html>
 <html lang="en">
@@ -646,6 +680,8 @@ accuracy is its RMSE after a least-squares rigid fit of the map to the landmark 
 in the robot's true map frame beside it also holds the heading error the map built up (its
 heading drift). Red rows: agents not alive at the end.</p>
 {summary_table(run)}
+<h2>The limit</h2>
+{limit}
 <h2>Peers and events</h2>
 {peers_table(run, frames)}
 <h2>Maps</h2>

@@ -70,5 +70,42 @@ TEST(Pose2, ApplyJacobiansMatchNumericalDifferences) {
   }
 }
 
+// Between is a^-1 * b, and its Jacobians match central differences (the heading differences
+// wrapped), on seeded random poses.
+TEST(Pose2, BetweenIsTheRelativePoseAndItsJacobiansMatchNumericalDifferences) {
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(-50, 50), ua(-M_PI, M_PI);
+  constexpr double kH = 1e-6;
+  auto diff = [](const Pose2& hi, const Pose2& lo) -> Eigen::Vector3d {
+    return Eigen::Vector3d(hi.x - lo.x, hi.y - lo.y, WrapAngle(hi.theta - lo.theta)) / (2 * kH);
+  };
+  for (int i = 0; i < 200; ++i) {
+    const Pose2 a{u(rng), u(rng), ua(rng)}, b{u(rng), u(rng), ua(rng)};
+    Eigen::Matrix3d j_a, j_b;
+    const Pose2 d = Between(a, b, &j_a, &j_b);
+    const Pose2 ref = a.Inverse() * b;
+    EXPECT_NEAR(d.x, ref.x, 1e-9);
+    EXPECT_NEAR(d.y, ref.y, 1e-9);
+    EXPECT_NEAR(WrapAngle(d.theta - ref.theta), 0.0, 1e-12);
+    const Pose2 back = a * d;  // a * (a^-1 b) = b
+    EXPECT_NEAR(back.x, b.x, 1e-9);
+    EXPECT_NEAR(back.y, b.y, 1e-9);
+    Eigen::Matrix3d num_a, num_b;
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Vector3d lo = a.Vector(), hi = a.Vector();
+      lo(k) -= kH;
+      hi(k) += kH;
+      num_a.col(k) = diff(Between({hi(0), hi(1), hi(2)}, b), Between({lo(0), lo(1), lo(2)}, b));
+      lo = b.Vector();
+      hi = b.Vector();
+      lo(k) -= kH;
+      hi(k) += kH;
+      num_b.col(k) = diff(Between(a, {hi(0), hi(1), hi(2)}), Between(a, {lo(0), lo(1), lo(2)}));
+    }
+    EXPECT_LT((j_a - num_a).cwiseAbs().maxCoeff(), 1e-5) << "a " << i;
+    EXPECT_LT((j_b - num_b).cwiseAbs().maxCoeff(), 1e-5) << "b " << i;
+  }
+}
+
 }  // namespace
 }  // namespace mapmesh

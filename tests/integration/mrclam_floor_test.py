@@ -9,6 +9,7 @@ Run: cd tests/integration && /usr/bin/python3 -m unittest mrclam_floor_test
 
 import json
 import math
+import os
 import random
 import subprocess
 import tempfile
@@ -17,6 +18,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 SCRIPT = REPO / "scripts" / "mrclam-floor"
+BIN = Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
+DATASETS = Path(os.environ.get("MAPMESH_DATASETS", REPO.parent / "shared" / "datasets"))
 LANDMARKS = {6 + i: (4.0 * math.cos(i * math.pi / 4) + 0.3 * i, 3.0 * math.sin(i * math.pi / 4)) for i in range(8)}
 
 
@@ -69,6 +72,8 @@ class MrclamFloorTest(unittest.TestCase):
             self.assertGreater(r["sightings"], 1000)
             self.assertLess(r["known_pose_rmse_m"], 1e-3)
             self.assertLess(r["known_pose_aligned_m"], 1e-3)
+            self.assertLess(r["known_pose_ml_rmse_m"], 1e-3)
+            self.assertLess(r["known_pose_ml_aligned_m"], 1e-3)
 
             noisy = Path(d) / "noisy"
             write_dataset(noisy, 2, 0.08, math.radians(1.0), range_bias=0.05, bearing_bias=math.radians(0.5),
@@ -88,6 +93,31 @@ class MrclamFloorTest(unittest.TestCase):
             self.assertGreater(r["own_frame_bound_m"], 0.0)
             ratio = r["own_frame_bound_m"] / q["own_frame_bound_m"]
             self.assertAlmostEqual(ratio, 4.0, delta=0.4)
+
+    def test_its_known_pose_map_agrees_with_the_reference_on_dataset_7(self):
+        """Two implementations of the maximum-likelihood known-pose map on MRCLAM 7, this script's
+        (numpy, 100 Hz Vicon) and `mapmesh-lab reference`'s (C++, the feeder's 10 Hz truth), agree
+        robot by robot."""
+        if not (DATASETS / "mrclam" / "MRCLAM_Dataset7").is_dir():
+            self.skipTest(f"MRCLAM 7 not found under {DATASETS} (set MAPMESH_DATASETS)")
+        out = subprocess.run(["/usr/bin/python3", str(SCRIPT), "--dataset", "7", "--datasets", str(DATASETS)],
+                             capture_output=True, text=True, timeout=120)
+        self.assertEqual(out.returncode, 0, out.stderr)
+        script = json.loads(out.stdout)["robots"]
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / "reference.json"
+            r = subprocess.run([str(BIN / "mapmesh-lab"), "reference", "--scenario",
+                                str(REPO / "scenarios" / "mrclam_7.yaml"), "--datasets", str(DATASETS), "--out",
+                                str(path)], capture_output=True, text=True, timeout=240)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            ref = json.loads(path.read_text())
+        self.assertTrue(ref["available"])
+        self.assertEqual(sorted(ref["own_known_pose"]), sorted(script))
+        for robot, s in script.items():
+            c = ref["own_known_pose"][robot]
+            for mine, theirs in ((s["known_pose_ml_aligned_m"], c["rmse_aligned_m"]),
+                                 (s["known_pose_ml_rmse_m"], c["rmse_m"])):
+                self.assertAlmostEqual(mine, theirs, delta=max(0.002, 0.05 * mine), msg=f"robot {robot}")
 
     def test_help_and_bad_arguments_are_one_line(self):
         out = subprocess.run(["/usr/bin/python3", str(SCRIPT), "--help"], capture_output=True, text=True, timeout=60)

@@ -39,16 +39,19 @@ TIMELINE_IMAGES = ["report/exchanges.png", "report/nees.png", "report/coverage.p
 # map's RMSE after a rigid fit to the truth first, its RMSE in the true frame beside it.
 SUMMARY_KEYS = ["id", "alive_at_end", "exit_code", "restarts", "local.landmarks", "local.rmse_aligned_m",
                 "local.rmse_m", "local.nees_mean", "global.landmarks", "global.rmse_aligned_m", "global.rmse_m",
-                "global.nees_mean", "global.coverage", "peers_aligned", "maps_received", "bytes_sent",
-                "bytes_per_landmark", "cpu_s", "max_rss_mb"]
+                "global.nees_mean", "global.coverage", "global.central_rmse_aligned_m", "gap_to_central",
+                "gap_to_own_batch", "peers_aligned", "maps_received", "bytes_sent", "bytes_per_landmark", "cpu_s",
+                "max_rss_mb"]
 SUMMARY_HEADERS = ["agent", "alive", "exit", "restarts", "local landmarks", "local RMSE after rigid fit (m)",
                    "local RMSE, true frame (m)", "local NEES", "global landmarks", "global RMSE after rigid fit (m)",
-                   "global RMSE, true frame (m)", "global NEES", "global coverage", "peers aligned", "maps received",
-                   "bytes sent", "bytes / landmark", "CPU (s)", "max RSS (MB)"]
+                   "global RMSE, true frame (m)", "global NEES", "global coverage",
+                   "centralized optimum on the same landmarks (m)", "global RMSE / centralized optimum",
+                   "local RMSE / own batch optimum", "peers aligned", "maps received", "bytes sent", "bytes / landmark",
+                   "CPU (s)", "max RSS (MB)"]
 # sweep.csv as `swarm sweep` writes it, after the swept parameter.
 SWEEP_HEADER = ["seed", "agent", "alive", "lm_local", "lm_global", "coverage_global", "nees_global",
                 "rmse_global_aligned_m", "rmse_global_m", "rmse_local_aligned_m", "rmse_local_m", "nees_local",
-                "peers_aligned", "bytes_sent", "wall_s"]
+                "rmse_central_same_m", "gap_to_central", "gap_to_own_batch", "peers_aligned", "bytes_sent", "wall_s"]
 DASH = "\u2013"
 
 
@@ -167,6 +170,14 @@ def make_fake_run(d):
                "kills": [{"id": 3, "t": 20.0}], "restarts": [{"id": 3, "t": 30.0}],
                "pauses": [{"id": 1, "t": 40.0, "seconds": 3.0, "wall_start": 1.0e9, "wall_end": 1.0e9 + 3.0}],
                "feeder": {"exit_code": 0, "cpu_s": 0.1, "max_rss_mb": 10.0}, "agents": agents}
+
+    def limit(rmse, nees, world):
+        return {"landmarks": 60, "matched": 60, "rmse_aligned_m": rmse, "rmse_m": rmse * 1.2 if world else None,
+                "nees_mean": nees, "frame": "world" if world else "aligned", "solve_s": 0.05, "converged": True}
+
+    summary["reference"] = {"available": True, "loss": "none", "total_s": 0.4, "wall_s": 0.45,
+                            "central": limit(0.0321, 1.97, True), "known_pose": limit(0.0187, 2.05, True),
+                            "own_batch": {str(r): limit(0.04 + r / 100, 2.1, True) for r in (1, 2, 3)}}
     _write(d / "summary.json", summary)
 
     # timeline.json: a checkpoint every period while each agent runs; maps flow between robots
@@ -388,8 +399,9 @@ def make_fake_sweep(d, param="radio.range_m"):
                             "lm_global": 90, "coverage_global": round(0.3 + 0.6 * share + rng.uniform(-0.05, 0.05), 4),
                             "nees_global": nees, "rmse_global_aligned_m": round(rng.uniform(0.03, 0.1 + share), 4),
                             "rmse_global_m": round(rng.uniform(0.1, 0.3 + share), 4), "rmse_local_aligned_m": 0.05,
-                            "rmse_local_m": 0.2, "nees_local": 1.9, "peers_aligned": 2, "bytes_sent": 1000,
-                            "wall_s": 3.2})
+                            "rmse_local_m": 0.2, "nees_local": 1.9, "rmse_central_same_m": 0.03,
+                            "gap_to_central": round(rng.uniform(1.0, 2 + 3 * share), 4), "gap_to_own_batch": 1.05,
+                            "peers_aligned": 2, "bytes_sent": 1000, "wall_s": 3.2})
     assert list(out[0]) == [param] + SWEEP_HEADER
     with open(d / "sweep.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(out[0]))
@@ -444,6 +456,11 @@ class ReportTest(unittest.TestCase):
             self.assertIn("Pauses: agent 1 at 40.0 s for 3.00 s (wall)", text)  # the pause
             self.assertIn("paused at (s)", text)
             self.assertIn("own frame (pose unknown)", text)  # agent 2's frame_in_world is null
+            # The limit: the centralized optimum, the known-pose map and each robot's own optimum.
+            self.assertIn("reference-table", page.ids)
+            self.assertIn("<td>centralized batch optimum (all robots&#x27; data)</td><td>60</td><td>0.0321</td>"
+                          "<td>0.0385</td><td>1.97</td><td>yes</td>", text)
+            self.assertIn("<td>robot 3&#x27;s own batch optimum</td>", text)
 
     def test_report_without_timeline_or_agent_files(self):
         with tempfile.TemporaryDirectory(prefix="mapmesh_report_") as tmp:
@@ -452,8 +469,13 @@ class ReportTest(unittest.TestCase):
             (Path(tmp) / "timeline.json").unlink()
             for name in ("local_map.json", "global_map.json", "trajectory.json"):
                 (Path(tmp) / "agent_3" / name).unlink()  # an agent killed before writing anything
+            summary = json.loads((Path(tmp) / "summary.json").read_text())
+            del summary["reference"]  # a run of an older build
+            (Path(tmp) / "summary.json").write_text(json.dumps(summary))
             page = check_report(self, tmp)
             self.assertIn("no-timeline", page.ids)
+            self.assertIn("reference", page.ids)  # summary.json without a reference: the page says so
+            self.assertNotIn("reference-table", page.ids)
             self.assertFalse((Path(tmp) / "report" / "nees.png").exists())
             self.assertIn("agent 3: no local_map.json", (Path(tmp) / "report.html").read_text())
 
@@ -466,7 +488,7 @@ class SweepTest(unittest.TestCase):
         # What `swarm sweep` writes: the rigid-fit RMSE before the true-frame one, global then local.
         self.assertEqual(columns.SWEEP_HEADER, SWEEP_HEADER)
         self.assertEqual([c.csv for c in columns.PLOT_COLUMNS],
-                         ["coverage_global", "nees_global", "rmse_global_aligned_m"])
+                         ["coverage_global", "nees_global", "rmse_global_aligned_m", "gap_to_central"])
         with tempfile.TemporaryDirectory(prefix="mapmesh_sweep_") as tmp:
             make_fake_sweep(tmp)
             check_sweep(self, tmp)

@@ -4,6 +4,7 @@ its own DDS domain, so these tests run in parallel; every subprocess has a hard 
 import json
 import os
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -20,7 +21,8 @@ DATA = Path(__file__).resolve().parent / "data"
 # The table `swarm run` prints: a map's RMSE after a rigid fit to the truth first, the RMSE in
 # the robot's true frame beside it.
 TABLE_HEADER = ["id", "alive", "exit", "restarts", "lm_local", "rmse_local_fit", "rmse_local", "lm_global",
-                "rmse_global_fit", "rmse_global", "cov_global", "peers", "maps_rx", "kB_tx", "kB_rx", "cpu_s", "rss_MB"]
+                "rmse_global_fit", "rmse_global", "cov_global", "gap_central", "gap_own", "peers", "maps_rx", "kB_tx",
+                "kB_rx", "cpu_s", "rss_MB"]
 
 
 def run_measured(cmd, timeout=30):
@@ -352,10 +354,27 @@ class DatasetReplayTest(SwarmCase):
         self.assertEqual(sum(f["measurement_unknown_barcode"] for f in feeder.values()), 9)
         self.assertGreater(sum(f["robot_sightings"] for f in feeder.values()), 0)
         self.assertAlmostEqual(s["sim_duration_s"], 893.8, delta=0.5)
+        # The limit beside the run: the centralized batch optimum of the dataset (robust loss) is no
+        # worse than the agents' median global map, and every map has its gap to its limit.
+        ref = s["reference"]
+        self.assertTrue(ref["available"], ref)
+        self.assertEqual(ref["loss"], "cauchy 2")
+        self.assertTrue(ref["central"]["converged"])
+        self.assertNotIn("map", ref["central"])  # the maps stay in reference.json
+        globals_ = sorted(a["global"]["rmse_aligned_m"] for a in s["agents"])
+        self.assertLessEqual(ref["central"]["rmse_aligned_m"], statistics.median(globals_))
+        self.assertLess(ref["known_pose"]["rmse_aligned_m"], ref["central"]["rmse_aligned_m"])
+        for a in s["agents"]:
+            self.assertGreater(a["gap_to_central"], 0.5, a["id"])
+            self.assertGreater(a["gap_to_own_batch"], 0.5, a["id"])
 
     def test_victoria_4_whole_dataset(self):
         s, feeder = self.replay("victoria_4.yaml", 4)
         self.assertGreater(sum(f["measurement_rows"] for f in feeder.values()), 52974)
+        # Trees carry no identity and the park no landmark truth: no reference, and why.
+        self.assertFalse(s["reference"]["available"])
+        self.assertIn("no landmark truth", s["reference"]["why_none"])
+        self.assertTrue(all(a["gap_to_central"] is None for a in s["agents"]))
 
 
 if __name__ == "__main__":

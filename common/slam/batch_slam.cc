@@ -1,0 +1,445 @@
+#include "common/slam/batch_slam.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <utility>
+
+#include "common/check.h"
+#include "common/geometry/rigid_fit.h"
+#include "common/slam/motion_model.h"
+#include "common/slam/observation_model.h"
+
+namespace mapmesh {
+
+std::size_t BatchRobotLog::Observations() const {
+  std::size_t n = 0;
+  for (const BatchNode& node : nodes) n += node.obs.size();
+  return n;
+}
+
+BatchLogBuilder::BatchLogBuilder(RobotId robot, const FilterNoise& noise, double min_range_m, double max_range_m,
+                                 std::optional<Pose2> start)
+    : noise_(noise), min_range_m_(min_range_m), max_range_m_(max_range_m) {
+  log_.robot = robot;
+  log_.obs_cov = noise.obs_cov;
+  log_.start = start;
+  BatchNode first;
+  first.stamp = std::numeric_limits<double>::quiet_NaN();
+  log_.nodes.push_back(first);
+}
+
+void BatchLogBuilder::Move(const OdometryControl& u, double dt) {
+  if (!(dt > 0)) return;
+  Eigen::Matrix3d j_pose;
+  Eigen::Matrix<double, 3, 2> j_control;
+  // The models are invariant to the frame they start in, so integrating from the identity
+  // gives the motion in the last node's frame, and the covariance propagates as the filter's.
+  delta_ = MoveRobot(noise_.motion, delta_, u, dt, &j_pose, &j_control);
+  delta_cov_ = j_pose * delta_cov_ * j_pose.transpose() + j_control * noise_.ControlCovFor(dt) * j_control.transpose();
+  moved_ = true;
+}
+
+void BatchLogBuilder::Scan(double stamp, const std::vector<Observation>& obs) {
+  std::vector<BatchObservation> kept;
+  for (const Observation& o : obs) {
+    if (o.kind != ObservationKind::kLandmark) continue;
+    if (o.signature < 0 || !std::isfinite(o.range) || !std::isfinite(o.bearing) || o.range < min_range_m_ ||
+        o.range > max_range_m_) {
+      ++log_.observations_dropped;
+      continue;
+    }
+    kept.push_back({o.signature, {o.range, o.bearing}});
+  }
+  if (kept.empty()) return;
+  if (!moved_) {  // no odometry since the last node: the same pose
+    BatchNode& last = log_.nodes.back();
+    if (std::isnan(last.stamp)) last.stamp = stamp;
+    last.obs.insert(last.obs.end(), kept.begin(), kept.end());
+    return;
+  }
+  BatchNode node;
+  node.stamp = stamp;
+  node.delta = delta_;
+  node.delta_cov = 0.5 * (delta_cov_ + delta_cov_.transpose());
+  node.obs = std::move(kept);
+  log_.nodes.push_back(std::move(node));
+  delta_ = Pose2{};
+  delta_cov_.setZero();
+  moved_ = false;
+}
+
+Eigen::Vector3d RelativePoseError(const Pose2& a, const Pose2& b, const Pose2& delta, Eigen::Matrix3d* j_a,
+                                  Eigen::Matrix3d* j_b) {
+  const Pose2 d = Between(a, b, j_a, j_b);
+  return {d.x - delta.x, d.y - delta.y, WrapAngle(d.theta - delta.theta)};
+}
+
+Eigen::Vector2d RangeBearingError(const Pose2& pose, const Eigen::Vector2d& m, const Eigen::Vector2d& z,
+                                  Eigen::Matrix<double, 2, 3>* j_pose, Eigen::Matrix2d* j_m) {
+  const Eigen::Vector2d h = ObserveRangeBearing(pose, m, j_pose, j_m);
+  return {h(0) - z(0), WrapAngle(h(1) - z(1))};
+}
+
+namespace {
+
+// The whitening of a covariance: S with S^T S = cov^-1 (S = L^-1 for cov = L L^T).
+template <int N>
+Eigen::Matrix<double, N, N> Whitening(const Eigen::Matrix<double, N, N>& cov) {
+  const Eigen::LLT<Eigen::Matrix<double, N, N>> llt(cov);
+  MAPMESH_CHECK(llt.info() == Eigen::Success, "a factor's covariance is positive definite");
+  return llt.matrixL().solve(Eigen::Matrix<double, N, N>::Identity());
+}
+
+// One robot's chain in a problem: its first `active` nodes, their current poses, and which are
+// fixed or left out.
+struct Chain {
+  const BatchRobotLog* log = nullptr;
+  int active = 0;
+  std::vector<Pose2> poses;   // per node (at least `active`)
+  std::vector<char> fixed;    // per node: not a variable
+  std::vector<char> skipped;  // per node: no factor uses it (known-pose map: no truth there)
+};
+
+// The batch problem over some chains' active nodes and the landmarks they observe.
+class BatchProblem : public LeastSquaresProblem {
+ public:
+  // Landmarks not in `landmarks` start where their first observation puts them.
+  BatchProblem(std::vector<Chain> chains, std::map<std::int32_t, Eigen::Vector2d> landmarks,
+               const BatchOptions& options)
+      : chains_(std::move(chains)), options_(options) {
+    std::vector<int> sizes;
+    for (Chain& c : chains_) {
+      var_.emplace_back(static_cast<std::size_t>(c.active), -1);
+      for (int i = 0; i < c.active; ++i) {
+        if (!c.fixed[static_cast<std::size_t>(i)] && !c.skipped[static_cast<std::size_t>(i)]) {
+          var_.back()[static_cast<std::size_t>(i)] = static_cast<int>(sizes.size());
+          sizes.push_back(3);
+        }
+      }
+    }
+    for (std::size_t r = 0; r < chains_.size(); ++r) {
+      const Chain& c = chains_[r];
+      for (int i = 0; i < c.active; ++i) {
+        if (c.skipped[static_cast<std::size_t>(i)]) continue;
+        for (const BatchObservation& o : c.log->nodes[static_cast<std::size_t>(i)].obs) {
+          if (landmark_index_.count(o.landmark)) continue;
+          landmark_index_[o.landmark] = static_cast<int>(signatures_.size());
+          signatures_.push_back(o.landmark);
+          const auto known = landmarks.find(o.landmark);
+          landmarks_.push_back(known != landmarks.end()
+                                   ? known->second
+                                   : InverseRangeBearing(c.poses[static_cast<std::size_t>(i)], o.z));
+          landmark_var_.push_back(static_cast<int>(sizes.size()));
+          sizes.push_back(2);
+        }
+      }
+    }
+    eq_ = std::make_unique<BlockNormalEquations>(sizes);
+    for (std::size_t r = 0; r < chains_.size(); ++r) {
+      const Chain& c = chains_[r];
+      const Eigen::Matrix2d obs_white = Whitening<2>(c.log->obs_cov);
+      for (int i = 0; i < c.active; ++i) {
+        const std::size_t ui = static_cast<std::size_t>(i);
+        if (c.skipped[ui]) continue;
+        const BatchNode& node = c.log->nodes[ui];
+        if (i > 0 && !c.skipped[ui - 1] && (var_[r][ui - 1] >= 0 || var_[r][ui] >= 0)) {
+          Odo f;
+          f.robot = static_cast<int>(r);
+          f.node = i;
+          f.delta = node.delta;
+          f.white = Whitening<3>(node.delta_cov + options_.min_delta_variance * Eigen::Matrix3d::Identity());
+          std::vector<int> vars;
+          if (var_[r][ui - 1] >= 0) vars.push_back(var_[r][ui - 1]);
+          if (var_[r][ui] >= 0) vars.push_back(var_[r][ui]);
+          f.handle = eq_->Couple(vars);
+          odo_.push_back(f);
+        }
+        for (const BatchObservation& o : node.obs) {
+          Obs f;
+          f.robot = static_cast<int>(r);
+          f.node = i;
+          f.landmark = landmark_index_.at(o.landmark);
+          f.z = o.z;
+          f.white = obs_white;
+          std::vector<int> vars;
+          if (var_[r][ui] >= 0) vars.push_back(var_[r][ui]);
+          vars.push_back(landmark_var_[static_cast<std::size_t>(f.landmark)]);
+          f.handle = eq_->Couple(vars);
+          obs_.push_back(f);
+        }
+      }
+    }
+    eq_->Finalize();
+  }
+
+  BlockNormalEquations& equations() { return *eq_; }
+
+  double Linearise(BlockNormalEquations& eq) override { return Evaluate(&eq); }
+  double Cost() const override { return Evaluate(nullptr); }
+
+  void Step(const Eigen::VectorXd& dx) override {
+    for (std::size_t r = 0; r < chains_.size(); ++r) {
+      for (std::size_t i = 0; i < var_[r].size(); ++i) {
+        const int v = var_[r][i];
+        if (v < 0) continue;
+        const int o = eq_->offset(v);
+        Pose2& p = chains_[r].poses[i];
+        p = {p.x + dx(o), p.y + dx(o + 1), WrapAngle(p.theta + dx(o + 2))};
+      }
+    }
+    for (std::size_t k = 0; k < landmarks_.size(); ++k) landmarks_[k] += dx.segment<2>(eq_->offset(landmark_var_[k]));
+  }
+  void Save() override {
+    saved_poses_.clear();
+    for (const Chain& c : chains_) saved_poses_.push_back(c.poses);
+    saved_landmarks_ = landmarks_;
+  }
+  void Restore() override {
+    for (std::size_t r = 0; r < chains_.size(); ++r) chains_[r].poses = saved_poses_[r];
+    landmarks_ = saved_landmarks_;
+  }
+
+  // The solution: landmarks with their marginal covariances, and the chains' active nodes.
+  void Extract(BatchSolution* out) {
+    std::vector<int> vars(landmark_var_.begin(), landmark_var_.end());
+    const std::vector<Eigen::MatrixXd> cov = eq_->Marginals(vars);
+    out->covariance_ok = cov.size() == vars.size();
+    out->map.landmarks.clear();
+    // By increasing identity.
+    std::vector<std::size_t> order(signatures_.size());
+    for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::sort(order.begin(), order.end(),
+              [&](std::size_t a, std::size_t b) { return signatures_[a] < signatures_[b]; });
+    for (std::size_t k : order) {
+      Landmark l;
+      l.id = static_cast<std::uint32_t>(signatures_[k]);
+      l.signature = signatures_[k];
+      l.mean = landmarks_[k];
+      l.cov = out->covariance_ok ? Eigen::Matrix2d(cov[k]) : Eigen::Matrix2d::Identity();
+      out->map.landmarks.push_back(l);
+    }
+    out->trajectories.clear();
+    for (std::size_t r = 0; r < chains_.size(); ++r) {
+      auto& track = out->trajectories[chains_[r].log->robot];
+      for (int i = 0; i < chains_[r].active; ++i) {
+        if (chains_[r].skipped[static_cast<std::size_t>(i)]) continue;
+        track.push_back({chains_[r].log->nodes[static_cast<std::size_t>(i)].stamp,
+                         chains_[r].poses[static_cast<std::size_t>(i)]});
+      }
+    }
+    out->variables = eq_->dim();
+    out->observations = obs_.size();
+    const long rows = 3L * static_cast<long>(odo_.size()) + 2L * static_cast<long>(obs_.size());
+    out->chi2_per_dof = rows > eq_->dim() ? chi2_ / static_cast<double>(rows - eq_->dim()) : 0.0;
+  }
+
+  std::vector<Chain>& chains() { return chains_; }
+  std::map<std::int32_t, Eigen::Vector2d> Landmarks() const {
+    std::map<std::int32_t, Eigen::Vector2d> out;
+    for (std::size_t k = 0; k < signatures_.size(); ++k) out[signatures_[k]] = landmarks_[k];
+    return out;
+  }
+
+ private:
+  struct Odo {
+    int robot = 0, node = 0;  // joins node - 1 and node
+    Pose2 delta;
+    Eigen::Matrix3d white;
+    int handle = 0;
+  };
+  struct Obs {
+    int robot = 0, node = 0, landmark = 0;
+    Eigen::Vector2d z;
+    Eigen::Matrix2d white;
+    int handle = 0;
+  };
+
+  // The cost 1/2 sum rho(|r|^2); with eq, also each factor's normal equations.
+  double Evaluate(BlockNormalEquations* eq) const {
+    double cost = 0.0;
+    chi2_ = 0.0;
+    Eigen::Matrix3d ja, jb;
+    Eigen::Matrix<double, 3, 6> j6;
+    for (const Odo& f : odo_) {
+      const std::size_t r = static_cast<std::size_t>(f.robot), i = static_cast<std::size_t>(f.node);
+      const std::vector<Pose2>& p = chains_[r].poses;
+      const Eigen::Vector3d res = f.white *
+                                  RelativePoseError(p[i - 1], p[i], f.delta, eq ? &ja : nullptr, eq ? &jb : nullptr);
+      const double s = res.squaredNorm();
+      cost += 0.5 * s;
+      chi2_ += s;
+      if (!eq) continue;
+      int cols = 0;
+      if (var_[r][i - 1] >= 0) j6.middleCols<3>(3 * cols++) = f.white * ja;
+      if (var_[r][i] >= 0) j6.middleCols<3>(3 * cols++) = f.white * jb;
+      eq->Add(f.handle, j6.leftCols(3 * cols), res);
+    }
+    Eigen::Matrix<double, 2, 3> jp;
+    Eigen::Matrix2d jm;
+    Eigen::Matrix<double, 2, 5> j5;
+    for (const Obs& f : obs_) {
+      const std::size_t r = static_cast<std::size_t>(f.robot), i = static_cast<std::size_t>(f.node);
+      const Eigen::Vector2d res = f.white * RangeBearingError(chains_[r].poses[i],
+                                                              landmarks_[static_cast<std::size_t>(f.landmark)], f.z,
+                                                              eq ? &jp : nullptr, eq ? &jm : nullptr);
+      const double s = res.squaredNorm();
+      cost += 0.5 * options_.robust.Rho(s);
+      chi2_ += s;
+      if (!eq) continue;
+      int cols = 0;
+      if (var_[r][i] >= 0) {
+        j5.leftCols<3>() = f.white * jp;
+        cols = 3;
+      }
+      j5.middleCols<2>(cols) = f.white * jm;
+      eq->Add(f.handle, j5.leftCols(cols + 2), res, options_.robust.Weight(s));
+    }
+    return cost;
+  }
+
+  std::vector<Chain> chains_;
+  BatchOptions options_;
+  std::vector<std::vector<int>> var_;  // per chain and node: its variable, -1 when fixed or skipped
+  std::map<std::int32_t, int> landmark_index_;
+  std::vector<std::int32_t> signatures_;
+  std::vector<Eigen::Vector2d> landmarks_;
+  std::vector<int> landmark_var_;
+  std::vector<Odo> odo_;
+  std::vector<Obs> obs_;
+  std::unique_ptr<BlockNormalEquations> eq_;
+  std::vector<std::vector<Pose2>> saved_poses_;
+  std::vector<Eigen::Vector2d> saved_landmarks_;
+  mutable double chi2_ = 0.0;  // the last evaluation's sum of squared whitened residuals
+};
+
+// A chain over all of a log's nodes, started by dead reckoning from `origin`, node 0 fixed.
+Chain DeadReckoned(const BatchRobotLog& log, const Pose2& origin) {
+  Chain c;
+  c.log = &log;
+  c.active = static_cast<int>(log.nodes.size());
+  c.poses.resize(log.nodes.size());
+  c.poses[0] = origin;
+  for (std::size_t i = 1; i < log.nodes.size(); ++i) c.poses[i] = c.poses[i - 1] * log.nodes[i].delta;
+  c.fixed.assign(log.nodes.size(), 0);
+  c.fixed[0] = 1;
+  c.skipped.assign(log.nodes.size(), 0);
+  return c;
+}
+
+}  // namespace
+
+BatchSolution SolveSingleRobotBatch(const BatchRobotLog& log, const BatchOptions& options) {
+  MAPMESH_CHECK(!log.nodes.empty(), "a log has its start node");
+  BatchSolution out;
+  Chain chain = DeadReckoned(log, log.start.value_or(Pose2{}));
+  std::map<std::int32_t, Eigen::Vector2d> landmarks;
+  const int n = static_cast<int>(log.nodes.size());
+  const int chunk = std::max(1, options.initial_chunk_nodes);
+  // Growing prefixes: each solved, then the next chunk's nodes started from the last solved
+  // node by odometry (a long chain's dead reckoning alone can be far from the optimum).
+  for (int active = std::min(n, chunk);; active = std::min(n, active + chunk)) {
+    Chain c = chain;
+    c.active = active;
+    BatchProblem problem({c}, landmarks, options);
+    out.report = MinimiseLevenbergMarquardt(problem, problem.equations(), options.lm);
+    ++out.solves;
+    chain.poses = problem.chains()[0].poses;
+    landmarks = problem.Landmarks();
+    if (active == n) {
+      problem.Extract(&out);
+      break;
+    }
+    for (int i = active; i < n; ++i) {
+      chain.poses[static_cast<std::size_t>(i)] = chain.poses[static_cast<std::size_t>(i - 1)] *
+                                                 log.nodes[static_cast<std::size_t>(i)].delta;
+    }
+  }
+  return out;
+}
+
+BatchSolution SolveCentralBatch(const std::vector<BatchRobotLog>& logs, const std::vector<BatchSolution>& singles,
+                                const BatchOptions& options) {
+  MAPMESH_CHECK(logs.size() == singles.size(), "one single-robot solution per log");
+  BatchSolution out;
+  if (logs.empty()) return out;
+  // Each robot's frame in the problem's: its single-robot solution is in its start's frame
+  // (the world's when the start is known). Robots of unknown start are placed by a rigid fit
+  // of their landmarks to those already placed; the first robot is the gauge when no start is
+  // known.
+  const bool any_start = std::any_of(logs.begin(), logs.end(), [](const BatchRobotLog& l) { return l.start; });
+  std::vector<std::optional<Pose2>> placed(logs.size());
+  std::map<std::int32_t, std::pair<Eigen::Vector2d, int>> sum;  // placed landmark estimates
+  auto place = [&](std::size_t r, const Pose2& frame) {
+    placed[r] = frame;
+    for (const Landmark& l : singles[r].map.landmarks) {
+      auto& [s, k] = sum.try_emplace(l.signature, Eigen::Vector2d::Zero(), 0).first->second;
+      s += frame.Apply(l.mean);
+      ++k;
+    }
+  };
+  for (std::size_t r = 0; r < logs.size(); ++r) {
+    if (logs[r].start || (!any_start && r == 0)) place(r, Pose2{});
+  }
+  for (bool progress = true; progress;) {
+    progress = false;
+    for (std::size_t r = 0; r < logs.size(); ++r) {
+      if (placed[r]) continue;
+      std::vector<Eigen::Vector2d> src, dst;
+      for (const Landmark& l : singles[r].map.landmarks) {
+        const auto it = sum.find(l.signature);
+        if (it == sum.end()) continue;
+        src.push_back(l.mean);
+        dst.push_back(it->second.first / it->second.second);
+      }
+      if (src.size() < 2) continue;
+      const std::optional<Pose2> frame = FitRigid2D(src, dst);
+      if (!frame) continue;
+      place(r, *frame);
+      progress = true;
+    }
+  }
+  std::vector<Chain> chains;
+  for (std::size_t r = 0; r < logs.size(); ++r) {
+    if (!placed[r]) continue;  // shares too few landmarks with the others to be placed
+    Chain c = DeadReckoned(logs[r], Pose2{});
+    const auto& track = singles[r].trajectories.at(logs[r].robot);
+    MAPMESH_CHECK(track.size() == logs[r].nodes.size(), "a single-robot solution covers its log");
+    for (std::size_t i = 0; i < track.size(); ++i) c.poses[i] = *placed[r] * track[i].pose;
+    c.fixed[0] = logs[r].start || (!any_start && r == 0);
+    chains.push_back(std::move(c));
+  }
+  std::map<std::int32_t, Eigen::Vector2d> landmarks;
+  for (const auto& [sig, s] : sum) landmarks[sig] = s.first / s.second;
+  BatchProblem problem(std::move(chains), landmarks, options);
+  out.report = MinimiseLevenbergMarquardt(problem, problem.equations(), options.lm);
+  out.solves = 1;
+  problem.Extract(&out);
+  return out;
+}
+
+BatchSolution SolveKnownPoseMap(const std::vector<BatchRobotLog>& logs, const BatchTruePose& true_pose,
+                                const BatchOptions& options) {
+  BatchSolution out;
+  std::vector<Chain> chains;
+  for (const BatchRobotLog& log : logs) {
+    Chain c = DeadReckoned(log, Pose2{});
+    for (std::size_t i = 0; i < log.nodes.size(); ++i) {
+      c.fixed[i] = 1;
+      const std::optional<Pose2> truth = log.nodes[i].obs.empty() ? std::nullopt
+                                                                  : true_pose(log.robot, log.nodes[i].stamp);
+      c.skipped[i] = !truth;
+      if (truth) c.poses[i] = *truth;
+    }
+    chains.push_back(std::move(c));
+  }
+  BatchProblem problem(std::move(chains), {}, options);
+  out.report = MinimiseLevenbergMarquardt(problem, problem.equations(), options.lm);
+  out.solves = 1;
+  problem.Extract(&out);
+  return out;
+}
+
+}  // namespace mapmesh

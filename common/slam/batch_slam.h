@@ -1,0 +1,141 @@
+#pragma once
+// The batch optimum of landmark SLAM over one robot's data or many robots' at once: what the
+// data allows when every measurement is used at once, the limit an online, decentralized map
+// is judged against (docs/EXPERIMENTS.md "The limit").
+//
+// Each robot's poses are taken at its scans (nodes). The odometry between two nodes is
+// integrated, with the filter's own motion model and noise (FilterNoise), into one relative-pose
+// factor with its propagated covariance: exact whatever the odometry's rate, since the
+// unicycle and car models are invariant to the frame they start in. Each landmark observation
+// is a range-bearing factor, with known association (the signature). A robot's first node is
+// fixed at its true start pose where that is known; when no robot's is, the first robot's is
+// fixed at the origin (the gauge) and the others' are found from shared landmarks. The
+// problem is solved by Levenberg-Marquardt over a sparse Cholesky factorisation
+// (common/solver/least_squares.h), with a robust loss on the observations for real data, and
+// the landmarks' marginal covariances come from the information matrix at the optimum.
+//
+// The same problem with every node fixed at its true pose is the known-pose map: each landmark
+// from all its observations, what the sensor alone allows.
+//
+// Pure: Eigen only, no clocks, threads or random numbers.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <vector>
+
+#include "common/geometry/pose2.h"
+#include "common/map/landmark_map.h"
+#include "common/slam/landmark_filter.h"
+#include "common/solver/least_squares.h"
+#include "common/types/messages.h"
+
+namespace mapmesh {
+
+// One observation of a batch problem: the landmark's identity and z = [range, bearing].
+struct BatchObservation {
+  std::int32_t landmark = -1;
+  Eigen::Vector2d z = Eigen::Vector2d::Zero();
+};
+
+// A node of a robot's chain: its pose at a scan. Odometry since the previous node is in
+// `delta` (this node's pose in the previous node's frame) with covariance `delta_cov`.
+struct BatchNode {
+  double stamp = 0.0;  // s; node 0's is its first scan's, NaN when it has none
+  Pose2 delta;
+  Eigen::Matrix3d delta_cov = Eigen::Matrix3d::Zero();
+  std::vector<BatchObservation> obs;
+};
+
+// One robot's data: node 0 is where its odometry starts, each later node a scan with landmark
+// observations.
+struct BatchRobotLog {
+  RobotId robot = 0;
+  Eigen::Matrix2d obs_cov = Eigen::Matrix2d::Identity();  // of [range, bearing]
+  std::optional<Pose2> start;                             // the true pose at node 0, when known
+  std::vector<BatchNode> nodes;
+  int observations_dropped = 0;  // without a landmark identity, or outside the range limits
+  std::size_t Observations() const;
+};
+
+// Builds a robot's log from its data in time order, as its agent's estimator receives it:
+// odometry (Move) integrated from the previous node, landmark observations (Scan) kept when
+// they carry an identity and a range within [min_range_m, max_range_m].
+class BatchLogBuilder {
+ public:
+  BatchLogBuilder(RobotId robot, const FilterNoise& noise, double min_range_m, double max_range_m,
+                  std::optional<Pose2> start);
+  void Move(const OdometryControl& u, double dt);
+  void Scan(double stamp, const std::vector<Observation>& obs);
+  const BatchRobotLog& log() const { return log_; }
+
+ private:
+  FilterNoise noise_;
+  double min_range_m_, max_range_m_;
+  BatchRobotLog log_;
+  Pose2 delta_;
+  Eigen::Matrix3d delta_cov_ = Eigen::Matrix3d::Zero();
+  bool moved_ = false;  // odometry since the last node
+};
+
+// The relative-pose factor's error: Between(a, b) - delta, the heading wrapped, with its
+// Jacobians with respect to a and b.
+Eigen::Vector3d RelativePoseError(const Pose2& a, const Pose2& b, const Pose2& delta, Eigen::Matrix3d* j_a = nullptr,
+                                  Eigen::Matrix3d* j_b = nullptr);
+
+// The range-bearing factor's error: the predicted [range, bearing] of landmark m from pose
+// minus z, the bearing wrapped, with its Jacobians with respect to the pose and the landmark.
+Eigen::Vector2d RangeBearingError(const Pose2& pose, const Eigen::Vector2d& m, const Eigen::Vector2d& z,
+                                  Eigen::Matrix<double, 2, 3>* j_pose = nullptr, Eigen::Matrix2d* j_m = nullptr);
+
+struct BatchOptions {
+  RobustKernel robust;                // on each observation's whitened residual (odometry stays Gaussian)
+  LevenbergMarquardtOptions lm;       // each solve
+  int initial_chunk_nodes = 100;      // a robot's chain is first solved over growing prefixes of this many nodes
+                                      // each, every new node started from the last solved one by odometry
+  double min_delta_variance = 1e-10;  // added to each odometry factor's covariance diagonal (m^2, rad^2): one
+                                      // short interval's covariance has rank 2 (no sideways slip in the model)
+};
+
+// A pose of a solved chain.
+struct BatchPose {
+  double stamp = 0.0;
+  Pose2 pose;
+};
+
+// What a batch solve found: landmarks by identity (the signature, also the id) with their
+// marginal covariances, in the frame of the fixed start poses (the world, when the starts are
+// true ones), and every robot's nodes.
+struct BatchSolution {
+  LandmarkMap map;
+  std::map<RobotId, std::vector<BatchPose>> trajectories;
+  LevenbergMarquardtReport report;  // of the last solve
+  int solves = 0;                   // Levenberg-Marquardt runs, the growing prefixes included
+  int variables = 0;                // of the last solve (scalars)
+  std::size_t observations = 0;
+  bool covariance_ok = true;  // the information matrix was positive definite at the optimum
+  // The residuals at the optimum: sum of the squared whitened residuals over (rows - variables),
+  // near 1 when the noise is what the model says.
+  double chi2_per_dof = 0.0;
+};
+
+// The batch optimum of one robot's data: node 0 at the robot's true start, else at the origin.
+BatchSolution SolveSingleRobotBatch(const BatchRobotLog& log, const BatchOptions& options = {});
+
+// The centralized batch optimum of every robot's data, started from their single-robot
+// solutions (`singles`, one per log in the same order): a robot whose start is unknown is
+// placed by a rigid fit of its landmarks to those already placed.
+BatchSolution SolveCentralBatch(const std::vector<BatchRobotLog>& logs, const std::vector<BatchSolution>& singles,
+                                const BatchOptions& options = {});
+
+// The true pose of a robot at a time, nullopt when unknown.
+using BatchTruePose = std::function<std::optional<Pose2>(RobotId robot, double stamp)>;
+
+// The known-pose map: every observation taken from the robot's true pose at its stamp, the
+// poses fixed; nodes whose true pose is unknown are left out.
+BatchSolution SolveKnownPoseMap(const std::vector<BatchRobotLog>& logs, const BatchTruePose& true_pose,
+                                const BatchOptions& options = {});
+
+}  // namespace mapmesh

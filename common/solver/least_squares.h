@@ -1,0 +1,146 @@
+#pragma once
+// Sparse nonlinear least squares over small blocks of variables: whitened factors' normal
+// equations accumulated block by block into a sparsity pattern fixed once, a sparse Cholesky
+// factorisation (Eigen's SimplicialLLT, AMD ordering, analysed once), Levenberg-Marquardt
+// steps, robust losses by iterative reweighting, and marginal covariance blocks of chosen
+// variables (columns of the inverse information matrix).
+//
+// Pure: Eigen only, no clocks, threads or random numbers.
+
+#include <Eigen/Core>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#include <cstdint>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace mapmesh {
+
+// Robust losses of a factor's squared whitened residual s = |r|^2 (Triggs et al. 2000; the
+// conventions of Ceres's LossFunction): rho(s) replaces s in the cost, and the factor is
+// reweighted by rho'(s) at each linearisation (iteratively reweighted least squares).
+enum class RobustLoss { kNone, kHuber, kCauchy };
+
+struct RobustKernel {
+  RobustLoss loss = RobustLoss::kNone;
+  double scale = 1.0;  // c: the whitened residual norm at which the loss departs from the square
+
+  // kNone: s. Huber: s up to c^2, then 2 c sqrt(s) - c^2. Cauchy: c^2 log(1 + s / c^2).
+  double Rho(double s) const;
+  // rho'(s): the weight iteratively reweighted least squares gives the factor.
+  double Weight(double s) const;
+};
+
+// The normal equations H dx = -g of a least-squares problem over blocks of variables, for
+// factors that each couple a few of them: H = sum w J^T J, g = sum w J^T r over the factors'
+// whitened residuals r and Jacobians J. The sparsity pattern is declared once (Couple, then
+// Finalize) and reused at every linearisation.
+class BlockNormalEquations {
+ public:
+  // Variables with these sizes (1-6), in this order.
+  explicit BlockNormalEquations(std::vector<int> sizes);
+
+  int variables() const { return static_cast<int>(sizes_.size()); }
+  int dim() const { return dim_; }
+  int size(int var) const { return sizes_[static_cast<std::size_t>(var)]; }
+  int offset(int var) const { return offsets_[static_cast<std::size_t>(var)]; }
+
+  // Declares that a factor couples these variables (distinct); returns a handle for Add.
+  // Factors over the same variables in the same order may share a handle.
+  int Couple(const std::vector<int>& vars);
+  // Builds the sparsity pattern and analyses it; call once, after every Couple.
+  void Finalize();
+
+  // Clears H and g (the pattern stays).
+  void SetZero();
+  // Adds w J^T J to H and w J^T r to g for a factor of coupling `handle`: J's columns are its
+  // variables' blocks in Couple's order.
+  void Add(int handle, const Eigen::Ref<const Eigen::MatrixXd>& j, const Eigen::Ref<const Eigen::VectorXd>& r,
+           double w = 1.0);
+
+  // Solves (H + lambda diag(H)) dx = -g; false when that matrix is not positive definite.
+  bool Solve(double lambda, Eigen::VectorXd* dx);
+  // The marginal covariance block (H^-1) of each of these variables, from H as last
+  // accumulated; empty when H is not positive definite.
+  std::vector<Eigen::MatrixXd> Marginals(const std::vector<int>& vars);
+
+  const Eigen::VectorXd& gradient() const { return g_; }
+  // Non-zeros of H's upper triangle, and of its Cholesky factor after a Solve (fill-in).
+  Eigen::Index nonzeros() const { return h_.nonZeros(); }
+
+ private:
+  // A block of H between two variables a <= b: its values (size_a x size_b, column-major)
+  // start at values_[offset].
+  struct Block {
+    int a, b, offset;
+  };
+  // For a coupling: the blocks its factors add to, with the column ranges of J they come from.
+  struct Term {
+    int block;
+    int col_a, col_b;  // first columns in J of the block's variables a and b
+  };
+  struct Coupling {
+    std::vector<int> vars;
+    std::vector<int> cols;  // first column in J of each variable
+    std::vector<Term> terms;
+  };
+  // Scatters the blocks' values into h_ and adds lambda diag(H) to its diagonal.
+  void Assemble(double lambda);
+  bool Factorise(double lambda);
+
+  std::vector<int> sizes_, offsets_;
+  int dim_ = 0;
+  std::vector<Coupling> couplings_;
+  std::vector<Block> blocks_;
+  std::unordered_map<std::uint64_t, int> block_of_;  // (a, b) -> index in blocks_
+  std::vector<double> values_;
+  std::vector<int> positions_;  // per entry of values_: its index in h_'s values, -1 below the diagonal
+  std::vector<int> diagonal_;   // per row of H: the index of its diagonal entry in h_'s values
+  Eigen::VectorXd g_;
+  Eigen::SparseMatrix<double> h_;  // upper triangle
+  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Upper> llt_;
+  bool finalized_ = false;
+  bool factor_is_undamped_ = false;  // llt_ holds H itself (lambda 0), as last accumulated
+};
+
+// A nonlinear least-squares problem as the Levenberg-Marquardt driver sees it: a state it can
+// linearise, move along a step, and put back.
+class LeastSquaresProblem {
+ public:
+  virtual ~LeastSquaresProblem() = default;
+  // Accumulates every factor's normal equations at the current state into eq (already zeroed)
+  // and returns the cost 1/2 sum rho(|r|^2).
+  virtual double Linearise(BlockNormalEquations& eq) = 0;
+  // The cost at the current state.
+  virtual double Cost() const = 0;
+  // Moves the state by dx (a step over every variable of eq, in its order).
+  virtual void Step(const Eigen::VectorXd& dx) = 0;
+  // Remembers the state; Restore goes back to it (a refused step).
+  virtual void Save() = 0;
+  virtual void Restore() = 0;
+};
+
+struct LevenbergMarquardtOptions {
+  int max_iterations = 100;           // linearisations
+  double function_tolerance = 1e-10;  // converged when a step lowers the cost by less than this share of it
+  double step_tolerance = 1e-9;       // ... or moves no variable by more than this (m or rad)
+  double initial_lambda = 1e-6;       // damping of the first step (share of diag(H))
+};
+
+struct LevenbergMarquardtReport {
+  int iterations = 0;  // linearisations
+  int steps_accepted = 0;
+  bool converged = false;
+  double initial_cost = 0.0;
+  double final_cost = 0.0;
+  std::string stop;  // why it stopped: "cost", "step", "iterations", "not positive definite", "no descent"
+};
+
+// Minimises the problem's cost by Levenberg-Marquardt (Nocedal & Wright 10.3; damping
+// lambda diag(H), divided by 3 after an accepted step and multiplied by 4 after a refused one).
+// eq must be finalized. On return, eq holds the normal equations at the final state.
+LevenbergMarquardtReport MinimiseLevenbergMarquardt(LeastSquaresProblem& problem, BlockNormalEquations& eq,
+                                                    const LevenbergMarquardtOptions& options = {});
+
+}  // namespace mapmesh

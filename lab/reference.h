@@ -1,0 +1,69 @@
+#pragma once
+// The limit beside every run: from a scenario and its seed (the feeder's own streams, read in
+// process), the centralized batch optimum of all robots' data, each robot's single-robot batch
+// optimum, and the known-pose map (common/slam/batch_slam.h), each scored against the truth.
+// docs/EXPERIMENTS.md "The limit".
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/config/scenario.h"
+#include "common/map/landmark_map.h"
+#include "common/slam/batch_slam.h"
+
+namespace mapmesh::lab {
+
+struct ReferenceOptions {
+  std::string datasets_root;
+  // The loss on each observation; nullopt: by the data, none (Gaussian noise, least squares is
+  // the optimum) for simulated worlds, Cauchy at 2 sigma for real datasets (heavy-tailed ranges).
+  std::optional<RobustKernel> robust;
+  bool known_pose = true;  // also the known-pose map
+};
+
+// One reference map and how it scores against the truth.
+struct ReferenceMap {
+  BatchSolution solution;
+  double solve_s = 0.0;  // wall seconds of its solves
+  bool evaluated = false;
+  int landmarks = 0, matched = 0;
+  double rmse_aligned_m = 0.0;   // after a rigid fit of the whole map to the truth
+  std::optional<double> rmse_m;  // in the world frame, when the map is in it (true starts)
+  double nees_mean = 0.0;        // in the world frame when it is, else after the fit
+  double consistent_ratio = 0.0;
+};
+
+struct Reference {
+  bool available = false;
+  std::string why_none;  // when not available
+  std::string loss;      // "none", "huber 1.345", "cauchy 2"
+  ReferenceMap central;
+  std::map<RobotId, ReferenceMap> own;  // each robot's single-robot batch
+  std::optional<ReferenceMap> known_pose;
+  std::map<RobotId, ReferenceMap> own_known_pose;  // each robot's own observations at its true poses
+  std::string known_pose_why_none;                 // when known_pose is not set
+  std::vector<Eigen::Vector2d> landmark_truth;
+  std::vector<int> seen;
+  double total_s = 0.0;  // wall seconds, reading the streams included
+};
+
+// Every robot's batch log from the scenario's streams, as its agent receives them (through the
+// agent's SensorSync, its motion model, noise and range limits), with the landmarks'
+// identities (the simulator's, or the dataset's barcodes) whether or not the scenario shares
+// them; and each robot's true poses when known.
+struct ReferenceInput {
+  std::vector<BatchRobotLog> logs;
+  std::map<RobotId, std::vector<GroundTruth>> truth;  // each from its start pose, when known
+  std::vector<Eigen::Vector2d> landmark_truth;
+  std::vector<int> seen;
+  bool headings_known = true;
+};
+ReferenceInput ReadReferenceInput(const Scenario& scenario, const std::string& datasets_root);
+
+// The reference of a run: nothing (with the reason) when the data carries no landmark
+// identities (Victoria Park) or no landmark truth.
+Reference ComputeReference(const Scenario& scenario, const ReferenceOptions& options);
+
+}  // namespace mapmesh::lab

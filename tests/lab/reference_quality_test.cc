@@ -1,0 +1,110 @@
+// The reference (lab/reference.h) against the truth and against what the agents' own estimators
+// make of the same streams, over seeded small worlds: the real simulator, the agents' models.
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include "common/config/scenario.h"
+#include "common/metrics/landmark_metrics.h"
+#include "lab/reference.h"
+#include "lab/slam_experiment.h"
+#include "sim_feeder/sources.h"
+
+namespace mapmesh {
+namespace {
+
+Scenario SmallWorld(int seed) {
+  // line3 (three robots, 180 landmarks in a 52 m x 20 m strip) for 90 s, most of a lap: a small
+  // world whose landmarks each seed draws anew.
+  return LoadScenario(MAPMESH_SOURCE_DIR "/scenarios/line3.yaml",
+                      {ParseOverride("duration_s=90"), ParseOverride("seed=" + std::to_string(seed))});
+}
+
+// With noise-free streams (every odometry and sensor sigma 0 in the simulator, the models' sigmas
+// as the scenario's), every reference map is the truth.
+TEST(ReferenceQuality, NoiseFreeStreamsGiveTheTruth) {
+  Scenario sc = SmallWorld(3);
+  for (RobotSpec& r : sc.robots) {
+    r.motion.sigma_v_mps = r.motion.sigma_w_radps = 0.0;
+    r.sensor.sigma_range_m = r.sensor.sigma_bearing_deg = 0.0;
+  }
+  // The batch needs the models' noise: the simulator's, before it was zeroed.
+  const Scenario model = SmallWorld(3);
+  lab::ReferenceInput in = lab::ReadReferenceInput(sc, "");
+  const lab::ReferenceInput noisy_model = lab::ReadReferenceInput(model, "");
+  for (std::size_t r = 0; r < in.logs.size(); ++r) {
+    in.logs[r].obs_cov = noisy_model.logs[r].obs_cov;
+    // Odometry covariances come from the zeroed sigmas: take the model's, node by node.
+    ASSERT_EQ(in.logs[r].nodes.size(), noisy_model.logs[r].nodes.size());
+    for (std::size_t i = 0; i < in.logs[r].nodes.size(); ++i) {
+      in.logs[r].nodes[i].delta_cov = noisy_model.logs[r].nodes[i].delta_cov;
+    }
+  }
+  std::vector<BatchSolution> singles;
+  for (const BatchRobotLog& log : in.logs) {
+    singles.push_back(SolveSingleRobotBatch(log));
+    for (const Landmark& l : singles.back().map.landmarks) {
+      EXPECT_LT((l.mean - in.landmark_truth[l.signature]).norm(), 1e-6) << "robot " << log.robot;
+    }
+  }
+  const BatchSolution central = SolveCentralBatch(in.logs, singles);
+  EXPECT_TRUE(central.report.converged);
+  EXPECT_GT(central.map.size(), 100u);
+  for (const Landmark& l : central.map.landmarks) {
+    EXPECT_LT((l.mean - in.landmark_truth[l.signature]).norm(), 1e-6) << "landmark " << l.signature;
+  }
+}
+
+// Over 50 seeded small worlds: the centralized optimum is consistent (landmark NEES near 2),
+// never better than the known-pose map (which knows the poses) and no worse than each robot's
+// local map from its agent's own estimator on the same landmarks (which used less data).
+TEST(ReferenceQuality, CentralOptimumIsConsistentAndBetweenTheFloorAndTheLocalMaps) {
+  double nees = 0.0;
+  int seeds = 0, above_floor = 0, pairs = 0, below_local = 0, converged = 0;
+  for (int seed = 1; seed <= 50; ++seed) {
+    const Scenario sc = SmallWorld(seed);
+    const lab::Reference ref = lab::ComputeReference(sc, {});
+    ASSERT_TRUE(ref.available) << ref.why_none;
+    ASSERT_TRUE(ref.known_pose.has_value());
+    ASSERT_TRUE(ref.central.rmse_m.has_value());  // in the world frame: the starts are true
+    converged += ref.central.solution.report.converged;
+    nees += ref.central.nees_mean;
+    ++seeds;
+    above_floor += ref.central.rmse_aligned_m >= ref.known_pose->rmse_aligned_m;
+    for (const lab::SlamRunResult& r : lab::RunSlam(sc, {})) {
+      const MapQuality local = EvaluateFittedMap(r.map, r.landmark_truth, {}, r.origin_truth);
+      const LandmarkMap same = RestrictToTruth(ref.central.solution.map, local.truth_matched);
+      const MapQuality central = EvaluateFittedMap(same, ref.landmark_truth, {}, Pose2{});
+      ASSERT_TRUE(local.evaluated && central.evaluated);
+      ++pairs;
+      below_local += central.rmse_m <= local.rmse_m;
+    }
+  }
+  nees /= seeds;
+  std::printf("50 small worlds: central NEES %.2f; central >= known poses in %d; central <= local in %d of %d\n", nees,
+              above_floor, below_local, pairs);
+  EXPECT_EQ(converged, seeds);
+  EXPECT_GE(nees, 1.5);
+  EXPECT_LE(nees, 2.5);
+  EXPECT_GE(above_floor, 48);  // 95 % of 50 seeds
+  EXPECT_GE(below_local * 10, pairs * 9);
+}
+
+// Victoria Park's trees carry no identity: no reference, and it says why (skipped without the
+// datasets).
+TEST(ReferenceQuality, DataWithoutIdentitiesHasNoneAndSaysWhy) {
+  const std::string root = ResolveDatasetsRoot("", MAPMESH_SOURCE_DIR "/../shared/datasets");
+  if (!std::filesystem::exists(root + "/victoria_park")) GTEST_SKIP() << "no Victoria Park under " << root;
+  const Scenario sc = LoadScenario(MAPMESH_SOURCE_DIR "/scenarios/victoria_4.yaml", {ParseOverride("duration_s=60")});
+  lab::ReferenceOptions options;
+  options.datasets_root = root;
+  const lab::Reference ref = lab::ComputeReference(sc, options);
+  EXPECT_FALSE(ref.available);
+  EXPECT_NE(ref.why_none.find("no landmark truth"), std::string::npos) << ref.why_none;
+}
+
+}  // namespace
+}  // namespace mapmesh

@@ -1,0 +1,242 @@
+#include "common/slam/batch_slam.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <random>
+
+#include "common/geometry/rigid_fit.h"
+#include "common/metrics/landmark_metrics.h"
+#include "common/slam/ekf_slam.h"
+#include "common/slam/observation_model.h"
+#include "tests/testing/filter_noise.h"
+#include "tests/testing/numeric_jacobian.h"
+
+namespace mapmesh {
+namespace {
+
+using testing::NumericJacobian;
+using testing::TestFilterNoise;
+
+Pose2 PoseOf(const Eigen::VectorXd& v, int at) { return {v(at), v(at + 1), v(at + 2)}; }
+
+// Both factors' Jacobians against central differences on seeded random poses, landmarks and
+// measurements (headings and bearings anywhere on the circle, so wrapping is exercised).
+TEST(BatchFactors, JacobiansMatchCentralDifferences) {
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> u(-20, 20), a(-M_PI, M_PI);
+  for (int trial = 0; trial < 200; ++trial) {
+    Eigen::VectorXd x(6);
+    x << u(rng), u(rng), a(rng), u(rng), u(rng), a(rng);
+    const Pose2 delta{u(rng) / 10, u(rng) / 10, a(rng)};
+    Eigen::Matrix3d ja, jb;
+    RelativePoseError(PoseOf(x, 0), PoseOf(x, 3), delta, &ja, &jb);
+    const Eigen::MatrixXd num = NumericJacobian(
+        [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+          return RelativePoseError(PoseOf(v, 0), PoseOf(v, 3), delta);
+        },
+        x, 1e-6, {2});
+    EXPECT_LT((ja - num.leftCols(3)).cwiseAbs().maxCoeff(), 1e-6) << trial;
+    EXPECT_LT((jb - num.rightCols(3)).cwiseAbs().maxCoeff(), 1e-6) << trial;
+
+    Eigen::VectorXd y(5);
+    y << u(rng), u(rng), a(rng), u(rng), u(rng);
+    const Eigen::Vector2d z(std::abs(u(rng)) + 0.5, a(rng));
+    Eigen::Matrix<double, 2, 3> jp;
+    Eigen::Matrix2d jm;
+    RangeBearingError(PoseOf(y, 0), y.tail<2>(), z, &jp, &jm);
+    const Eigen::MatrixXd num2 = NumericJacobian(
+        [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return RangeBearingError(PoseOf(v, 0), v.tail<2>(), z); }, y,
+        1e-6, {1});
+    EXPECT_LT((jp - num2.leftCols(3)).cwiseAbs().maxCoeff(), 1e-6) << trial;
+    EXPECT_LT((jm - num2.rightCols(2)).cwiseAbs().maxCoeff(), 1e-6) << trial;
+  }
+  // At the truth both errors vanish, the bearing's wrapped.
+  const Pose2 p{1, 2, 3.1};
+  const Eigen::Vector2d m(-4, 2.05);
+  EXPECT_LT(RangeBearingError(p, m, ObserveRangeBearing(p, m)).norm(), 1e-12);
+  EXPECT_LT(RangeBearingError(p, m, ObserveRangeBearing(p, m) + Eigen::Vector2d(0, 2 * M_PI)).norm(), 1e-12);
+  EXPECT_LT(RelativePoseError(p, Pose2{3, 1, -3.1}, Between(p, Pose2{3, 1, -3.1})).norm(), 1e-12);
+}
+
+// The builder integrates odometry as the EKF predicts it: the same motion, and the covariance
+// the EKF's robot pose has after the same controls from a certain start.
+TEST(BatchLogBuilder, IntegratesOdometryAsTheFilterPredicts) {
+  const FilterNoise noise = TestFilterNoise();
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> v(0.0, 0.5), w(-0.6, 0.6), dt(0.02, 0.2);
+  BatchLogBuilder builder(3, noise, 0.0, 10.0, Pose2{1, 2, 0.3});
+  EkfSlam ekf(noise);
+  Pose2 direct;
+  for (int k = 0; k < 37; ++k) {
+    const OdometryControl u{v(rng), w(rng), 0.0};
+    const double d = dt(rng);
+    builder.Move(u, d);
+    ekf.Predict(u, d);
+    direct = UnicycleMotion(direct, {u.v_mps, u.w_radps}, d);
+  }
+  // Observations: one kept; one without identity, one too far and one too near dropped; a
+  // sighting of a robot ignored.
+  std::vector<Observation> obs(5);
+  obs[0] = {3.0, 0.1, 7, ObservationKind::kLandmark};
+  obs[1] = {3.0, 0.1, -1, ObservationKind::kLandmark};
+  obs[2] = {10.5, 0.1, 8, ObservationKind::kLandmark};
+  obs[3] = {-0.1, 0.1, 9, ObservationKind::kLandmark};
+  obs[4] = {2.0, 0.0, 2, ObservationKind::kRobot};
+  builder.Scan(4.2, obs);
+  const BatchRobotLog& log = builder.log();
+  ASSERT_EQ(log.nodes.size(), 2u);
+  EXPECT_EQ(log.robot, 3u);
+  EXPECT_EQ(log.observations_dropped, 3);
+  EXPECT_EQ(log.Observations(), 1u);
+  const BatchNode& n = log.nodes[1];
+  EXPECT_DOUBLE_EQ(n.stamp, 4.2);
+  EXPECT_NEAR(n.delta.x, direct.x, 1e-12);
+  EXPECT_NEAR(n.delta.y, direct.y, 1e-12);
+  EXPECT_NEAR(WrapAngle(n.delta.theta - direct.theta), 0.0, 1e-12);
+  EXPECT_NEAR(n.delta.x, ekf.robot().x, 1e-12);
+  EXPECT_LT((n.delta_cov - ekf.robot_cov()).cwiseAbs().maxCoeff(), 1e-15);
+  // A second scan with no odometry between is the same pose: it joins the node.
+  builder.Scan(4.2, {obs[0]});
+  EXPECT_EQ(builder.log().nodes.size(), 2u);
+  EXPECT_EQ(builder.log().nodes[1].obs.size(), 2u);
+}
+
+// A small world driven by the models themselves: robots on circles of their own among
+// landmarks, odometry every 0.1 s and a scan every 0.5 s, with noise or without.
+struct World {
+  std::vector<Eigen::Vector2d> landmarks;
+  std::vector<BatchRobotLog> logs;
+  std::map<RobotId, std::map<double, Pose2>> truth;  // true pose at each scan stamp
+};
+
+World MakeWorld(std::uint64_t seed, int robots, bool noisy, bool starts_known, int steps = 600) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-12, 12);
+  std::normal_distribution<double> n01;
+  World w;
+  for (int i = 0; i < 40; ++i) w.landmarks.emplace_back(u(rng), u(rng));
+  const FilterNoise noise = TestFilterNoise();
+  const double sv = std::sqrt(noise.control_cov(0, 0)), sw = std::sqrt(noise.control_cov(1, 1));
+  const double sr = std::sqrt(noise.obs_cov(0, 0)), sb = std::sqrt(noise.obs_cov(1, 1));
+  for (int r = 0; r < robots; ++r) {
+    const RobotId id = static_cast<RobotId>(r + 1);
+    Pose2 pose{u(rng) / 3, u(rng) / 3, WrapAngle(u(rng))};
+    BatchLogBuilder b(id, noise, 0.0, 8.0, starts_known ? std::optional<Pose2>(pose) : std::nullopt);
+    const UnicycleControl c{0.4, (r % 2 ? -1 : 1) * (0.08 + 0.03 * r)};
+    double t = 0.0;
+    for (int k = 1; k <= steps; ++k) {
+      pose = UnicycleMotion(pose, c, 0.1);
+      t = 0.1 * k;
+      OdometryControl meas{c.v_mps, c.w_radps, 0.0};
+      if (noisy) {
+        meas.v_mps += sv * n01(rng);
+        meas.w_radps += sw * n01(rng);
+      }
+      b.Move(meas, 0.1);
+      if (k % 5 != 0) continue;
+      std::vector<Observation> obs;
+      for (std::size_t l = 0; l < w.landmarks.size(); ++l) {
+        Eigen::Vector2d z = ObserveRangeBearing(pose, w.landmarks[l]);
+        if (z(0) > 8.0 || std::abs(z(1)) > M_PI / 2) continue;
+        if (noisy) z += Eigen::Vector2d(sr * n01(rng), sb * n01(rng));
+        obs.push_back({z(0), z(1), static_cast<std::int32_t>(l), ObservationKind::kLandmark});
+      }
+      b.Scan(t, obs);
+      w.truth[id][t] = pose;
+    }
+    w.logs.push_back(b.log());
+  }
+  return w;
+}
+
+std::vector<BatchSolution> Singles(const World& w) {
+  std::vector<BatchSolution> out;
+  for (const BatchRobotLog& log : w.logs) out.push_back(SolveSingleRobotBatch(log));
+  return out;
+}
+
+double MaxError(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth, const Pose2& frame = {}) {
+  double e = 0.0;
+  for (const Landmark& l : map.landmarks) e = std::max(e, (frame.Apply(l.mean) - truth[l.signature]).norm());
+  return e;
+}
+
+// Noise-free streams: every batch solution is the truth.
+TEST(Batch, NoiseFreeStreamsGiveTheTruth) {
+  const World w = MakeWorld(1, 3, false, true);
+  const std::vector<BatchSolution> singles = Singles(w);
+  for (std::size_t r = 0; r < singles.size(); ++r) {
+    EXPECT_TRUE(singles[r].report.converged) << singles[r].report.stop;
+    EXPECT_GT(singles[r].map.size(), 5u);
+    EXPECT_LT(MaxError(singles[r].map, w.landmarks), 1e-6) << "robot " << r + 1;
+    EXPECT_GT(singles[r].solves, 1);  // started over growing prefixes
+  }
+  const BatchSolution central = SolveCentralBatch(w.logs, singles);
+  EXPECT_TRUE(central.report.converged);
+  EXPECT_TRUE(central.covariance_ok);
+  EXPECT_LT(MaxError(central.map, w.landmarks), 1e-6);
+  for (const auto& [robot, track] : central.trajectories) {
+    for (const BatchPose& p : track) {
+      if (std::isnan(p.stamp)) continue;
+      const Pose2 t = w.truth.at(robot).at(p.stamp);
+      EXPECT_LT(std::hypot(p.pose.x - t.x, p.pose.y - t.y), 1e-6);
+    }
+  }
+  const BatchSolution known = SolveKnownPoseMap(w.logs, [&](RobotId r, double t) -> std::optional<Pose2> {
+    return w.truth.at(r).at(t);
+  });
+  EXPECT_EQ(known.map.size(), central.map.size());
+  EXPECT_LT(MaxError(known.map, w.landmarks), 1e-6);
+}
+
+// Unknown starts: the first robot's start is the frame, the others are found from the shared
+// landmarks; the map is the truth in that frame.
+TEST(Batch, UnknownStartsArePlacedByTheSharedLandmarks) {
+  const World w = MakeWorld(2, 3, false, false);
+  const std::vector<BatchSolution> singles = Singles(w);
+  const BatchSolution central = SolveCentralBatch(w.logs, singles);
+  EXPECT_TRUE(central.report.converged);
+  ASSERT_EQ(central.trajectories.size(), 3u);
+  // The frame is robot 1's start: its true pose at t = 0, one odometry step before its first scan.
+  const World known = MakeWorld(2, 3, false, true);
+  const Pose2 frame = *known.logs[0].start;
+  EXPECT_LT(MaxError(central.map, w.landmarks, frame), 1e-6);
+}
+
+// With noise: the central map is consistent (its NEES near 2 over seeds) and better than each
+// robot's own; the known-pose map is better still.
+TEST(Batch, NoisyCentralMapIsConsistentAndBetween) {
+  double nees = 0.0;
+  int n = 0, central_below_single = 0, pairs = 0, known_below_central = 0;
+  for (std::uint64_t seed = 10; seed < 30; ++seed) {
+    const World w = MakeWorld(seed, 3, true, true, 400);
+    const std::vector<BatchSolution> singles = Singles(w);
+    const BatchSolution central = SolveCentralBatch(w.logs, singles);
+    ASSERT_TRUE(central.report.converged) << central.report.stop;
+    EXPECT_NEAR(central.chi2_per_dof, 1.0, 0.15);
+    const BatchSolution known = SolveKnownPoseMap(w.logs, [&](RobotId r, double t) -> std::optional<Pose2> {
+      return w.truth.at(r).at(t);
+    });
+    const MapQuality c = EvaluateMap(central.map, w.landmarks, {});
+    nees += c.nees_mean;
+    ++n;
+    known_below_central += EvaluateMap(known.map, w.landmarks, {}).rmse_m <= c.rmse_m;
+    for (const BatchSolution& s : singles) {
+      // The same landmarks: those the single robot mapped.
+      LandmarkMap same;
+      for (const Landmark& l : central.map.landmarks) {
+        if (s.map.Find(static_cast<std::uint32_t>(l.signature))) same.landmarks.push_back(l);
+      }
+      ++pairs;
+      central_below_single += EvaluateMap(same, w.landmarks, {}).rmse_m <= EvaluateMap(s.map, w.landmarks, {}).rmse_m;
+    }
+  }
+  EXPECT_GT(nees / n, 1.5);
+  EXPECT_LT(nees / n, 2.6);
+  EXPECT_GE(known_below_central, 18);
+  EXPECT_GE(central_below_single, pairs * 8 / 10);
+}
+
+}  // namespace
+}  // namespace mapmesh

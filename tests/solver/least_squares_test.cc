@@ -1,0 +1,222 @@
+#include "common/solver/least_squares.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <random>
+
+namespace mapmesh {
+namespace {
+
+// rho'(s) is what Weight returns, and each loss is the square near zero.
+TEST(RobustKernel, WeightIsTheDerivativeOfRho) {
+  for (RobustLoss loss : {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy}) {
+    const RobustKernel k{loss, 1.5};
+    for (double s : {1e-4, 0.3, 1.0, 2.0, 2.26, 5.0, 40.0, 1e4}) {
+      const double h = 1e-6 * std::max(1.0, s);
+      const double numeric = (k.Rho(s + h) - k.Rho(s - h)) / (2 * h);
+      EXPECT_NEAR(k.Weight(s), numeric, 1e-6) << static_cast<int>(loss) << " s " << s;
+    }
+    EXPECT_NEAR(k.Rho(1e-6), 1e-6, 1e-12);
+    EXPECT_LE(k.Rho(100.0), 100.0);
+  }
+  // Huber is the square up to c^2, then grows linearly in |r|; Cauchy grows with log.
+  const RobustKernel huber{RobustLoss::kHuber, 2.0}, cauchy{RobustLoss::kCauchy, 2.0};
+  EXPECT_DOUBLE_EQ(huber.Rho(3.9), 3.9);
+  EXPECT_NEAR(huber.Rho(400.0), 2 * 2 * 20 - 4, 1e-12);
+  EXPECT_NEAR(cauchy.Rho(400.0), 4 * std::log(101.0), 1e-12);
+}
+
+// A random sparse linear problem: variables of sizes 1-3, factors coupling 1-3 of them, each
+// variable also given a prior so that H is positive definite.
+struct LinearProblem {
+  std::vector<int> sizes;
+  struct Factor {
+    std::vector<int> vars;
+    Eigen::MatrixXd j;
+    Eigen::VectorXd r;
+    double w;
+  };
+  std::vector<Factor> factors;
+};
+
+LinearProblem RandomLinearProblem(std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<int> size(1, 3), count(1, 3);
+  std::normal_distribution<double> n;
+  LinearProblem p;
+  const int nv = 8 + static_cast<int>(seed % 20);
+  for (int v = 0; v < nv; ++v) p.sizes.push_back(size(rng));
+  std::uniform_int_distribution<int> pick(0, nv - 1);
+  auto add = [&](std::vector<int> vars) {
+    int cols = 0;
+    for (int v : vars) cols += p.sizes[static_cast<std::size_t>(v)];
+    const int rows = 1 + static_cast<int>(rng() % 4);
+    LinearProblem::Factor f{vars, Eigen::MatrixXd(rows, cols), Eigen::VectorXd(rows), 0.5 + (rng() % 3) * 0.25};
+    for (int i = 0; i < f.j.size(); ++i) f.j.data()[i] = n(rng);
+    for (int i = 0; i < rows; ++i) f.r(i) = n(rng);
+    p.factors.push_back(f);
+  };
+  for (int v = 0; v < nv; ++v) {
+    // A prior: identity rows over the variable.
+    const int s = p.sizes[static_cast<std::size_t>(v)];
+    LinearProblem::Factor f{{v}, Eigen::MatrixXd::Identity(s, s), Eigen::VectorXd::Zero(s), 1.0};
+    for (int i = 0; i < s; ++i) f.r(i) = n(rng);
+    p.factors.push_back(f);
+  }
+  for (int k = 0; k < 3 * nv; ++k) {
+    std::vector<int> vars;
+    const int c = count(rng);
+    while (static_cast<int>(vars.size()) < c) {
+      const int v = pick(rng);
+      if (std::find(vars.begin(), vars.end(), v) == vars.end()) vars.push_back(v);
+    }
+    add(vars);
+  }
+  return p;
+}
+
+class LinearSystemTest : public ::testing::TestWithParam<std::uint64_t> {};
+
+// The block accumulation, the damped solve and the marginals equal a dense computation of
+// H = sum w J^T J, g = sum w J^T r, whatever the variables' order within a factor.
+TEST_P(LinearSystemTest, SolveAndMarginalsMatchTheDenseSystem) {
+  const LinearProblem p = RandomLinearProblem(GetParam());
+  BlockNormalEquations eq(p.sizes);
+  std::vector<int> handles;
+  for (const auto& f : p.factors) handles.push_back(eq.Couple(f.vars));
+  eq.Finalize();
+  const int n = eq.dim();
+  Eigen::MatrixXd h = Eigen::MatrixXd::Zero(n, n);
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(n);
+  for (std::size_t k = 0; k < p.factors.size(); ++k) {
+    const auto& f = p.factors[k];
+    eq.Add(handles[k], f.j, f.r, f.w);
+    // The factor's Jacobian spread over the whole state.
+    Eigen::MatrixXd full = Eigen::MatrixXd::Zero(f.j.rows(), n);
+    int col = 0;
+    for (int v : f.vars) {
+      full.middleCols(eq.offset(v), eq.size(v)) = f.j.middleCols(col, eq.size(v));
+      col += eq.size(v);
+    }
+    h += f.w * full.transpose() * full;
+    g += f.w * full.transpose() * f.r;
+  }
+  EXPECT_LT((eq.gradient() - g).cwiseAbs().maxCoeff(), 1e-12);
+  for (double lambda : {0.0, 0.1, 3.0}) {
+    Eigen::VectorXd dx;
+    ASSERT_TRUE(eq.Solve(lambda, &dx));
+    Eigen::MatrixXd damped = h;
+    damped.diagonal() += lambda * h.diagonal();
+    const Eigen::VectorXd expected = damped.ldlt().solve(-g);
+    EXPECT_LT((dx - expected).cwiseAbs().maxCoeff(), 1e-9) << "lambda " << lambda;
+  }
+  std::vector<int> all(p.sizes.size());
+  for (std::size_t v = 0; v < all.size(); ++v) all[v] = static_cast<int>(v);
+  const std::vector<Eigen::MatrixXd> marg = eq.Marginals(all);
+  ASSERT_EQ(marg.size(), all.size());
+  const Eigen::MatrixXd inv = h.inverse();
+  for (int v : all) {
+    EXPECT_LT((marg[static_cast<std::size_t>(v)] - inv.block(eq.offset(v), eq.offset(v), eq.size(v), eq.size(v)))
+                  .cwiseAbs()
+                  .maxCoeff(),
+              1e-9)
+        << "variable " << v;
+  }
+  // Cleared, the system holds nothing but its pattern.
+  eq.SetZero();
+  EXPECT_EQ(eq.gradient().norm(), 0.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, LinearSystemTest, ::testing::Range<std::uint64_t>(1, 21));
+
+TEST(BlockNormalEquations, ASingularSystemIsReportedNotSolved) {
+  BlockNormalEquations eq({2, 2});
+  const int h = eq.Couple({0, 1});
+  eq.Finalize();
+  // One row over four unknowns: rank one.
+  Eigen::MatrixXd j(1, 4);
+  j << 1, 2, 3, 4;
+  eq.Add(h, j, Eigen::VectorXd::Ones(1));
+  Eigen::VectorXd dx;
+  EXPECT_FALSE(eq.Solve(0.0, &dx));
+  EXPECT_TRUE(eq.Marginals({0}).empty());
+}
+
+// Trilateration: a 2D point from ranges to known anchors, some of them gross outliers. Its
+// cost is nonlinear in the point.
+class Trilateration : public LeastSquaresProblem {
+ public:
+  Trilateration(std::vector<Eigen::Vector2d> anchors, std::vector<double> ranges, double sigma, RobustKernel kernel,
+                Eigen::Vector2d start)
+      : anchors_(std::move(anchors)), ranges_(std::move(ranges)), sigma_(sigma), kernel_(kernel), x_(start) {}
+  double Linearise(BlockNormalEquations& eq) override {
+    double cost = 0.0;
+    for (std::size_t i = 0; i < anchors_.size(); ++i) {
+      const Eigen::Vector2d d = x_ - anchors_[i];
+      const double r = (d.norm() - ranges_[i]) / sigma_;
+      Eigen::Matrix<double, 1, 2> j = d.transpose() / (d.norm() * sigma_);
+      cost += 0.5 * kernel_.Rho(r * r);
+      eq.Add(0, j, Eigen::Matrix<double, 1, 1>(r), kernel_.Weight(r * r));
+    }
+    return cost;
+  }
+  double Cost() const override {
+    double cost = 0.0;
+    for (std::size_t i = 0; i < anchors_.size(); ++i) {
+      const double r = ((x_ - anchors_[i]).norm() - ranges_[i]) / sigma_;
+      cost += 0.5 * kernel_.Rho(r * r);
+    }
+    return cost;
+  }
+  void Step(const Eigen::VectorXd& dx) override { x_ += dx.head<2>(); }
+  void Save() override { saved_ = x_; }
+  void Restore() override { x_ = saved_; }
+  const Eigen::Vector2d& x() const { return x_; }
+
+ private:
+  std::vector<Eigen::Vector2d> anchors_;
+  std::vector<double> ranges_;
+  double sigma_;
+  RobustKernel kernel_;
+  Eigen::Vector2d x_, saved_;
+};
+
+// Levenberg-Marquardt from far away finds the point; with gross outliers, plain least squares
+// is pulled off and the Cauchy loss, started there, is not; at the optimum the gradient vanishes.
+TEST(LevenbergMarquardt, FindsTheOptimumAndARobustLossResistsOutliers) {
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::uniform_real_distribution<double> u(-10, 10);
+  const Eigen::Vector2d truth(1.5, -2.0);
+  int robust_better = 0;
+  for (int trial = 0; trial < 20; ++trial) {
+    std::vector<Eigen::Vector2d> anchors;
+    std::vector<double> ranges;
+    for (int i = 0; i < 12; ++i) {
+      anchors.emplace_back(u(rng), u(rng));
+      ranges.push_back((truth - anchors.back()).norm() + noise(rng) + (i < 2 ? 3.0 : 0.0));  // two outliers
+    }
+    BlockNormalEquations plain_eq({2}), robust_eq({2});
+    plain_eq.Couple({0});
+    robust_eq.Couple({0});
+    plain_eq.Finalize();
+    robust_eq.Finalize();
+    Trilateration plain(anchors, ranges, 0.01, {}, {8.0, 8.0});
+    const LevenbergMarquardtReport pr = MinimiseLevenbergMarquardt(plain, plain_eq);
+    // Cauchy's loss is not convex: it starts where plain least squares ended, in its basin.
+    Trilateration robust(anchors, ranges, 0.01, {RobustLoss::kCauchy, 2.0}, plain.x());
+    const LevenbergMarquardtReport rr = MinimiseLevenbergMarquardt(robust, robust_eq);
+    EXPECT_TRUE(pr.converged) << pr.stop;
+    EXPECT_LT(pr.final_cost, pr.initial_cost);
+    // At a minimum the gradient vanishes (relative to the cost's scale).
+    EXPECT_LT(plain_eq.gradient().norm(), 1e-3 * std::sqrt(std::max(pr.final_cost, 1.0)));
+    EXPECT_TRUE(rr.converged) << rr.stop;
+    if ((robust.x() - truth).norm() < 0.02) ++robust_better;
+    EXPECT_GT((plain.x() - truth).norm(), 0.05) << "the outliers pull plain least squares off";
+  }
+  EXPECT_GE(robust_better, 18);
+}
+
+}  // namespace
+}  // namespace mapmesh
