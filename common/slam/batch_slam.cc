@@ -339,10 +339,16 @@ BatchSolution SolveSingleRobotBatch(const BatchRobotLog& log, const BatchOptions
   const int n = static_cast<int>(log.nodes.size());
   const int chunk = std::max(1, options.initial_chunk_nodes);
   // Growing prefixes: each solved, then the next chunk's nodes started from the last solved
-  // node by odometry (a long chain's dead reckoning alone can be far from the optimum).
+  // node by odometry (a long chain's dead reckoning alone can be far from the optimum). While
+  // the prefix grows, nodes well behind its end are held where they were solved, so that each
+  // step costs what its window does; the whole chain is solved free at the end.
+  const int window = options.initial_window_chunks > 0 ? options.initial_window_chunks * chunk : n;
   for (int active = std::min(n, chunk);; active = std::min(n, active + chunk)) {
     Chain c = chain;
     c.active = active;
+    if (active < n) {
+      for (int i = 0; i < active - window; ++i) c.fixed[static_cast<std::size_t>(i)] = 1;
+    }
     BatchProblem problem({c}, landmarks, options);
     out.report = MinimiseLevenbergMarquardt(problem, problem.equations(), options.lm);
     ++out.solves;

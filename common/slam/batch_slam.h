@@ -94,7 +94,9 @@ struct BatchOptions {
   RobustKernel robust;                // on each observation's whitened residual (odometry stays Gaussian)
   LevenbergMarquardtOptions lm;       // each solve
   int initial_chunk_nodes = 100;      // a robot's chain is first solved over growing prefixes of this many nodes
-                                      // each, every new node started from the last solved one by odometry
+                                      // each, every new node started from the last solved one by odometry ...
+  int initial_window_chunks = 2;      // ... with the nodes more than this many chunks back held where they were
+                                      // solved (0: none held), then once over all nodes
   double min_delta_variance = 1e-10;  // added to each odometry factor's covariance diagonal (m^2, rad^2): one
                                       // short interval's covariance has rank 2 (no sideways slip in the model)
 };

@@ -174,8 +174,13 @@ std::vector<Eigen::MatrixXd> BlockNormalEquations::Marginals(const std::vector<i
   if (vars.empty()) return out;
   if (!factor_is_undamped_ && !Factorise(0.0)) return out;
   out.reserve(vars.size());
-  // Columns of H^-1, a batch of variables at a time (a dense right-hand side of bounded size).
-  constexpr std::size_t kBatchColumns = 256;
+  // With P H P^T = L L^T, H^-1 = P^T L^-T L^-1 P, so the block of variables i and j is
+  // (L^-1 P E_i)^T (L^-1 P E_j): a forward substitution alone, which skips the zeros above each
+  // unit column (most of them, the fill of a column being what the elimination reaches from it).
+  // A batch of variables at a time, to bound the dense right-hand side.
+  constexpr std::size_t kBatchColumns = 64;
+  const auto& to_factor = llt_.permutationP().indices();  // row i of H is row to_factor(i) of the factor
+  Eigen::MatrixXd y(dim_, static_cast<Eigen::Index>(kBatchColumns));  // reused: no allocation per batch
   std::size_t first = 0;
   while (first < vars.size()) {
     std::size_t last = first;
@@ -184,17 +189,19 @@ std::vector<Eigen::MatrixXd> BlockNormalEquations::Marginals(const std::vector<i
       cols += size(vars[last]);
       ++last;
     }
-    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(dim_, cols);
+    if (cols > y.cols()) y.resize(dim_, cols);
+    auto batch = y.leftCols(cols);
+    batch.setZero();
     int col = 0;
     for (std::size_t k = first; k < last; ++k) {
-      for (int i = 0; i < size(vars[k]); ++i) rhs(offset(vars[k]) + i, col + i) = 1.0;
+      for (int i = 0; i < size(vars[k]); ++i) batch(to_factor(offset(vars[k]) + i), col + i) = 1.0;
       col += size(vars[k]);
     }
-    const Eigen::MatrixXd x = llt_.solve(rhs);
+    llt_.matrixL().solveInPlace(batch);
     col = 0;
     for (std::size_t k = first; k < last; ++k) {
       const int s = size(vars[k]);
-      const Eigen::MatrixXd b = x.block(offset(vars[k]), col, s, s);
+      const Eigen::MatrixXd b = batch.middleCols(col, s).transpose() * batch.middleCols(col, s);
       out.push_back(0.5 * (b + b.transpose()));
       col += s;
     }
