@@ -179,7 +179,7 @@ std::vector<Eigen::MatrixXd> BlockNormalEquations::Marginals(const std::vector<i
   // unit column (most of them, the fill of a column being what the elimination reaches from it).
   // A batch of variables at a time, to bound the dense right-hand side.
   constexpr std::size_t kBatchColumns = 64;
-  const auto& to_factor = llt_.permutationP().indices();  // row i of H is row to_factor(i) of the factor
+  const auto& to_factor = llt_.permutationP().indices();              // row i of H is row to_factor(i) of the factor
   Eigen::MatrixXd y(dim_, static_cast<Eigen::Index>(kBatchColumns));  // reused: no allocation per batch
   std::size_t first = 0;
   while (first < vars.size()) {
