@@ -4,7 +4,6 @@
 #include <set>
 
 #include "common/check.h"
-#include "common/merge/map_joining.h"
 #include "common/metrics/chi2.h"
 
 namespace mapmesh {
@@ -13,6 +12,7 @@ MapExchange::MapExchange(RobotId self, std::uint32_t incarnation, const Exchange
       incarnation_(incarnation),
       options_(options),
       rng_(seed),
+      fusion_(MakeFusionBackend(self, incarnation, options.global)),
       rendezvous_gate_(Chi2Quantile(options.rendezvous_gate_probability, 3)) {}
 
 MapExchange::Receipt MapExchange::OnPeerMap(RobotId robot, std::uint32_t incarnation, MapKind kind,
@@ -116,17 +116,7 @@ void MapExchange::Drop(PeerState& p, double now) {
   p.last_attempt = now;
 }
 
-bool MapExchange::AttemptDue(const PeerState& p, const LandmarkMap& own_local, double now) const {
-  if (now - p.last_attempt < options_.align_period_s) return false;
-  if (p.changed || Grew(own_local.size(), p.own_size_at_attempt)) return true;
-  // A peer that is silent (or can no longer speak) sends no better map: what it sent is tried
-  // whenever ours has changed, for the rest of the run.
-  return p.report.silent && own_local.size() != p.own_size_at_attempt;
-}
-
 bool MapExchange::Align(PeerState& p, const LandmarkMap& own_local, double now, bool reconsider_relay) {
-  MAPMESH_CHECK(budget_ > 0, "Update checks the alignment budget before aligning");
-  --budget_;
   const LandmarkMap& theirs = p.Map();
   const AlignmentResult r = AlignMaps(own_local, theirs, options_.align, rng_);
   p.report.last_verdict = r.verdict;
@@ -162,23 +152,6 @@ void MapExchange::Use(PeerState& p, const AlignmentResult& r, const LandmarkMap&
   p.report.centroid = Centroid(p.Map());
   p.last_refine = now;
   ChooseSource(p, own_local, reconsider_relay, now);
-}
-
-bool MapExchange::Grew(std::size_t size, std::size_t at_attempt) const {
-  return static_cast<double>(size) >=
-         (1.0 + options_.retry_growth) * static_cast<double>(std::max<std::size_t>(1, at_attempt));
-}
-
-bool MapExchange::RealignDue(const PeerState& p, const LandmarkMap& own_local, double now) const {
-  // A stale peer's contribution stays as it was verified (its map will not change). A silent
-  // one's may still be corrected, by a confirmed answer (a move, never a removal).
-  if (!options_.test_only.realign_on_growth || p.report.stale || now - p.last_attempt < options_.align_period_s)
-    return false;
-  // A realignment that disagreed with the transform in use waits for a second, later answer to
-  // confirm it: that one is due as soon as either map has changed, as for a first alignment, not
-  // only after the next fifth of growth (which may never come).
-  if (p.candidate && (p.changed || own_local.size() != p.own_size_at_attempt)) return true;
-  return Grew(own_local.size(), p.own_size_at_attempt) || Grew(p.Map().size(), p.peer_size_at_attempt);
 }
 
 bool MapExchange::Verify(PeerState& p, const LandmarkMap& own_local, double now, bool judge_relay) {
@@ -243,40 +216,6 @@ void MapExchange::MarkAligned(PeerState& p, AlignmentSource by, double now) {
     p.report.first_aligned_by = by;
   }
   p.report.ever_aligned = true;
-}
-
-std::set<PeerKey> MapExchange::RelayTurns() const {
-  if (!options_.relay_global_maps) return {};
-  struct Due {
-    PeerKey key;
-    bool judged;
-    long growth;
-    double last;
-  };
-  std::vector<Due> due;
-  for (const auto& [key, p] : peers_) {
-    if (!p.report.aligned || p.report.stale || !p.has_global) continue;
-    if (p.relay_judged && p.relay_judged_version == p.global_version) continue;
-    due.push_back({key, p.relay_judged, static_cast<long>(p.global.size()) - static_cast<long>(p.relay_judged_size),
-                   p.last_relay_judged});
-  }
-  // Never judged first, then those that grew most, then those judged longest ago.
-  std::sort(due.begin(), due.end(), [](const Due& a, const Due& b) {
-    if (a.judged != b.judged) return !a.judged;
-    if (a.growth != b.growth) return a.growth > b.growth;
-    return a.last < b.last;
-  });
-  // Judging a relay compares it with every aligned peer's map (RelayPolicy::FirstConflict).
-  int witnesses = 0;
-  for (const auto& [key, p] : peers_) witnesses += p.direct && !p.direct->map.empty();
-  const int limit = std::min(options_.max_relay_checks_per_update,
-                             std::max(1, options_.max_relay_comparisons_per_update / std::max(1, witnesses)));
-  std::set<PeerKey> turns;
-  for (const Due& d : due) {
-    if (static_cast<int>(turns.size()) >= limit) break;
-    turns.insert(d.key);
-  }
-  return turns;
 }
 
 void MapExchange::Refine(PeerState& p, const LandmarkMap& own_local, double now) {
@@ -358,105 +297,122 @@ void MapExchange::ChooseSource(PeerState& p, const LandmarkMap& own_local, bool 
   p.source = std::move(s);
 }
 
-bool MapExchange::Update(const LandmarkMap& own_local, double now) {
-  ++updates_;
-  refuted_ = false;
-  budget_ = options_.max_alignments_per_update;
-  bool changed = false;
-  std::set<PeerKey> chosen;  // peers whose map was chosen in this round
-  for (auto& [key, p] : peers_) {
-    p.report.frozen = p.Frozen();
-    p.report.silent = Silent(p, now);
+std::vector<PeerFacts> MapExchange::Facts(double now) const {
+  std::vector<PeerFacts> facts;
+  facts.reserve(peers_.size());
+  for (const auto& [key, p] : peers_) {
+    PeerFacts f;
+    f.key = key;
+    f.has_map = p.has_local || p.has_global;
+    f.aligned = p.report.aligned;
+    f.aligned_by_overlap = p.report.aligned_by == AlignmentSource::kOverlap;
+    f.awaiting_confirmation = p.candidate.has_value();
+    f.stale = p.report.stale;
+    f.silent = Silent(p, now);
+    f.changed = p.changed;
+    f.rendezvous_waiting = p.rendezvous.has_value();
+    f.last_attempt = p.last_attempt;
+    f.last_refine = p.last_refine;
+    f.map_size = p.Map().size();
+    f.own_size_at_attempt = p.own_size_at_attempt;
+    f.map_size_at_attempt = p.peer_size_at_attempt;
+    f.has_global = p.has_global;
+    f.global_judged = p.relay_judged;
+    f.global_newer = p.relay_judged_version != p.global_version;
+    f.global_growth = static_cast<long>(p.global.size()) - static_cast<long>(p.relay_judged_size);
+    f.last_judged = p.last_relay_judged;
+    f.witness = p.direct && !p.direct->map.empty();
+    facts.push_back(f);
   }
-  // Round robin: the first peer left without an alignment it was due last time goes first.
-  std::vector<PeerStates::iterator> order;
-  const auto turn = peers_.lower_bound(next_turn_);
-  for (auto it = turn; it != peers_.end(); ++it) order.push_back(it);
-  for (auto it = peers_.begin(); it != turn; ++it) order.push_back(it);
-  std::optional<PeerKey> starved;
-  const std::set<PeerKey> relay_turns = RelayTurns();
-  for (auto it : order) {
-    const PeerKey& key = it->first;
-    PeerState& p = it->second;
-    if (!p.has_local && !p.has_global) continue;
-    const bool relay_turn = relay_turns.count(key) > 0;
-    if (!p.report.aligned) {
-      if (p.rendezvous && AlignByRendezvous(p, own_local, now)) {
-        chosen.insert(key);
-        MarkAligned(p, AlignmentSource::kRendezvous, now);
-        changed = true;
-        continue;
-      }
-      if (!options_.ByOverlap() || !AttemptDue(p, own_local, now)) continue;
-      if (budget_ <= 0) {
-        if (!starved) starved = key;
-        continue;
-      }
+  return facts;
+}
+
+bool MapExchange::Take(const Turn& turn, const LandmarkMap& own_local, double now, Round& round) {
+  PeerState& p = peers_.at(turn.key);
+  switch (turn.kind) {
+    case TurnKind::kRendezvous:
+      if (!AlignByRendezvous(p, own_local, now)) return false;
+      round.chosen.insert(turn.key);
+      MarkAligned(p, AlignmentSource::kRendezvous, now);
+      round.changed = true;
+      return true;
+    case TurnKind::kAlign:
       ++p.report.attempts;
-      if (Align(p, own_local, now, /*reconsider_relay=*/true)) {
-        chosen.insert(key);
-        MarkAligned(p, AlignmentSource::kOverlap, now);
-        changed = true;
-      }
-      continue;
-    }
-    // Aligned by overlap: later rendezvous fits add nothing (verification refines the transform).
-    if (p.report.aligned_by == AlignmentSource::kOverlap) p.rendezvous.reset();
-    // Aligned, and both maps grew since the last full alignment: align afresh. A transform
-    // accepted on small maps can be a coincidence that verification at that same transform
-    // keeps passing in a dense map; with more landmarks the true alignment has the larger
-    // support. An accepted answer replaces the transform; otherwise verification goes on.
-    const bool realign_due = options_.ByOverlap() && RealignDue(p, own_local, now);
-    if (realign_due && budget_ <= 0 && !starved) starved = key;
-    if (budget_ > 0 && realign_due) {
+      if (!Align(p, own_local, now, /*reconsider_relay=*/true)) return false;
+      round.chosen.insert(turn.key);
+      MarkAligned(p, AlignmentSource::kOverlap, now);
+      round.changed = true;
+      return true;
+    case TurnKind::kRealign: {
+      // An accepted answer replaces the transform; otherwise verification goes on.
       const Pose2 before = p.report.to_own;
       const Eigen::Vector2d at = p.report.centroid;
       const bool was_changed = p.changed;
       ++p.report.realignments;
-      // With no new map from the peer, or not its turn, the choice of its map stays: only its
-      // transform moves.
-      if (Align(p, own_local, now, /*reconsider_relay=*/was_changed && relay_turn)) {
-        if (was_changed && relay_turn) chosen.insert(key);
-        p.report.failures = 0;
-        p.report.aligned_by = AlignmentSource::kOverlap;
-        if (!relay_.Agree(p.report.to_own, before, at)) {
-          ++p.report.corrections;
-          changed = true;
-        }
-        continue;
+      if (!Align(p, own_local, now, turn.judge_relay)) {
+        p.changed = was_changed;
+        return false;
       }
-      p.changed = was_changed;
-    }
-    // Aligned: every newer map is verified at the known transform before it is used. A
-    // stale peer's maps no longer change: its verified state stays as it is.
-    if (p.report.stale) continue;
-    if (!p.changed && !relay_turn) {
-      if (options_.refine_period_s > 0.0 && now - p.last_refine >= options_.refine_period_s) Refine(p, own_local, now);
-      continue;
-    }
-    ++p.report.verifications;
-    if (Verify(p, own_local, now, relay_turn)) {
-      if (relay_turn) chosen.insert(key);
+      if (turn.judge_relay) round.chosen.insert(turn.key);
       p.report.failures = 0;
-      continue;
+      p.report.aligned_by = AlignmentSource::kOverlap;
+      if (!relay_.Agree(p.report.to_own, before, at)) {
+        ++p.report.corrections;
+        round.changed = true;
+      }
+      return true;
     }
-    ++p.report.rejected;
-    if (++p.report.failures >= options_.drop_after_failures) {
-      Drop(p, now);
-      changed = true;
-    }
+    case TurnKind::kVerify:
+      // Every newer map of an aligned peer is verified at the known transform before it is used.
+      ++p.report.verifications;
+      if (Verify(p, own_local, now, turn.judge_relay)) {
+        if (turn.judge_relay) round.chosen.insert(turn.key);
+        p.report.failures = 0;
+        return false;
+      }
+      ++p.report.rejected;
+      if (++p.report.failures >= options_.drop_after_failures) {
+        Drop(p, now);
+        round.changed = true;
+      }
+      return false;
+    case TurnKind::kRefine: Refine(p, own_local, now); return false;
   }
-  if (starved) next_turn_ = *starved;
+  return false;
+}
+
+bool MapExchange::Update(const LandmarkMap& own_local, double now) {
+  ++updates_;
+  refuted_ = false;
+  for (auto& [key, p] : peers_) {
+    p.report.frozen = p.Frozen();
+    p.report.silent = Silent(p, now);
+    // Aligned by overlap: later rendezvous fits add nothing (verification refines the transform).
+    if (p.report.aligned && p.report.aligned_by == AlignmentSource::kOverlap) p.rendezvous.reset();
+  }
+  const PeerSchedule schedule = PlanTurns(Facts(now), own_local.size(), now, next_turn_, options_);
+  if (schedule.next_turn) next_turn_ = *schedule.next_turn;
+  Round round;
+  std::optional<PeerKey> settled;  // a peer's turns are alternatives: the first that settles it ends them
+  for (const Turn& turn : schedule.turns) {
+    if (settled == turn.key) continue;
+    if (Take(turn, own_local, now, round)) settled = turn.key;
+  }
   // A new or moved alignment changes what the other peers' relays must agree with: the peers
   // whose maps were chosen in this round choose again, now that all its transforms are known.
   // (A peer that sent nothing new keeps its choice: until its liveliness is lost, a dead peer
   // is not known to be dead, and what it gave must stay as it was.)
-  changed = changed || refuted_;
+  const bool changed = round.changed || refuted_;
   if (changed && options_.test_only.relay_must_agree) {
     for (auto& [key, p] : peers_) {
-      if (p.source && chosen.count(key)) ChooseSource(p, own_local, true, now);
+      if (p.source && round.chosen.count(key)) ChooseSource(p, own_local, true, now);
     }
   }
+  Build(own_local);
+  return changed;
+}
+
+void MapExchange::Build(const LandmarkMap& own_local) {
   std::vector<MapSource> sources, direct;
   for (auto& [key, p] : peers_) {
     if (p.direct) direct.push_back(*p.direct);
@@ -471,19 +427,9 @@ bool MapExchange::Update(const LandmarkMap& own_local, double now) {
     }
     sources.push_back(*p.source);
   }
-  if (options_.global.method == FusionMethod::kJoining) {
-    // Least-squares joining of the one-hop local maps only (map_joining.h: each robot's
-    // measurements enter once); the gates of a CI build give the association.
-    GlobalMapOptions association = options_.global;
-    association.method = FusionMethod::kCiConstant;
-    const GlobalMap associated = BuildGlobalMap(own_local, self_, direct, association, incarnation_, &published_memo_);
-    global_ = JoinMaps(own_local, self_, incarnation_, direct, associated);
-    published_ = global_;
-    return changed;
-  }
-  global_ = BuildGlobalMap(own_local, self_, sources, options_.global, incarnation_, &global_memo_);
-  published_ = BuildGlobalMap(own_local, self_, direct, options_.global, incarnation_, &published_memo_);
-  return changed;
+  FusionBackend::Built built = fusion_->Build(own_local, sources, direct);
+  global_ = std::move(built.global);
+  published_ = std::move(built.published);
 }
 
 std::vector<PeerReport> MapExchange::Peers() const {

@@ -13,11 +13,14 @@
 // and why: docs/EXCHANGE.md.
 
 #include <cstdint>
+#include <memory>
 #include <random>
 #include <set>
 #include <vector>
 
 #include "agent/exchange_options.h"
+#include "agent/fusion_backend.h"
+#include "agent/peer_schedule.h"
 #include "agent/peer_state.h"
 #include "agent/relay_policy.h"
 #include "common/merge/global_map.h"
@@ -78,9 +81,22 @@ class MapExchange {
   std::vector<RobotId> StaleRobots() const;
 
  private:
-  // Aligns the peer's map to the own local map, taking one alignment from this Update's budget
-  // (the caller checks that one is left); when the answer is confirmed (confirm_alignments)
-  // stores the transform and source and returns true.
+  // What one Update did so far: whether an alignment changed, and the peers whose map (local or
+  // global) was chosen anew.
+  struct Round {
+    bool changed = false;
+    std::set<PeerKey> chosen;
+  };
+  // The schedule's view of every peer.
+  std::vector<PeerFacts> Facts(double now) const;
+  // Carries out one turn of the schedule; true when it settled the peer (its later turns in
+  // this Update are skipped).
+  bool Take(const Turn& turn, const LandmarkMap& own_local, double now, Round& round);
+  // Rebuilds the global maps from the own local map and the peers' chosen maps.
+  void Build(const LandmarkMap& own_local);
+  // Aligns the peer's map to the own local map (a turn of the schedule, which budgets them);
+  // when the answer is confirmed (confirm_alignments) stores the transform and source and
+  // returns true.
   bool Align(PeerState& p, const LandmarkMap& own_local, double now, bool reconsider_relay);
   // Weighs the peer's newest rendezvous fit against the maps; when they confirm it, uses it and
   // returns true.
@@ -90,24 +106,13 @@ class MapExchange {
   // Whether a new incarnation of robot can be kept (max_incarnations), evicting one if need be.
   bool MakeRoomFor(RobotId robot, double now);
   bool Silent(const PeerState& p, double now) const { return p.Silent(now, options_.SilentAfterS()); }
-  // An unaligned peer's alignment is due: after align_period_s, when its map changed or ours
-  // grew by retry_growth (a frozen peer's map cannot change: whenever ours did).
-  bool AttemptDue(const PeerState& p, const LandmarkMap& own_local, double now) const;
   // The peer no longer contributes (its alignment is dropped); aligned again from `now` on.
   void Drop(PeerState& p, double now);
-  // A map of `size` landmarks has grown by retry_growth since it had `at_attempt`.
-  bool Grew(std::size_t size, std::size_t at_attempt) const;
-  // An aligned peer's fresh alignment is due (realign_on_growth).
-  bool RealignDue(const PeerState& p, const LandmarkMap& own_local, double now) const;
   // Uses an accepted (and confirmed) alignment r of the peer: its transform, and the source at it.
   void Use(PeerState& p, const AlignmentResult& r, const LandmarkMap& own_local, bool reconsider_relay, double now);
   // Checks the peer's newest map at the known transform; on success refines it and the source
   // (judging its newest global map as a relay when judge_relay).
   bool Verify(PeerState& p, const LandmarkMap& own_local, double now, bool judge_relay);
-  // The aligned peers whose newer global map is judged as a relay in this Update: at most
-  // max_relay_checks_per_update (fewer where they would exceed max_relay_comparisons_per_update),
-  // never judged first, then those that grew most.
-  std::set<PeerKey> RelayTurns() const;
   // The peer's map is the one verified already, ours has moved on (loop closures, more landmarks):
   // refits the transform on our map as it is now, keeping the choice of source. A fit that fails
   // or disagrees changes nothing (the peer's next map is verified as usual).
@@ -129,12 +134,11 @@ class MapExchange {
   RelayPolicy relay_{options_};
   std::mt19937_64 rng_;
   PeerStates peers_;
-  bool refuted_ = false;  // the Update in progress refuted an alignment ...
-  int budget_ = 0;        // ... and may still run this many alignments
-  PeerKey next_turn_;     // the peer whose turn is first in the next Update (round robin)
+  bool refuted_ = false;                   // the Update in progress refuted an alignment
+  PeerKey next_turn_;                      // the peer whose turn is first in the next Update (round robin)
+  std::unique_ptr<FusionBackend> fusion_;  // agent.fusion, chosen once
   GlobalMap global_;
   GlobalMap published_;
-  AssociationMemo global_memo_, published_memo_;  // each map's ambiguous groups, from its last build
   std::uint64_t updates_ = 0;
   double rendezvous_gate_;  // chi-square 3 dof at rendezvous_gate_probability: the maps' transform must lie
                             // this close to the rendezvous fit (TransformDistance2)
