@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -58,10 +59,10 @@ class DdsOutput : public AgentOutput {
   using Clock = std::chrono::steady_clock;
   static constexpr auto kStatusRepeat = std::chrono::milliseconds(30);
 
-  DdsOutput(const tp::Participant& p, double lease_s, RobotId self)
-      : maps_(p, tp::kMapTopic, tp::MapQos(lease_s).Partition(tp::RobotPartition(self))),
+  DdsOutput(const tp::Participant& p, double lease_s, RobotId self, bool lockstep)
+      : maps_(p, tp::kMapTopic, tp::MapQosFor(lockstep, lease_s).Partition(tp::RobotPartition(self))),
         status_(p, tp::kStatusTopic, tp::StatusQos(lease_s).Partition(tp::RobotPartition(self))),
-        sightings_(p, tp::kSightingTopic, tp::SightingQos().Partition(tp::RobotPartition(self))) {}
+        sightings_(p, tp::kSightingTopic, tp::SightingQosFor(lockstep).Partition(tp::RobotPartition(self))) {}
   void PublishMap(const MapMessage& msg) override { maps_.Write(msg); }
   void PublishStatus(const AgentStatus& status) override {
     status_.Write(status);
@@ -313,11 +314,20 @@ int Run(int argc, char** argv) {
   tp::Reader<Scan> scans(p, tp::ScanTopic(self), tp::SensorQos());
   tp::Reader<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
   const double lease_s = scenario.agent.LivelinessLeaseS(scenario.robots.size());
-  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos(lease_s).Partition(tp::kEveryRobotPartition));
-  tp::Reader<Sighting> sightings(p, tp::kSightingTopic, tp::SightingQos().Partition(tp::kEveryRobotPartition));
+  // In lockstep the maps and sightings are exchanged at the feeder's ticks (messages.h
+  // ExchangeTick), reliably; in real time they go out as the agent goes.
+  const AgentRun run = AgentRunFor(scenario, self);
+  const bool lockstep = run.exchange_ticks;
+  tp::Reader<MapMessage> maps(
+      p, tp::kMapTopic,
+      (lockstep ? tp::LockstepMapQos(lease_s) : tp::MapQos(lease_s)).Partition(tp::kEveryRobotPartition));
+  tp::Reader<Sighting> sightings(
+      p, tp::kSightingTopic,
+      (lockstep ? tp::LockstepSightingQos() : tp::SightingQos()).Partition(tp::kEveryRobotPartition));
+  tp::Reader<ExchangeTick> ticks(p, tp::kTickTopic, tp::TickQos());
   tp::WriterPartitions map_writers(maps.raw()), sighting_writers(sightings.raw());
-  DdsOutput output(p, lease_s, self);
-  AgentNode node(scenario.agent, AgentRunFor(scenario, self), self, incarnation, output);
+  DdsOutput output(p, lease_s, self, lockstep);
+  AgentNode node(scenario.agent, run, self, incarnation, output);
   if (checkpoint) {
     node.Resume(*checkpoint);
     spdlog::info("resumed incarnation {} (t={:.1f}s, {} local and {} global landmarks, {} earlier incarnations)",
@@ -336,6 +346,7 @@ int Run(int argc, char** argv) {
   waitset.AttachReader(links.raw(), 3);
   waitset.AttachReader(maps.raw(), 4);
   waitset.AttachReader(sightings.raw(), 6);
+  waitset.AttachReader(ticks.raw(), 7);
   waitset.AttachGuard(stop, 5);
   shutdown.Watch(&stop);
   spdlog::info("up: scenario {} domain {} config {} incarnation {} liveliness lease {} s", scenario.name, po.domain,
@@ -363,6 +374,10 @@ int Run(int argc, char** argv) {
     }
     return false;
   };
+  // Exchange ticks not carried out yet (they wait for their link table or a peer's message),
+  // in the order they came.
+  std::deque<ExchangeTick> pending_ticks;
+  std::optional<std::chrono::steady_clock::time_point> tick_waiting_since;
   // Everything the readers hold, into the node.
   auto pump = [&] {
     for (const auto& s : links.Take()) {
@@ -389,6 +404,26 @@ int Run(int argc, char** argv) {
         }
       }
     }
+    for (const auto& s : ticks.Take()) {
+      if (s.valid) pending_ticks.push_back(s.value);
+    }
+    while (!pending_ticks.empty() && node.OnTick(pending_ticks.front())) {
+      pending_ticks.pop_front();
+      tick_waiting_since.reset();
+    }
+    if (pending_ticks.empty()) return;
+    // A tick that waits long: say what for (a message that never comes holds the whole run).
+    const auto now = Clock::now();
+    if (!tick_waiting_since) tick_waiting_since = now;
+    if (now - *tick_waiting_since > std::chrono::seconds(5)) {
+      const ExchangeTick& t = pending_ticks.front();
+      std::string what;
+      for (const TickPeer& m : node.Missing(t))
+        what += fmt::format(" {}.{} ({} here)", m.robot, m.incarnation, m.messages);
+      spdlog::warn("exchange tick {} ({}) waits: messages missing from{}", t.index,
+                   t.phase == TickPhase::kExchange ? "exchange" : "deliver", what.empty() ? " none" : what);
+      tick_waiting_since = now;
+    }
   };
   bool warned_left_out = false;
   const auto save_checkpoint = [&] {
@@ -410,7 +445,9 @@ int Run(int argc, char** argv) {
     pump();
     LogPeerEvents(node, peer_events, peer_events_at);
     input_watch.Check(node);
-    if (checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {
+    // In lockstep the checkpoints are taken at ticks, so that their contents do not depend on
+    // when this loop woke up; in real time every checkpoint period of processed data.
+    if (lockstep ? node.TakeCheckpointDue() : checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {
       save_checkpoint();
       WriteOutputs(node, out_dir, lost_wall, refusals, /*final=*/false);
       next_checkpoint = node.processed_until() + checkpoint_period;

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
+#include <utility>
 
 #include "common/check.h"
 #include "common/slam/dead_reckoning_mapper.h"
@@ -90,7 +92,9 @@ AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId s
                                       run.end_s + options.max_stamp_jump_s},
                      run.seed * 998244353ULL + self * 104729ULL + incarnation),
       rendezvous_(self, incarnation, run.robots, options.rendezvous, run.sensor.sigma_range_m,
-                  run.sensor.sigma_bearing_rad) {}
+                  run.sensor.sigma_bearing_rad),
+      exchange_ticks_(run.exchange_ticks),
+      next_checkpoint_s_(options.checkpoint_period_s) {}
 
 void AgentNode::OnOdometry(const Odometry& odom) { sync_.OnOdometry(odom); }
 
@@ -108,6 +112,10 @@ void AgentNode::ApplyScan(const Scan& scan, double stamp) {
 }
 
 void AgentNode::PublishSightings(const std::vector<Sighting>& out) {
+  if (exchange_ticks_) {
+    held_sightings_.insert(held_sightings_.end(), out.begin(), out.end());
+    return;
+  }
   for (const Sighting& s : out) {
     ++stats_.sightings_sent;
     stats_.sighting_bytes_sent += kSightingWireBytes;
@@ -117,6 +125,20 @@ void AgentNode::PublishSightings(const std::vector<Sighting>& out) {
 
 void AgentNode::OnSighting(const Sighting& msg) {
   if (msg.robot_id == self_ || !options_.exchange.ByRendezvous()) return;
+  if (!exchange_ticks_) return ProcessSighting(msg);
+  // A message of a tick already applied (sent again to a late reader) or before this
+  // incarnation's first is not for it; untagged ones (tick 0) wait for the next tick.
+  if (msg.tick != 0 && (msg.tick < tick_done_ || (first_tick_ && msg.tick < *first_tick_))) return;
+  if (inbox_maps_.size() + inbox_sightings_.size() >= kMaxInbox) {
+    ++stats_.inbox_full;
+    return;
+  }
+  const SightingKey key{msg.tick,  msg.robot_id,         msg.incarnation, msg.stamp, static_cast<int>(msg.kind),
+                        msg.other, msg.other_incarnation};
+  if (inbox_sightings_.emplace(key, msg).second) ++inbox_count_[{msg.tick, msg.robot_id, msg.incarnation}];
+}
+
+void AgentNode::ProcessSighting(const Sighting& msg) {
   if (!InRun(msg.robot_id) || !std::isfinite(msg.stamp) || msg.stamp > Clock() + options_.max_stamp_jump_s) {
     ++stats_.sightings_implausible;
     return;
@@ -136,16 +158,18 @@ bool AgentNode::Mapped() const { return mapper_->size() > 0; }
 void AgentNode::AfterInterval(const Odometry& odom) {
   if (sync_.frame_fixed() && options_.exchange.ByRendezvous()) {
     rendezvous_.OnPose(sync_.processed_until(), mapper_->pose(), mapper_->pose_cov());
-    PublishSightings(rendezvous_.Advance(sync_.processed_until()));
-    for (const auto& [key, fit] : rendezvous_.TakeFits()) exchange_.OnRendezvous(key, fit);
+    if (!exchange_ticks_) {  // in lockstep, at the tick
+      PublishSightings(rendezvous_.Advance(sync_.processed_until()));
+      for (const auto& [key, fit] : rendezvous_.TakeFits()) exchange_.OnRendezvous(key, fit);
+    }
   }
   // Before the frame is fixed the robot's place in it is not known yet.
   if (sync_.frame_fixed() && sync_.processed_until() + 1e-9 >= next_trajectory_s_) {
     trajectory_.push_back({sync_.processed_until(), mapper_->pose()});
     next_trajectory_s_ = sync_.processed_until() + trajectory_period_s_;
   }
-  if (sync_.processed_until() + 1e-9 >= next_map_publish_s_) {
-    PublishMaps();
+  if (!exchange_ticks_ && sync_.processed_until() + 1e-9 >= next_map_publish_s_) {
+    PublishMaps(0);
     next_map_publish_s_ = (std::floor(sync_.processed_until() / options_.exchange.map_publish_period_s + 1e-9) + 1.0) *
                           options_.exchange.map_publish_period_s;
   }
@@ -158,19 +182,20 @@ void AgentNode::AfterInterval(const Odometry& odom) {
   if (status_due) out_.PublishStatus(Status());
 }
 
-void AgentNode::PublishMaps() {
+void AgentNode::PublishMaps(std::uint32_t tick) {
   const LandmarkMap local = mapper_->Map();
   exchange_.Update(local, sync_.processed_until());
-  Publish(MapKind::kLocal, local, ++local_version_);
-  Publish(MapKind::kGlobal, exchange_.published().map, ++global_version_);
+  Publish(MapKind::kLocal, local, ++local_version_, tick);
+  Publish(MapKind::kGlobal, exchange_.published().map, ++global_version_, tick);
 }
 
-void AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version) {
+void AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version, std::uint32_t tick) {
   MapMessage msg;
   msg.robot_id = self_;
   msg.kind = kind;
   msg.incarnation = incarnation_;
   msg.version = version;
+  msg.tick = tick;
   msg.stamp = sync_.processed_until();
   msg.origin_stamp = sync_.frame_origin_stamp().value_or(0.0);
   MapDecodeError why = MapDecodeError::kOk;
@@ -210,6 +235,17 @@ double AgentNode::Clock() const { return std::max(sync_.processed_until(), gate_
 void AgentNode::OnMap(const MapMessage& msg) {
   // Our own publications echo back; an earlier incarnation of ours comes from the checkpoint.
   if (msg.robot_id == self_) return;
+  if (!exchange_ticks_) return ProcessMap(msg);
+  if (msg.tick != 0 && (msg.tick < tick_done_ || (first_tick_ && msg.tick < *first_tick_))) return;  // see OnSighting
+  if (inbox_maps_.size() + inbox_sightings_.size() >= kMaxInbox) {
+    ++stats_.inbox_full;
+    return;
+  }
+  const MapKey key{msg.tick, msg.robot_id, msg.incarnation, static_cast<int>(msg.kind), msg.version};
+  if (inbox_maps_.emplace(key, msg).second) ++inbox_count_[{msg.tick, msg.robot_id, msg.incarnation}];
+}
+
+void AgentNode::ProcessMap(const MapMessage& msg) {
   if (!InRun(msg.robot_id)) {
     ++stats_.maps_unknown_sender;
     return;
@@ -258,8 +294,96 @@ bool AgentNode::InRun(RobotId robot) const {
   return std::find(robot_ids_.begin(), robot_ids_.end(), robot) != robot_ids_.end();
 }
 
+bool AgentNode::OnTick(const ExchangeTick& tick) {
+  if (!exchange_ticks_) return true;
+  const bool listed = std::any_of(tick.peers.begin(), tick.peers.end(),
+                                  [&](const TickPeer& p) { return p.robot == self_ && p.incarnation == incarnation_; });
+  if (!listed) return true;  // a tick from before this incarnation was up
+  if (tick.phase == TickPhase::kDeliver) {
+    if (tick.index <= tick_delivered_) return true;
+    if (!Delivered(tick)) return false;
+    tick_delivered_ = tick.index;
+    out_.PublishStatus(Status());
+    return true;
+  }
+  if (tick.index <= tick_done_) return true;
+  Exchange(tick);
+  return true;
+}
+
+void AgentNode::Exchange(const ExchangeTick& tick) {
+  if (!first_tick_) first_tick_ = tick.index;
+  // The gates judge the tick's messages by the tick's link table (from the feeder, like the
+  // sensor data), whatever has come in on the links topic since.
+  if (tick.links.stamp >= 0.0) {
+    gate_.SetLinks(tick.links);
+    sighting_gate_.SetLinks(tick.links);
+  }
+  ApplyInbox(tick.index);
+  // Exactly the incarnations the tick lists are alive (after the inbox: a map of an incarnation
+  // that has died since it was published must not make it alive again).
+  std::set<PeerKey> live;
+  for (const TickPeer& p : tick.peers) live.insert({p.robot, p.incarnation});
+  exchange_.SetLive(live, sync_.processed_until());
+  if (sync_.frame_fixed() && options_.exchange.ByRendezvous()) {
+    PublishSightings(rendezvous_.Advance(sync_.processed_until()));
+    for (const auto& [key, fit] : rendezvous_.TakeFits()) exchange_.OnRendezvous(key, fit);
+  }
+  const std::uint32_t sent_before = stats_.maps_sent + stats_.sightings_sent;
+  PublishMaps(tick.index);
+  std::vector<Sighting> held = std::move(held_sightings_);
+  held_sightings_.clear();
+  for (Sighting& h : held) {
+    h.tick = tick.index;
+    ++stats_.sightings_sent;
+    stats_.sighting_bytes_sent += kSightingWireBytes;
+    out_.PublishSighting(h);
+  }
+  tick_done_ = tick.index;
+  tick_published_ = stats_.maps_sent + stats_.sightings_sent - sent_before;
+  if (options_.checkpoint_period_s > 0 && tick.stamp + 1e-9 >= next_checkpoint_s_) {
+    checkpoint_due_ = true;
+    next_checkpoint_s_ = tick.stamp + options_.checkpoint_period_s;
+  }
+  out_.PublishStatus(Status());
+}
+
+void AgentNode::ApplyInbox(std::uint32_t tick) {
+  // Untagged messages (tick 0: from outside the run's agents) are applied at the next tick too;
+  // those of ticks before this incarnation's first (a late reader gets them from the writers'
+  // history) are not for it.
+  auto due = [&](std::uint32_t t) { return t < tick; };
+  auto ours = [&](std::uint32_t t) { return t == 0 || t >= first_tick_.value_or(0); };
+  for (auto it = inbox_maps_.begin(); it != inbox_maps_.end() && due(std::get<0>(it->first));) {
+    if (ours(std::get<0>(it->first))) ProcessMap(it->second);
+    it = inbox_maps_.erase(it);
+  }
+  for (auto it = inbox_sightings_.begin(); it != inbox_sightings_.end() && due(std::get<0>(it->first));) {
+    if (ours(std::get<0>(it->first))) ProcessSighting(it->second);
+    it = inbox_sightings_.erase(it);
+  }
+  for (auto it = inbox_count_.begin(); it != inbox_count_.end() && due(std::get<0>(it->first));) {
+    it = inbox_count_.erase(it);
+  }
+}
+
+std::vector<TickPeer> AgentNode::Missing(const ExchangeTick& tick) const {
+  std::vector<TickPeer> out;
+  for (const TickPeer& p : tick.peers) {
+    if (p.robot == self_) continue;
+    const auto it = inbox_count_.find({tick.index, p.robot, p.incarnation});
+    const std::uint32_t here = it == inbox_count_.end() ? 0u : it->second;
+    if (here < p.messages) out.push_back({p.robot, p.incarnation, here});
+  }
+  return out;
+}
+
+bool AgentNode::Delivered(const ExchangeTick& tick) const { return Missing(tick).empty(); }
+
+bool AgentNode::TakeCheckpointDue() { return std::exchange(checkpoint_due_, false); }
+
 bool AgentNode::OnPeerLiveliness(RobotId robot, bool alive) {
-  if (robot == self_ || !InRun(robot)) return false;
+  if (exchange_ticks_ || robot == self_ || !InRun(robot)) return false;
   exchange_.OnPeerLiveliness(robot, alive, sync_.processed_until());
   return true;
 }
@@ -315,6 +439,9 @@ AgentStatus AgentNode::Status() const {
   s.maps_dropped = stats_.MapsDropped();
   s.bytes_sent = stats_.bytes_sent;
   s.bytes_received = stats_.bytes_received;
+  s.tick_done = tick_done_;
+  s.tick_published = tick_published_;
+  s.tick_delivered = tick_delivered_;
   return s;
 }
 

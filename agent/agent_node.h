@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <string_view>
+#include <tuple>
 #include <vector>
 
 #include "agent/agent_options.h"
@@ -48,6 +49,7 @@ struct AgentRun {
   double bandwidth_bytes_per_s = 0.0;  // radio.bandwidth_bytes_per_s (0: unlimited)
   FilterNoise noise;                   // the robot's motion model and its odometry and sensor noise
   SensorSpec sensor;                   // its sensor's range, noise and signatures
+  bool exchange_ticks = false;         // feeder.pace lockstep: peers' messages are exchanged at ticks (ExchangeTick)
 };
 
 // The local estimator the options ask for, for a robot with this noise and sensor.
@@ -95,6 +97,7 @@ struct AgentStats {
   std::uint32_t sightings_received = 0;     // peers' sightings and answers that passed the radio gate
   std::uint32_t sightings_gated = 0;        // ... that it dropped (out of range, lost, busy)
   std::uint32_t sightings_implausible = 0;  // ... refused before it: unknown sender or a stamp ahead of ours
+  std::uint32_t inbox_full = 0;             // lockstep: peers' messages dropped on arrival, the inbox holding kMaxInbox
   std::uint32_t MapsRejected() const;
   // Encoded bytes per landmark sent (header included), 0 before anything was sent.
   double BytesPerLandmark() const;
@@ -115,8 +118,25 @@ class AgentNode : private SensorSync::Sink {
   // A peer's robot sighting or answer (rendezvous): through the radio gate to the tracker.
   void OnSighting(const Sighting& msg);
   // A peer's map writer came back (alive) or went away (liveliness lost or disposed).
-  // Returns false, and does nothing, for the agent itself and robots not in the scenario.
+  // Returns false, and does nothing, for the agent itself and robots not in the scenario, and
+  // in lockstep (exchange_ticks: the ticks say who is alive).
   bool OnPeerLiveliness(RobotId robot, bool alive);
+  // Lockstep (exchange_ticks): peers' maps and sightings wait in an inbox from their arrival;
+  // this agent's own go out only at ticks. An exchange tick that lists this incarnation applies
+  // the inbox's messages of earlier ticks (of this incarnation's ticks; untagged ones too) in a
+  // fixed order (tick, robot, incarnation, kind, version; then the sightings), makes the listed
+  // incarnations the live ones, updates the exchange and publishes the maps and held sightings,
+  // tagged; the gates use the tick's link table. A deliver tick checks that the inbox holds
+  // every message the tick lists: it returns false while one has not arrived (the caller tries
+  // again as messages come in). A tick carried out, or not for this incarnation, returns true;
+  // outside lockstep, every tick does.
+  bool OnTick(const ExchangeTick& tick);
+  // Lockstep: for a deliver tick, each listed peer incarnation whose messages have not all
+  // arrived, with how many it sent and how many are here (messages).
+  std::vector<TickPeer> Missing(const ExchangeTick& tick) const;
+  // Lockstep: a tick crossed a checkpoint period (agent.checkpoint_period_s) since the last
+  // time this returned true.
+  bool TakeCheckpointDue();
   // Re-merges what earlier incarnations of this agent knew (from its checkpoint). The
   // checkpoint must be this robot's, from other incarnations than this one: io::LoadCheckpoint
   // refuses any other, so a violation is a programming error (checked).
@@ -155,8 +175,17 @@ class AgentNode : private SensorSync::Sink {
   bool Mapped() const override;
   void IntervalDone(const Odometry& odom) override;
   void AfterInterval(const Odometry& odom);
-  void PublishMaps();
-  void Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version);
+  // Updates the exchange and publishes both maps, tagged with the exchange tick (0: none).
+  void PublishMaps(std::uint32_t tick);
+  void Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version, std::uint32_t tick);
+  // A peer's map or sighting through the gates into the exchange (at once, or at a tick).
+  void ProcessMap(const MapMessage& msg);
+  void ProcessSighting(const Sighting& msg);
+  // The exchange phase of a tick, its link table present (OnTick).
+  void Exchange(const ExchangeTick& tick);
+  // The inbox's messages of ticks before `tick`, in order, into the exchange; the rest stay.
+  void ApplyInbox(std::uint32_t tick);
+  bool Delivered(const ExchangeTick& tick) const;
   // Whether the robot is one of this run's.
   bool InRun(RobotId robot) const;
   // The scenario time as far as this agent can tell: its own progress, or the link table's
@@ -181,8 +210,26 @@ class AgentNode : private SensorSync::Sink {
   MapExchange exchange_;
   RadioGate sighting_gate_;  // the radio gate for sightings: its own loss draws, so maps see the same ones
   RendezvousTracker rendezvous_;
-  // Publishes sightings and answers (when the run aligns by rendezvous).
+  // Publishes sightings and answers (when the run aligns by rendezvous); in lockstep holds them
+  // for the next tick.
   void PublishSightings(const std::vector<Sighting>& out);
+
+  // Lockstep exchange (OnTick).
+  bool exchange_ticks_ = false;
+  // The inbox, in the order messages are applied: maps by (tick, robot, incarnation, kind,
+  // version), sightings by (tick, robot, incarnation, stamp, kind, other, other incarnation); a
+  // message that arrives twice (a late reader gets a writer's history) is kept once.
+  using MapKey = std::tuple<std::uint32_t, RobotId, std::uint32_t, int, std::uint32_t>;
+  using SightingKey = std::tuple<std::uint32_t, RobotId, std::uint32_t, double, int, RobotId, std::uint32_t>;
+  static constexpr std::size_t kMaxInbox = 1 << 16;
+  std::map<MapKey, MapMessage> inbox_maps_;
+  std::map<SightingKey, Sighting> inbox_sightings_;
+  std::map<std::tuple<std::uint32_t, RobotId, std::uint32_t>, std::uint32_t> inbox_count_;  // per tick and sender
+  std::vector<Sighting> held_sightings_;     // own sightings and answers, to go out at the next tick
+  std::optional<std::uint32_t> first_tick_;  // the first exchange tick of this incarnation
+  std::uint32_t tick_done_ = 0, tick_published_ = 0, tick_delivered_ = 0;
+  double next_checkpoint_s_ = 0.0;
+  bool checkpoint_due_ = false;
 };
 
 }  // namespace mapmesh

@@ -113,7 +113,9 @@ int Run(int argc, char** argv) {
   tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
   const tp::Participant& p = session.participant();
   const double lease_s = loaded->agent.LivelinessLeaseS(loaded->robots.size());
-  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQos(lease_s).Partition(tp::kEveryRobotPartition));
+  // The run's map QoS: in lockstep the agents' readers are reliable and transient-local.
+  const bool lockstep = loaded->feeder.pace == Pace::kLockstep;
+  tp::Reader<MapMessage> maps(p, tp::kMapTopic, tp::MapQosFor(lockstep, lease_s).Partition(tp::kEveryRobotPartition));
   tp::Reader<AgentStatus> status(p, tp::kStatusTopic, tp::StatusQos(lease_s).Partition(tp::kEveryRobotPartition));
   // Writers for every robot are made up front (so that readers have matched them before the
   // first message). Under DDS Security a participant's own permissions may forbid one
@@ -141,8 +143,8 @@ int Run(int argc, char** argv) {
   }
   for (RobotId part : partitions) {
     make(out[part], map_topic(part), [&] {
-      return std::make_unique<tp::Writer<MapMessage>>(p, tp::kMapTopic,
-                                                      tp::MapQos(lease_s).Partition(tp::RobotPartition(part)));
+      return std::make_unique<tp::Writer<MapMessage>>(
+          p, tp::kMapTopic, tp::MapQosFor(lockstep, lease_s).Partition(tp::RobotPartition(part)));
     });
   }
   make(links, tp::kLinksTopic,

@@ -89,6 +89,21 @@ void MapExchange::OnPeerLiveliness(RobotId robot, bool alive, double now) {
   }
 }
 
+void MapExchange::SetLive(const std::set<PeerKey>& live, double now) {
+  for (auto& [key, p] : peers_) {
+    if (p.report.own_checkpoint) continue;
+    const bool alive = live.count(key) > 0;
+    if (!alive && !p.report.stale) {
+      p.report.stale = true;
+      p.report.stale_since = now;
+    } else if (alive) {
+      p.report.stale = false;
+    }
+    p.report.frozen = p.Frozen();
+    p.report.silent = Silent(p, now);
+  }
+}
+
 void MapExchange::AddOwnCheckpoint(std::uint32_t incarnation, double origin_stamp, LandmarkMap local,
                                    LandmarkMap global) {
   PeerState& p = peers_[{self_, incarnation}];

@@ -42,6 +42,9 @@ class MapExchange {
                     LandmarkMap map, double now);
   // The peer's writer came back (true) or went away (false): every incarnation of the robot.
   void OnPeerLiveliness(RobotId robot, bool alive, double now);
+  // Lockstep: exactly these peer incarnations are alive (an exchange tick's list); every other
+  // one is stale.
+  void SetLive(const std::set<PeerKey>& live, double now);
   // A rendezvous fit of a peer frame (rendezvous_tracker.h), weighed in the next Update of an
   // unaligned peer: verified against the maps at the fit (VerifyAlignment), it aligns the peer
   // when they match there; where they do not, or overlap too little to tell, it is refused

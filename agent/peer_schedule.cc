@@ -20,12 +20,13 @@ bool AttemptDue(const PeerFacts& f, std::size_t own_size, double now, const Exch
   return f.silent && own_size != f.own_size_at_attempt;
 }
 
-// An aligned peer's fresh alignment is due. A stale peer's contribution stays as it was
-// verified (its map will not change); a silent one's may still be corrected. An answer that
+// An aligned peer's fresh alignment is due. A stale or silent peer's map will not change, but
+// ours grows: an answer on the larger map may still correct where it is placed (a dead robot's
+// map is a fact that stays, and is placed better as we learn more). An answer that
 // disagreed with the transform in use waits for a second one to confirm it: that one is due as
 // soon as either map changed, not only after the next fifth of growth (which may never come).
 bool RealignDue(const PeerFacts& f, std::size_t own_size, double now, const ExchangeOptions& o) {
-  if (!o.test_only.realign_on_growth || f.stale || now - f.last_attempt < o.align_period_s) return false;
+  if (!o.test_only.realign_on_growth || now - f.last_attempt < o.align_period_s) return false;
   if (f.awaiting_confirmation && (f.changed || own_size != f.own_size_at_attempt)) return true;
   return Grew(own_size, f.own_size_at_attempt, o) || Grew(f.map_size, f.map_size_at_attempt, o);
 }

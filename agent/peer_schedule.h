@@ -11,7 +11,8 @@
 //   or sooner while a disagreeing answer awaits confirmation; then, when it sent a newer map or
 //   its global map's turn as a relay came, its map is verified at the known transform (a verify
 //   turn); otherwise its transform is refined on our map every refine_period_s (a refine turn).
-//   A stale peer's contribution stays as it was verified.
+//   A stale peer sends nothing more: its map is not verified or refined again, but it is still
+//   aligned afresh as ours grows.
 // - Full alignments (align and realign turns) are budgeted: max_alignments_per_update, round
 //   robin from the first peer left without one it was due. Relays (newer global maps) are
 //   judged at most max_relay_checks_per_update, and fewer when judging them would compare more

@@ -40,6 +40,11 @@ class RadioGate {
   // Replaces the link table at the agent's scenario time `now` (an older table is ignored; an
   // implausible one refused or held: see above).
   LinksReceipt UpdateLinks(const RadioLinks& links, double now);
+  // Uses this table whatever it is (lockstep: the exchange tick's, from the feeder).
+  void SetLinks(const RadioLinks& links) {
+    held_.reset();
+    Use(links);
+  }
   // Tables refused as implausible so far (held ones nothing confirmed included).
   std::uint32_t links_refused() const { return links_refused_; }
   // Decides the fate of one message of `bytes` from `sender` sent at scenario time `stamp`.

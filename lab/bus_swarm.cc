@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <memory>
 
 #include "agent/agent_setup.h"
+#include "common/check.h"
 #include "common/metrics/agent_evaluation.h"
 #include "common/metrics/trajectory_metrics.h"
 #include "sim_feeder/sources.h"
@@ -66,47 +68,25 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
   std::map<RobotId, std::uint64_t> sampled_update;
   const std::vector<Eigen::Vector2d>& landmark_truth = feed.source->Truth().landmarks;
   BusSwarmResult result;
-
-  while (!feed.source->Done()) {
-    FeedBatch b = feed.source->Next();
-    const double t = b.stamp;
-    for (; next_kill < kills.size() && kills[next_kill].first <= t; ++next_kill) {
-      Slot& s = slots.at(kills[next_kill].second);
-      if (!s.alive) continue;
-      s.alive = false;
-      latest.erase({s.id, MapKind::kLocal});  // a dead writer's data goes with it
-      latest.erase({s.id, MapKind::kGlobal});
-      for (auto& [id, other] : slots) {
-        if (other.alive) other.node->OnPeerLiveliness(s.id, false);
-      }
+  auto Kill = [&](RobotId robot) {
+    Slot& s = slots.at(robot);
+    if (!s.alive) return;
+    s.alive = false;
+    latest.erase({s.id, MapKind::kLocal});  // a dead writer's data goes with it
+    latest.erase({s.id, MapKind::kGlobal});
+    for (auto& [id, other] : slots) {
+      if (other.alive) other.node->OnPeerLiveliness(s.id, false);
     }
-    for (; next_restart < restarts.size() && restarts[next_restart].first <= t; ++next_restart) {
-      Slot& s = slots.at(restarts[next_restart].second);
-      if (s.alive) continue;
-      launch(s);
-      if (links) s.node->OnLinks(*links);
-      for (const auto& [key, msg] : latest) s.node->OnMap(msg);
-    }
-    if (b.links) {
-      links = b.links;
-      for (auto& [id, s] : slots) {
-        if (s.alive) s.node->OnLinks(*b.links);
-      }
-    }
-    for (const Scan& scan : b.scans) {
-      Slot& s = slots.at(scan.robot_id);
-      if (s.alive) s.node->OnScan(scan);
-    }
-    for (const Odometry& od : b.odom) {
-      Slot& s = slots.at(od.robot_id);
-      if (s.alive) s.node->OnOdometry(od);
-    }
-    for (const GroundTruth& g : b.truth) truth[g.robot_id].push_back(g);
-    for (auto& [id, s] : slots) {
-      if (!s.alive || checkpoint_period <= 0 || s.node->processed_until() + 1e-9 < s.next_checkpoint_s) continue;
-      s.checkpoint = s.node->Checkpoint();
-      s.next_checkpoint_s = s.node->processed_until() + checkpoint_period;
-    }
+  };
+  auto Restart = [&](RobotId robot) {
+    Slot& s = slots.at(robot);
+    if (s.alive) return;
+    launch(s);
+    if (links) s.node->OnLinks(*links);
+    for (const auto& [key, msg] : latest) s.node->OnMap(msg);  // a late joiner's history (transient-local)
+  };
+  // The worst transform each agent used for each peer frame, sampled after each exchange update.
+  auto SampleAlignments = [&]() {
     for (auto& [id, s] : slots) {
       if (landmark_truth.empty() || !s.alive || s.node->exchange().updates() == sampled_update[id]) continue;
       sampled_update[id] = s.node->exchange().updates();
@@ -126,11 +106,28 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
         w.rotation_rad = std::max(w.rotation_rad, e.rotation_rad);
       }
     }
-    // Deliver, in robot order, everything published in this step.
+  };
+
+  // The lockstep exchange (messages.h ExchangeTick) as the feeder runs it: at the batch that
+  // crosses an exchange point, every live agent's exchange phase, the messages delivered, and
+  // the deliver phase; then the kills and restarts of that batch (the feeder's holds).
+  const bool ticks = sc.feeder.pace == Pace::kLockstep;
+  const double exchange_period = sc.agent.exchange.map_publish_period_s;
+  double next_exchange = exchange_period;
+  auto tick_for = [&](double t) -> std::optional<std::uint32_t> {
+    if (!ticks || t + 1e-9 < next_exchange) return std::nullopt;
+    const double k = std::floor((t + 1e-9) / exchange_period);
+    next_exchange = (k + 1.0) * exchange_period;
+    return static_cast<std::uint32_t>(k);
+  };
+  // Delivers what the agents published, in robot order: maps, then sightings.
+  auto deliver = [&]() {
+    std::map<std::pair<RobotId, std::uint32_t>, std::uint32_t> sent;
     std::vector<MapMessage> bus;
     for (auto& [id, s] : slots) {
       if (!s.out) continue;
       bus.insert(bus.end(), s.out->maps.begin(), s.out->maps.end());
+      sent[{id, s.incarnation}] += static_cast<std::uint32_t>(s.out->maps.size());
       s.out->maps.clear();
     }
     for (const MapMessage& m : bus) {
@@ -142,6 +139,7 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
     std::vector<Sighting> sightings;
     for (auto& [id, s] : slots) {
       if (!s.out) continue;
+      sent[{id, s.incarnation}] += static_cast<std::uint32_t>(s.out->sightings.size());
       if (o.sightings_withheld.count(id)) s.out->sightings.clear();
       for (Sighting m : s.out->sightings) {
         if (const auto off = o.sighting_offsets.find(id); off != o.sighting_offsets.end()) {
@@ -157,6 +155,75 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
         if (s.alive && id != m.robot_id) s.node->OnSighting(m);
       }
     }
+    return sent;
+  };
+  auto exchange = [&](std::uint32_t k) {
+    ExchangeTick tick;
+    tick.index = k;
+    tick.stamp = k * exchange_period;
+    tick.links = links ? *links : RadioLinks{-1.0, {}};
+    for (auto& [id, s] : slots) {
+      if (s.alive) tick.peers.push_back({id, s.incarnation, 0});
+    }
+    for (auto& [id, s] : slots) {
+      if (s.alive) MAPMESH_CHECK(s.node->OnTick(tick), "the bus delivers every link table at once");
+    }
+    const auto sent = deliver();
+    tick.phase = TickPhase::kDeliver;
+    for (TickPeer& p : tick.peers) {
+      const auto it = sent.find({p.robot, p.incarnation});
+      p.messages = it == sent.end() ? 0 : it->second;
+    }
+    // The sightings a test withholds never arrive: the others are not told to wait for them.
+    for (TickPeer& p : tick.peers) {
+      if (o.sightings_withheld.count(p.robot)) p.messages = 0;
+    }
+    for (auto& [id, s] : slots) {
+      if (!s.alive) continue;
+      MAPMESH_CHECK(s.node->OnTick(tick), "the bus delivers every message at once");
+      if (s.node->TakeCheckpointDue()) s.checkpoint = s.node->Checkpoint();
+    }
+  };
+
+  while (!feed.source->Done()) {
+    FeedBatch b = feed.source->Next();
+    const double t = b.stamp;
+    if (!ticks) {  // in real time the writer's liveliness tells the others at once
+      for (; next_kill < kills.size() && kills[next_kill].first <= t; ++next_kill) Kill(kills[next_kill].second);
+      for (; next_restart < restarts.size() && restarts[next_restart].first <= t; ++next_restart)
+        Restart(restarts[next_restart].second);
+    }
+    if (b.links) {
+      links = b.links;
+      for (auto& [id, s] : slots) {
+        if (s.alive) s.node->OnLinks(*b.links);
+      }
+    }
+    for (const Scan& scan : b.scans) {
+      Slot& s = slots.at(scan.robot_id);
+      if (s.alive) s.node->OnScan(scan);
+    }
+    for (const Odometry& od : b.odom) {
+      Slot& s = slots.at(od.robot_id);
+      if (s.alive) s.node->OnOdometry(od);
+    }
+    for (const GroundTruth& g : b.truth) truth[g.robot_id].push_back(g);
+    for (auto& [id, s] : slots) {
+      if (ticks || !s.alive || checkpoint_period <= 0 || s.node->processed_until() + 1e-9 < s.next_checkpoint_s)
+        continue;
+      s.checkpoint = s.node->Checkpoint();
+      s.next_checkpoint_s = s.node->processed_until() + checkpoint_period;
+    }
+    if (const std::optional<std::uint32_t> k = tick_for(t)) exchange(*k);
+    SampleAlignments();
+    if (!ticks) {
+      deliver();
+      continue;
+    }
+    // The feeder's holds: after the batch's barrier and its exchange tick.
+    for (; next_kill < kills.size() && kills[next_kill].first <= t; ++next_kill) Kill(kills[next_kill].second);
+    for (; next_restart < restarts.size() && restarts[next_restart].first <= t; ++next_restart)
+      Restart(restarts[next_restart].second);
   }
 
   const WorldTruth& world = feed.source->Truth();

@@ -102,6 +102,7 @@ struct Channels {
   Channels(const tp::Participant& p, const Scenario& sc)
       : links(p, tp::kLinksTopic, tp::LinksQos()),
         truth(p, tp::kTruthTopic, tp::TruthQos()),
+        ticks(p, tp::kTickTopic, tp::TickQos()),
         status(p, tp::kStatusTopic,
                tp::StatusQos(sc.agent.LivelinessLeaseS(sc.robots.size())).Partition(tp::kEveryRobotPartition)),
         status_writers(status.raw()) {
@@ -120,6 +121,7 @@ struct Channels {
   std::map<RobotId, std::unique_ptr<tp::Writer<Scan>>> scan;
   tp::Writer<RadioLinks> links;
   tp::Writer<GroundTruth> truth;
+  tp::Writer<ExchangeTick> ticks;
   tp::Reader<AgentStatus> status;
   tp::WriterPartitions status_writers;  // a status counts only from its robot's partition
 };
@@ -176,9 +178,16 @@ class Feeder {
   // Lockstep barrier: waits until every up agent has processed what was published to it.
   void WaitForBarrier() {
     pacer_.BeginBarrier(WallNow());
+    double next_note = WallNow() + 10.0;
     while (true) {
       Pump();
       const LockstepPacer::BarrierPoll poll = pacer_.PollBarrier(WallNow());
+      if (!poll.done && WallNow() >= next_note) {
+        std::string who;
+        for (RobotId id : poll.waiting) who += (who.empty() ? "" : ",") + std::to_string(id);
+        spdlog::warn("barrier: still waiting for agents {} to process what was sent them", who);
+        next_note = WallNow() + 10.0;
+      }
       for (RobotId id : poll.stalled) {
         spdlog::error("agent {} made no progress for {:.0f} s; no longer waiting for it", id,
                       pacer_.options().stall_timeout_s);
@@ -186,6 +195,15 @@ class Feeder {
       if (poll.done) return;
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
+  }
+
+  // The exchange tick of an exchange point (messages.h ExchangeTick): its exchange phase, then
+  // its deliver phase, each sent and waited for until every live agent has answered.
+  void Exchange(std::uint32_t index, double stamp) {
+    ch_.ticks.Write(pacer_.BeginExchange(index, stamp, links_, WallNow()));
+    WaitForTick();
+    ch_.ticks.Write(pacer_.BeginDeliver(WallNow()));
+    WaitForTick();
   }
 
   // Stops at a hold point until the launcher says continue, then waits for restarted agents.
@@ -200,6 +218,12 @@ class Feeder {
       spdlog::error("restarted agent {} did not come up within {:.0f} s", id, sc_.feeder.startup_timeout_s);
       pacer_.GiveUp(id);
     }
+  }
+
+  // Sends a link table (the latest goes with the next exchange tick).
+  void Publish(const RadioLinks& l) {
+    ch_.links.Write(l);
+    links_ = l;
   }
 
   void Publish(const Odometry& o) {
@@ -247,9 +271,32 @@ class Feeder {
     }
   }
 
+  void WaitForTick() {
+    double next_note = WallNow() + 10.0;
+    while (true) {
+      Pump();
+      const LockstepPacer::TickPoll poll = pacer_.PollTick(WallNow());
+      if (!poll.done && WallNow() >= next_note) {
+        std::string who;
+        for (RobotId id : poll.waiting) who += (who.empty() ? "" : ",") + std::to_string(id);
+        spdlog::warn("exchange tick {} ({}): still waiting for agents {}", pacer_.tick().index,
+                     pacer_.tick().phase == TickPhase::kExchange ? "exchange" : "deliver", who);
+        next_note = WallNow() + 10.0;
+      }
+      for (RobotId id : poll.stalled) {
+        spdlog::error("agent {} did not answer exchange tick {} for {:.0f} s; no longer waiting for it", id,
+                      pacer_.tick().index, pacer_.options().stall_timeout_s);
+      }
+      if (poll.reissue) ch_.ticks.Write(pacer_.BeginDeliver(WallNow()));
+      if (poll.done) return;
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+  }
+
   const Scenario& sc_;
   Channels& ch_;
   LockstepPacer& pacer_;
+  RadioLinks links_{-1.0, {}};
   ControlInput& control_;
   tp::ShutdownSignal& shutdown_;
   bool events_;
@@ -346,7 +393,10 @@ int Run(int argc, char** argv) {
   tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
   Channels ch(session.participant(), sc);
   const bool lockstep = sc.feeder.pace == Pace::kLockstep;
-  LockstepPacer pacer(ids, {lockstep, sc.feeder.lockstep_window_s, stall_timeout_s, holds}, StateOf);
+  LockstepPacer pacer(ids,
+                      {lockstep, sc.feeder.lockstep_window_s, stall_timeout_s, holds,
+                       lockstep ? sc.agent.exchange.map_publish_period_s : 0.0},
+                      StateOf);
   ControlInput control(control_enabled);
   shutdown.Watch(nullptr);
   Feeder feeder(sc, ch, pacer, control, shutdown, events);
@@ -384,7 +434,7 @@ int Run(int argc, char** argv) {
           std::this_thread::sleep_until(std::min(due, Clock::now() + std::chrono::milliseconds(20)));
         }
       }
-      if (b.links) ch.links.Write(*b.links);
+      if (b.links) feeder.Publish(*b.links);
       for (const Scan& s : b.scans) {
         feeder.Publish(s);
         record.CountSent(s);
@@ -396,6 +446,9 @@ int Run(int argc, char** argv) {
       if (!pacer.IsBarrier(b.stamp, last)) continue;
       for (const Odometry& o : pacer.CloseWindow(b.stamp)) publish_odom(o);
       if (lockstep) feeder.WaitForBarrier();
+      if (const std::optional<std::uint32_t> k = pacer.ExchangeDue(b.stamp)) {
+        feeder.Exchange(*k, *k * sc.agent.exchange.map_publish_period_s);
+      }
       feeder.Pump();
       if (Clock::now() - last_progress > std::chrono::milliseconds(500) || last) {
         feeder.Emit(feeder.Progress(b.stamp));

@@ -1,6 +1,8 @@
 #include "sim_feeder/lockstep_pacer.h"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <utility>
 
 namespace mapmesh {
@@ -13,7 +15,9 @@ LockstepPacer::LockstepPacer(const std::vector<RobotId>& ids, Options options, P
       probe_(std::move(probe)),
       tracker_(ids),
       holds_(options_.holds),
-      next_barrier_(options_.window_s) {
+      next_barrier_(options_.window_s),
+      next_exchange_(options_.lockstep && options_.exchange_period_s > 0 ? options_.exchange_period_s
+                                                                         : std::numeric_limits<double>::infinity()) {
   std::sort(holds_.begin(), holds_.end());
   for (RobotId id : ids) matches_at_restart_[id] = 0;
 }
@@ -94,7 +98,8 @@ std::optional<Odometry> LockstepPacer::Admit(const Odometry& o) {
 }
 
 bool LockstepPacer::IsBarrier(double stamp, bool last) const {
-  return last || stamp + kStampEps >= next_barrier_ || (!holds_.empty() && stamp + kStampEps >= holds_.front());
+  return last || stamp + kStampEps >= next_barrier_ || stamp + kStampEps >= next_exchange_ ||
+         (!holds_.empty() && stamp + kStampEps >= holds_.front());
 }
 
 std::vector<Odometry> LockstepPacer::CloseWindow(double stamp) {
@@ -146,6 +151,7 @@ LockstepPacer::BarrierPoll LockstepPacer::PollBarrier(double wall_now) {
     poll.done = true;
     return poll;
   }
+  poll.waiting = lagging;
   // Progress: the sum of what the lagging agents have processed grows. A stopped agent is
   // not stalled: it is waited for as long as it is stopped.
   double sum = 0.0;
@@ -163,6 +169,86 @@ LockstepPacer::BarrierPoll LockstepPacer::PollBarrier(double wall_now) {
     for (RobotId id : lagging) GiveUp(id);
     poll.stalled = lagging;
     poll.done = true;
+  }
+  return poll;
+}
+
+std::optional<std::uint32_t> LockstepPacer::ExchangeDue(double stamp) {
+  if (stamp + kStampEps < next_exchange_) return std::nullopt;
+  const double k = std::floor((stamp + kStampEps) / options_.exchange_period_s);
+  next_exchange_ = (k + 1.0) * options_.exchange_period_s;
+  return static_cast<std::uint32_t>(k);
+}
+
+ExchangeTick LockstepPacer::BeginExchange(std::uint32_t index, double stamp, const RadioLinks& links, double wall_now) {
+  tick_ = ExchangeTick{};
+  tick_.index = index;
+  tick_.stamp = stamp;
+  tick_.phase = TickPhase::kExchange;
+  tick_.links = links;
+  for (const AgentStatus& s : tracker_.Statuses()) {
+    if (tracker_.IsUp(s.robot_id) || tracker_.IsSilent(s.robot_id))
+      tick_.peers.push_back({s.robot_id, s.incarnation, 0});
+  }
+  tick_begun_at_ = wall_now;
+  return tick_;
+}
+
+std::vector<TickPeer> LockstepPacer::LiveListed() const {
+  std::vector<TickPeer> out;
+  for (const TickPeer& p : tick_.peers) {
+    if (!tracker_.IsDead(p.robot)) out.push_back(p);
+  }
+  return out;
+}
+
+ExchangeTick LockstepPacer::BeginDeliver(double wall_now) {
+  tick_.phase = TickPhase::kDeliver;
+  tick_.links = RadioLinks{-1.0, {}};  // only the exchange phase's gates use it
+  tick_.peers = LiveListed();
+  for (TickPeer& p : tick_.peers) {
+    for (const AgentStatus& s : tracker_.Statuses()) {
+      if (s.robot_id == p.robot && s.incarnation == p.incarnation && s.tick_done == tick_.index)
+        p.messages = s.tick_published;
+    }
+  }
+  tick_begun_at_ = wall_now;
+  return tick_;
+}
+
+LockstepPacer::TickPoll LockstepPacer::PollTick(double wall_now) {
+  TickPoll poll;
+  const std::vector<TickPeer> live = LiveListed();
+  if (tick_.phase == TickPhase::kDeliver && live.size() < tick_.peers.size()) {
+    poll.reissue = true;  // what a dead agent published may never arrive
+    return poll;
+  }
+  std::vector<RobotId> lagging;
+  for (const TickPeer& p : live) {
+    bool answered = false;
+    for (const AgentStatus& s : tracker_.Statuses()) {
+      if (s.robot_id != p.robot || s.incarnation != p.incarnation) continue;
+      answered = (tick_.phase == TickPhase::kExchange ? s.tick_done : s.tick_delivered) >= tick_.index;
+    }
+    if (!answered) lagging.push_back(p.robot);
+  }
+  if (lagging.empty()) {
+    poll.done = true;
+    return poll;
+  }
+  poll.waiting = lagging;
+  // A stopped agent is waited for as long as it is stopped.
+  const bool stopped = std::any_of(lagging.begin(), lagging.end(), [&](RobotId id) {
+    const std::optional<int> pid = tracker_.process(id);
+    return pid && probe_(*pid) == ProcessState::kStopped;
+  });
+  if (stopped) {
+    tick_begun_at_ = wall_now;
+  } else if (wall_now - tick_begun_at_ > options_.stall_timeout_s) {
+    for (RobotId id : lagging) GiveUp(id);
+    poll.stalled = lagging;
+    poll.done = tick_.phase == TickPhase::kExchange;
+    poll.reissue = !poll.done;
   }
   return poll;
 }

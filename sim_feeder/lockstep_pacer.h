@@ -40,6 +40,7 @@ class LockstepPacer {
     double window_s = 1.0;           // feeder.lockstep_window_s
     double stall_timeout_s = 120.0;  // wall seconds without progress before an agent is given up
     std::vector<double> holds;       // scenario times to stop at until the launcher continues
+    double exchange_period_s = 0.0;  // lockstep: agent.map_publish_period_s, the exchange points (0: none)
   };
   LockstepPacer(const std::vector<RobotId>& ids, Options options, ProcessProbe probe);
 
@@ -88,10 +89,34 @@ class LockstepPacer {
   struct BarrierPoll {
     bool done = false;
     std::vector<RobotId> stalled;  // given up at this poll (then done)
+    std::vector<RobotId> waiting;  // not done: the agents that have not processed what was sent them
   };
   BarrierPoll PollBarrier(double wall_now);
   // Agents that failed to come up or stalled: no longer waited for.
   void GiveUp(RobotId id);
+
+  // --- The lockstep exchange (messages.h ExchangeTick). Exchange points are every
+  // exchange_period_s of scenario time; each closes a window. After the barrier of the batch that
+  // crosses one, the exchange phase, then the deliver phase (each polled until done), then the
+  // holds.
+  // The tick of the batch at `stamp`: the index of the last exchange point it crosses, when it
+  // crosses one not ticked yet.
+  std::optional<std::uint32_t> ExchangeDue(double stamp);
+  // The exchange phase of tick `index` at scenario time `stamp` with the latest link table: every
+  // agent up or silent listed with its incarnation.
+  ExchangeTick BeginExchange(std::uint32_t index, double stamp, const RadioLinks& links, double wall_now);
+  // The deliver phase: each listed agent still alive, with what it published at the tick.
+  ExchangeTick BeginDeliver(double wall_now);
+  struct TickPoll {
+    bool done = false;
+    bool reissue = false;          // deliver: a listed agent died; send the phase again (BeginDeliver)
+    std::vector<RobotId> stalled;  // given up at this poll (no answer for stall_timeout_s)
+    std::vector<RobotId> waiting;  // not done: the listed agents that have not answered
+  };
+  // Done when every listed agent still alive has answered the phase begun last (its status
+  // reports the tick done, or delivered).
+  TickPoll PollTick(double wall_now);
+  const ExchangeTick& tick() const { return tick_; }
 
   const AgentTracker& tracker() const { return tracker_; }
   const Options& options() const { return options_; }
@@ -113,6 +138,11 @@ class LockstepPacer {
   double startup_deadline_ = 0.0;
   double barrier_best_ = -1.0;      // the lagging agents' summed progress at the last advance
   double barrier_progress_at_ = 0;  // wall time of that advance
+  double next_exchange_;            // the next exchange point (infinite: none)
+  ExchangeTick tick_;               // the phase begun last
+  double tick_begun_at_ = 0.0;      // wall time it began
+  // Listed agents still alive (not dead; a stalled one is given up and so dead).
+  std::vector<TickPeer> LiveListed() const;
 };
 
 }  // namespace mapmesh

@@ -81,6 +81,7 @@ mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch&) {
   m.version = v.version;
   m.stamp = v.stamp;
   m.origin_stamp = v.origin_stamp;
+  m.tick = v.tick;
   m.payload._maximum = static_cast<std::uint32_t>(v.payload.size());
   m.payload._length = static_cast<std::uint32_t>(v.payload.size());
   m.payload._buffer = const_cast<std::uint8_t*>(v.payload.data());
@@ -96,6 +97,7 @@ MapMessage FromMsg(const mapmesh_msg_MapMessage& m) {
   v.version = m.version;
   v.stamp = m.stamp;
   v.origin_stamp = m.origin_stamp;
+  v.tick = m.tick;
   if (m.payload._length > 0) v.payload.assign(m.payload._buffer, m.payload._buffer + m.payload._length);
   return v;
 }
@@ -117,6 +119,9 @@ mapmesh_msg_AgentStatus ToMsg(const AgentStatus& v, MsgScratch& scratch) {
   m.bytes_received = v.bytes_received;
   m.peers_aligned = Borrow<dds_sequence_uint32>(scratch.ids);
   m.peers_stale = Borrow<dds_sequence_uint32>(scratch.ids2);
+  m.tick_done = v.tick_done;
+  m.tick_published = v.tick_published;
+  m.tick_delivered = v.tick_delivered;
   return m;
 }
 
@@ -135,6 +140,9 @@ AgentStatus FromMsg(const mapmesh_msg_AgentStatus& m) {
   s.bytes_received = m.bytes_received;
   s.peers_aligned.assign(m.peers_aligned._buffer, m.peers_aligned._buffer + m.peers_aligned._length);
   s.peers_stale.assign(m.peers_stale._buffer, m.peers_stale._buffer + m.peers_stale._length);
+  s.tick_done = m.tick_done;
+  s.tick_published = m.tick_published;
+  s.tick_delivered = m.tick_delivered;
   return s;
 }
 
@@ -154,6 +162,7 @@ mapmesh_msg_Sighting ToMsg(const Sighting& v, MsgScratch&) {
   m.bearing = v.bearing;
   m.sigma_range = v.sigma_range;
   m.sigma_bearing = v.sigma_bearing;
+  m.tick = v.tick;
   return m;
 }
 
@@ -173,6 +182,32 @@ Sighting FromMsg(const mapmesh_msg_Sighting& m) {
   v.bearing = m.bearing;
   v.sigma_range = m.sigma_range;
   v.sigma_bearing = m.sigma_bearing;
+  v.tick = m.tick;
+  return v;
+}
+
+mapmesh_msg_ExchangeTick ToMsg(const ExchangeTick& v, MsgScratch& scratch) {
+  scratch.tick_peers.clear();
+  for (const TickPeer& p : v.peers) scratch.tick_peers.push_back({p.robot, p.incarnation, p.messages});
+  mapmesh_msg_ExchangeTick m{};
+  m.index = v.index;
+  m.stamp = v.stamp;
+  m.phase = static_cast<std::uint8_t>(v.phase);
+  m.links = ToMsg(v.links, scratch);
+  m.peers = Borrow<dds_sequence_mapmesh_msg_TickPeer>(scratch.tick_peers);
+  return m;
+}
+
+ExchangeTick FromMsg(const mapmesh_msg_ExchangeTick& m) {
+  ExchangeTick v;
+  v.index = m.index;
+  v.stamp = m.stamp;
+  v.phase = m.phase == 1 ? TickPhase::kDeliver : TickPhase::kExchange;
+  v.links = FromMsg(m.links);
+  for (std::uint32_t i = 0; i < m.peers._length; ++i) {
+    const auto& p = m.peers._buffer[i];
+    v.peers.push_back({p.robot, p.incarnation, p.messages});
+  }
   return v;
 }
 

@@ -25,12 +25,14 @@ MAPMESH_WIRE(GroundTruth, mapmesh_msg_GroundTruth);
 MAPMESH_WIRE(MapMessage, mapmesh_msg_MapMessage);
 MAPMESH_WIRE(AgentStatus, mapmesh_msg_AgentStatus);
 MAPMESH_WIRE(Sighting, mapmesh_msg_Sighting);
+MAPMESH_WIRE(ExchangeTick, mapmesh_msg_ExchangeTick);
 #undef MAPMESH_WIRE
 
 // Scratch storage for the sequences of a message being written.
 struct MsgScratch {
   std::vector<mapmesh_msg_Observation> obs;
   std::vector<mapmesh_msg_Link> links;
+  std::vector<mapmesh_msg_TickPeer> tick_peers;
   std::vector<std::uint32_t> ids, ids2;
 };
 
@@ -41,6 +43,7 @@ mapmesh_msg_GroundTruth ToMsg(const GroundTruth& v, MsgScratch& scratch);
 mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch& scratch);
 mapmesh_msg_AgentStatus ToMsg(const AgentStatus& v, MsgScratch& scratch);
 mapmesh_msg_Sighting ToMsg(const Sighting& v, MsgScratch& scratch);
+mapmesh_msg_ExchangeTick ToMsg(const ExchangeTick& v, MsgScratch& scratch);
 
 Odometry FromMsg(const mapmesh_msg_Odometry& m);
 Scan FromMsg(const mapmesh_msg_Scan& m);
@@ -49,5 +52,6 @@ GroundTruth FromMsg(const mapmesh_msg_GroundTruth& m);
 MapMessage FromMsg(const mapmesh_msg_MapMessage& m);
 AgentStatus FromMsg(const mapmesh_msg_AgentStatus& m);
 Sighting FromMsg(const mapmesh_msg_Sighting& m);
+ExchangeTick FromMsg(const mapmesh_msg_ExchangeTick& m);
 
 }  // namespace mapmesh::transport

@@ -17,6 +17,7 @@ inline constexpr const char* kTruthTopic = "mapmesh/truth";
 inline constexpr const char* kMapTopic = "mapmesh/map";
 inline constexpr const char* kStatusTopic = "mapmesh/status";
 inline constexpr const char* kSightingTopic = "mapmesh/sighting";
+inline constexpr const char* kTickTopic = "mapmesh/tick";
 
 // Each agent writes its maps, status and sightings in the DDS partition of its robot,
 // "robot<id>", and readers read every such partition. A sample whose robot id is not its
@@ -45,9 +46,26 @@ inline Qos TruthQos() { return Qos().BestEffort().KeepLast(1); }
 inline Qos MapQos(double lease_s) {
   return Qos().BestEffort().KeepLast(1).Volatile().Liveliness(lease_s).NoAutoDispose();
 }
+// In lockstep the maps are exchanged at ticks (ExchangeTick) and each must arrive before the
+// next tick: reliable, every sample kept until taken (a forged map claiming a robot must not
+// overtake that robot's genuine one in a reader's cache); transient-local, so that a reader
+// matched late (a restarted agent, a participant back from a long pause) still gets each peer's
+// latest maps, which are the tick's (the next go out only once every agent holds these).
+inline Qos LockstepMapQos(double lease_s) {
+  return Qos().Reliable().KeepAll().TransientLocal().Liveliness(lease_s).NoAutoDispose();
+}
+// The map topic's QoS for a run's pace (every reader and writer of one run must agree).
+inline Qos MapQosFor(bool lockstep, double lease_s) { return lockstep ? LockstepMapQos(lease_s) : MapQos(lease_s); }
 // Robot sightings and their answers: rare (at most one per peer and agent.rendezvous_period_s),
 // each one useful on its own; best-effort like the maps, a few kept per publisher.
 inline Qos SightingQos() { return Qos().BestEffort().KeepLast(16).Volatile(); }
+// In lockstep, sightings go out at ticks like the maps: reliable, and transient-local with every
+// sample kept (many may go out at one tick; a late reader keeps only those of its own ticks).
+inline Qos LockstepSightingQos() { return Qos().Reliable().KeepAll().TransientLocal().LateJoinersGetAll(); }
+inline Qos SightingQosFor(bool lockstep) { return lockstep ? LockstepSightingQos() : SightingQos(); }
+// Exchange ticks, feeder to agents: every one matters until the next; a late joiner gets the
+// latest (the feeder sends the next only once every live agent has answered this one).
+inline Qos TickQos() { return Qos().Reliable().KeepLast(1).TransientLocal(); }
 inline Qos StatusQos(double lease_s) { return Qos().BestEffort().KeepLast(1).Liveliness(lease_s); }
 
 }  // namespace mapmesh::transport

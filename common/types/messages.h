@@ -76,6 +76,7 @@ struct Sighting {
   std::array<double, 6> cov{};           // its covariance: xx, xy, xt, yy, yt, tt
   double range = 0.0, bearing = 0.0;     // sighting: the measurement (m, rad)
   double sigma_range = 0.0, sigma_bearing = 0.0;  // sighting: the publisher's sensor noise (m, rad)
+  std::uint32_t tick = 0;  // lockstep: the exchange tick it was published at (ExchangeTick); 0 otherwise
 };
 
 enum class MapKind : std::uint8_t { kLocal = 0, kGlobal = 1 };
@@ -88,7 +89,37 @@ struct MapMessage {
   std::uint32_t version = 0;      // publications of this kind within the incarnation
   double stamp = 0.0;             // s, the sender's processed_until when it published
   double origin_stamp = 0.0;      // s, when the sender's map frame was fixed
+  std::uint32_t tick = 0;         // lockstep: the exchange tick it was published at (ExchangeTick); 0 otherwise
   std::vector<std::uint8_t> payload;
+};
+
+// The lockstep exchange, from the feeder to the agents (feeder.pace lockstep). At each exchange
+// point, once every agent has processed the sensor data up to it, the feeder sends a tick in
+// two phases:
+// - kExchange: each live agent listed applies, in a fixed order, the peers' messages of earlier
+//   ticks, updates its global map, and publishes its maps and the sightings it held back, each
+//   tagged with the tick; its status then reports the tick done and how many messages it
+//   published.
+// - kDeliver: each live agent reports the tick delivered once it holds every message the tick
+//   lists (per publisher incarnation, how many it published at this tick).
+// Peers' messages are thus applied at fixed points of scenario time in a fixed order, and
+// delivered before the next: two runs of one scenario and seed exchange exactly the same.
+enum class TickPhase : std::uint8_t { kExchange = 0, kDeliver = 1 };
+
+struct TickPeer {
+  RobotId robot = 0;
+  std::uint32_t incarnation = 0;
+  std::uint32_t messages = 0;  // kDeliver: maps and sightings it published at this tick
+  bool operator==(const TickPeer&) const = default;
+};
+
+struct ExchangeTick {
+  std::uint32_t index = 0;  // 1, 2, ...: tick k is at the k-th exchange point (some may be skipped)
+  double stamp = 0.0;       // s, the exchange point
+  TickPhase phase = TickPhase::kExchange;
+  RadioLinks links{-1.0, {}};   // kExchange: the link table current at the tick (stamp -1: none yet); the gates
+                                // use it at the tick (a table on the links topic may be overtaken by another)
+  std::vector<TickPeer> peers;  // every live agent, by robot
 };
 
 // What an agent has done so far.
@@ -106,6 +137,9 @@ struct AgentStatus {
   std::uint64_t bytes_received = 0;
   std::vector<RobotId> peers_aligned;
   std::vector<RobotId> peers_stale;  // liveliness lost; their last maps stay in the global map
+  std::uint32_t tick_done = 0;       // lockstep: the last exchange tick carried out ...
+  std::uint32_t tick_published = 0;  // ... and the maps and sightings published at it
+  std::uint32_t tick_delivered = 0;  // ... the last tick whose messages from every peer have arrived
 };
 
 }  // namespace mapmesh

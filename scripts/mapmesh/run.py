@@ -182,6 +182,9 @@ class SwarmRun:
             self.common += ["--agents", str(args.agents)]
         for s in args.set or []:
             self.common += ["--set", s]
+        # Every process learns the pace: in lockstep the agents exchange maps at the feeder's ticks.
+        if getattr(args, "pace", None):
+            self.common += ["--set", f"feeder.pace={args.pace}"]
         self.feeder = None
         self.injector = None
         self.kill_wall = {}  # (t, id) -> wall time of the kill
@@ -304,8 +307,6 @@ class SwarmRun:
                 cmd += ["--dds-config", str(self.security.feeder_config())]
             elif self.dds_config:
                 cmd += ["--dds-config", str(self.dds_config)]
-            if self.args.pace:
-                cmd += ["--pace", self.args.pace]
             if self.args.rate:
                 cmd += ["--rate", str(self.args.rate)]
             for t in holds:

@@ -29,7 +29,7 @@ PLUGIN_DIRS = [Path("/usr/lib/x86_64-linux-gnu/libddsc0debian"), Path("/usr/lib/
 PLUGINS = {"auth": "libdds_security_auth.so", "ac": "libdds_security_ac.so", "crypto": "libdds_security_crypto.so"}
 ORG = "mapmesh"
 AGENT_TOPICS = ["mapmesh/map", "mapmesh/status", "mapmesh/sighting"]
-FEEDER_TOPICS = ["mapmesh/odom/*", "mapmesh/scan/*", "mapmesh/links", "mapmesh/truth"]
+FEEDER_TOPICS = ["mapmesh/odom/*", "mapmesh/scan/*", "mapmesh/links", "mapmesh/truth", "mapmesh/tick"]
 
 
 def plugin_paths():

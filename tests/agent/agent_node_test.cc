@@ -5,6 +5,7 @@
 
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "common/config/scenario.h"
 #include "common/io/checkpoint.h"
@@ -22,15 +23,18 @@ class Capture : public AgentOutput {
 };
 
 // The frame is the start pose (agent.frame_at_first_landmark off), so that positions below
-// count from the start of the stream.
-Scenario TwoRobots(bool frame_at_first_landmark = false) {
+// count from the start of the stream. In real time (the default here) peers' maps are taken as
+// they arrive and the agent's own go out on its period; in lockstep both wait for ticks.
+Scenario TwoRobots(bool frame_at_first_landmark = false, bool lockstep = false) {
   return ParseScenario(std::string(R"(version: 1
 world: {landmarks: {list: [[5, 0], [0, 5]]}}
 robots:
   list:
     - {id: 1, start: [0, 0, 0]}
     - {id: 2, start: [1, 0, 0]}
-agent: {map_publish_period_s: 1.0, status_period_s: 0.5, frame_at_first_landmark: )") +
+feeder: {pace: )") + (lockstep ? "lockstep" : "realtime") +
+                           R"(}
+agent: {map_publish_period_s: 1.0, status_period_s: 0.5, frame_at_first_landmark: )" +
                            (frame_at_first_landmark ? "true" : "false") + "}\n",
                        "test.yaml");
 }
@@ -341,6 +345,188 @@ TEST(AgentNodeLimits, AReadingBeyondTheSensorsRangeIsRefused) {
   for (int k = 2; k <= 20; ++k) node.OnOdometry(Odom(0.1 * k, 0));
   EXPECT_GT(out.maps.size(), 0u);
   EXPECT_EQ(node.stats().maps_encode_failed, 0u);
+}
+
+// ----- the lockstep exchange (messages.h ExchangeTick) ---------------------------------------
+
+// Collects sightings too.
+class FullCapture : public Capture {
+ public:
+  void PublishSighting(const Sighting& s) override { sightings.push_back(s); }
+  std::vector<Sighting> sightings;
+};
+
+// A tick whose link table joins robot 1 to 2, 3 and 4 (stamp 0).
+ExchangeTick Tick(std::uint32_t index, TickPhase phase, std::vector<TickPeer> peers,
+                  RadioLinks links = {0.0, {{1, 2}, {1, 3}, {1, 4}}}) {
+  ExchangeTick t;
+  t.index = index;
+  t.stamp = index * 1.0;
+  t.phase = phase;
+  t.links = std::move(links);
+  t.peers = std::move(peers);
+  return t;
+}
+
+MapMessage TaggedMap(RobotId from, std::uint32_t incarnation, MapKind kind, std::uint32_t version, std::uint32_t tick,
+                     const LandmarkMap& map) {
+  MapMessage m = PeerMap(from, EncodeMap(map));
+  m.incarnation = incarnation;
+  m.kind = kind;
+  m.version = version;
+  m.tick = tick;
+  return m;
+}
+
+LandmarkMap Points(std::initializer_list<Eigen::Vector2d> points) {
+  LandmarkMap m;
+  std::uint32_t id = 0;
+  for (const Eigen::Vector2d& p : points) m.landmarks.push_back({id++, -1, p, 0.01 * Eigen::Matrix2d::Identity()});
+  return m;
+}
+
+class LockstepTest : public ::testing::Test {
+ protected:
+  Scenario sc_ = TwoRobots(false, true);
+  FullCapture out_;
+  AgentNode node_{sc_.agent, AgentRunFor(sc_, 1), 1, 1, out_};
+  const std::vector<TickPeer> both_ = {{1, 1, 0}, {2, 1, 0}};
+};
+
+// Nothing goes out between ticks: the agent's maps wait for the exchange phase, which publishes
+// them tagged, and its status reports the tick done and how many messages went out.
+TEST_F(LockstepTest, MapsGoOutOnlyAtTicksTaggedWithThem) {
+  ASSERT_TRUE(AgentRunFor(sc_, 1).exchange_ticks);
+  for (int k = 1; k <= 30; ++k) node_.OnOdometry(Odom(0.1 * k, 0));
+  EXPECT_TRUE(out_.maps.empty());  // three map periods went by
+  ASSERT_TRUE(node_.OnTick(Tick(3, TickPhase::kExchange, both_)));
+  ASSERT_EQ(out_.maps.size(), 2u);
+  for (const MapMessage& m : out_.maps) EXPECT_EQ(m.tick, 3u);
+  ASSERT_FALSE(out_.statuses.empty());
+  EXPECT_EQ(out_.statuses.back().tick_done, 3u);
+  EXPECT_EQ(out_.statuses.back().tick_published, 2u);
+  // The same tick again (sent again to a late reader) does nothing.
+  EXPECT_TRUE(node_.OnTick(Tick(3, TickPhase::kExchange, both_)));
+  EXPECT_EQ(out_.maps.size(), 2u);
+  // A tick that does not list this incarnation is not for it.
+  EXPECT_TRUE(node_.OnTick(Tick(4, TickPhase::kExchange, {{1, 7, 0}, {2, 1, 0}})));
+  EXPECT_EQ(out_.maps.size(), 2u);
+}
+
+// Peers' maps wait in the inbox and count for nothing until the next exchange phase applies
+// them; a deliver phase holds until every message it lists has arrived.
+TEST_F(LockstepTest, PeersMapsWaitForTheNextTickAndDeliveryWaitsForEveryListedMessage) {
+  node_.OnLinks({0.0, {{1, 2}}});
+  const LandmarkMap peer = Points({{1, 2}, {3, 1}});
+  ASSERT_TRUE(node_.OnTick(Tick(1, TickPhase::kExchange, both_)));
+  EXPECT_FALSE(node_.OnTick(Tick(1, TickPhase::kDeliver, {{1, 1, 2}, {2, 1, 2}})));
+  node_.OnMap(TaggedMap(2, 1, MapKind::kLocal, 1, 1, peer));
+  EXPECT_FALSE(node_.OnTick(Tick(1, TickPhase::kDeliver, {{1, 1, 2}, {2, 1, 2}})));
+  ASSERT_EQ(node_.Missing(Tick(1, TickPhase::kDeliver, {{1, 1, 2}, {2, 1, 2}})).size(), 1u);
+  node_.OnMap(TaggedMap(2, 1, MapKind::kGlobal, 1, 1, peer));
+  node_.OnMap(TaggedMap(2, 1, MapKind::kGlobal, 1, 1, peer));  // twice: kept once
+  EXPECT_TRUE(node_.OnTick(Tick(1, TickPhase::kDeliver, {{1, 1, 2}, {2, 1, 2}})));
+  EXPECT_EQ(out_.statuses.back().tick_delivered, 1u);
+  EXPECT_EQ(node_.stats().maps_received, 0u);  // not applied yet
+  ASSERT_TRUE(node_.OnTick(Tick(2, TickPhase::kExchange, both_)));
+  EXPECT_EQ(node_.stats().maps_received, 2u);
+  EXPECT_EQ(node_.stats().maps_stale_version, 0u);
+  // A map of a tick already applied, sent again to a late reader, is not taken again.
+  node_.OnMap(TaggedMap(2, 1, MapKind::kGlobal, 1, 1, peer));
+  ASSERT_TRUE(node_.OnTick(Tick(3, TickPhase::kExchange, both_)));
+  EXPECT_EQ(node_.stats().maps_received, 2u);
+  EXPECT_EQ(node_.stats().maps_stale_version, 0u);
+}
+
+// The gates judge a tick's messages by the tick's link table, whatever came in on the links
+// topic: out of range there, a peer's map is dropped though the latest table joins them.
+TEST_F(LockstepTest, TheGatesUseTheTicksLinkTable) {
+  ASSERT_TRUE(node_.OnTick(Tick(1, TickPhase::kExchange, both_)));
+  node_.OnMap(TaggedMap(2, 1, MapKind::kLocal, 1, 1, Points({{1, 2}, {3, 1}})));
+  node_.OnLinks({1.5, {{1, 2}}});
+  ASSERT_TRUE(node_.OnTick(Tick(2, TickPhase::kExchange, both_, {2.0, {}})));
+  EXPECT_EQ(node_.stats().maps_out_of_range, 1u);
+  EXPECT_EQ(node_.stats().maps_received, 0u);
+}
+
+// The ticks say who is alive: DDS liveliness is not used, and a peer incarnation missing from a
+// tick is stale from then on.
+TEST_F(LockstepTest, LivelinessComesFromTheTicks) {
+  node_.OnLinks({0.0, {{1, 2}}});
+  EXPECT_FALSE(node_.OnPeerLiveliness(2, false));
+  ASSERT_TRUE(node_.OnTick(Tick(1, TickPhase::kExchange, both_)));
+  node_.OnMap(TaggedMap(2, 1, MapKind::kLocal, 1, 1, Points({{1, 2}, {3, 1}})));
+  ASSERT_TRUE(node_.OnTick(Tick(2, TickPhase::kExchange, both_)));
+  ASSERT_EQ(node_.exchange().Peers().size(), 1u);
+  EXPECT_FALSE(node_.exchange().Peers()[0].stale);
+  ASSERT_TRUE(node_.OnTick(Tick(3, TickPhase::kExchange, {{1, 1, 0}})));
+  EXPECT_TRUE(node_.exchange().Peers()[0].stale);
+  EXPECT_EQ(node_.Status().peers_stale, (std::vector<RobotId>{2}));
+}
+
+// A restarted incarnation's readers get the writers' history: messages of ticks before its
+// first are not for it; untagged ones (from outside the run's agents) are taken at the next tick.
+TEST(LockstepRestartTest, MessagesOfTicksBeforeTheFirstAreLeftOut) {
+  const Scenario sc = TwoRobots(false, true);
+  FullCapture out;
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 2, out);
+  node.OnLinks({0.0, {{1, 2}}});
+  node.OnMap(TaggedMap(2, 1, MapKind::kLocal, 7, 7, Points({{1, 2}, {3, 1}})));  // from before we were up
+  MapMessage untagged = TaggedMap(2, 1, MapKind::kGlobal, 7, 0, Points({{1, 2}}));
+  node.OnMap(untagged);
+  ASSERT_TRUE(node.OnTick(Tick(9, TickPhase::kExchange, {{1, 2, 0}, {2, 1, 0}})));
+  EXPECT_EQ(node.stats().maps_received, 1u);  // the untagged one
+  ASSERT_EQ(node.exchange().Peers().size(), 1u);
+  EXPECT_EQ(node.exchange().Peers()[0].local_landmarks, 0);
+}
+
+// Peers' messages applied at a tick give the same state whatever order they arrived in: over
+// seeded shuffles of three peers' maps and sightings, the global maps and statuses are equal.
+TEST(LockstepOrderTest, ArrivalOrderChangesNothing) {
+  const Scenario sc = ParseScenario(R"(version: 1
+world: {landmarks: {list: [[5, 0], [0, 5], [4, 4], [6, 2], [2, 6]]}}
+robots:
+  list:
+    - {id: 1, start: [0, 0, 0]}
+    - {id: 2, start: [1, 0, 0]}
+    - {id: 3, start: [0, 1, 0]}
+    - {id: 4, start: [1, 1, 0]}
+agent: {map_publish_period_s: 1.0}
+)",
+                                    "test.yaml");
+  std::vector<MapMessage> maps;
+  for (RobotId r = 2; r <= 4; ++r) {
+    const double dx = 0.05 * r;
+    const LandmarkMap m = Points({{5 + dx, 0}, {0 + dx, 5}, {4 + dx, 4}, {6 + dx, 2}, {2 + dx, 6}});
+    maps.push_back(TaggedMap(r, 1, MapKind::kLocal, 1, 1, m));
+    maps.push_back(TaggedMap(r, 1, MapKind::kGlobal, 1, 1, m));
+  }
+  const std::vector<TickPeer> all = {{1, 1, 0}, {2, 1, 0}, {3, 1, 0}, {4, 1, 0}};
+  auto run = [&](std::vector<MapMessage> arrival) {
+    FullCapture out;
+    AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
+    node.OnLinks({0.0, {{1, 2}, {1, 3}, {1, 4}}});
+    node.OnScan(ScanAt(0.05, 5.0, 0.0, 0));
+    node.OnOdometry(Odom(0.1, 1));
+    EXPECT_TRUE(node.OnTick(Tick(1, TickPhase::kExchange, all)));
+    for (const MapMessage& m : arrival) node.OnMap(m);
+    EXPECT_TRUE(node.OnTick(Tick(2, TickPhase::kExchange, all)));
+    return std::make_pair(nlohmann::json(node.exchange().Peers().size()).dump() + " " +
+                              std::to_string(node.stats().maps_received),
+                          out.maps);
+  };
+  const auto reference = run(maps);
+  EXPECT_EQ(reference.first, "3 6");       // every map applied, three peers
+  ASSERT_EQ(reference.second.size(), 4u);  // two ticks' maps
+  std::mt19937_64 rng(3);
+  for (int trial = 0; trial < 20; ++trial) {
+    std::vector<MapMessage> shuffled = maps;
+    std::shuffle(shuffled.begin(), shuffled.end(), rng);
+    const auto got = run(shuffled);
+    EXPECT_EQ(got.first, reference.first);
+    ASSERT_EQ(got.second.size(), reference.second.size());
+    for (std::size_t i = 0; i < got.second.size(); ++i) EXPECT_EQ(got.second[i].payload, reference.second[i].payload);
+  }
 }
 
 }  // namespace

@@ -16,12 +16,13 @@ constexpr auto Sc = testing::ScanAt;
 // A pacer over robots 1 and 2 whose processes (pids 101, 102) are in `procs`.
 class LockstepPacerTest : public ::testing::Test {
  protected:
-  LockstepPacer Make(bool lockstep = true, std::vector<double> holds = {}) {
+  LockstepPacer Make(bool lockstep = true, std::vector<double> holds = {}, double exchange_period_s = 0.0) {
     LockstepPacer::Options o;
     o.lockstep = lockstep;
     o.window_s = 1.0;
     o.stall_timeout_s = 10.0;
     o.holds = std::move(holds);
+    o.exchange_period_s = exchange_period_s;
     return LockstepPacer({1, 2}, o,
                          [this](int pid) { return procs_.count(pid) ? procs_.at(pid) : ProcessState::kGone; });
   }
@@ -207,6 +208,98 @@ TEST_F(LockstepPacerTest, LostLivelinessWithoutAProcessIsDeath) {
   EXPECT_FALSE(*exists);
   EXPECT_TRUE(p.tracker().IsDead(1));
   EXPECT_FALSE(p.OnStatusGone(7));  // not in the run
+}
+
+// ----- the lockstep exchange ------------------------------------------------------------------
+
+AgentStatus Answered(RobotId id, std::uint32_t incarnation, std::uint32_t done, std::uint32_t published,
+                     std::uint32_t delivered) {
+  AgentStatus s = testing::StatusAt(id, incarnation, 0.0);
+  s.tick_done = done;
+  s.tick_published = published;
+  s.tick_delivered = delivered;
+  return s;
+}
+
+TEST_F(LockstepPacerTest, ExchangePointsCloseWindowsAndEachIsTickedOnceByItsLastIndex) {
+  LockstepPacer p = Make(true, {}, 2.5);
+  p.CloseWindow(2.0);  // the windows (1 s) close at 3, 4, ...
+  EXPECT_FALSE(p.IsBarrier(2.4, false));
+  EXPECT_TRUE(p.IsBarrier(2.5, false));  // ... and at the exchange point between
+  EXPECT_FALSE(p.ExchangeDue(2.4));
+  EXPECT_EQ(p.ExchangeDue(2.5), 1u);
+  EXPECT_FALSE(p.ExchangeDue(2.6));
+  EXPECT_FALSE(p.IsBarrier(2.6, false));  // ticked: no barrier until the next window
+  // A batch past two points at once (a gap in the data) ticks the last one.
+  EXPECT_EQ(p.ExchangeDue(8.0), 3u);
+  EXPECT_FALSE(p.ExchangeDue(9.9));
+  EXPECT_EQ(p.ExchangeDue(10.0), 4u);
+  // In real time there are none.
+  LockstepPacer rt = Make(false, {}, 2.5);
+  EXPECT_FALSE(rt.ExchangeDue(100.0));
+}
+
+TEST_F(LockstepPacerTest, AnExchangeListsTheLiveAgentsAndEndsWhenEachHasDoneIt) {
+  LockstepPacer p = Make(true, {}, 2.0);
+  BringUp(p);
+  const ExchangeTick t = p.BeginExchange(1, 2.0, {1.5, {{1, 2}}}, 0.0);
+  EXPECT_EQ(t.index, 1u);
+  EXPECT_EQ(t.phase, TickPhase::kExchange);
+  EXPECT_DOUBLE_EQ(t.links.stamp, 1.5);
+  EXPECT_EQ(t.links.links, (std::vector<Link>{{1, 2}}));
+  EXPECT_EQ(t.peers, (std::vector<TickPeer>{{1, 1, 0}, {2, 2, 0}}));
+  EXPECT_FALSE(p.PollTick(1.0).done);
+  p.OnStatus(Answered(1, 1, 1, 5, 0));
+  LockstepPacer::TickPoll poll = p.PollTick(1.0);
+  EXPECT_FALSE(poll.done);
+  EXPECT_EQ(poll.waiting, std::vector<RobotId>{2});
+  p.OnStatus(Answered(2, 2, 1, 3, 0));
+  EXPECT_TRUE(p.PollTick(1.0).done);
+  // The deliver phase lists what each published, and ends when each has it all.
+  const ExchangeTick d = p.BeginDeliver(2.0);
+  EXPECT_EQ(d.phase, TickPhase::kDeliver);
+  EXPECT_EQ(d.peers, (std::vector<TickPeer>{{1, 1, 5}, {2, 2, 3}}));
+  EXPECT_FALSE(p.PollTick(2.0).done);
+  p.OnStatus(Answered(1, 1, 1, 5, 1));
+  p.OnStatus(Answered(2, 2, 1, 3, 1));
+  EXPECT_TRUE(p.PollTick(2.0).done);
+}
+
+TEST_F(LockstepPacerTest, ADeadAgentIsNotWaitedForAndItsMessagesAreNoLongerExpected) {
+  LockstepPacer p = Make(true, {}, 2.0);
+  BringUp(p);
+  p.BeginExchange(1, 2.0, {-1.0, {}}, 0.0);
+  p.OnStatus(Answered(1, 1, 1, 5, 0));
+  p.OnStatus(Answered(2, 2, 1, 3, 0));
+  ASSERT_TRUE(p.PollTick(1.0).done);
+  p.BeginDeliver(1.0);
+  // Agent 2 is killed before its messages arrived: the phase is sent again without it.
+  p.OnControl({ControlCommand::Kind::kDead, 2, 0}, 0);
+  const LockstepPacer::TickPoll poll = p.PollTick(1.5);
+  EXPECT_TRUE(poll.reissue);
+  EXPECT_FALSE(poll.done);
+  const ExchangeTick again = p.BeginDeliver(1.5);
+  EXPECT_EQ(again.peers, (std::vector<TickPeer>{{1, 1, 5}}));
+  p.OnStatus(Answered(1, 1, 1, 5, 1));
+  EXPECT_TRUE(p.PollTick(2.0).done);
+  // The next exchange lists the live only.
+  EXPECT_EQ(p.BeginExchange(2, 4.0, {-1.0, {}}, 3.0).peers, (std::vector<TickPeer>{{1, 1, 0}}));
+}
+
+TEST_F(LockstepPacerTest, ATickWaitsForAStoppedAgentAndGivesUpOneThatStalls) {
+  LockstepPacer p = Make(true, {}, 2.0);
+  BringUp(p);
+  p.BeginExchange(1, 2.0, {-1.0, {}}, 0.0);
+  p.OnStatus(Answered(1, 1, 1, 2, 0));
+  procs_[102] = ProcessState::kStopped;  // paused: waited for as long as it is stopped
+  EXPECT_FALSE(p.PollTick(50.0).done);
+  EXPECT_TRUE(p.PollTick(50.0).stalled.empty());
+  procs_[102] = ProcessState::kRunning;  // running, but never answers
+  EXPECT_FALSE(p.PollTick(55.0).done);
+  const LockstepPacer::TickPoll poll = p.PollTick(61.0);
+  EXPECT_TRUE(poll.done);
+  EXPECT_EQ(poll.stalled, std::vector<RobotId>{2});
+  EXPECT_TRUE(p.tracker().IsDead(2));
 }
 
 }  // namespace
