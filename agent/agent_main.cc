@@ -254,11 +254,7 @@ void WriteOutputs(const AgentNode& node, const std::string& dir, const std::map<
       if (r.global) io::WriteJsonAtomic(base + "_global.json", io::MapToJson(*r.global));
     }
   }
-  json poses = json::array();
-  for (const auto& p : node.trajectory()) poses.push_back({p.t, p.pose.x, p.pose.y, p.pose.theta});
-  io::WriteJsonAtomic(dir + "/trajectory.json",
-                      {{"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
-                       {"poses", poses}});
+  io::WriteJsonAtomic(dir + "/trajectory.json", io::TrajectoryToJson(node.trajectory(), node.frame_origin_stamp()));
 }
 
 double WallNow() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }

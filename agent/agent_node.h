@@ -18,6 +18,7 @@
 #include "agent/radio_gate.h"
 #include "agent/rendezvous_tracker.h"
 #include "agent/sensor_sync.h"
+#include "common/geometry/pose_track.h"
 #include "common/io/checkpoint.h"
 #include "common/map/landmark_map.h"
 #include "common/map/map_codec.h"
@@ -158,10 +159,7 @@ class AgentNode : private SensorSync::Sink {
   const AgentStats& stats() const { return stats_; }
   const SyncStats& sync_stats() const { return sync_.stats(); }
   // The estimated pose every trajectory period (feeder.truth_period_s) of the current session.
-  struct PoseStamp {
-    double t;
-    Pose2 pose;
-  };
+  using PoseStamp = mapmesh::PoseStamp;
   const std::vector<PoseStamp>& trajectory() const { return trajectory_; }
   const MapExchange& exchange() const { return exchange_; }
   const RendezvousStats& rendezvous_stats() const { return rendezvous_.stats(); }

@@ -201,7 +201,7 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
     }
     for (const Scan& scan : b.scans) {
       Slot& s = slots.at(scan.robot_id);
-      if (s.alive) s.node->OnScan(scan);
+      if (s.alive) s.node->OnScan(AsOnTheWire(scan));
     }
     for (const Odometry& od : b.odom) {
       Slot& s = slots.at(od.robot_id);
@@ -240,6 +240,8 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
     if (s.alive) {
       r.local = s.node->LocalMap();
       r.global = s.node->global();
+      r.trajectory = s.node->trajectory();
+      r.frame_origin_stamp = s.node->frame_origin_stamp();
       r.peers = s.node->exchange().Peers();
       r.stats = s.node->stats();
       origin_stamp = s.node->frame_origin_stamp().value_or(0.0);

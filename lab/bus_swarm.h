@@ -36,6 +36,8 @@ struct BusAgentResult {
   std::optional<Pose2> origin_truth;  // true pose of its map frame
   LandmarkMap local;
   GlobalMap global;
+  std::vector<PoseStamp> trajectory;         // its last incarnation's estimated path (alive at the end) ...
+  std::optional<double> frame_origin_stamp;  // ... in the frame fixed then
   std::vector<PeerReport> peers;
   AgentStats stats;
   MapQuality local_quality, global_quality;  // in its own frame (when the origin is known)

@@ -170,7 +170,7 @@ std::vector<std::pair<double, RobotId>> ParseEvents(const std::vector<std::strin
 }
 
 int RunBusCommand(const app::ProcessOptions& po, const std::vector<std::string>& kills,
-                  const std::vector<std::string>& restarts, const std::string& datasets) {
+                  const std::vector<std::string>& restarts, const std::string& datasets, const std::string& out_dir) {
   const std::optional<Scenario> sc = app::LoadScenarioOrReport("mapmesh-lab", po);
   if (!sc) return 2;
   lab::BusSwarmOptions o;
@@ -178,6 +178,18 @@ int RunBusCommand(const app::ProcessOptions& po, const std::vector<std::string>&
   o.kills = ParseEvents(kills, "kill");
   o.restarts = ParseEvents(restarts, "restart");
   const lab::BusSwarmResult r = lab::RunBusSwarm(*sc, o);
+  // The agents' final maps as a swarm run writes them (agent_<id>/local_map.json and
+  // global_map.json), for comparison with one: a live agent's maps, a dead one's last checkpoint.
+  if (!out_dir.empty()) {
+    for (const auto& a : r.agents) {
+      const std::string dir = out_dir + "/agent_" + std::to_string(a.robot);
+      std::filesystem::create_directories(dir);
+      io::WriteJsonAtomic(dir + "/local_map.json", io::MapToJson(a.local));
+      io::WriteJsonAtomic(dir + "/global_map.json",
+                          a.alive_at_end ? io::GlobalMapToJson(a.global) : io::MapToJson(a.global.map));
+      io::WriteJsonAtomic(dir + "/trajectory.json", io::TrajectoryToJson(a.trajectory, a.frame_origin_stamp));
+    }
+  }
   std::printf("%s: %zu agents, %.1f s wall (in-memory bus)\n", sc->name.c_str(), r.agents.size(), r.wall_s);
   // Without landmark truth (Victoria Park) the error columns are "-" and peers are listed bare.
   const bool truth = !r.landmarks.empty();
@@ -429,6 +441,9 @@ int Run(int argc, char** argv) {
   bus->add_option("--kill", bus_kills, "kill agent ID at scenario time T (ID@T, repeatable)");
   bus->add_option("--restart", bus_restarts, "restart agent ID at T from its last checkpoint (ID@T, repeatable)");
   bus->add_option("--datasets", bus_datasets, "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
+  std::string bus_out;
+  bus->add_option("--out", bus_out,
+                  "also write each agent's final maps and trajectory to OUT/agent_<id>/ as a swarm run does");
   app::ProcessOptions ref_po;
   std::string ref_datasets, ref_loss = "auto", ref_out;
   double ref_loss_scale = 0.0;
@@ -454,7 +469,7 @@ int Run(int argc, char** argv) {
   if (auto code = app::ParseArgs(cli, "mapmesh-lab", argc, argv)) return *code;
   if (reference->parsed())
     return RunReferenceCommand(ref_po, ref_datasets, ref_loss, ref_loss_scale, ref_no_known, ref_out);
-  if (bus->parsed()) return RunBusCommand(bus_po, bus_kills, bus_restarts, bus_datasets);
+  if (bus->parsed()) return RunBusCommand(bus_po, bus_kills, bus_restarts, bus_datasets, bus_out);
   if (thesis_fusion->parsed()) {
     tf.scenarios_dir = MAPMESH_SOURCE_DIR "/scenarios";
     tf.datasets_root = ResolveDatasetsRoot(tf_datasets, app::DefaultDatasetsRoot());

@@ -10,6 +10,12 @@
 
 namespace mapmesh {
 
+// A pose at a time: one sample of a track.
+struct PoseStamp {
+  double t = 0.0;
+  Pose2 pose;
+};
+
 // The pose at time t along `track`, whose samples are in time order: a sample's own pose at
 // its stamp, Interpolate between the two samples around t, and the end samples' poses outside
 // the track's span; nullopt for an empty track. stamp(sample) and pose(sample) read a sample.

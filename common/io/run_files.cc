@@ -7,6 +7,12 @@
 
 namespace mapmesh::io {
 
+json TrajectoryToJson(const std::vector<PoseStamp>& poses, std::optional<double> frame_origin_stamp) {
+  json out = json::array();
+  for (const PoseStamp& p : poses) out.push_back({p.t, p.pose.x, p.pose.y, p.pose.theta});
+  return {{"frame_origin_stamp", frame_origin_stamp ? json(*frame_origin_stamp) : json()}, {"poses", out}};
+}
+
 json MapToJson(const LandmarkMap& map) {
   json lms = json::array();
   for (const Landmark& l : map.landmarks) {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/geometry/pose2.h"
+#include "common/geometry/pose_track.h"
 #include "common/map/landmark_map.h"
 #include "common/merge/global_map.h"
 #include "common/types/messages.h"
@@ -24,6 +25,9 @@ json MapToJson(const LandmarkMap& map);
 json GlobalMapToJson(const GlobalMap& map);
 // Throws std::runtime_error on a malformed document.
 LandmarkMap MapFromJson(const json& j);
+// An agent's estimated path (trajectory.json): {"frame_origin_stamp": s, or null before the
+// frame is fixed, "poses": [[t, x, y, theta]...]}.
+json TrajectoryToJson(const std::vector<PoseStamp>& poses, std::optional<double> frame_origin_stamp);
 
 struct TruthSample {
   double t = 0.0;

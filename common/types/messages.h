@@ -41,6 +41,22 @@ struct Scan {
   std::vector<Observation> obs;
 };
 
+// The scan as the wire carries it (idl/mapmesh.idl): ranges and bearings as 32-bit floats. The
+// in-process bus rounds its scans so, and its agents see exactly what a swarm's agents do. (The
+// rounding goes through a volatile float: GCC 12 at -O2 drops a plain double-float-double cast
+// in this loop.)
+inline Scan AsOnTheWire(Scan s) {
+  auto round = [](double v) {
+    volatile float f = static_cast<float>(v);
+    return static_cast<double>(f);
+  };
+  for (Observation& o : s.obs) {
+    o.range = round(o.range);
+    o.bearing = round(o.bearing);
+  }
+  return s;
+}
+
 // An unordered pair of robots that can hear each other; a < b.
 struct Link {
   RobotId a = 0;

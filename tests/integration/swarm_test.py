@@ -66,6 +66,16 @@ class SwarmCase(unittest.TestCase):
     def summary(self):
         return json.loads((self.out / "summary.json").read_text())
 
+    def assert_same_maps(self, run, reference):
+        """Every agent of `run` holds `reference`'s maps and trajectory, byte for byte (lockstep
+        runs of one scenario, seed and fault schedule are the same run: docs/EXCHANGE.md)."""
+        agents = sorted(p.name for p in reference.glob("agent_*"))
+        self.assertEqual(sorted(p.name for p in run.glob("agent_*")), agents)
+        for agent in agents:
+            for name in ("local_map.json", "global_map.json", "trajectory.json"):
+                with self.subTest(agent=agent, file=name):
+                    self.assertEqual((run / agent / name).read_bytes(), (reference / agent / name).read_bytes())
+
 
 class PipelineTest(SwarmCase):
     def test_lockstep_agents_consume_every_message_and_exchange_maps(self):

@@ -1,0 +1,74 @@
+"""Identical runs (D1), through real processes: two lockstep runs of one scenario, seed and fault
+schedule are the same run (scripts/swarm compare finds no difference), and the in-process bus
+(mapmesh-lab bus) gives the DDS swarm's maps, map for map."""
+
+import os
+import subprocess
+import unittest
+
+from swarm_test import REPO, SWARM, SwarmCase
+
+PARK4 = REPO / "scenarios" / "park4.yaml"
+CIRCLE = REPO / "scenarios" / "thesis_circle_pair.yaml"
+LAB = [os.path.join(os.environ.get("MAPMESH_BIN", str(REPO / "build" / "bin")), "mapmesh-lab")]
+FAULTS = ["--kill", "2@60", "--kill", "5@90", "--restart", "2@100", "--pause", "3@120:2"]
+
+
+def compare(a, b):
+    return subprocess.run(SWARM + ["compare", str(a), str(b)], capture_output=True, text=True, timeout=60)
+
+
+class IdenticalRunsTest(SwarmCase):
+    def run_to(self, name, *args):
+        self.out = self.out.parent / name
+        r = self.swarm(*args, "--no-report", "--no-reference", "--quiet")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        return self.out
+
+    def test_two_lockstep_runs_with_kills_a_restart_and_a_pause_are_the_same_run(self):
+        first = self.run_to("first", PARK4, "--agents", "8", *FAULTS)
+        second = self.run_to("second", PARK4, "--agents", "8", *FAULTS)
+        r = compare(first, second)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertRegex(r.stdout, r"\d+ files compared, 0 differ")
+        # What was compared holds the run: every agent's maps, the dead one's peers left behind.
+        for rid in range(1, 9):
+            self.assertTrue((first / f"agent_{rid}" / "global_map.json").is_file())
+        self.assertTrue(any((first / "agent_5" / "snapshots").iterdir()))
+        # ... and the comparison can fail: another seed is another run.
+        other = self.run_to("other", PARK4, "--agents", "8", *FAULTS, "--set", "seed=2")
+        r = compare(first, other)
+        self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+        self.assertIn("agent_1/local_map.json: differs", r.stdout)
+
+
+class BusMatchesSwarmTest(SwarmCase):
+    FILES = ("local_map.json", "global_map.json", "trajectory.json")
+
+    def check(self, scenario, *args):
+        r = self.swarm(scenario, *args, "--no-report", "--no-reference", "--quiet")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        bus = self.out.parent / "bus"
+        b = subprocess.run(LAB + ["bus", "--scenario", str(scenario), *args, "--out", str(bus)],
+                           capture_output=True, text=True, timeout=120)
+        self.assertEqual(b.returncode, 0, b.stdout + b.stderr)
+        agents = sorted(p.name for p in self.out.glob("agent_*"))
+        self.assertEqual(agents, sorted(p.name for p in bus.glob("agent_*")))
+        self.assertGreaterEqual(len(agents), 2)
+        for agent in agents:
+            for name in self.FILES:
+                with self.subTest(agent=agent, file=name):
+                    self.assertEqual((self.out / agent / name).read_bytes(), (bus / agent / name).read_bytes())
+
+    def test_park4_four_agents(self):
+        self.check(PARK4)
+
+    def test_park4_eight_agents(self):
+        self.check(PARK4, "--agents", "8")
+
+    def test_circle_pair(self):
+        self.check(CIRCLE)
+
+
+if __name__ == "__main__":
+    unittest.main()
