@@ -20,6 +20,7 @@
 
 #include "agent/exchange_options.h"
 #include "agent/fusion_backend.h"
+#include "agent/peer_book.h"
 #include "agent/peer_schedule.h"
 #include "agent/peer_state.h"
 #include "agent/relay_policy.h"
@@ -32,19 +33,23 @@ class MapExchange {
  public:
   MapExchange(RobotId self, std::uint32_t incarnation, const ExchangeOptions& options, std::uint64_t seed);
 
-  enum class Receipt { kAccepted, kStaleVersion, kVersionJump, kTooManyIncarnations };
-  // A decoded map from a peer, received at scenario time `now`. Versions must grow within an
-  // incarnation and kind (else kStaleVersion), and by no more than a publisher could have
-  // published since (else kVersionJump: see ExchangeOptions::MaxVersionsPerS). A new incarnation beyond
-  // max_incarnations, when no kept one can be evicted, is kTooManyIncarnations. A refused map
-  // changes nothing.
+  using Receipt = PeerBook::Receipt;
+  // A decoded map from a peer, received at scenario time `now` (PeerBook::OnPeerMap).
   Receipt OnPeerMap(RobotId robot, std::uint32_t incarnation, MapKind kind, std::uint32_t version, double origin_stamp,
-                    LandmarkMap map, double now);
+                    LandmarkMap map, double now) {
+    return book_.OnPeerMap(robot, incarnation, kind, version, origin_stamp, std::move(map), now);
+  }
   // The peer's writer came back (true) or went away (false): every incarnation of the robot.
-  void OnPeerLiveliness(RobotId robot, bool alive, double now);
+  void OnPeerLiveliness(RobotId robot, bool alive, double now) {
+    book_.OnPeerLiveliness(robot, alive, now);
+    now_ = now;
+  }
   // Lockstep: exactly these peer incarnations are alive (an exchange tick's list); every other
   // one is stale.
-  void SetLive(const std::set<PeerKey>& live, double now);
+  void SetLive(const std::set<PeerKey>& live, double now) {
+    book_.SetLive(live, now);
+    now_ = now;
+  }
   // A rendezvous fit of a peer frame (rendezvous_tracker.h), weighed in the next Update of an
   // unaligned peer: verified against the maps at the fit (VerifyAlignment), it aligns the peer
   // when they match there; where they do not, or overlap too little to tell, it is refused
@@ -52,7 +57,9 @@ class MapExchange {
   // arrived.
   void OnRendezvous(const PeerKey& key, const RendezvousFit& fit);
   // An earlier incarnation of this agent, from its checkpoint: aligned like any peer.
-  void AddOwnCheckpoint(std::uint32_t incarnation, double origin_stamp, LandmarkMap local, LandmarkMap global);
+  void AddOwnCheckpoint(std::uint32_t incarnation, double origin_stamp, LandmarkMap local, LandmarkMap global) {
+    book_.AddOwnCheckpoint(incarnation, origin_stamp, std::move(local), std::move(global));
+  }
 
   // Runs the alignments and verifications that are due against the own local map, then
   // rebuilds the global map. Returns true if any alignment changed.
@@ -65,23 +72,16 @@ class MapExchange {
   // earlier own incarnation's maps). This is what the agent publishes as its GLOBAL map.
   const GlobalMap& published() const { return published_; }
   // Earlier incarnations of this agent not aligned yet: a new checkpoint must carry them on.
-  struct OwnEarlier {
-    std::uint32_t incarnation = 0;
-    double origin_stamp = 0.0;
-    LandmarkMap local, global;
-  };
-  std::vector<OwnEarlier> UnalignedOwnCheckpoints() const;
-  std::vector<PeerReport> Peers() const;
+  using OwnEarlier = PeerBook::OwnEarlier;
+  std::vector<OwnEarlier> UnalignedOwnCheckpoints() const { return book_.UnalignedOwnCheckpoints(); }
+  // Every peer incarnation's report, its liveness as of the last update or liveness change.
+  std::vector<PeerReport> Peers() const { return book_.Reports(now_); }
   // The last maps received from each peer incarnation (null where none), for the record.
-  struct Received {
-    PeerKey key;
-    const LandmarkMap* local = nullptr;
-    const LandmarkMap* global = nullptr;
-  };
-  std::vector<Received> ReceivedMaps() const;
+  using Received = PeerBook::Received;
+  std::vector<Received> ReceivedMaps() const { return book_.ReceivedMaps(); }
   // Robots with at least one aligned incarnation, and robots whose writer is gone.
-  std::vector<RobotId> AlignedRobots() const;
-  std::vector<RobotId> StaleRobots() const;
+  std::vector<RobotId> AlignedRobots() const { return book_.AlignedRobots(); }
+  std::vector<RobotId> StaleRobots() const { return book_.StaleRobots(); }
 
  private:
   // What one Update did so far: whether an alignment changed, and the peers whose map (local or
@@ -90,8 +90,6 @@ class MapExchange {
     bool changed = false;
     std::set<PeerKey> chosen;
   };
-  // The schedule's view of every peer.
-  std::vector<PeerFacts> Facts(double now) const;
   // Carries out one turn of the schedule; true when it settled the peer (its later turns in
   // this Update are skipped).
   bool Take(const Turn& turn, const LandmarkMap& own_local, double now, Round& round);
@@ -106,9 +104,6 @@ class MapExchange {
   bool AlignByRendezvous(PeerState& p, const LandmarkMap& own_local, double now);
   // Marks a peer aligned by the answer just used.
   void MarkAligned(PeerState& p, AlignmentSource by, double now);
-  // Whether a new incarnation of robot can be kept (max_incarnations), evicting one if need be.
-  bool MakeRoomFor(RobotId robot, double now);
-  bool Silent(const PeerState& p, double now) const { return p.Silent(now, options_.SilentAfterS()); }
   // The peer no longer contributes (its alignment is dropped); aligned again from `now` on.
   void Drop(PeerState& p, double now);
   // Uses an accepted (and confirmed) alignment r of the peer: its transform, and the source at it.
@@ -136,9 +131,10 @@ class MapExchange {
   ExchangeOptions options_;
   RelayPolicy relay_{options_};
   std::mt19937_64 rng_;
-  PeerStates peers_;
-  bool refuted_ = false;                   // the Update in progress refuted an alignment
-  PeerKey next_turn_;                      // the peer whose turn is first in the next Update (round robin)
+  PeerBook book_{self_, options_};
+  double now_ = 0.0;      // the last update's or liveness change's scenario time (the reports' liveness)
+  bool refuted_ = false;  // the Update in progress refuted an alignment
+  PeerKey next_turn_;     // the peer whose turn is first in the next Update (round robin)
   std::unique_ptr<FusionBackend> fusion_;  // agent.fusion, chosen once
   GlobalMap global_;
   GlobalMap published_;

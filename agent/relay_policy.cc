@@ -34,7 +34,7 @@ std::optional<PeerKey> RelayPolicy::FirstConflict(const PeerStates& peers, const
   for (const auto& [key, q] : peers) {
     if (&q == &p || !q.direct || q.direct->map.empty()) continue;
     // A frozen peer this relay re-placed is the relay's to bring: its own copy is no witness.
-    if (q.superseded_by == p.report.key) continue;
+    if (q.superseded_by == p.key) continue;
     // q's map as we placed it, against p's global map where p placed it: where they overlap,
     // p's map must verify there, at the same transform.
     if (Compare(TransformMap(q.direct->map, q.direct->to_own), p.global, to_own) == Overlap::kDisagrees) return key;
@@ -59,7 +59,7 @@ RelayPolicy::Evidence RelayPolicy::Weigh(const PeerStates& peers, const PeerStat
   };
   weigh(own_local);
   for (const auto& [key, w] : peers) {
-    if (&w == &q || !w.direct || w.direct->map.empty() || key.robot == q.report.key.robot) continue;
+    if (&w == &q || !w.direct || w.direct->map.empty() || key.robot == q.key.robot) continue;
     weigh(TransformMap(w.direct->map, w.direct->to_own));
   }
   return e;
@@ -78,7 +78,7 @@ std::optional<AlignmentResult> RelayPolicy::Refutation(const PeerStates& peers, 
     return std::nullopt;
   }
   // Placements this close are two fits of one alignment (of a bent map, say), not a false one.
-  const Pose2 ours = q.report.to_own;
+  const Pose2 ours = q.to_own;
   const Eigen::Vector2d at = Centroid(theirs);
   if (Within(r.transform, ours, at, options_.refute_min_offset_m, options_.refute_min_offset_deg)) return std::nullopt;
   const Evidence held = Weigh(peers, q, ours, own_local);
@@ -86,8 +86,8 @@ std::optional<AlignmentResult> RelayPolicy::Refutation(const PeerStates& peers, 
   const bool relay_better = relay.supporters > 0 && (relay.against < held.against ||
                                                      (relay.against == held.against && relay.inliers > held.inliers));
   if (!relay_better && held.against <= held.supporters) return std::nullopt;
-  if (q.report.frozen && relay.supporters == 0) return std::nullopt;
-  r.cov = r.cov + p.report.to_own_cov;  // the relay's frame is placed with that uncertainty
+  if (q.Frozen() && relay.supporters == 0) return std::nullopt;
+  r.cov = r.cov + p.to_own_cov;  // the relay's frame is placed with that uncertainty
   return r;
 }
 

@@ -248,6 +248,7 @@ TEST(MapExchange, AWrongButWellFormedMapFailsVerificationAndNeverEntersTheGlobal
   a.OnPeerMap(2, 1, MapKind::kLocal, 3, 0.0, shuffled, 12.0);
   a.Update(la, 12.0);
   EXPECT_TRUE(a.Peers().front().dropped);
+  EXPECT_EQ(a.Peers().front().stage, PeerStage::kDropped);
   EXPECT_EQ(a.Peers().front().rejected, 2);
   EXPECT_EQ(a.Peers().front().drops, 1);
   EXPECT_TRUE(a.AlignedRobots().empty());
@@ -431,6 +432,8 @@ TEST(MapExchange, ARelayBetterSupportedThanOurAlignmentRefutesIt) {
   // Every landmark robot 3 sent is in the global map, where it belongs: the relay, used now,
   // brings them (robot 3's own copy stays out while it does).
   EXPECT_TRUE(rc.superseded);
+  EXPECT_EQ(rc.stage, PeerStage::kSuperseded);
+  EXPECT_TRUE(rc.aligned);
   std::vector<Eigen::Vector2d> c_points = w.r1;
   c_points.insert(c_points.end(), w.s.begin(), w.s.end());
   for (const auto& q : c_points) {
@@ -483,6 +486,7 @@ TEST(MapExchange, AlignmentsAreUsedOnceConfirmed) {
   a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, w.Map(14, 36, kFrameB, kSigma, rng), 0.0);
   a.Update(la, 10.0);
   EXPECT_TRUE(a.AlignedRobots().empty());  // accepted once: a candidate
+  EXPECT_EQ(a.Peers().front().stage, PeerStage::kCandidate);
   EXPECT_EQ(a.Peers().front().unconfirmed, 1);
   EXPECT_EQ(a.global().map.size(), la.size());
   a.OnPeerMap(2, 1, MapKind::kLocal, 2, 0.0, w.Map(14, 40, kFrameB, kSigma, rng), 12.0);
@@ -490,6 +494,7 @@ TEST(MapExchange, AlignmentsAreUsedOnceConfirmed) {
   EXPECT_TRUE(a.AlignedRobots().empty());
   a.Update(la, 15.0);  // a second, agreeing answer from the grown map
   ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
+  EXPECT_EQ(a.Peers().front().stage, PeerStage::kAligned);
   const Pose2 truth = kFrameA.Inverse() * kFrameB;
   EXPECT_NEAR(a.Peers().front().to_own.x, truth.x, 0.05);
   EXPECT_NEAR(a.Peers().front().to_own.theta, truth.theta, 0.01);
@@ -788,6 +793,7 @@ TEST_P(DeadPeerAndALaterRelay, KeepsTheDeadPeersLandmarks) {
   a.Update(la, 30.0);
   ASSERT_FALSE(a.Peers()[0].relayed);
   EXPECT_FALSE(a.Peers()[1].superseded);
+  EXPECT_EQ(a.Peers()[1].stage, PeerStage::kAligned);
   from_c.clear();
   for (const auto& o : a.global().origins) {
     for (const LandmarkOrigin& x : o) {

@@ -47,12 +47,13 @@ const Pose2 kWrong{kFrameQ.x + 14.0, kFrameQ.y - 6.0, kFrameQ.theta + 0.3};  // 
 
 PeerState Peer(RobotId robot, const LandmarkMap& local, const Pose2& to_own) {
   PeerState p;
-  p.report.key = {robot, 1};
+  p.key = {robot, 1};
+  p.stage = PeerStage::kAligned;
   p.local = local;
   p.has_local = true;
-  p.report.to_own = to_own;
-  p.report.to_own_cov = 1e-4 * Eigen::Matrix3d::Identity();
-  p.direct = MapSource{robot, 1, local, to_own, p.report.to_own_cov};
+  p.to_own = to_own;
+  p.to_own_cov = 1e-4 * Eigen::Matrix3d::Identity();
+  p.direct = MapSource{robot, 1, local, to_own, p.to_own_cov};
   p.source = p.direct;
   return p;
 }
@@ -103,7 +104,7 @@ TEST_F(RelayPolicyTest, ARelayThatPlacesAnAlignedPeerElsewhereIsAConflict) {
   ASSERT_TRUE(policy.FirstConflict(peers, p, off).has_value());
   EXPECT_EQ(*policy.FirstConflict(peers, p, off), (PeerKey{3, 1}));
   // A frozen peer that this relay re-placed is the relay's to bring: no witness against it.
-  q.superseded_by = p.report.key;
+  q.superseded_by = p.key;
   EXPECT_EQ(policy.FirstConflict(peers, p, off), std::nullopt);
 }
 
@@ -137,10 +138,10 @@ TEST_F(RelayPolicyTest, ABetterSupportedRelayRefutesAFalseAlignmentAndOnlyThat) 
   ASSERT_TRUE(refuted.has_value());
   EXPECT_TRUE(policy.Agree(refuted->transform, kFrameQ, Centroid(q.Map())));
   // Its covariance includes the relay's own placement.
-  EXPECT_TRUE((refuted->cov - p.report.to_own_cov).diagonal().minCoeff() >= 0.0);
+  EXPECT_TRUE((refuted->cov - p.to_own_cov).diagonal().minCoeff() >= 0.0);
 
   // Where our alignment is right, the relay's placement (p placed falsely) refutes nothing.
-  q.report.to_own = kFrameQ;
+  q.to_own = kFrameQ;
   q.direct->to_own = kFrameQ;
   const Pose2 p_wrong{kFrameP.x + 12.0, kFrameP.y + 8.0, kFrameP.theta - 0.4};
   EXPECT_EQ(policy.Refutation(peers, p, p_wrong, q, own, search), std::nullopt);
@@ -154,8 +155,7 @@ TEST_F(RelayPolicyTest, AFrozenPeerIsRefutedOnlyWhenAnotherMapSupportsTheRelay) 
   const LandmarkMap own = world.Map(0.0, 12.0, Pose2{}, rng);
   PeerStates peers;
   PeerState& q = peers[{3, 1}] = Peer(3, world.Map(26.0, 40.0, kFrameQ, rng), kWrong);
-  q.report.stale = true;
-  q.report.frozen = true;
+  q.stale = true;  // frozen: its writer is gone
   PeerState& p = peers[{2, 1}] = Peer(2, world.Map(0.0, 20.0, kFrameP, rng), kFrameP);
   p.global = world.Map(0.0, 40.0, kFrameP, rng);
   p.has_global = true;

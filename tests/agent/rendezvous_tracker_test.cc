@@ -159,7 +159,7 @@ TEST(RendezvousTrackerTest, MalformedForeignAndUnmatchedMessagesAreCountedOrIgno
   }
   EXPECT_EQ(a.stats().refused, 3u);
   Sighting other = good, outsider = good;
-  other.other = 3;      // about another robot
+  other.other = 3;        // about another robot
   outsider.robot_id = 9;  // from a robot outside the run
   a.OnMessage(other);
   a.OnMessage(outsider);

@@ -1,0 +1,128 @@
+#include "agent/peer_book.h"
+
+#include <gtest/gtest.h>
+
+namespace mapmesh {
+namespace {
+
+LandmarkMap MapOf(int n) {
+  LandmarkMap m;
+  for (int i = 0; i < n; ++i) {
+    Landmark l;
+    l.id = static_cast<std::uint32_t>(i);
+    l.mean = Eigen::Vector2d(i, 2.0 * i);
+    l.cov = 0.01 * Eigen::Matrix2d::Identity();
+    m.landmarks.push_back(l);
+  }
+  return m;
+}
+
+using Receipt = PeerBook::Receipt;
+
+TEST(PeerBook, VersionsMustGrowAndNotJumpAheadOfThePublisher) {
+  ExchangeOptions o;
+  PeerBook book(1, o);
+  EXPECT_EQ(book.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.5, MapOf(3), 10.0), Receipt::kAccepted);
+  EXPECT_EQ(book.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.5, MapOf(4), 11.0), Receipt::kStaleVersion);
+  EXPECT_EQ(book.OnPeerMap(2, 1, MapKind::kLocal, 2, 0.5, MapOf(4), 11.0), Receipt::kAccepted);
+  // The other kind counts apart; a version beyond what could have been published is refused.
+  EXPECT_EQ(book.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.5, MapOf(6), 11.0), Receipt::kAccepted);
+  EXPECT_EQ(book.OnPeerMap(2, 1, MapKind::kLocal, 1000000, 0.5, MapOf(4), 12.0), Receipt::kVersionJump);
+  const std::vector<PeerReport> r = book.Reports(12.0);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].local_landmarks, 4);
+  EXPECT_EQ(r[0].global_landmarks, 6);
+  EXPECT_DOUBLE_EQ(r[0].last_heard, 11.0);
+  EXPECT_DOUBLE_EQ(r[0].origin_stamp, 0.5);
+  EXPECT_EQ(r[0].stage, PeerStage::kUnaligned);
+}
+
+TEST(PeerBook, LivenessIsComputedWhenAskedNeverKept) {
+  ExchangeOptions o;
+  PeerBook book(1, o);
+  book.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, MapOf(3), 10.0);
+  EXPECT_FALSE(book.Reports(10.0)[0].silent);
+  EXPECT_TRUE(book.Reports(10.0 + o.SilentAfterS() + 1.0)[0].silent);  // no map for silent_after_s
+  EXPECT_FALSE(book.Reports(10.0)[0].silent);                          // ... asked again at 10 s
+  // Lockstep: a tick's list without it makes it stale from then on; back in a list, live again.
+  book.SetLive({}, 20.0);
+  PeerReport r = book.Reports(20.0)[0];
+  EXPECT_TRUE(r.stale && r.frozen && r.silent);
+  EXPECT_DOUBLE_EQ(r.stale_since, 20.0);
+  book.SetLive({}, 25.0);
+  EXPECT_DOUBLE_EQ(book.Reports(25.0)[0].stale_since, 20.0);  // since it went, not since last told
+  EXPECT_EQ(book.StaleRobots(), std::vector<RobotId>{2});
+  book.SetLive({{2, 1}}, 30.0);
+  EXPECT_FALSE(book.Reports(30.0)[0].stale);
+  // Liveliness (realtime) speaks for every incarnation of the robot; a map heard revives it.
+  book.OnPeerMap(2, 2, MapKind::kLocal, 1, 0.0, MapOf(3), 31.0);
+  book.OnPeerLiveliness(2, false, 32.0);
+  EXPECT_EQ(book.StaleRobots(), std::vector<RobotId>{2});
+  EXPECT_TRUE(book.Reports(32.0)[1].stale);
+  book.OnPeerMap(2, 2, MapKind::kLocal, 2, 0.0, MapOf(3), 33.0);
+  EXPECT_FALSE(book.Reports(33.0)[1].stale);
+  EXPECT_TRUE(book.Reports(33.0)[0].stale);
+}
+
+TEST(PeerBook, AnEarlierOwnIncarnationIsFrozenAndCarriedOnUntilAligned) {
+  ExchangeOptions o;
+  PeerBook book(1, o);
+  book.AddOwnCheckpoint(1, 0.5, MapOf(5), MapOf(8));
+  const PeerReport r = book.Reports(0.0)[0];
+  EXPECT_TRUE(r.own_checkpoint && r.frozen && r.stale);
+  EXPECT_EQ(r.local_landmarks, 5);
+  EXPECT_EQ(r.global_landmarks, 8);
+  ASSERT_EQ(book.UnalignedOwnCheckpoints().size(), 1u);
+  EXPECT_TRUE(book.ReceivedMaps().empty());  // not a peer's map
+  EXPECT_TRUE(book.StaleRobots().empty());
+  // Liveliness never revives it: that process is gone.
+  book.OnPeerLiveliness(1, true, 1.0);
+  book.SetLive({{1, 1}}, 1.0);
+  EXPECT_TRUE(book.Reports(1.0)[0].frozen);
+  // Once it is placed (MapExchange chose a source of it), a checkpoint need not carry it on.
+  book.states().at({1, 1}).source = MapSource{};
+  EXPECT_TRUE(book.UnalignedOwnCheckpoints().empty());
+}
+
+TEST(PeerBook, IncarnationsAreBoundedAndOnlyThoseThatGaveNothingAreEvicted) {
+  ExchangeOptions o;
+  o.max_incarnations = 2;
+  PeerBook book(1, o);
+  ASSERT_EQ(book.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, MapOf(3), 1.0), Receipt::kAccepted);
+  ASSERT_EQ(book.OnPeerMap(2, 2, MapKind::kLocal, 1, 0.0, MapOf(3), 2.0), Receipt::kAccepted);
+  // Both still speak: a third has no room.
+  EXPECT_EQ(book.OnPeerMap(2, 3, MapKind::kLocal, 1, 0.0, MapOf(3), 3.0), Receipt::kTooManyIncarnations);
+  // Incarnation 1 contributed once (ever aligned) and both went silent: the other one goes.
+  book.states().at({2, 1}).ever_aligned = true;
+  book.OnPeerLiveliness(2, false, 4.0);
+  EXPECT_EQ(book.OnPeerMap(2, 3, MapKind::kLocal, 1, 0.0, MapOf(3), 5.0), Receipt::kAccepted);
+  ASSERT_EQ(book.states().size(), 2u);
+  EXPECT_TRUE(book.states().count({2, 1}));
+  EXPECT_TRUE(book.states().count({2, 3}));
+  // Other robots are not counted against robot 2.
+  EXPECT_EQ(book.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.0, MapOf(3), 5.0), Receipt::kAccepted);
+}
+
+TEST(PeerBook, FactsSayWhatTheScheduleReads) {
+  ExchangeOptions o;
+  PeerBook book(1, o);
+  book.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, MapOf(7), 1.0);
+  book.OnPeerMap(2, 1, MapKind::kGlobal, 1, 0.0, MapOf(12), 1.0);
+  PeerState& p = book.states().at({2, 1});
+  p.stage = PeerStage::kAligned;
+  p.aligned_by = AlignmentSource::kOverlap;
+  p.relay_judged = true;
+  p.relay_judged_version = 1;
+  p.relay_judged_size = 9;
+  const PeerFacts f = book.Facts(1.0).at(0);
+  EXPECT_TRUE(f.has_map && f.aligned && f.aligned_by_overlap && f.changed && f.has_global && f.global_judged);
+  EXPECT_FALSE(f.stale || f.silent || f.awaiting_confirmation || f.rendezvous_waiting || f.global_newer);
+  EXPECT_EQ(f.map_size, 7u);
+  EXPECT_EQ(f.global_growth, 3);
+  book.OnPeerMap(2, 1, MapKind::kGlobal, 2, 0.0, MapOf(15), 2.0);
+  EXPECT_TRUE(book.Facts(2.0).at(0).global_newer);
+  EXPECT_TRUE(book.Facts(2.0 + o.SilentAfterS() + 1.0).at(0).silent);
+}
+
+}  // namespace
+}  // namespace mapmesh
