@@ -61,14 +61,18 @@ class DdsOutput : public AgentOutput {
 
   DdsOutput(const tp::Participant& p, double lease_s, RobotId self, bool lockstep)
       : maps_(p, tp::kMapTopic, tp::MapQosFor(lockstep, lease_s).Partition(tp::RobotPartition(self))),
-        status_(p, tp::kStatusTopic, tp::StatusQos(lease_s).Partition(tp::RobotPartition(self))),
-        sightings_(p, tp::kSightingTopic, tp::SightingQosFor(lockstep).Partition(tp::RobotPartition(self))) {}
+        status_(p, tp::kStatusTopic, tp::StatusQos(lease_s).Partition(tp::RobotPartition(self))) {
+    // In lockstep sightings ride on the tick's local map: no sighting topic.
+    if (!lockstep) sightings_.emplace(p, tp::kSightingTopic, tp::SightingQos().Partition(tp::RobotPartition(self)));
+  }
   void PublishMap(const MapMessage& msg) override { maps_.Write(msg); }
   void PublishStatus(const AgentStatus& status) override {
     status_.Write(status);
     repeat_at_ = Clock::now() + kStatusRepeat;
   }
-  void PublishSighting(const Sighting& s) override { sightings_.Write(s); }
+  void PublishSighting(const Sighting& s) override {
+    if (sightings_) sightings_->Write(s);
+  }
   // A status sent on the launcher's beat or as a repeat: no repeat of its own.
   void SendStatus(const AgentStatus& status) { status_.Write(status); }
   // When the last status published by the node is due to be repeated (nullopt: none is).
@@ -79,7 +83,7 @@ class DdsOutput : public AgentOutput {
   std::optional<Clock::time_point> repeat_at_;
   tp::Writer<MapMessage> maps_;
   tp::Writer<AgentStatus> status_;
-  tp::Writer<Sighting> sightings_;
+  std::optional<tp::Writer<Sighting>> sightings_;
 };
 
 // A map keyed by robot as a JSON object (keys are strings).
@@ -211,6 +215,7 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
        {"peers_stale", status.peers_stale},
        {"sightings",
         {{"sent", s.sightings_sent},
+         {"unsent", s.sightings_unsent},
          {"bytes_sent", s.sighting_bytes_sent},
          {"received", s.sightings_received},
          {"gated", s.sightings_gated},
@@ -310,18 +315,20 @@ int Run(int argc, char** argv) {
   tp::Reader<Scan> scans(p, tp::ScanTopic(self), tp::SensorQos());
   tp::Reader<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
   const double lease_s = scenario.agent.LivelinessLeaseS(scenario.robots.size());
-  // In lockstep the maps and sightings are exchanged at the feeder's ticks (messages.h
-  // ExchangeTick), reliably; in real time they go out as the agent goes.
+  // In lockstep the maps are exchanged at the feeder's ticks (messages.h ExchangeTick),
+  // reliably, and sightings ride on them; in real time maps and sightings go out as the agent
+  // goes, on topics of their own.
   const AgentRun run = AgentRunFor(scenario, self);
   const bool lockstep = run.exchange_ticks;
   tp::Reader<MapMessage> maps(
       p, tp::kMapTopic,
       (lockstep ? tp::LockstepMapQos(lease_s) : tp::MapQos(lease_s)).Partition(tp::kEveryRobotPartition));
-  tp::Reader<Sighting> sightings(
-      p, tp::kSightingTopic,
-      (lockstep ? tp::LockstepSightingQos() : tp::SightingQos()).Partition(tp::kEveryRobotPartition));
+  std::optional<tp::Reader<Sighting>> sightings;
+  if (!lockstep) sightings.emplace(p, tp::kSightingTopic, tp::SightingQos().Partition(tp::kEveryRobotPartition));
   tp::Reader<ExchangeTick> ticks(p, tp::kTickTopic, tp::TickQos());
-  tp::WriterPartitions map_writers(maps.raw()), sighting_writers(sightings.raw());
+  tp::WriterPartitions map_writers(maps.raw());
+  std::optional<tp::WriterPartitions> sighting_writers;
+  if (sightings) sighting_writers.emplace(sightings->raw());
   DdsOutput output(p, lease_s, self, lockstep);
   AgentNode node(scenario.agent, run, self, incarnation, output);
   if (checkpoint) {
@@ -341,7 +348,7 @@ int Run(int argc, char** argv) {
   waitset.AttachReader(scans.raw(), 2);
   waitset.AttachReader(links.raw(), 3);
   waitset.AttachReader(maps.raw(), 4);
-  waitset.AttachReader(sightings.raw(), 6);
+  if (sightings) waitset.AttachReader(sightings->raw(), 6);
   waitset.AttachReader(ticks.raw(), 7);
   waitset.AttachGuard(stop, 5);
   shutdown.Watch(&stop);
@@ -385,9 +392,11 @@ int Run(int argc, char** argv) {
     for (const auto& s : odom.Take()) {
       if (s.valid) node.OnOdometry(s.value);
     }
-    for (const auto& s : sightings.Take()) {
-      if (s.valid && speaks_for(sighting_writers, s.publication, s.value.robot_id, refusals.sightings))
-        node.OnSighting(s.value);
+    if (sightings) {
+      for (const auto& s : sightings->Take()) {
+        if (s.valid && speaks_for(*sighting_writers, s.publication, s.value.robot_id, refusals.sightings))
+          node.OnSighting(s.value);
+      }
     }
     for (const auto& s : maps.Take()) {
       if (s.valid && speaks_for(map_writers, s.publication, s.value.robot_id, refusals.maps)) node.OnMap(s.value);

@@ -94,6 +94,7 @@ struct AgentStats {
   std::uint64_t payload_bytes_sent = 0;   // their encoded payloads
   std::map<RobotId, std::uint32_t> maps_received_from;
   std::uint32_t sightings_sent = 0;         // robot sightings and answers published (rendezvous)
+  std::uint32_t sightings_unsent = 0;       // lockstep: ... dropped, neither map of the tick could carry them
   std::uint64_t sighting_bytes_sent = 0;    // ... their bytes on the wire
   std::uint32_t sightings_received = 0;     // peers' sightings and answers that passed the radio gate
   std::uint32_t sightings_gated = 0;        // ... that it dropped (out of range, lost, busy)
@@ -115,6 +116,8 @@ class AgentNode : private SensorSync::Sink {
   void OnOdometry(const Odometry& odom);
   void OnScan(const Scan& scan);
   void OnLinks(const RadioLinks& links);
+  // A peer's map (and the sightings riding on it: each must be the map publisher's, of the
+  // map's tick, else it is refused as implausible).
   void OnMap(const MapMessage& msg);
   // A peer's robot sighting or answer (rendezvous): through the radio gate to the tracker.
   void OnSighting(const Sighting& msg);
@@ -126,8 +129,8 @@ class AgentNode : private SensorSync::Sink {
   // this agent's own go out only at ticks. An exchange tick that lists this incarnation applies
   // the inbox's messages of earlier ticks (of this incarnation's ticks; untagged ones too) in a
   // fixed order (tick, robot, incarnation, kind, version; then the sightings), makes the listed
-  // incarnations the live ones, updates the exchange and publishes the maps and held sightings,
-  // tagged; the gates use the tick's link table. A deliver tick checks that the inbox holds
+  // incarnations the live ones, updates the exchange and publishes the maps tagged, the held
+  // sightings and answers riding on them; the gates use the tick's link table. A deliver tick checks that the inbox holds
   // every message the tick lists: it returns false while one has not arrived (the caller tries
   // again as messages come in). A tick carried out, or not for this incarnation, returns true;
   // outside lockstep, every tick does.
@@ -174,8 +177,12 @@ class AgentNode : private SensorSync::Sink {
   void IntervalDone(const Odometry& odom) override;
   void AfterInterval(const Odometry& odom);
   // Updates the exchange and publishes both maps, tagged with the exchange tick (0: none).
-  void PublishMaps(std::uint32_t tick);
-  void Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version, std::uint32_t tick);
+  // Updates the exchange and publishes both maps, tagged with `tick` (0: realtime); `riders`
+  // (lockstep: the tick's sightings and answers) go out on the first map that does.
+  void PublishMaps(std::uint32_t tick, std::vector<Sighting> riders = {});
+  // Publishes one map; true when it went out (with the riders, which it then takes).
+  bool Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version, std::uint32_t tick,
+               std::vector<Sighting>& riders);
   // A peer's map or sighting through the gates into the exchange (at once, or at a tick).
   void ProcessMap(const MapMessage& msg);
   void ProcessSighting(const Sighting& msg);

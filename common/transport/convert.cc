@@ -73,7 +73,7 @@ mapmesh_msg_GroundTruth ToMsg(const GroundTruth& v, MsgScratch&) { return {v.rob
 
 GroundTruth FromMsg(const mapmesh_msg_GroundTruth& m) { return {m.robot_id, m.stamp, m.x, m.y, m.theta}; }
 
-mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch&) {
+mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch& scratch) {
   mapmesh_msg_MapMessage m{};
   m.robot_id = v.robot_id;
   m.kind = static_cast<std::uint8_t>(v.kind);
@@ -86,6 +86,12 @@ mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch&) {
   m.payload._length = static_cast<std::uint32_t>(v.payload.size());
   m.payload._buffer = const_cast<std::uint8_t*>(v.payload.data());
   m.payload._release = false;
+  scratch.sightings.clear();
+  for (const Sighting& s : v.sightings) scratch.sightings.push_back(ToMsg(s, scratch));
+  m.sightings._maximum = static_cast<std::uint32_t>(scratch.sightings.size());
+  m.sightings._length = m.sightings._maximum;
+  m.sightings._buffer = scratch.sightings.data();
+  m.sightings._release = false;
   return m;
 }
 
@@ -99,6 +105,8 @@ MapMessage FromMsg(const mapmesh_msg_MapMessage& m) {
   v.origin_stamp = m.origin_stamp;
   v.tick = m.tick;
   if (m.payload._length > 0) v.payload.assign(m.payload._buffer, m.payload._buffer + m.payload._length);
+  v.sightings.reserve(m.sightings._length);
+  for (std::uint32_t i = 0; i < m.sightings._length; ++i) v.sightings.push_back(FromMsg(m.sightings._buffer[i]));
   return v;
 }
 

@@ -33,6 +33,7 @@ struct MsgScratch {
   std::vector<mapmesh_msg_Observation> obs;
   std::vector<mapmesh_msg_Link> links;
   std::vector<mapmesh_msg_TickPeer> tick_peers;
+  std::vector<mapmesh_msg_Sighting> sightings;
   std::vector<std::uint32_t> ids, ids2;
 };
 

@@ -51,11 +51,6 @@ Qos& Qos::TransientLocal() {
   dds_qset_durability(q_, DDS_DURABILITY_TRANSIENT_LOCAL);
   return *this;
 }
-Qos& Qos::LateJoinersGetAll() {
-  dds_qset_durability_service(q_, 0, DDS_HISTORY_KEEP_ALL, 0, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED,
-                              DDS_LENGTH_UNLIMITED);
-  return *this;
-}
 Qos& Qos::Liveliness(double lease_s) {
   dds_qset_liveliness(q_, DDS_LIVELINESS_AUTOMATIC, ToDuration(lease_s));
   return *this;

@@ -68,9 +68,6 @@ class Qos {
   Qos& KeepLast(int depth);
   Qos& Volatile();
   Qos& TransientLocal();
-  // Transient-local: a late reader gets every sample the writer still holds (the durability
-  // service's history, which otherwise keeps only the last sample of each instance for them).
-  Qos& LateJoinersGetAll();
   // Automatic liveliness with this lease: readers learn of a dead writer after about lease_s.
   Qos& Liveliness(double lease_s);
   // Writers only: do not dispose instances when the writer goes away.

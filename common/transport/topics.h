@@ -56,13 +56,12 @@ inline Qos LockstepMapQos(double lease_s) {
 }
 // The map topic's QoS for a run's pace (every reader and writer of one run must agree).
 inline Qos MapQosFor(bool lockstep, double lease_s) { return lockstep ? LockstepMapQos(lease_s) : MapQos(lease_s); }
-// Robot sightings and their answers: rare (at most one per peer and agent.rendezvous_period_s),
-// each one useful on its own; best-effort like the maps, a few kept per publisher.
+// Robot sightings and their answers, realtime pace only: rare (at most one per peer and
+// agent.rendezvous_period_s), each one useful on its own; best-effort like the maps, a few kept
+// per publisher. In lockstep they ride on the tick's maps (MapMessage::sightings) and this topic
+// is not used: a topic of their own, reliable, cost 64 agents more CPU than all of rendezvous's
+// computing (docs/BENCHMARKS.md).
 inline Qos SightingQos() { return Qos().BestEffort().KeepLast(16).Volatile(); }
-// In lockstep, sightings go out at ticks like the maps: reliable, and transient-local with every
-// sample kept (many may go out at one tick; a late reader keeps only those of its own ticks).
-inline Qos LockstepSightingQos() { return Qos().Reliable().KeepAll().TransientLocal().LateJoinersGetAll(); }
-inline Qos SightingQosFor(bool lockstep) { return lockstep ? LockstepSightingQos() : SightingQos(); }
 // Exchange ticks, feeder to agents: every one matters until the next; a late joiner gets the
 // latest (the feeder sends the next only once every live agent has answered this one).
 inline Qos TickQos() { return Qos().Reliable().KeepLast(1).TransientLocal(); }

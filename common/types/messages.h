@@ -107,6 +107,9 @@ struct MapMessage {
   double origin_stamp = 0.0;      // s, when the sender's map frame was fixed
   std::uint32_t tick = 0;         // lockstep: the exchange tick it was published at (ExchangeTick); 0 otherwise
   std::vector<std::uint8_t> payload;
+  // Lockstep: the publisher's sightings and answers of the tick ride on one of its maps (the
+  // local one), so that rendezvous costs no message of its own; each must be the publisher's.
+  std::vector<Sighting> sightings;
 };
 
 // The lockstep exchange, from the feeder to the agents (feeder.pace lockstep). At each exchange

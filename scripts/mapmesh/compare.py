@@ -12,12 +12,14 @@ from pathlib import Path
 from .run_error import RunError
 
 # Keys whose values measure the host or the transport, not the run: wall-clock times and
-# timestamps, CPU time, memory, and the sensor messages a lockstep feeder sent again (to a
+# timestamps, CPU time, memory, the sensor messages a lockstep feeder sent again (to a
 # participant back from a pause: odom_received and scans_received count them, *_duplicate
-# says how many; the messages processed are compared).
+# says how many; the messages processed are compared), and with --hosts netns the namespaces'
+# names and the datagrams their kernels received and dropped.
 VOLATILE = frozenset({
     "wall_s", "real_time_factor", "cpu_s", "max_rss_mb", "wall", "wall_start", "wall_end", "peers_lost_wall",
-    "solve_wall_s", "odom_received", "scans_received", "odom_duplicate", "scans_duplicate",
+    "solve_s", "odom_received", "scans_received", "odom_duplicate", "scans_duplicate",
+    "tag", "bridge_namespace", "namespace", "udp_received", "udp_dropped", "udp_dropped_percent",
 })
 BYTES = ["local_map.json", "global_map.json", "trajectory.json", "checkpoint.json", "history.jsonl"]
 BYTE_DIRS = ["peers", "snapshots"]

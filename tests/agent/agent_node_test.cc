@@ -438,6 +438,50 @@ TEST_F(LockstepTest, PeersMapsWaitForTheNextTickAndDeliveryWaitsForEveryListedMe
   EXPECT_EQ(node_.stats().maps_stale_version, 0u);
 }
 
+// Rendezvous in lockstep: the agent's sightings ride on its tick's local map (no message of
+// their own), and a peer's reach its tracker at the next tick; one riding on another robot's
+// map, or of another tick, is refused.
+TEST_F(LockstepTest, SightingsRideOnTheTicksMaps) {
+  Scan sees2;
+  sees2.robot_id = 1;
+  sees2.stamp = 0.05;
+  sees2.obs.push_back({1.0, 0.0, 2, ObservationKind::kRobot});
+  node_.OnScan(sees2);
+  for (int k = 1; k <= 10; ++k) node_.OnOdometry(Odom(0.1 * k, k == 1 ? 1 : 0));
+  ASSERT_TRUE(node_.OnTick(Tick(1, TickPhase::kExchange, both_)));
+  EXPECT_TRUE(out_.sightings.empty());  // no sighting message of its own
+  ASSERT_EQ(out_.maps.size(), 2u);
+  ASSERT_EQ(out_.maps[0].kind, MapKind::kLocal);
+  ASSERT_EQ(out_.maps[0].sightings.size(), 1u);
+  EXPECT_TRUE(out_.maps[1].sightings.empty());
+  const Sighting& mine = out_.maps[0].sightings[0];
+  EXPECT_EQ(mine.robot_id, 1u);
+  EXPECT_EQ(mine.other, 2u);
+  EXPECT_EQ(mine.tick, 1u);
+  EXPECT_EQ(node_.stats().sightings_sent, 1u);
+  EXPECT_EQ(out_.statuses.back().tick_published, 2u);  // the maps: what the deliver phase waits for
+  // Robot 2's map with its sighting of robot 1, one claiming robot 3 and one of another tick.
+  Sighting theirs = mine;
+  theirs.robot_id = 2;
+  theirs.other = 1;
+  MapMessage m = TaggedMap(2, 1, MapKind::kLocal, 1, 1, Points({{1, 2}, {3, 1}}));
+  Sighting forged = theirs, late = theirs;
+  forged.robot_id = 3;
+  late.tick = 0;
+  m.sightings = {theirs, forged, late};
+  node_.OnMap(m);
+  EXPECT_EQ(node_.stats().sightings_implausible, 2u);
+  EXPECT_EQ(node_.stats().sightings_received, 0u);  // not before the next tick
+  ASSERT_TRUE(node_.OnTick(Tick(1, TickPhase::kDeliver, {{1, 1, 2}, {2, 1, 1}})));
+  ASSERT_TRUE(node_.OnTick(Tick(2, TickPhase::kExchange, both_)));
+  EXPECT_EQ(node_.stats().sightings_received, 1u);
+  EXPECT_EQ(node_.rendezvous_stats().sightings_used, 1u);  // answered at the tick
+  ASSERT_EQ(out_.maps.size(), 4u);
+  ASSERT_EQ(out_.maps[2].sightings.size(), 1u);
+  EXPECT_EQ(out_.maps[2].sightings[0].kind, SightingKind::kAnswer);
+  EXPECT_EQ(out_.maps[2].sightings[0].tick, 2u);
+}
+
 // The gates judge a tick's messages by the tick's link table, whatever came in on the links
 // topic: out of range there, a peer's map is dropped though the latest table joins them.
 TEST_F(LockstepTest, TheGatesUseTheTicksLinkTable) {

@@ -134,6 +134,70 @@ TEST_F(TransportTest, LinksTruthStatusRoundTrip) {
   EXPECT_DOUBLE_EQ(truths[0].y, 4.0);
 }
 
+// In lockstep a map carries its publisher's sightings and answers of the tick: every field of
+// each crosses the wire.
+TEST_F(TransportTest, ALockstepMapCarriesItsSightings) {
+  Writer<MapMessage> w(p(), kMapTopic, LockstepMapQos(1.0));
+  Reader<MapMessage> r(p(), kMapTopic, LockstepMapQos(1.0));
+  WaitMatched(w);
+  MapMessage m;
+  m.robot_id = 3;
+  m.incarnation = 2;
+  m.version = 7;
+  m.tick = 11;
+  m.payload = {9, 8, 7};
+  Sighting s;
+  s.robot_id = 3;
+  s.incarnation = 2;
+  s.other = 5;
+  s.stamp = 10.25;
+  s.x = 1.5;
+  s.y = -2.5;
+  s.theta = 0.75;
+  s.cov = {1, 2, 3, 4, 5, 6};
+  s.range = 4.125;
+  s.bearing = -0.5;
+  s.sigma_range = 0.1;
+  s.sigma_bearing = 0.02;
+  s.tick = 11;
+  Sighting a = s;
+  a.kind = SightingKind::kAnswer;
+  a.other = 1;
+  a.other_incarnation = 4;
+  m.sightings = {s, a};
+  w.Write(m);
+  const auto got = TakeN(r, 1);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].payload, m.payload);
+  ASSERT_EQ(got[0].sightings.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    const Sighting& g = got[0].sightings[i];
+    const Sighting& e = m.sightings[i];
+    EXPECT_EQ(g.robot_id, e.robot_id);
+    EXPECT_EQ(g.incarnation, e.incarnation);
+    EXPECT_EQ(g.kind, e.kind);
+    EXPECT_EQ(g.other, e.other);
+    EXPECT_EQ(g.other_incarnation, e.other_incarnation);
+    EXPECT_EQ(g.stamp, e.stamp);
+    EXPECT_EQ(g.x, e.x);
+    EXPECT_EQ(g.y, e.y);
+    EXPECT_EQ(g.theta, e.theta);
+    EXPECT_EQ(g.cov, e.cov);
+    EXPECT_EQ(g.range, e.range);
+    EXPECT_EQ(g.bearing, e.bearing);
+    EXPECT_EQ(g.sigma_range, e.sigma_range);
+    EXPECT_EQ(g.sigma_bearing, e.sigma_bearing);
+    EXPECT_EQ(g.tick, e.tick);
+  }
+  // A realtime map carries none.
+  m.sightings.clear();
+  ++m.version;
+  w.Write(m);
+  const auto bare = TakeN(r, 1);
+  ASSERT_EQ(bare.size(), 1u);
+  EXPECT_TRUE(bare[0].sightings.empty());
+}
+
 // Agents write maps in their robot's partition and read every robot's: the reader learns each
 // sample's writer partition, and SpeaksFor refuses a sample claiming another robot. A writer
 // outside the robots' partitions is not matched at all.
