@@ -157,10 +157,12 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
     }
     return sent;
   };
-  auto exchange = [&](std::uint32_t k) {
+  std::optional<std::uint32_t> last_tick;
+  auto exchange = [&](std::uint32_t k, double stamp) {
+    last_tick = k;
     ExchangeTick tick;
     tick.index = k;
-    tick.stamp = k * exchange_period;
+    tick.stamp = stamp;
     tick.links = links ? *links : RadioLinks{-1.0, {}};
     for (auto& [id, s] : slots) {
       if (s.alive) tick.peers.push_back({id, s.incarnation, 0});
@@ -185,9 +187,11 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
     }
   };
 
+  double end_stamp = 0.0;
   while (!feed.source->Done()) {
     FeedBatch b = feed.source->Next();
     const double t = b.stamp;
+    end_stamp = t;
     if (!ticks) {  // in real time the writer's liveliness tells the others at once
       for (; next_kill < kills.size() && kills[next_kill].first <= t; ++next_kill) Kill(kills[next_kill].second);
       for (; next_restart < restarts.size() && restarts[next_restart].first <= t; ++next_restart)
@@ -214,7 +218,7 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
       s.checkpoint = s.node->Checkpoint();
       s.next_checkpoint_s = s.node->processed_until() + checkpoint_period;
     }
-    if (const std::optional<std::uint32_t> k = tick_for(t)) exchange(*k);
+    if (const std::optional<std::uint32_t> k = tick_for(t)) exchange(*k, *k * exchange_period);
     SampleAlignments();
     if (!ticks) {
       deliver();
@@ -225,6 +229,9 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
     for (; next_restart < restarts.size() && restarts[next_restart].first <= t; ++next_restart)
       Restart(restarts[next_restart].second);
   }
+
+  // The feeder's closing tick: the maps published at the last exchange point are applied too.
+  if (last_tick) exchange(*last_tick + 1, end_stamp);
 
   const WorldTruth& world = feed.source->Truth();
   result.landmarks = world.landmarks;
