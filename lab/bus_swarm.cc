@@ -120,12 +120,24 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
     next_exchange = (k + 1.0) * exchange_period;
     return static_cast<std::uint32_t>(k);
   };
+  // What a test does to a robot's sightings and answers on their way (withheld, or shifted),
+  // on their own or riding on its maps (lockstep).
+  auto tamper = [&](RobotId id, std::vector<Sighting>& v) {
+    if (o.sightings_withheld.count(id)) v.clear();
+    if (const auto off = o.sighting_offsets.find(id); off != o.sighting_offsets.end()) {
+      for (Sighting& m : v) {
+        m.x += off->second.x();
+        m.y += off->second.y();
+      }
+    }
+  };
   // Delivers what the agents published, in robot order: maps, then sightings.
   auto deliver = [&]() {
     std::map<std::pair<RobotId, std::uint32_t>, std::uint32_t> sent;
     std::vector<MapMessage> bus;
     for (auto& [id, s] : slots) {
       if (!s.out) continue;
+      for (MapMessage& m : s.out->maps) tamper(id, m.sightings);
       bus.insert(bus.end(), s.out->maps.begin(), s.out->maps.end());
       sent[{id, s.incarnation}] += static_cast<std::uint32_t>(s.out->maps.size());
       s.out->maps.clear();
@@ -139,15 +151,8 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
     std::vector<Sighting> sightings;
     for (auto& [id, s] : slots) {
       if (!s.out) continue;
-      sent[{id, s.incarnation}] += static_cast<std::uint32_t>(s.out->sightings.size());
-      if (o.sightings_withheld.count(id)) s.out->sightings.clear();
-      for (Sighting m : s.out->sightings) {
-        if (const auto off = o.sighting_offsets.find(id); off != o.sighting_offsets.end()) {
-          m.x += off->second.x();
-          m.y += off->second.y();
-        }
-        sightings.push_back(m);
-      }
+      tamper(id, s.out->sightings);  // realtime only: in lockstep they ride on the maps
+      sightings.insert(sightings.end(), s.out->sightings.begin(), s.out->sightings.end());
       s.out->sightings.clear();
     }
     for (const Sighting& m : sightings) {
@@ -175,10 +180,6 @@ BusSwarmResult RunBusSwarm(const Scenario& scenario_in, const BusSwarmOptions& o
     for (TickPeer& p : tick.peers) {
       const auto it = sent.find({p.robot, p.incarnation});
       p.messages = it == sent.end() ? 0 : it->second;
-    }
-    // The sightings a test withholds never arrive: the others are not told to wait for them.
-    for (TickPeer& p : tick.peers) {
-      if (o.sightings_withheld.count(p.robot)) p.messages = 0;
     }
     for (auto& [id, s] : slots) {
       if (!s.alive) continue;
