@@ -69,6 +69,8 @@ struct ExchangeOptions {
                                         // map periods
   int max_alignments_per_update = 4;    // agent.max_alignments_per_update: full alignments (first, retried and fresh
                                         // ones) per Update, round robin
+  int max_rendezvous_per_update = 64;   // agent.max_rendezvous_per_update: rendezvous fits weighed against the maps
+                                        // per Update, round robin with the alignments
   int max_relay_checks_per_update = 4;  // agent.max_relay_checks_per_update: relays (peers' newer global maps) judged
                                         // per Update, those that grew most first; the others keep the global map
                                         // judged last (docs/EXCHANGE.md "Bounded work") ...
@@ -106,6 +108,7 @@ struct ExchangeOptions {
     r.GetInRange("map_publish_period_s", map_publish_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
     r.GetZeroOrInRange("silent_after_s", silent_after_s, limits::kMinPeriodS, limits::kMaxPeriodS);
     r.GetInRange("max_alignments_per_update", max_alignments_per_update, 1, limits::kMaxAlignmentsPerUpdate);
+    r.GetInRange("max_rendezvous_per_update", max_rendezvous_per_update, 1, limits::kMaxAlignmentsPerUpdate);
     r.GetInRange("max_relay_checks_per_update", max_relay_checks_per_update, 1, limits::kMaxAlignmentsPerUpdate);
     r.GetInRange("max_relay_comparisons_per_update", max_relay_comparisons_per_update, 1,
                  limits::kMaxRelayComparisonsPerUpdate);

@@ -80,6 +80,7 @@ PeerSchedule PlanTurns(const std::vector<PeerFacts>& facts, std::size_t own_size
   for (auto it = turn; it != facts.end(); ++it) order.push_back(&*it);
   for (auto it = facts.begin(); it != turn; ++it) order.push_back(&*it);
   int budget = o.max_alignments_per_update;
+  int rendezvous_budget = o.max_rendezvous_per_update;
   auto starve = [&](const PeerKey& key) {
     if (!s.next_turn) s.next_turn = key;
   };
@@ -87,7 +88,14 @@ PeerSchedule PlanTurns(const std::vector<PeerFacts>& facts, std::size_t own_size
     if (!f->has_map) continue;
     const bool relay_turn = s.relay_turns.count(f->key) > 0;
     if (!f->aligned) {
-      if (f->rendezvous_waiting && o.ByRendezvous()) s.turns.push_back({f->key, TurnKind::kRendezvous});
+      if (f->rendezvous_waiting && o.ByRendezvous()) {
+        if (rendezvous_budget > 0) {
+          --rendezvous_budget;
+          s.turns.push_back({f->key, TurnKind::kRendezvous});
+        } else {
+          starve(f->key);  // its fit waits (a newer one replaces it)
+        }
+      }
       if (!o.ByOverlap() || !AttemptDue(*f, own_size, now, o)) continue;
       if (budget <= 0) {
         starve(f->key);

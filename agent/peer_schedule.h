@@ -13,6 +13,8 @@
 //   turn); otherwise its transform is refined on our map every refine_period_s (a refine turn).
 //   A stale peer sends nothing more: its map is not verified or refined again, but it is still
 //   aligned afresh as ours grows.
+// - Rendezvous turns are budgeted too (max_rendezvous_per_update): a peer left without its turn
+//   keeps its fit waiting, and the next update starts with it.
 // - Full alignments (align and realign turns) are budgeted: max_alignments_per_update, round
 //   robin from the first peer left without one it was due. Relays (newer global maps) are
 //   judged at most max_relay_checks_per_update, and fewer when judging them would compare more

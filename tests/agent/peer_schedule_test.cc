@@ -79,6 +79,35 @@ TEST(PeerSchedule, AnAttemptWaitsForTheAlignPeriodAndForAChange) {
   EXPECT_TRUE(Turns({f}, 20.0, 36).empty());
 }
 
+// Rendezvous fits are weighed within their own budget, round robin with the alignments: a peer
+// left without its turn comes first in the next update.
+TEST(PeerSchedule, RendezvousTurnsAreBudgetedRoundRobin) {
+  ExchangeOptions o = Options();
+  o.max_rendezvous_per_update = 2;
+  o.align_by = AlignBy::kRendezvous;
+  std::vector<PeerFacts> facts;
+  for (RobotId r = 1; r <= 5; ++r) {
+    facts.push_back(Fresh(r));
+    facts.back().rendezvous_waiting = true;
+  }
+  const PeerSchedule s = PlanTurns(facts, 30, 0.0, {}, o);
+  EXPECT_EQ(s.turns, (std::vector<Turn>{{{1, 1}, TurnKind::kRendezvous}, {{2, 1}, TurnKind::kRendezvous}}));
+  ASSERT_TRUE(s.next_turn);
+  EXPECT_EQ(*s.next_turn, (PeerKey{3, 1}));
+  EXPECT_EQ(PlanTurns(facts, 30, 0.0, *s.next_turn, o).turns,
+            (std::vector<Turn>{{{3, 1}, TurnKind::kRendezvous}, {{4, 1}, TurnKind::kRendezvous}}));
+  // The alignment budget is apart: with both, each peer due gets its full alignment too.
+  o.align_by = AlignBy::kBoth;
+  o.max_alignments_per_update = 5;
+  int align = 0, rendezvous = 0;
+  for (const Turn& t : PlanTurns(facts, 30, 0.0, {}, o).turns) {
+    align += t.kind == TurnKind::kAlign;
+    rendezvous += t.kind == TurnKind::kRendezvous;
+  }
+  EXPECT_EQ(align, 5);
+  EXPECT_EQ(rendezvous, 2);
+}
+
 TEST(PeerSchedule, ARendezvousFitIsWeighedFirstAndAlignmentByOverlapFollows) {
   PeerFacts f = Fresh(1);
   f.rendezvous_waiting = true;
@@ -206,12 +235,13 @@ TEST(PeerSchedule, PropertiesOverSeededRandomTables) {
     }
     ExchangeOptions o = Options();
     o.max_alignments_per_update = 1 + trial % 4;
+    o.max_rendezvous_per_update = 1 + trial % 3;
     const PeerKey first{static_cast<RobotId>(trial % 7), 1};
     const double now = 30.0;
     const std::size_t own = static_cast<std::size_t>(size(rng));
     const PeerSchedule s = PlanTurns(facts, own, now, first, o);
     EXPECT_EQ(s.turns, PlanTurns(facts, own, now, first, o).turns);
-    int full = 0;
+    int full = 0, rendezvous = 0;
     std::set<PeerKey> done;
     std::optional<PeerKey> last;
     for (const Turn& t : s.turns) {
@@ -223,6 +253,7 @@ TEST(PeerSchedule, PropertiesOverSeededRandomTables) {
         EXPECT_TRUE(f->aligned);
       if (t.kind == TurnKind::kVerify || t.kind == TurnKind::kRefine) EXPECT_FALSE(f->stale);
       full += t.kind == TurnKind::kAlign || t.kind == TurnKind::kRealign;
+      rendezvous += t.kind == TurnKind::kRendezvous;
       if (last != t.key) {
         EXPECT_FALSE(done.count(t.key)) << "a peer's turns come together";
         done.insert(t.key);
@@ -230,6 +261,7 @@ TEST(PeerSchedule, PropertiesOverSeededRandomTables) {
       last = t.key;
     }
     EXPECT_LE(full, o.max_alignments_per_update);
+    EXPECT_LE(rendezvous, o.max_rendezvous_per_update);
     EXPECT_LE(static_cast<int>(s.relay_turns.size()), o.max_relay_checks_per_update);
   }
 }
