@@ -43,8 +43,8 @@ class FusionBackendTest : public ::testing::Test {
  protected:
   std::mt19937_64 rng{4};
   const Pose2 frame2{5.0, -3.0, 0.7}, frame3{-2.0, 6.0, -1.1};
-  const LandmarkMap own = Seen(0, 6, Pose2{}, rng);  // landmarks 0-5
-  const LandmarkMap two = Seen(3, 9, frame2, rng);   // 3-8, three shared with ours
+  const LandmarkMap own = Seen(0, 6, Pose2{}, rng);    // landmarks 0-5
+  const LandmarkMap two = Seen(3, 9, frame2, rng);     // 3-8, three shared with ours
   const LandmarkMap three = Seen(7, 10, frame3, rng);  // 7-9: known to us only through robot 2's relay
 };
 
@@ -91,7 +91,7 @@ TEST_F(FusionBackendTest, ThePublishedMapHoldsTheOneHopMapsOnly) {
   // Joining uses the one-hop maps alone, in both.
   o.method = FusionMethod::kJoining;
   const FusionBackend::Built j = MakeFusionBackend(1, 1, o)->Build(own, {Source(2, relay, frame2)},
-                                                                  {Source(2, two, frame2)});
+                                                                   {Source(2, two, frame2)});
   EXPECT_EQ(j.global.map.size(), 9u);
   EXPECT_EQ(j.published.map.size(), 9u);
 }

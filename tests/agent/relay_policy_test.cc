@@ -6,38 +6,17 @@
 #include <random>
 #include <vector>
 
+#include "tests/testing/exchange_world.h"
+
 namespace mapmesh {
 namespace {
 
-// A random world of well-spread points (nothing symmetric to fool an alignment), and the maps
-// robots hold of its strips, each in its own frame with independent noise.
-struct World {
-  std::vector<Eigen::Vector2d> points;
-  explicit World(std::uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<double> u(0.0, 40.0);
-    while (points.size() < 160) {
-      const Eigen::Vector2d p(u(rng), u(rng));
-      if (std::all_of(points.begin(), points.end(), [&](const auto& q) { return (q - p).norm() > 1.5; })) {
-        points.push_back(p);
-      }
-    }
-  }
-  // Landmarks with x in [x0, x1), in the frame whose pose in the world is `frame`.
+// The world of the exchange's tests, its maps with 3 cm noise.
+constexpr double kSigma = 0.03;
+struct World : test::World {
+  explicit World(std::uint64_t seed) : test::World(160, seed) {}
   LandmarkMap Map(double x0, double x1, const Pose2& frame, std::mt19937_64& rng) const {
-    constexpr double kSigma = 0.03;
-    std::normal_distribution<double> n(0.0, kSigma);
-    LandmarkMap m;
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      if (points[i].x() < x0 || points[i].x() >= x1) continue;
-      Landmark l;
-      l.id = static_cast<std::uint32_t>(i);
-      l.mean = frame.Inverse().Apply(points[i] + Eigen::Vector2d(n(rng), n(rng)));
-      l.cov = kSigma * kSigma * Eigen::Matrix2d::Identity();
-      m.landmarks.push_back(l);
-    }
-    m.shape_sigma_m = kSigma;
-    return m;
+    return test::World::Map(x0, x1, frame, kSigma, rng);
   }
 };
 
