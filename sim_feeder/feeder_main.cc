@@ -421,8 +421,6 @@ int Run(int argc, char** argv) {
       feeder.Publish(o);
       record.CountSent(o);
     };
-    std::optional<std::uint32_t> last_tick;
-    double end_stamp = 0.0;
     while (!source.Done()) {
       const FeedBatch b = source.Next();
       if (recording) recording->Write(b);
@@ -450,9 +448,7 @@ int Run(int argc, char** argv) {
       if (lockstep) feeder.WaitForBarrier();
       if (const std::optional<std::uint32_t> k = pacer.ExchangeDue(b.stamp)) {
         feeder.Exchange(*k, *k * sc.agent.exchange.map_publish_period_s);
-        last_tick = *k;
       }
-      end_stamp = b.stamp;
       feeder.Pump();
       if (Clock::now() - last_progress > std::chrono::milliseconds(500) || last) {
         feeder.Emit(feeder.Progress(b.stamp));
@@ -462,9 +458,8 @@ int Run(int argc, char** argv) {
         if (control.enabled()) feeder.Hold(b.stamp);
       }
     }
-    // A closing tick: the maps published at the last exchange point are applied too, so that
-    // every agent ends holding what its peers published last.
-    if (lockstep && last_tick) feeder.Exchange(*last_tick + 1, end_stamp);
+    // A closing tick: every agent ends holding what its peers published last.
+    if (const auto closing = pacer.ClosingExchange()) feeder.Exchange(closing->index, closing->stamp);
   } catch (const Interrupted&) {
     spdlog::warn("interrupted: writing what was played so far");
     exit_code = kExitInterrupted;

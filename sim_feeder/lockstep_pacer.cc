@@ -174,10 +174,17 @@ LockstepPacer::BarrierPoll LockstepPacer::PollBarrier(double wall_now) {
 }
 
 std::optional<std::uint32_t> LockstepPacer::ExchangeDue(double stamp) {
+  last_stamp_ = std::max(last_stamp_, stamp);
   if (stamp + kStampEps < next_exchange_) return std::nullopt;
   const double k = std::floor((stamp + kStampEps) / options_.exchange_period_s);
   next_exchange_ = (k + 1.0) * options_.exchange_period_s;
-  return static_cast<std::uint32_t>(k);
+  last_exchange_ = static_cast<std::uint32_t>(k);
+  return last_exchange_;
+}
+
+std::optional<LockstepPacer::Closing> LockstepPacer::ClosingExchange() const {
+  if (!last_exchange_) return std::nullopt;
+  return Closing{*last_exchange_ + 1, last_stamp_};
 }
 
 ExchangeTick LockstepPacer::BeginExchange(std::uint32_t index, double stamp, const RadioLinks& links, double wall_now) {

@@ -102,6 +102,14 @@ class LockstepPacer {
   // The tick of the batch at `stamp`: the index of the last exchange point it crosses, when it
   // crosses one not ticked yet.
   std::optional<std::uint32_t> ExchangeDue(double stamp);
+  // After the stream's last batch: the closing tick, one past the last exchange, at the last
+  // stamp ExchangeDue saw, so that what was published at the last exchange point is applied
+  // too; nullopt when no exchange took place.
+  struct Closing {
+    std::uint32_t index = 0;
+    double stamp = 0.0;
+  };
+  std::optional<Closing> ClosingExchange() const;
   // The exchange phase of tick `index` at scenario time `stamp` with the latest link table: every
   // agent up or silent listed with its incarnation.
   ExchangeTick BeginExchange(std::uint32_t index, double stamp, const RadioLinks& links, double wall_now);
@@ -136,11 +144,13 @@ class LockstepPacer {
   double next_barrier_;
   bool continue_ = false;
   double startup_deadline_ = 0.0;
-  double barrier_best_ = -1.0;      // the lagging agents' summed progress at the last advance
-  double barrier_progress_at_ = 0;  // wall time of that advance
-  double next_exchange_;            // the next exchange point (infinite: none)
-  ExchangeTick tick_;               // the phase begun last
-  double tick_begun_at_ = 0.0;      // wall time it began
+  double barrier_best_ = -1.0;                  // the lagging agents' summed progress at the last advance
+  double barrier_progress_at_ = 0;              // wall time of that advance
+  double next_exchange_;                        // the next exchange point (infinite: none)
+  std::optional<std::uint32_t> last_exchange_;  // the last tick ExchangeDue gave
+  double last_stamp_ = 0.0;                     // the last stamp it saw
+  ExchangeTick tick_;                           // the phase begun last
+  double tick_begun_at_ = 0.0;                  // wall time it began
   // Listed agents still alive (not dead; a stalled one is given up and so dead).
   std::vector<TickPeer> LiveListed() const;
 };

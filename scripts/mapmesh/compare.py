@@ -6,10 +6,10 @@ host's measurements left out: summary.json, timeline.json, feeder.json, referenc
 agent's stats.json. What is left out, and why, is VOLATILE; logs and the report are not compared.
 """
 
-import json
 from pathlib import Path
 
 from .run_error import RunError
+from .rundir import read_json
 
 # Keys whose values measure the host or the transport, not the run: wall-clock times and
 # timestamps, CPU time, memory, the sensor messages a lockstep feeder sent again (to a
@@ -60,7 +60,7 @@ def first_difference(a, b, path=""):
 
 def load(path):
     try:
-        return json.loads(path.read_text())
+        return read_json(path)
     except (OSError, ValueError) as e:
         raise RunError(f"{path}: not a readable JSON file ({e})", 2)
 

@@ -234,9 +234,17 @@ TEST_F(LockstepPacerTest, ExchangePointsCloseWindowsAndEachIsTickedOnceByItsLast
   EXPECT_EQ(p.ExchangeDue(8.0), 3u);
   EXPECT_FALSE(p.ExchangeDue(9.9));
   EXPECT_EQ(p.ExchangeDue(10.0), 4u);
-  // In real time there are none.
+  // The stream ends at 11: the closing tick is one past the last, at the last stamp seen.
+  EXPECT_FALSE(p.ExchangeDue(11.0));
+  ASSERT_TRUE(p.ClosingExchange());
+  EXPECT_EQ(p.ClosingExchange()->index, 5u);
+  EXPECT_DOUBLE_EQ(p.ClosingExchange()->stamp, 11.0);
+  // In real time there are none, and no closing tick.
   LockstepPacer rt = Make(false, {}, 2.5);
   EXPECT_FALSE(rt.ExchangeDue(100.0));
+  EXPECT_FALSE(rt.ClosingExchange());
+  // Nor before a first exchange.
+  EXPECT_FALSE(Make(true, {}, 2.5).ClosingExchange());
 }
 
 TEST_F(LockstepPacerTest, AnExchangeListsTheLiveAgentsAndEndsWhenEachHasDoneIt) {
