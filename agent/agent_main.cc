@@ -28,9 +28,10 @@ namespace mapmesh {
 
 // stats.json: each struct's counters under their own names.
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SyncStats, odom_received, odom_processed, odom_rejected, odom_implausible,
-                                   odometry_lost, odom_duplicate, scans_received, scans_implausible, scans_lost,
-                                   scans_duplicate, scans_processed, scans_empty, scans_rejected, scans_before_start,
-                                   scans_late, scans_missing)
+                                   odometry_lost, odom_duplicate, odom_out_of_sequence, odom_before_join,
+                                   scans_received, scans_implausible, scans_lost, scans_duplicate,
+                                   scans_out_of_sequence, scans_before_join, scans_processed, scans_empty,
+                                   scans_rejected, scans_before_start, scans_late, scans_missing)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MapperStats, offered, associated, initialised, tentative, rejected_gate, ambiguous,
                                    unidentified, out_of_range, invalid, failed_updates)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(AgentStats, maps_sent, bytes_sent, maps_received, bytes_received, maps_out_of_range,
@@ -148,7 +149,7 @@ class InputWatch {
     const auto now = std::chrono::steady_clock::now();
     if (now < next_) return;
     const AgentStats& s = node.stats();
-    const SyncStats& y = node.sync_stats();
+    const SyncStats y = node.sync_stats();
     const std::map<std::string, std::uint64_t> counts = {{"peer maps refused", s.MapsRefused()},
                                                          {"peer maps malformed", s.MapsRejected()},
                                                          {"link tables refused", s.links_refused},
@@ -156,6 +157,8 @@ class InputWatch {
                                                          {"scans implausible", y.scans_implausible},
                                                          {"odometry lost", y.odometry_lost},
                                                          {"scans lost", y.scans_lost},
+                                                         {"odometry out of sequence", y.odom_out_of_sequence},
+                                                         {"scans out of sequence", y.scans_out_of_sequence},
                                                          {"own maps not encodable", s.maps_encode_failed}};
     std::string what;
     for (const auto& [name, n] : counts) {

@@ -160,7 +160,7 @@ class AgentNode : private SensorSync::Sink {
   // nullopt before the first odometry.
   std::optional<double> frame_origin_stamp() const { return sync_.frame_origin_stamp(); }
   const AgentStats& stats() const { return stats_; }
-  const SyncStats& sync_stats() const { return sync_.stats(); }
+  SyncStats sync_stats() const { return sync_.stats(); }
   // The estimated pose every trajectory period (feeder.truth_period_s) of the current session.
   using PoseStamp = mapmesh::PoseStamp;
   const std::vector<PoseStamp>& trajectory() const { return trajectory_; }

@@ -91,7 +91,7 @@ std::optional<InjectedMessage> MapInjector::MakeHostile(const std::string& c, Ro
     if (reported == processed_until_.end()) return std::nullopt;  // its time is not known yet
     Scan s;
     s.robot_id = target;
-    s.seq = 0xFFFFFF00u;
+    s.seq = kInjectFarReadingSeq;
     s.stamp = reported->second + 0.05;
     s.obs.push_back({30000.0, 0.0, -1, ObservationKind::kLandmark});
     return s;

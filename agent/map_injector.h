@@ -18,7 +18,8 @@
 // and hostile input the agents must refuse, each counted, without changing what they do:
 //   odometry_stamp           an odometry message for the robot stamped 1e9 s (on its odom topic);
 //   far_reading              a scan with one reading 30 km away, stamped just after the time the
-//                            robot's agent last reported (on its scan topic);
+//                            robot's agent last reported, numbered far ahead of the stream
+//                            (kInjectFarReadingSeq: a glitch must not count as lost scans);
 //   links_stamp              a radio-links table stamped 1e300 s that links nobody;
 //   version_jump             a copy of the robot's latest local map under version 0xFFFFFFF0;
 //   huge_map                 a well-formed map of kMapCodecMaxLandmarks landmarks (1.6 MB) from
@@ -50,6 +51,7 @@ inline constexpr const char* kInjectVersionJump = "version_jump";
 inline constexpr const char* kInjectHugeMap = "huge_map";
 inline constexpr std::uint32_t kInjectHugeIncarnation = 3000000001u;
 inline constexpr int kInjectHugeEvery = 10;
+inline constexpr std::uint32_t kInjectFarReadingSeq = 999999u;
 // The incarnation the faulty peer of the shuffled case claims (real agents count from 1).
 inline constexpr std::uint32_t kInjectFaultyIncarnation = 3000000000u;
 

@@ -5,15 +5,20 @@
 
 namespace mapmesh {
 
-namespace {
-
-// Sequence gaps this large are not losses but a stream from elsewhere (a forged message).
-constexpr std::uint32_t kMaxSeqGap = 1000000;
-
-}  // namespace
+SyncStats SensorSync::stats() const {
+  SyncStats s = stats_;
+  s.odom_received = odom_seq_.received();
+  s.odometry_lost = odom_seq_.lost();
+  s.odom_out_of_sequence = odom_seq_.out_of_sequence();
+  s.odom_before_join = odom_seq_.first().value_or(0);
+  s.scans_received = scan_seq_.received();
+  s.scans_lost = scan_seq_.lost();
+  s.scans_out_of_sequence = scan_seq_.out_of_sequence();
+  s.scans_before_join = scan_seq_.first().value_or(0);
+  return s;
+}
 
 void SensorSync::OnOdometry(const Odometry& odom) {
-  ++stats_.odom_received;
   const bool finite = std::isfinite(odom.stamp) && std::isfinite(odom.dt) && std::isfinite(odom.v) &&
                       std::isfinite(odom.w) && std::isfinite(odom.steering);
   if (std::find(recent_odom_.begin(), recent_odom_.end(), std::make_pair(odom.seq, odom.stamp)) != recent_odom_.end()) {
@@ -48,20 +53,16 @@ void SensorSync::OnOdometry(const Odometry& odom) {
 }
 
 void SensorSync::Accept(const Odometry& odom) {
-  if (has_odom_ && odom.seq > last_odom_seq_ + 1 && odom.seq - last_odom_seq_ < kMaxSeqGap) {
-    stats_.odometry_lost += odom.seq - last_odom_seq_ - 1;
-  }
+  odom_seq_.Offer(odom.seq, odom.stamp);  // counted; the message is judged by its stamp alone
   has_odom_ = true;
   recent_odom_.emplace_back(odom.seq, odom.stamp);
   if (recent_odom_.size() > kRecent) recent_odom_.pop_front();
-  last_odom_seq_ = odom.seq;
   last_odom_stamp_ = odom.stamp;
   pending_odom_.emplace(odom.stamp, odom);
   Drain();
 }
 
 void SensorSync::OnScan(const Scan& scan) {
-  ++stats_.scans_received;
   // Sent again (after a stall): one of the last scans received, the very same one.
   const std::pair<std::uint32_t, double> key{scan.seq, scan.stamp};
   if (std::find(recent_scans_.begin(), recent_scans_.end(), key) != recent_scans_.end()) {
@@ -70,13 +71,6 @@ void SensorSync::OnScan(const Scan& scan) {
   }
   recent_scans_.push_back(key);
   if (recent_scans_.size() > kRecent) recent_scans_.pop_front();
-  if (has_scan_seq_ && scan.seq > last_scan_seq_ && scan.seq - last_scan_seq_ < kMaxSeqGap) {
-    stats_.scans_lost += scan.seq - last_scan_seq_ - 1;
-    last_scan_seq_ = scan.seq;
-  } else if (!has_scan_seq_) {
-    has_scan_seq_ = true;
-    last_scan_seq_ = scan.seq;
-  }
   if (!std::isfinite(scan.stamp)) {
     ++stats_.scans_rejected;
     return;
@@ -87,6 +81,7 @@ void SensorSync::OnScan(const Scan& scan) {
     ++stats_.scans_implausible;
     return;
   }
+  scan_seq_.Offer(scan.seq, scan.stamp);  // counted; the scan is judged by its stamp alone
   // Late: its interval was processed. Until the first one is, a scan at the stream's origin (from
   // the start pose) still belongs to it.
   if (started_ && (scan.stamp < processed_until_ || (scan.stamp == processed_until_ && stats_.odom_processed > 0))) {

@@ -10,7 +10,9 @@
 // is held until the next one continues it (its interval starts where the held one ends, and
 // its sequence number follows): then both are taken, as after a stream resumes from a stall;
 // otherwise the held one is refused. So one forged stamp cannot move the stream's clock ahead
-// and freeze it. Gaps in the sequence numbers of either stream are counted as lost messages.
+// and freeze it. Sequence numbers only count (SequenceCount), for the messages taken: gaps as lost
+// messages; a message out of sequence is counted so and judged by its stamp like any other; a
+// forged number cannot move the count.
 //
 // With frame_at_first_landmark the estimator's frame is fixed only when it first maps a
 // landmark: until then odometry is not applied (the robot stays at the origin) and the
@@ -25,28 +27,36 @@
 #include <map>
 #include <optional>
 
+#include "agent/sequence_count.h"
 #include "common/slam/motion_model.h"
 #include "common/types/messages.h"
 
 namespace mapmesh {
 
+// Each stream's messages handed in are, exactly: received + duplicate + out_of_sequence +
+// rejected + implausible (the odometry jump held at the end aside). The feeder's sent count
+// is received + lost + before_join, but for a tail lost after the last message received.
 struct SyncStats {
-  std::uint32_t odom_received = 0;  // every odometry message handed in
+  std::uint32_t odom_received = 0;  // in sequence, first copies: the stream's messages this process got
   std::uint32_t odom_processed = 0;
-  std::uint32_t odom_rejected = 0;       // non-finite values, dt <= 0, or stamp going backwards
-  std::uint32_t odom_implausible = 0;    // stamp beyond the run's end, or a jump nothing continued
-  std::uint32_t odometry_lost = 0;       // never arrived: gaps in the sequence numbers
-  std::uint32_t odom_duplicate = 0;      // arrived again (sent again after a stall): ignored
-  std::uint32_t scans_received = 0;      // every scan handed in
-  std::uint32_t scans_implausible = 0;   // stamp beyond the run's end or the plausible window
-  std::uint32_t scans_lost = 0;          // never arrived: gaps in the sequence numbers
-  std::uint32_t scans_duplicate = 0;     // arrived again: ignored
-  std::uint32_t scans_processed = 0;     // applied (empty ones included: they are consumed)
-  std::uint32_t scans_empty = 0;         // of which carried no observation: nothing to apply
-  std::uint32_t scans_rejected = 0;      // non-finite stamp
-  std::uint32_t scans_before_start = 0;  // joining a running stream: the first interval's scans
-  std::uint32_t scans_late = 0;          // arrived after their interval was processed
-  std::uint32_t scans_missing = 0;       // announced by odometry but never arrived
+  std::uint32_t odom_rejected = 0;          // non-finite values, dt <= 0, or stamp going backwards
+  std::uint32_t odom_implausible = 0;       // stamp beyond the run's end, or a jump nothing continued
+  std::uint32_t odometry_lost = 0;          // never arrived: gaps in the sequence numbers (SequenceCount)
+  std::uint32_t odom_duplicate = 0;         // arrived again (sent again after a stall): ignored
+  std::uint32_t odom_out_of_sequence = 0;   // behind the stream, or a lone number far ahead of it
+  std::uint32_t odom_before_join = 0;       // sent before this process joined the stream (a restart)
+  std::uint32_t scans_received = 0;         // in sequence, first copies
+  std::uint32_t scans_implausible = 0;      // stamp beyond the run's end or the plausible window
+  std::uint32_t scans_lost = 0;             // never arrived: gaps in the sequence numbers
+  std::uint32_t scans_duplicate = 0;        // arrived again: ignored
+  std::uint32_t scans_out_of_sequence = 0;  // behind the stream, or a lone number far ahead of it
+  std::uint32_t scans_before_join = 0;      // sent before this process joined the stream
+  std::uint32_t scans_processed = 0;        // applied (empty ones included: they are consumed)
+  std::uint32_t scans_empty = 0;            // of which carried no observation: nothing to apply
+  std::uint32_t scans_rejected = 0;         // non-finite stamp
+  std::uint32_t scans_before_start = 0;     // joining a running stream: the first interval's scans
+  std::uint32_t scans_late = 0;             // arrived after their interval was processed
+  std::uint32_t scans_missing = 0;          // announced by odometry but never arrived
 };
 
 class SensorSync {
@@ -91,7 +101,7 @@ class SensorSync {
   std::optional<double> frame_origin_stamp() const { return frame_origin_stamp_; }
   // The frame will not move again: odometry is applied from here on.
   bool frame_fixed() const { return frame_fixed_; }
-  const SyncStats& stats() const { return stats_; }
+  SyncStats stats() const;
 
  private:
   // Takes a plausible odometry message into the queue.
@@ -111,10 +121,8 @@ class SensorSync {
   bool frame_fixed_;
   bool has_odom_ = false;         // some odometry was accepted ...
   double last_odom_stamp_ = 0.0;  // ... the latest, pending ones included
-  std::uint32_t last_odom_seq_ = 0;
   std::optional<Odometry> jump_;  // a jump beyond the window, until the next message tells
-  bool has_scan_seq_ = false;
-  std::uint32_t last_scan_seq_ = 0;
+  SequenceCount odom_seq_, scan_seq_;
   // The last odometry messages taken and scans received (sequence number, stamp), to know one
   // sent again.
   static constexpr std::size_t kRecent = 512;

@@ -567,12 +567,20 @@ class SwarmRun:
                 "scans_processed": stats.get("scans_processed"),
                 "odom_sent": sent.get("odom_sent"),
                 "scans_sent": sent.get("scans_sent"),
-                # Sensor messages the (last) agent process received, and those it never got: gaps in
-                # their sequence numbers (sent = received + lost, but for a tail lost after the last).
+                # Sensor messages the (last) agent process received in sequence, those it never got
+                # (gaps in their sequence numbers), and those sent before it joined the stream
+                # (sent = received + lost + before_join, but for a tail lost after the last);
+                # messages it got again, and numbers out of sequence, apart (docs/OUTPUTS.md).
                 "odom_received": stats.get("odom_received"),
                 "odometry_lost": stats.get("odometry_lost"),
+                "odom_before_join": stats.get("odom_before_join"),
+                "odom_duplicate": stats.get("odom_duplicate"),
+                "odom_out_of_sequence": stats.get("odom_out_of_sequence"),
                 "scans_received": stats.get("scans_received"),
                 "scans_lost": stats.get("scans_lost"),
+                "scans_before_join": stats.get("scans_before_join"),
+                "scans_duplicate": stats.get("scans_duplicate"),
+                "scans_out_of_sequence": stats.get("scans_out_of_sequence"),
                 "odom_implausible": stats.get("odom_implausible"),
                 "scans_implausible": stats.get("scans_implausible"),
                 "links_refused": stats.get("links_refused"),

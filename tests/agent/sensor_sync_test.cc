@@ -159,7 +159,7 @@ TEST(SensorSync, AForgedStampIsRefusedAndTheStreamGoesOn) {
   EXPECT_EQ(sync.stats().odom_processed, 10u);
   EXPECT_EQ(sync.stats().odom_implausible, 1u);
   EXPECT_EQ(sync.stats().odometry_lost, 0u);
-  EXPECT_EQ(sync.stats().odom_received, 11u);
+  EXPECT_EQ(sync.stats().odom_received, 10u);  // the stream's ten: the refused one is not of it
   // With the run's end known, such a stamp is refused at once; so is a scan beyond the window.
   o.max_stamp_s = 100.0;
   SensorSync bounded(log, o);
@@ -203,6 +203,38 @@ TEST(SensorSync, ScanSequenceGapsAreCountedAsLost) {
   }
   EXPECT_EQ(sync.stats().scans_received, 5u);
   EXPECT_EQ(sync.stats().scans_lost, 5u);  // 2, 3, 6, 7, 8
+}
+
+// Issue R2: one glitched scan numbered 999999 (a plausible stamp, a reading 30 km away) made
+// scans_lost 999 106, and real losses were never counted again. Now the count stays exact:
+// handed in = received + duplicate + out_of_sequence + refused, sent = received + lost.
+TEST(SensorSync, AGlitchedScanNumberLeavesTheLossCountExact) {
+  Log log;
+  SensorSync sync(log);
+  std::uint32_t sent = 0;
+  auto scan = [&](std::uint32_t seq, double stamp) {
+    Scan s = ScanAt(stamp);
+    s.seq = seq;
+    sync.OnScan(s);
+  };
+  for (std::uint32_t i = 0; i < 20; ++i, ++sent) {
+    if (i == 12 || i == 13) continue;  // lost on the way
+    scan(i, 0.05 * i + 0.01);
+    if (i == 5) {
+      Scan glitch = ScanAt(0.05 * i + 0.02);
+      glitch.seq = 999999;
+      glitch.obs[0].range = 30000.0;
+      sync.OnScan(glitch);
+      sync.OnScan(glitch);  // and sent again
+    }
+  }
+  const SyncStats st = sync.stats();
+  EXPECT_EQ(st.scans_lost, 2u);
+  EXPECT_EQ(st.scans_received, 18u);
+  EXPECT_EQ(st.scans_received + st.scans_lost, sent);
+  EXPECT_EQ(st.scans_out_of_sequence, 1u);
+  EXPECT_EQ(st.scans_duplicate, 1u);
+  EXPECT_EQ(st.scans_received + st.scans_duplicate + st.scans_out_of_sequence, 20u);  // all handed in
 }
 
 // After a stall the feeder sends again what the agent had not reported processed: what the

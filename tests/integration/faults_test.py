@@ -34,6 +34,9 @@ class PauseTest(FaultRunCase):
             self.assertEqual(a["scans_processed"], a["scans_sent"], a)
             self.assertEqual(a["odometry_lost"], 0)
             self.assertEqual(a["scans_lost"], 0)
+            # ... and received once: what was sent again is counted apart (R2).
+            self.assertEqual(a["odom_received"], a["odom_sent"], a)
+            self.assertEqual(a["scans_received"], a["scans_sent"], a)
         # The same stream, the same local map.
         self.assertAlmostEqual(paused[2]["local"]["rmse_m"], clean[2]["local"]["rmse_m"],
                                delta=0.1 * clean[2]["local"]["rmse_m"])
@@ -81,6 +84,10 @@ class HostileInputTest(FaultRunCase):
                 self.assertGreater(stats["maps_refused"]["version_jump"], 0)
                 self.assertGreater(stats["maps_rejected"]["out_of_bounds"], 0)
                 self.assertEqual(stats["maps_encode_failed"], 0)
+                # The far reading's scan is numbered 999999: the loss count stays exact (R2).
+                self.assertGreater(stats["scans_out_of_sequence"], 0)
+                self.assertEqual(a["scans_lost"], 0, a)
+                self.assertEqual(a["scans_received"], a["scans_sent"], a)
                 # It kept mapping and publishing: its maps are as good as in the clean run.
                 self.assertEqual(a["odom_processed"], c["odom_processed"])
                 self.assertGreater(stats["maps_sent"], 0.9 * json.loads(
