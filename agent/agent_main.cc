@@ -1,5 +1,5 @@
 // mapmesh-agent: one robot's process. It wires AgentNode to DDS: sensor streams in, maps
-// and status out, peers' maps in through the radio gate; on SIGTERM/SIGINT it writes its
+// and status out, peers' maps in through the radio gate; on SIGTERM/SIGINT/SIGHUP it writes its
 // final maps and statistics and exits 0.
 
 #include <spdlog/spdlog.h>
@@ -268,7 +268,7 @@ void WriteOutputs(const AgentNode& node, const std::string& dir, const std::map<
 double WallNow() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
 
 int Run(int argc, char** argv) {
-  tp::ShutdownSignal shutdown;  // first: block SIGINT/SIGTERM before any thread starts
+  tp::ShutdownSignal shutdown;  // first: block SIGINT/SIGTERM/SIGHUP before any thread starts
 
   CLI::App cli{"mapmesh-agent: one robot's SLAM and map-sharing process"};
   app::ProcessOptions po;

@@ -303,7 +303,7 @@ class Feeder {
 };
 
 int Run(int argc, char** argv) {
-  tp::ShutdownSignal shutdown;  // first: block SIGINT/SIGTERM before any thread starts
+  tp::ShutdownSignal shutdown;  // first: block SIGINT/SIGTERM/SIGHUP before any thread starts
 
   CLI::App cli{"mapmesh-feeder: simulates (or replays) the world and publishes it over DDS"};
   app::ProcessOptions po;

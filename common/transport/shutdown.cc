@@ -11,6 +11,7 @@ sigset_t WatchedSignals() {
   sigemptyset(&set);
   sigaddset(&set, SIGINT);
   sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGHUP);   // a closed terminal: outputs written as for SIGTERM
   sigaddset(&set, SIGUSR2);  // internal: stops the watcher
   return set;
 }

@@ -1,5 +1,5 @@
 #pragma once
-// Turns SIGINT/SIGTERM into a guard-condition trigger, so a WaitSet loop ends cleanly.
+// Turns SIGINT/SIGTERM/SIGHUP into a guard-condition trigger, so a WaitSet loop ends cleanly.
 // Construct it first thing in main: it blocks the signals in the calling thread, and every
 // thread created afterwards (Cyclone's included) inherits that, so a watcher thread using
 // sigwait receives them.

@@ -35,6 +35,15 @@ class Interrupted(Exception):
     pass
 
 
+def detach_from_terminal():
+    """After a hangup, whatever is printed goes nowhere rather than failing on the closed
+    terminal (EIO)."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    for fd in (1, 2):
+        os.dup2(devnull, fd)
+    os.close(devnull)
+
+
 def bin_dir():
     return Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
 
@@ -289,6 +298,9 @@ class SwarmRun:
         self.lease = DomainLease()
         wall_start = time.monotonic()
         interrupted = False
+        # A closed terminal (SIGHUP) stops a run as SIGTERM does, outputs written; before and
+        # after the run's loop it only takes the terminal away.
+        old_hup = signal.signal(signal.SIGHUP, self._on_hangup_outside_loop)
         try:
             if getattr(self.args, "hosts", "loopback") == "netns":
                 self.start_hosts()
@@ -327,7 +339,10 @@ class SwarmRun:
                     self.hosts.close()
                 self.lease.close()
         wall_s = time.monotonic() - wall_start
-        return self.summarise(wall_s, interrupted)
+        try:
+            return self.summarise(wall_s, interrupted)
+        finally:
+            signal.signal(signal.SIGHUP, old_hup)
 
     def start_hosts(self):
         """--hosts netns: a namespace per agent, for the feeder and for the injector, on one
@@ -412,7 +427,7 @@ class SwarmRun:
         os.set_blocking(out.fileno(), False)
         sel.register(out, selectors.EVENT_READ)
         buf = b""
-        old_handlers = {s: signal.signal(s, self._on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        old_handlers = {s: signal.signal(s, self._on_signal) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
         try:
             while True:
                 if time.monotonic() > deadline:
@@ -447,7 +462,12 @@ class SwarmRun:
             self.progress.finish()
 
     def _on_signal(self, signum, _frame):
+        if signum == signal.SIGHUP:
+            detach_from_terminal()
         raise Interrupted()
+
+    def _on_hangup_outside_loop(self, _signum, _frame):
+        detach_from_terminal()  # the run goes on to its summary
 
     def on_event(self, line):
         try:

@@ -172,6 +172,25 @@ class PipelineTest(SwarmCase):
         self.assertEqual(leftover_processes(str(self.out)), [])
         self.assertTrue(self.summary()["interrupted"])
 
+    def test_a_closed_terminal_stops_the_run_like_sigterm(self):
+        """SIGHUP (issue R2: it lost the summary, where SIGINT and SIGTERM write it)."""
+        p = subprocess.Popen(SWARM + ["run", str(DATA / "three.yaml"), "--out", str(self.out), "--pace", "realtime",
+                                      "--rate", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and len(leftover_processes(str(self.out))) < 4:
+            time.sleep(0.1)
+        self.assertGreaterEqual(len(leftover_processes(str(self.out))), 4)  # 3 agents + feeder
+        time.sleep(1.0)
+        p.send_signal(signal.SIGHUP)
+        out, err = p.communicate(timeout=60)
+        self.assertEqual(p.returncode, 130, out + err)
+        self.assertEqual(leftover_processes(str(self.out)), [])
+        summary = self.summary()
+        self.assertTrue(summary["interrupted"])
+        for a in summary["agents"]:
+            self.assertEqual(a["exit_code"], 0, a)
+            self.assertTrue((self.out / f"agent_{a['id']}" / "local_map.json").exists())
+
 
 class FeederLivelinessTest(SwarmCase):
     def test_an_agent_killed_behind_the_feeders_back_does_not_stall_lockstep(self):
