@@ -158,7 +158,9 @@ class PipelineTest(SwarmCase):
         self.assertLessEqual(a["odom_processed"], 151)
         self.assertEqual(leftover_processes(str(self.out)), [])
 
-    def test_interrupted_run_stops_every_process(self):
+    def stop_a_running_swarm_with(self, sig):
+        """Starts a realtime run of three agents, sends the launcher sig once all run, and
+        returns the summary after checking it stopped everything and says it was interrupted."""
         p = subprocess.Popen(SWARM + ["run", str(DATA / "three.yaml"), "--out", str(self.out), "--pace", "realtime",
                                       "--rate", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 30
@@ -166,28 +168,20 @@ class PipelineTest(SwarmCase):
             time.sleep(0.1)
         self.assertGreaterEqual(len(leftover_processes(str(self.out))), 4)  # 3 agents + feeder
         time.sleep(1.0)
-        p.send_signal(signal.SIGINT)
-        out, err = p.communicate(timeout=60)
-        self.assertEqual(p.returncode, 130, out + err)
-        self.assertEqual(leftover_processes(str(self.out)), [])
-        self.assertTrue(self.summary()["interrupted"])
-
-    def test_a_closed_terminal_stops_the_run_like_sigterm(self):
-        """SIGHUP (issue R2: it lost the summary, where SIGINT and SIGTERM write it)."""
-        p = subprocess.Popen(SWARM + ["run", str(DATA / "three.yaml"), "--out", str(self.out), "--pace", "realtime",
-                                      "--rate", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and len(leftover_processes(str(self.out))) < 4:
-            time.sleep(0.1)
-        self.assertGreaterEqual(len(leftover_processes(str(self.out))), 4)  # 3 agents + feeder
-        time.sleep(1.0)
-        p.send_signal(signal.SIGHUP)
+        p.send_signal(sig)
         out, err = p.communicate(timeout=60)
         self.assertEqual(p.returncode, 130, out + err)
         self.assertEqual(leftover_processes(str(self.out)), [])
         summary = self.summary()
         self.assertTrue(summary["interrupted"])
-        for a in summary["agents"]:
+        return summary
+
+    def test_interrupted_run_stops_every_process(self):
+        self.stop_a_running_swarm_with(signal.SIGINT)
+
+    def test_a_closed_terminal_stops_the_run_like_sigterm(self):
+        """SIGHUP (issue R2: it lost the summary, where SIGINT and SIGTERM write it)."""
+        for a in self.stop_a_running_swarm_with(signal.SIGHUP)["agents"]:
             self.assertEqual(a["exit_code"], 0, a)
             self.assertTrue((self.out / f"agent_{a['id']}" / "local_map.json").exists())
 
