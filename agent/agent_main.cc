@@ -182,9 +182,12 @@ class InputWatch {
 
 // Samples refused because their robot id was not their writer's partition's (topics.h):
 // someone publishing as another robot. By topic, then by the robot claimed.
+// Link tables and ticks not from the run's feeder (FeederSource), by topic.
 struct SenderRefusals {
   std::map<RobotId, std::uint64_t> maps, sightings;
   bool warned = false;
+  tp::FeederSource links, ticks;
+  bool feeder_warned = false;
 };
 
 json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall, const SenderRefusals& refusals) {
@@ -200,31 +203,31 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
   const AgentStatus status = node.Status();
   json j = s;
   j.update(node.sync_stats());
-  j.update(
-      {{"id", node.id()},
-       {"incarnation", node.incarnation()},
-       {"processed_until", node.processed_until()},
-       {"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
-       {"pose", {pose.x, pose.y, pose.theta}},
-       {"local_landmarks", node.LocalMap().size()},
-       {"global_landmarks", node.global().map.size()},
-       {"observations", node.mapper().stats()},
-       {"bytes_per_landmark", s.BytesPerLandmark()},
-       {"maps_dropped", s.MapsDropped()},
-       {"maps_rejected", rejected},
-       {"maps_refused", refused},
-       {"maps_received_from", ByRobot(s.maps_received_from)},
-       {"peers_aligned", status.peers_aligned},
-       {"peers_stale", status.peers_stale},
-       {"sightings",
-        {{"sent", s.sightings_sent},
-         {"unsent", s.sightings_unsent},
-         {"bytes_sent", s.sighting_bytes_sent},
-         {"received", s.sightings_received},
-         {"gated", s.sightings_gated},
-         {"implausible", s.sightings_implausible},
-         {"tracker", node.rendezvous_stats()}}},
-       {"impersonations_refused", {{"maps", ByRobot(refusals.maps)}, {"sightings", ByRobot(refusals.sightings)}}}});
+  j.update({{"id", node.id()},
+            {"incarnation", node.incarnation()},
+            {"processed_until", node.processed_until()},
+            {"frame_origin_stamp", node.frame_origin_stamp() ? json(*node.frame_origin_stamp()) : json()},
+            {"pose", {pose.x, pose.y, pose.theta}},
+            {"local_landmarks", node.LocalMap().size()},
+            {"global_landmarks", node.global().map.size()},
+            {"observations", node.mapper().stats()},
+            {"bytes_per_landmark", s.BytesPerLandmark()},
+            {"maps_dropped", s.MapsDropped()},
+            {"maps_rejected", rejected},
+            {"maps_refused", refused},
+            {"maps_received_from", ByRobot(s.maps_received_from)},
+            {"peers_aligned", status.peers_aligned},
+            {"peers_stale", status.peers_stale},
+            {"sightings",
+             {{"sent", s.sightings_sent},
+              {"unsent", s.sightings_unsent},
+              {"bytes_sent", s.sighting_bytes_sent},
+              {"received", s.sightings_received},
+              {"gated", s.sightings_gated},
+              {"implausible", s.sightings_implausible},
+              {"tracker", node.rendezvous_stats()}}},
+            {"impersonations_refused", {{"maps", ByRobot(refusals.maps)}, {"sightings", ByRobot(refusals.sightings)}}},
+            {"not_from_feeder", {{"links", refusals.links.refused()}, {"ticks", refusals.ticks.refused()}}}});
   j.update(PeersJson(node, lost_wall));
   return j;
 }
@@ -316,7 +319,7 @@ int Run(int argc, char** argv) {
   const tp::Participant& p = session.participant();
   tp::Reader<Odometry> odom(p, tp::OdomTopic(self), tp::SensorQos());
   tp::Reader<Scan> scans(p, tp::ScanTopic(self), tp::SensorQos());
-  tp::Reader<RadioLinks> links(p, tp::kLinksTopic, tp::LinksQos());
+  tp::Reader<RadioLinks> links(p, tp::kLinksTopic, tp::FeederTopicReader(tp::LinksQos()));
   const double lease_s = scenario.agent.LivelinessLeaseS(scenario.robots.size());
   // In lockstep the maps are exchanged at the feeder's ticks (messages.h ExchangeTick),
   // reliably, and sightings ride on them; in real time maps and sightings go out as the agent
@@ -328,8 +331,8 @@ int Run(int argc, char** argv) {
       (lockstep ? tp::LockstepMapQos(lease_s) : tp::MapQos(lease_s)).Partition(tp::kEveryRobotPartition));
   std::optional<tp::Reader<Sighting>> sightings;
   if (!lockstep) sightings.emplace(p, tp::kSightingTopic, tp::SightingQos().Partition(tp::kEveryRobotPartition));
-  tp::Reader<ExchangeTick> ticks(p, tp::kTickTopic, tp::TickQos());
-  tp::WriterPartitions map_writers(maps.raw());
+  tp::Reader<ExchangeTick> ticks(p, tp::kTickTopic, tp::FeederTopicReader(tp::TickQos()));
+  tp::WriterPartitions map_writers(maps.raw()), links_writers(links.raw()), tick_writers(ticks.raw());
   std::optional<tp::WriterPartitions> sighting_writers;
   if (sightings) sighting_writers.emplace(sightings->raw());
   DdsOutput output(p, lease_s, self, lockstep);
@@ -380,6 +383,18 @@ int Run(int argc, char** argv) {
     }
     return false;
   };
+  auto from_feeder = [&](tp::FeederSource& source, tp::WriterPartitions& writers, dds_instance_handle_t publication,
+                         const char* what) {
+    const tp::FeederSource::Verdict v = source.Judge(writers.Of(publication), publication);
+    if (v == tp::FeederSource::Verdict::kFeeder) return true;
+    if (!refusals.feeder_warned) {
+      spdlog::warn("refused {} from {} (counted in stats.json not_from_feeder)", what,
+                   v == tp::FeederSource::Verdict::kSecondWriter ? "a second writer in the feeder's partition"
+                                                                 : "a writer outside the feeder's partition");
+      refusals.feeder_warned = true;
+    }
+    return false;
+  };
   // Exchange ticks not carried out yet (they wait for their link table or a peer's message),
   // in the order they came.
   std::deque<ExchangeTick> pending_ticks;
@@ -387,7 +402,7 @@ int Run(int argc, char** argv) {
   // Everything the readers hold, into the node.
   auto pump = [&] {
     for (const auto& s : links.Take()) {
-      if (s.valid) node.OnLinks(s.value);
+      if (s.valid && from_feeder(refusals.links, links_writers, s.publication, "a link table")) node.OnLinks(s.value);
     }
     for (const auto& s : scans.Take()) {
       if (s.valid) node.OnScan(s.value);
@@ -413,7 +428,8 @@ int Run(int argc, char** argv) {
       }
     }
     for (const auto& s : ticks.Take()) {
-      if (s.valid) pending_ticks.push_back(s.value);
+      if (s.valid && from_feeder(refusals.ticks, tick_writers, s.publication, "an exchange tick"))
+        pending_ticks.push_back(s.value);
     }
     while (!pending_ticks.empty() && node.OnTick(pending_ticks.front())) {
       pending_ticks.pop_front();

@@ -57,7 +57,8 @@ int Run(int argc, char** argv) {
       "version of a robot's map), unknown_sender (a map from a robot not in the run), shuffled (a robot's map "
       "with its coordinates shuffled, as its next version: alignment verification must refuse it), "
       "odometry_stamp (odometry stamped 1e9 s), far_reading (a scan reading 30 km away, numbered 999999), links_stamp (a links table "
-      "stamped 1e300 s), version_jump (a robot's map under version 0xFFFFFFF0), huge_map (a valid map of 100 000 "
+      "stamped 1e300 s), links_ahead (a links table linking everyone, stamped 15 s ahead of the agents, from a writer "
+      "that is not the feeder's), version_jump (a robot's map under version 0xFFFFFFF0), huge_map (a valid map of 100 000 "
       "landmarks, one turn in ten). "
       "scripts/swarm run --inject CASES starts it alongside a run.");
   app::ProcessOptions po;

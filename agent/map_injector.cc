@@ -13,7 +13,7 @@ std::vector<std::string> AllInjectCases() {
   std::vector<std::string> cases;
   for (int i = 0; i < kPayloadFaultCount; ++i) cases.emplace_back(ToString(static_cast<PayloadFault>(i)));
   for (const char* c : {kInjectStaleVersion, kInjectUnknownSender, kInjectShuffled, kInjectOdometryStamp,
-                        kInjectFarReading, kInjectLinksStamp, kInjectVersionJump, kInjectHugeMap}) {
+                        kInjectFarReading, kInjectLinksStamp, kInjectLinksAhead, kInjectVersionJump, kInjectHugeMap}) {
     cases.emplace_back(c);
   }
   return cases;
@@ -97,6 +97,14 @@ std::optional<InjectedMessage> MapInjector::MakeHostile(const std::string& c, Ro
     return s;
   }
   if (c == kInjectLinksStamp) return RadioLinks{1e300, {}};
+  if (c == kInjectLinksAhead) {
+    if (reported == processed_until_.end()) return std::nullopt;
+    RadioLinks everyone{reported->second + kInjectLinksAheadS, {}};
+    for (std::size_t i = 0; i < robots_.size(); ++i) {
+      for (std::size_t j = i + 1; j < robots_.size(); ++j) everyone.links.push_back({robots_[i], robots_[j]});
+    }
+    return everyone;
+  }
   const auto it = heard_.find(target);
   if (c == kInjectVersionJump) {
     if (it == heard_.end()) return std::nullopt;
@@ -131,8 +139,8 @@ LandmarkMap MapInjector::RandomMap(int n) {
 }
 
 std::optional<InjectedMessage> MapInjector::Make(const std::string& c, RobotId sender) {
-  if (c == kInjectOdometryStamp || c == kInjectFarReading || c == kInjectLinksStamp || c == kInjectVersionJump ||
-      c == kInjectHugeMap) {
+  if (c == kInjectOdometryStamp || c == kInjectFarReading || c == kInjectLinksStamp || c == kInjectLinksAhead ||
+      c == kInjectVersionJump || c == kInjectHugeMap) {
     return MakeHostile(c, sender);
   }
   MapMessage m;

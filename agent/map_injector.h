@@ -21,6 +21,9 @@
 //                            robot's agent last reported, numbered far ahead of the stream
 //                            (kInjectFarReadingSeq: a glitch must not count as lost scans);
 //   links_stamp              a radio-links table stamped 1e300 s that links nobody;
+//   links_ahead              a radio-links table linking every pair of robots, stamped
+//                            kInjectLinksAheadS after the robot's agent last reported (a stamp
+//                            agents find plausible), from a writer that is not the feeder's;
 //   version_jump             a copy of the robot's latest local map under version 0xFFFFFFF0;
 //   huge_map                 a well-formed map of kMapCodecMaxLandmarks landmarks (1.6 MB) from
 //                            a further incarnation of the robot (kInjectHugeIncarnation), one
@@ -47,6 +50,8 @@ inline constexpr const char* kInjectShuffled = "shuffled";
 inline constexpr const char* kInjectOdometryStamp = "odometry_stamp";
 inline constexpr const char* kInjectFarReading = "far_reading";
 inline constexpr const char* kInjectLinksStamp = "links_stamp";
+inline constexpr const char* kInjectLinksAhead = "links_ahead";
+inline constexpr double kInjectLinksAheadS = 15.0;
 inline constexpr const char* kInjectVersionJump = "version_jump";
 inline constexpr const char* kInjectHugeMap = "huge_map";
 inline constexpr std::uint32_t kInjectHugeIncarnation = 3000000001u;

@@ -100,9 +100,9 @@ class ControlInput {
 // Everything the feeder publishes and listens to.
 struct Channels {
   Channels(const tp::Participant& p, const Scenario& sc)
-      : links(p, tp::kLinksTopic, tp::LinksQos()),
+      : links(p, tp::kLinksTopic, tp::FeederWriter(tp::LinksQos())),
         truth(p, tp::kTruthTopic, tp::TruthQos()),
-        ticks(p, tp::kTickTopic, tp::TickQos()),
+        ticks(p, tp::kTickTopic, tp::FeederWriter(tp::TickQos())),
         status(p, tp::kStatusTopic,
                tp::StatusQos(sc.agent.LivelinessLeaseS(sc.robots.size())).Partition(tp::kEveryRobotPartition)),
         status_writers(status.raw()) {

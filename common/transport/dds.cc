@@ -65,6 +65,13 @@ Qos& Qos::Partition(const std::string& name) {
   return *this;
 }
 
+Qos& Qos::Partitions(const std::vector<std::string>& names) {
+  std::vector<const char*> ps;
+  for (const std::string& n : names) ps.push_back(n.c_str());
+  dds_qset_partition(q_, static_cast<uint32_t>(ps.size()), ps.data());
+  return *this;
+}
+
 Domain::Domain(dds_domainid_t id, const std::string& config)
     : Entity(Check(dds_create_domain(id, config.c_str()), "dds_create_domain")) {}
 

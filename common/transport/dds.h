@@ -75,6 +75,8 @@ class Qos {
   // The one DDS partition of a writer, or the partition expression (wildcards allowed) of a
   // reader; readers match only writers whose partition matches.
   Qos& Partition(const std::string& name);
+  // A reader's several partition expressions: it matches a writer in any of them.
+  Qos& Partitions(const std::vector<std::string>& names);
 
   const dds_qos_t* get() const { return q_; }
 

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "common/transport/dds.h"
+#include "common/transport/feeder_source.h"
 #include "common/types/messages.h"
 
 namespace mapmesh::transport {
@@ -30,6 +31,14 @@ inline constexpr const char* kEveryRobotPartition = "robot*";
 inline bool SpeaksFor(const std::vector<std::string>* writer_partitions, RobotId id) {
   return writer_partitions && writer_partitions->size() == 1 && writer_partitions->front() == RobotPartition(id);
 }
+
+// The feeder writes link tables and exchange ticks in its own partition (kFeederPartition,
+// feeder_source.h); agents read them from every partition, the default one included, so that a
+// table or tick from anyone else is seen, refused and counted (FeederSource). Those readers keep
+// every sample until taken (history is not a matched policy), so that nobody else's samples
+// can push the feeder's out of a reader's history before it is taken.
+inline Qos FeederWriter(Qos q) { return q.Partition(kFeederPartition); }
+inline Qos FeederTopicReader(Qos q) { return q.KeepAll().Partitions({"", "*"}); }
 
 // The agents' map and status writers have a liveliness lease (AgentOptions::LivelinessLeaseS):
 // a dead agent is noticed after about that long. Writer and readers must use the same one.

@@ -11,8 +11,9 @@ What the documents say:
   DDS partition `robotN`; subscribe to everything. Agents publish those topics in their own
   partition and refuse a sample whose robot id is not its writer's partition's, so a peer with
   a valid certificate cannot speak for another robot.
-- permissions of the feeder: publish the sensor topics, links and truth; subscribe to
-  everything. No agent may publish a sensor topic.
+- permissions of the feeder: publish the sensor topics and truth, and links and exchange ticks
+  in the DDS partition `feeder` only; subscribe to everything. No agent may publish a sensor
+  topic, links or ticks; agents take links and ticks only from the feeder's partition.
 
 A real deployment makes the same files once, keeps the CA key off the robots, and gives each
 robot only its own key (docs/SECURITY.md)."""
@@ -29,7 +30,9 @@ PLUGIN_DIRS = [Path("/usr/lib/x86_64-linux-gnu/libddsc0debian"), Path("/usr/lib/
 PLUGINS = {"auth": "libdds_security_auth.so", "ac": "libdds_security_ac.so", "crypto": "libdds_security_crypto.so"}
 ORG = "mapmesh"
 AGENT_TOPICS = ["mapmesh/map", "mapmesh/status", "mapmesh/sighting"]
-FEEDER_TOPICS = ["mapmesh/odom/*", "mapmesh/scan/*", "mapmesh/links", "mapmesh/truth", "mapmesh/tick"]
+FEEDER_TOPICS = ["mapmesh/odom/*", "mapmesh/scan/*", "mapmesh/truth"]
+FEEDER_PARTITION_TOPICS = ["mapmesh/links", "mapmesh/tick"]  # in its partition (topics.h kFeederPartition)
+FEEDER_PARTITION = "feeder"
 
 
 def plugin_paths():
@@ -132,11 +135,16 @@ def _topics(names):
 
 def permissions_xml(name, domain, publish, partition=None, days=2):
     """Permissions of participant `name`: publish the topics `publish` (in `partition` only when
-    given), subscribe to every topic in every partition, nothing else."""
+    given; `publish` may also be a list of (topics, partition) rules), subscribe to every topic in
+    every partition, nothing else."""
     now = datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0)
     before = (now - datetime.timedelta(hours=1)).strftime("%Y-%m-%dT%H:%M:%S")
     after = (now + datetime.timedelta(days=days)).strftime("%Y-%m-%dT%H:%M:%S")
-    parts = f"<partitions><partition>{partition}</partition></partitions>" if partition else ""
+    rules = publish if publish and isinstance(publish[0], tuple) else [(publish, partition)]
+
+    def rule(topics, part):
+        parts = f"<partitions><partition>{part}</partition></partitions>" if part else ""
+        return f"<publish><topics>{_topics(topics)}</topics>{parts}</publish>"
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <dds xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance"
      xsi:noNamespaceSchemaLocation="http://www.omg.org/spec/DDS-Security/20170801/omg_shared_ca_permissions.xsd">
@@ -146,7 +154,7 @@ def permissions_xml(name, domain, publish, partition=None, days=2):
       <validity><not_before>{before}</not_before><not_after>{after}</not_after></validity>
       <allow_rule>
         <domains><id>{domain}</id></domains>
-        <publish><topics>{_topics(publish)}</topics>{parts}</publish>
+        {"".join(rule(t, part) for t, part in rules)}
         <subscribe><topics><topic>*</topic></topics><partitions><partition>*</partition></partitions></subscribe>
         <subscribe><topics><topic>*</topic></topics></subscribe>
       </allow_rule>
@@ -242,4 +250,4 @@ class RunSecurity:
         return self.config_for(participant_name("agent", rid), AGENT_TOPICS, partition=f"robot{rid}")
 
     def feeder_config(self):
-        return self.config_for("feeder", FEEDER_TOPICS)
+        return self.config_for("feeder", [(FEEDER_TOPICS, None), (FEEDER_PARTITION_TOPICS, FEEDER_PARTITION)])

@@ -209,5 +209,23 @@ TEST(MapInjector, HostileInputFollowsWhatTheRobotsReported) {
   EXPECT_GT(inj.sent().at("far_reading").at(2), 0);
 }
 
+// links_ahead: once a robot's time is known, a table linking every pair of the run's robots,
+// stamped kInjectLinksAheadS after it (inside the agents' plausibility window).
+TEST(MapInjector, LinksAheadLinkEveryoneAheadOfTheReportedTime) {
+  MapInjector inj({1, 2, 3}, {"links_ahead"}, 99, 5);
+  for (int i = 0; i < 6; ++i) EXPECT_FALSE(inj.Next().has_value()) << "no robot's time is known yet";
+  AgentStatus s;
+  s.robot_id = 2;
+  s.processed_until = 30.0;
+  inj.OnStatus(s);
+  std::optional<InjectedMessage> m = inj.Next();
+  ASSERT_TRUE(m.has_value());
+  const auto* l = std::get_if<RadioLinks>(&*m);
+  ASSERT_NE(l, nullptr);
+  EXPECT_EQ(l->stamp, 30.0 + kInjectLinksAheadS);
+  EXPECT_EQ(l->links, (std::vector<Link>{{1, 2}, {1, 3}, {2, 3}}));
+  EXPECT_EQ(inj.sent().at("links_ahead").at(2), 1);
+}
+
 }  // namespace
 }  // namespace mapmesh

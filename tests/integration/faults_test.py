@@ -80,7 +80,8 @@ class HostileInputTest(FaultRunCase):
                 # Each kind refused and counted.
                 self.assertGreater(stats["odom_implausible"], 0)
                 self.assertGreater(stats["observations"]["out_of_range"], 0)
-                self.assertGreater(stats["links_refused"], 0)
+                # (links_stamp's table comes from the injector, not the feeder: refused unread)
+                self.assertGreater(stats["not_from_feeder"]["links"], 0)
                 self.assertGreater(stats["maps_refused"]["version_jump"], 0)
                 self.assertGreater(stats["maps_rejected"]["out_of_bounds"], 0)
                 self.assertEqual(stats["maps_encode_failed"], 0)
@@ -98,6 +99,24 @@ class HostileInputTest(FaultRunCase):
                 # 1.6 MB maps refused unread (their cost is a benchmark: BM_AgentReceivesPeerMap).
                 huge_receivers += stats["maps_refused"]["too_many_landmarks"] > 0
         self.assertGreater(huge_receivers, 0)
+
+
+class ForgedLinksTest(FaultRunCase):
+    # R2: link tables linking everyone, stamped 15 s ahead (plausible), every 0.1 s, from a writer
+    # that is not the feeder's, once let every agent hear every other at radio.range_m=0.
+    def test_link_tables_not_from_the_feeder_are_refused_and_counted(self):
+        agents = self.run_ok(PARK4, "--pace", "realtime", "--rate", "20", "--set", "radio.range_m=0",
+                             "--inject", "links_ahead", "--inject-period", "0.1")
+        self.assertGreater(self.summary()["injected"]["cases"]["links_ahead"]["sent"], 0)
+        for rid, a in agents.items():
+            with self.subTest(agent=rid):
+                stats = json.loads((self.out / f"agent_{rid}" / "stats.json").read_text())
+                self.assertGreater(stats["not_from_feeder"]["links"], 0)
+                self.assertEqual(stats["not_from_feeder"]["ticks"], 0)
+                # Nobody is in range: no peer's map passed the radio, no peer is aligned.
+                self.assertEqual(stats["maps_received"], 0, stats["maps_received_from"])
+                self.assertGreater(stats["maps_out_of_range"], 0)
+                self.assertEqual(stats["peers_aligned"], [])
 
 
 if __name__ == "__main__":

@@ -239,6 +239,50 @@ TEST_F(TransportTest, ReadersKnowEachSamplesWriterPartition) {
   EXPECT_FALSE(SpeaksFor(&two, 2));  // one partition only
 }
 
+// Link tables (and ticks) are read from every partition, so that what is not the feeder's is seen
+// and refused: the feeder's writer is trusted once its table is taken, a second writer in its
+// partition and writers in the default or a robot's partition are refused.
+TEST_F(TransportTest, OnlyTheFeedersLinkTablesAreTaken) {
+  Reader<RadioLinks> r(p(), kLinksTopic, FeederTopicReader(LinksQos()));
+  WriterPartitions writers(r.raw());
+  const Participant others(lease_.id());  // (one participant's topic has one QoS)
+  Writer<RadioLinks> feeder(others, kLinksTopic, FeederWriter(LinksQos()));
+  Writer<RadioLinks> second(others, kLinksTopic, FeederWriter(LinksQos()));
+  Writer<RadioLinks> plain(others, kLinksTopic, LinksQos());
+  Writer<RadioLinks> robot(others, kLinksTopic, LinksQos().Partition(RobotPartition(3)));
+  WaitMatched(feeder);
+  WaitMatched(second);
+  WaitMatched(plain);  // the reader's "" matches the default partition
+  WaitMatched(robot);  // and its "*" every named one
+  FeederSource source;
+  std::map<double, FeederSource::Verdict> verdicts;  // by stamp: one writer each
+  auto judge_until = [&](std::size_t n) {
+    WaitSet ws(p());
+    ws.AttachReader(r.raw(), 1);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+    while (verdicts.size() < n && std::chrono::steady_clock::now() < deadline) {
+      ws.Wait(0.1);
+      for (const auto& s : r.Take()) {
+        if (s.valid) verdicts[s.value.stamp] = source.Judge(writers.Of(s.publication), s.publication);
+      }
+    }
+    ASSERT_EQ(verdicts.size(), n);
+  };
+  feeder.Write({1.0, {{1, 2}}});
+  judge_until(1);
+  second.Write({2.0, {{1, 3}}});
+  plain.Write({3.0, {{1, 4}}});
+  robot.Write({4.0, {{1, 5}}});
+  feeder.Write({5.0, {{1, 2}}});
+  judge_until(5);
+  EXPECT_EQ(verdicts[1.0], FeederSource::Verdict::kFeeder);
+  EXPECT_EQ(verdicts[2.0], FeederSource::Verdict::kSecondWriter);
+  EXPECT_EQ(verdicts[3.0], FeederSource::Verdict::kOutsidePartition);
+  EXPECT_EQ(verdicts[4.0], FeederSource::Verdict::kOutsidePartition);
+  EXPECT_EQ(verdicts[5.0], FeederSource::Verdict::kFeeder);
+  EXPECT_EQ(source.refused(), 3u);
+}
+
 // Maps are best-effort and volatile: a participant that joins later gets each sender's next
 // map, not the ones sent before; what arrives comes in order, per (robot, kind).
 TEST_F(TransportTest, LateJoinerGetsTheNextMapPerSenderAndKind) {
