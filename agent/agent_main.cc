@@ -190,7 +190,25 @@ struct SenderRefusals {
   bool feeder_warned = false;
 };
 
-json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall, const SenderRefusals& refusals) {
+// Whether the agent can still write its outputs. The first failed write (a full disk, an I/O
+// error) stops its snapshots and checkpoints for the rest of the incarnation, counted and
+// logged once; mapping and the exchange go on, and the final outputs are tried once more.
+struct OutputHealth {
+  std::uint64_t write_failures = 0;
+  std::optional<double> stopped_at;  // processed_until at the first failure
+  std::string reason;                // that failure's "PATH: REASON"
+  void Failed(const io::WriteError& e, double t) {
+    ++write_failures;
+    if (stopped_at) return;
+    stopped_at = t;
+    reason = e.what();
+    spdlog::error("{}: snapshots and checkpoints stop here (t={:.1f}s); mapping goes on (stats.json outputs)", reason,
+                  t);
+  }
+};
+
+json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall, const SenderRefusals& refusals,
+               const OutputHealth& health) {
   const AgentStats& s = node.stats();
   json rejected = json::object();
   for (int i = 1; i < kMapDecodeErrorCount; ++i) {
@@ -227,21 +245,32 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"implausible", s.sightings_implausible},
               {"tracker", node.rendezvous_stats()}}},
             {"impersonations_refused", {{"maps", ByRobot(refusals.maps)}, {"sightings", ByRobot(refusals.sightings)}}},
-            {"not_from_feeder", {{"links", refusals.links.refused()}, {"ticks", refusals.ticks.refused()}}}});
+            {"not_from_feeder", {{"links", refusals.links.refused()}, {"ticks", refusals.ticks.refused()}}},
+            {"outputs",
+             {{"write_failures", health.write_failures},
+              {"stopped_at", health.stopped_at ? json(*health.stopped_at) : json()},
+              {"reason", health.reason}}}});
   j.update(PeersJson(node, lost_wall));
   return j;
 }
 
 // The agent's maps, statistics and trajectory. Written at every checkpoint too (final false),
 // so that an agent killed without warning leaves its last state behind.
+// Throws io::WriteError.
+void CreateDirectories(const std::string& path) {
+  std::error_code ec;
+  std::filesystem::create_directories(path, ec);
+  if (ec) throw io::WriteError(path, ec.value());
+}
+
 void WriteOutputs(const AgentNode& node, const std::string& dir, const std::map<RobotId, double>& lost_wall,
-                  const SenderRefusals& refusals, bool final) {
-  std::filesystem::create_directories(dir + "/snapshots");
+                  const SenderRefusals& refusals, const OutputHealth& health, bool final) {
+  CreateDirectories(dir + "/snapshots");
   const json local = io::MapToJson(node.LocalMap());
   const json global = io::GlobalMapToJson(node.global());
   io::WriteJsonAtomic(dir + "/local_map.json", local);
   io::WriteJsonAtomic(dir + "/global_map.json", global);
-  json stats = StatsJson(node, lost_wall, refusals);
+  json stats = StatsJson(node, lost_wall, refusals, health);
   stats["final"] = final;
   io::WriteJsonAtomic(dir + "/stats.json", stats);
   // The history of the run for plots over time: both maps as they were now, and one line of
@@ -254,11 +283,10 @@ void WriteOutputs(const AgentNode& node, const std::string& dir, const std::map<
                           "bytes_received", "maps_received", "maps_received_from", "peers_aligned", "peers_stale"}) {
     line[key] = stats.at(key);
   }
-  std::ofstream history(dir + "/history.jsonl", std::ios::app);
-  history << line.dump() << '\n';
+  io::AppendLine(dir + "/history.jsonl", line.dump());
   if (final) {
     // The last maps received from each peer, in the peer's frame: what a dead peer left us.
-    std::filesystem::create_directories(dir + "/peers");
+    CreateDirectories(dir + "/peers");
     for (const MapExchange::Received& r : node.exchange().ReceivedMaps()) {
       const std::string base = fmt::format("{}/peers/{}_{}", dir, r.key.robot, r.key.incarnation);
       if (r.local) io::WriteJsonAtomic(base + "_local.json", io::MapToJson(*r.local));
@@ -371,6 +399,7 @@ int Run(int argc, char** argv) {
   std::uint64_t peer_events_at = 0;  // the exchange's update they were taken at
   InputWatch input_watch;
   SenderRefusals refusals;
+  OutputHealth health;
   auto speaks_for = [&](tp::WriterPartitions& writers, dds_instance_handle_t publication, RobotId robot,
                         std::map<RobotId, std::uint64_t>& refused) {
     if (tp::SpeaksFor(writers.Of(publication), robot)) return true;
@@ -472,8 +501,14 @@ int Run(int argc, char** argv) {
     // In lockstep the checkpoints are taken at ticks, so that their contents do not depend on
     // when this loop woke up; in real time every checkpoint period of processed data.
     if (lockstep ? node.TakeCheckpointDue() : checkpoint_period > 0 && node.processed_until() >= next_checkpoint) {
-      save_checkpoint();
-      WriteOutputs(node, out_dir, lost_wall, refusals, /*final=*/false);
+      if (!health.stopped_at) {
+        try {
+          save_checkpoint();
+          WriteOutputs(node, out_dir, lost_wall, refusals, health, /*final=*/false);
+        } catch (const io::WriteError& e) {
+          health.Failed(e, node.processed_until());
+        }
+      }
       next_checkpoint = node.processed_until() + checkpoint_period;
     }
     if (const auto due = output.RepeatDue(); due && Clock::now() >= *due) {
@@ -489,12 +524,27 @@ int Run(int argc, char** argv) {
   // feeder's count of what it sent equals what arrived plus what was lost.
   pump();
   spdlog::info("signal {}: writing outputs to {}", shutdown.signal(), out_dir);
-  WriteOutputs(node, out_dir, lost_wall, refusals, /*final=*/true);
-  if (checkpoint_period > 0) save_checkpoint();
+  // Tried even after a failure: the disk may have room again.
+  std::optional<io::WriteError> final_failure;
+  try {
+    WriteOutputs(node, out_dir, lost_wall, refusals, health, /*final=*/true);
+    if (checkpoint_period > 0) save_checkpoint();
+  } catch (const io::WriteError& e) {
+    health.Failed(e, node.processed_until());
+    final_failure = e;
+  }
   const AgentStats& st = node.stats();
   spdlog::info("done: t={:.1f}s odom={} scans={} landmarks={} global={} maps_received={} maps_dropped={}",
                node.processed_until(), node.sync_stats().odom_processed, node.sync_stats().scans_processed,
                node.LocalMap().size(), node.global().map.size(), st.maps_received, st.MapsDropped());
+  if (health.stopped_at) {
+    spdlog::warn("snapshots and checkpoints had stopped at t={:.1f}s ({}); {} writes failed", *health.stopped_at,
+                 health.reason, health.write_failures);
+  }
+  if (final_failure) {
+    std::fprintf(stderr, "mapmesh-agent: %s: final outputs not written\n", final_failure->what());
+    return app::kExitWriteFailed;
+  }
   return 0;
 }
 

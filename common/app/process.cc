@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "common/config/config_error.h"
+#include "common/io/run_files.h"
 
 namespace mapmesh::app {
 
@@ -66,6 +67,9 @@ std::string DefaultDatasetsRoot() { return MAPMESH_SOURCE_DIR "/../shared/datase
 int GuardedMain(const char* prog, const std::function<int()>& fn) {
   try {
     return fn();
+  } catch (const io::WriteError& e) {
+    std::fprintf(stderr, "%s: %s\n", prog, e.what());
+    return kExitWriteFailed;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s: %s\n", prog, e.what());
     return 1;

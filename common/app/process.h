@@ -44,7 +44,12 @@ std::string DefaultDdsConfig();
 // The default datasets root: ../shared/datasets beside the source checkout.
 std::string DefaultDatasetsRoot();
 
-// Runs fn; an exception that escapes it becomes "prog: what" on stderr and exit code 1.
+// The exit code of a process that could not write a run file (io::WriteError: a full disk,
+// an I/O error); the launcher reports it as such.
+inline constexpr int kExitWriteFailed = 3;
+
+// Runs fn; an exception that escapes it becomes "prog: what" on stderr and exit code 1
+// (kExitWriteFailed for io::WriteError).
 int GuardedMain(const char* prog, const std::function<int()>& fn);
 
 }  // namespace mapmesh::app

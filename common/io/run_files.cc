@@ -1,5 +1,8 @@
 #include "common/io/run_files.h"
 
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <stdexcept>
 
@@ -118,18 +121,32 @@ RunTruth TruthFromJson(const json& j) {
   return t;
 }
 
-void WriteJsonAtomic(const std::string& path, const json& j) {
+WriteError::WriteError(const std::string& path, int error)
+    : std::runtime_error(path + ": " + std::strerror(error)), error_(error) {}
+
+void WriteFileAtomic(const std::string& path, const std::string& text) {
   const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp);
-    if (!out) throw std::runtime_error(tmp + ": cannot open for writing");
-    out << j.dump(1) << '\n';
-    out.flush();
-    if (!out) throw std::runtime_error(tmp + ": write failed");
+  std::FILE* f = std::fopen(tmp.c_str(), "w");
+  if (!f) throw WriteError(tmp, errno);
+  int error = 0;
+  if (std::fwrite(text.data(), 1, text.size(), f) != text.size() || std::fflush(f) != 0) error = errno ? errno : EIO;
+  if (std::fclose(f) != 0 && error == 0) error = errno ? errno : EIO;
+  if (error == 0 && std::rename(tmp.c_str(), path.c_str()) != 0) error = errno ? errno : EIO;
+  if (error != 0) {
+    std::remove(tmp.c_str());
+    throw WriteError(path, error);
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    throw std::runtime_error(path + ": cannot rename from " + tmp);
-  }
+}
+
+void WriteJsonAtomic(const std::string& path, const json& j) { WriteFileAtomic(path, j.dump(1) + '\n'); }
+
+void AppendLine(const std::string& path, const std::string& line) {
+  std::FILE* f = std::fopen(path.c_str(), "a");
+  if (!f) throw WriteError(path, errno);
+  int error = 0;
+  if (std::fputs((line + '\n').c_str(), f) == EOF || std::fflush(f) != 0) error = errno ? errno : EIO;
+  if (std::fclose(f) != 0 && error == 0) error = errno ? errno : EIO;
+  if (error != 0) throw WriteError(path, error);
 }
 
 json ReadJson(const std::string& path) {

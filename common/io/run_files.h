@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -57,9 +58,24 @@ struct RunTruth {
 json TruthToJson(const RunTruth& truth);
 RunTruth TruthFromJson(const json& j);
 
-// Writes path.tmp then renames it over path, so readers never see a partial file.
-// Throws std::runtime_error naming the path on failure.
+// A run file that could not be written: its path and the system's reason (errno: ENOSPC when
+// the disk is full, EIO, EACCES, ...), as "PATH: REASON".
+class WriteError : public std::runtime_error {
+ public:
+  WriteError(const std::string& path, int error);
+  int error() const { return error_; }
+
+ private:
+  int error_;
+};
+
+// Writes path.tmp then renames it over path, so readers never see a partial file. On failure
+// nothing is left behind (the temporary file is removed; path keeps what it held) and
+// WriteError is thrown.
 void WriteJsonAtomic(const std::string& path, const json& j);
+void WriteFileAtomic(const std::string& path, const std::string& text);
+// Appends one line to path (created when missing); WriteError on failure.
+void AppendLine(const std::string& path, const std::string& line);
 // Throws std::runtime_error naming the path on a missing file or a parse error.
 json ReadJson(const std::string& path);
 

@@ -3,6 +3,8 @@ and restarts agents at scenario times, ends the run, stops every process it star
 when interrupted), scores the maps and writes DIR/summary.json."""
 
 import ctypes
+import errno
+import fcntl
 import json
 import os
 import selectors
@@ -26,6 +28,10 @@ REPO = Path(__file__).resolve().parents[2]
 PLOT_PYTHON = os.environ.get("MAPMESH_PLOT_PYTHON", "/usr/bin/python3")
 PR_SET_PDEATHSIG = 1
 
+
+EXIT_WRITE_FAILED = 3  # a process could not write a run file (common/app/process.h kExitWriteFailed)
+DISK_FULL_BYTES = 1 << 20  # less free space than this on --out's file system counts as full
+LOCK = ".lock"  # in DIR while a run uses it (flock): a second run on the same DIR is refused
 
 STOP_GRACE_S = 15.0  # wall seconds the agents have to write their outputs once asked to stop ...
 STOP_GRACE_S_PER_AGENT = 0.5  # ... or this much per agent, when that is longer
@@ -203,6 +209,7 @@ class SwarmRun:
         self.security = None  # secure.RunSecurity with --secure
         self.hosts = None  # netns.Hosts with --hosts netns
         self.dds_config = None  # the Cyclone config every process is given (--hosts netns)
+        self.lock = None  # DIR/.lock's descriptor while this run holds it
 
     # ----- set-up -------------------------------------------------------------------------
     def check_scenario(self):
@@ -238,6 +245,8 @@ class SwarmRun:
             raise RunError("--net-loss and --net-rate act on the hosts' links: they need --hosts netns", 2)
         # Every agent, the feeder and the injector join the run's domain.
         self.out.mkdir(parents=True, exist_ok=True)
+        if self.lock is None:  # before anything in DIR changes
+            self.lock = lock_run_dir(self.out)
         if net == "netns":
             return  # the hosts' own config (execute) holds any number of processes
         changes, note = ddsconfig.choose(len(ids) + 1 + (1 if self.args.inject else 0), run_dir=self.out)
@@ -455,11 +464,25 @@ class SwarmRun:
                     break
             code = self.feeder.wait(30.0)
             if code != 0:
-                raise RunError(f"mapmesh-feeder exited with code {code}: see {self.out / 'feeder.log'}", 1)
+                raise RunError(self.why_the_feeder_failed(code), 1)
         finally:
             for s, h in old_handlers.items():
                 signal.signal(s, h)
             self.progress.finish()
+
+    def why_the_feeder_failed(self, code):
+        """One line: a full disk when that is the cause, else the feeder's exit code and log."""
+        free = disk_full(self.out)
+        if code == EXIT_WRITE_FAILED or free is not None:
+            self.stop_all()  # the agents' exit codes say which could not write either
+            cannot = [rid for rid, slot in self.agents.items()
+                      if slot.current is not None and slot.current.returncode == EXIT_WRITE_FAILED]
+            who = "the feeder" + (f" and agents {', '.join(map(str, cannot))}" if cannot else "")
+            if free is not None:
+                return (f"disk full: {self.out} has {free // 1024} KiB free; {who} could not write their outputs "
+                        f"(summary.json not written); make room and run again")
+            return f"{who} could not write their outputs in {self.out}: see {self.out / 'feeder.log'}"
+        return f"mapmesh-feeder exited with code {code}: see {self.out / 'feeder.log'}"
 
     def _on_signal(self, signum, _frame):
         if signum == signal.SIGHUP:
@@ -604,7 +627,10 @@ class SwarmRun:
                 "odom_implausible": stats.get("odom_implausible"),
                 "scans_implausible": stats.get("scans_implausible"),
                 "links_refused": stats.get("links_refused"),
+                "not_from_feeder": stats.get("not_from_feeder"),
                 "maps_refused": stats.get("maps_refused", {}),
+                # Writes that failed (a full disk): from the first, no snapshots or checkpoints.
+                "outputs": stats.get("outputs"),
                 "frame_in_world": score.get("frame_in_world"),
                 "cpu_s": round(sum(p.cpu_s for p in slot.procs), 3),
                 "max_rss_mb": round(max((p.max_rss_mb for p in slot.procs), default=0.0), 1),
@@ -668,9 +694,45 @@ def describe_reference(ref):
 
 
 def write_json(path, value):
+    """Writes path atomically; on failure nothing is left behind (RunError "disk full" when the
+    file system has no room)."""
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(value, indent=1) + "\n")
-    tmp.replace(path)
+    try:
+        tmp.write_text(json.dumps(value, indent=1) + "\n")
+        tmp.replace(path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        if e.errno in (errno.ENOSPC, errno.EDQUOT):
+            raise RunError(f"disk full: {path} not written ({e.strerror}); make room and run again", 1) from e
+        raise RunError(f"{path} not written: {e.strerror}", 1) from e
+
+
+def disk_full(path):
+    """The free bytes on path's file system when it is full (under DISK_FULL_BYTES), else None."""
+    try:
+        free = shutil.disk_usage(path).free
+    except OSError:
+        return None
+    return free if free < DISK_FULL_BYTES else None
+
+
+def lock_run_dir(out):
+    """Takes DIR/.lock for this run (held until the process ends); RunError when another run
+    holds it."""
+    fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = os.read(fd, 32).decode(errors="replace").strip() or "?"
+        os.close(fd)
+        raise RunError(f"{out}: another run (pid {holder}) is using this folder; wait for it or choose another --out",
+                       2) from None
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+    except OSError:
+        pass  # (a full disk) the lock holds without the pid
+    return fd
 
 
 def last_line(text, default):
@@ -706,6 +768,11 @@ def cmd_run(args):
         report = write_report(args.out)
         if report:
             print(f"report:  {report}")
+    stopped = [a for a in summary["agents"] if (a.get("outputs") or {}).get("stopped_at") is not None]
+    if stopped:
+        print(f"swarm: agents {', '.join(str(a['id']) for a in stopped)}: snapshots and checkpoints stopped at a "
+              f"failed write ({stopped[0]['outputs']['reason']}); mapping went on and the final outputs were "
+              "written (stats.json outputs)", file=sys.stderr)
     if summary["interrupted"]:
         return 130
     if summary["failed_agents"]:
@@ -748,6 +815,8 @@ def describe_end(code):
             return f"died of signal {-code}"
     if code == 0:
         return "exited 0 before the end of the run"
+    if code == EXIT_WRITE_FAILED:
+        return f"could not write its outputs (exit code {code})"
     return f"exited with code {code}"
 
 

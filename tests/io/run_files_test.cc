@@ -1,7 +1,10 @@
 #include "common/io/run_files.h"
 
 #include <gtest/gtest.h>
+
 #include <unistd.h>
+#include <cerrno>
+#include <iterator>
 
 #include <filesystem>
 #include <fstream>
@@ -72,6 +75,43 @@ TEST(RunFiles, AtomicWriteAndReadErrors) {
   }
   EXPECT_THROW(ReadJson(dir + "/missing.json"), std::runtime_error);
   EXPECT_THROW(WriteJsonAtomic(dir + "/no/such/dir/x.json", {}), std::runtime_error);
+  std::filesystem::remove_all(dir);
+}
+
+// A failed write says why (errno) and leaves nothing behind: the file keeps what it held and no
+// temporary file stays. (A full file system is the integration test's: faults_test DiskFullTest.)
+TEST(RunFiles, FailedWritesSayWhyAndLeaveNothingBehind) {
+  const std::string dir = std::filesystem::temp_directory_path() / ("mapmesh_io_fail_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir + "/a_directory");
+  try {
+    WriteJsonAtomic(dir + "/no/such/dir/x.json", {});
+    FAIL();
+  } catch (const WriteError& e) {
+    EXPECT_EQ(e.error(), ENOENT);
+    EXPECT_NE(std::string(e.what()).find("x.json.tmp: No such file or directory"), std::string::npos) << e.what();
+  }
+  // The rename fails (a directory is in the way): the temporary file goes.
+  try {
+    WriteFileAtomic(dir + "/a_directory", "text");
+    FAIL();
+  } catch (const WriteError& e) {
+    EXPECT_EQ(e.error(), EISDIR);
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir + "/a_directory.tmp"));
+  EXPECT_TRUE(std::filesystem::is_directory(dir + "/a_directory"));
+  // A device that is always full: the write's own error.
+  try {
+    AppendLine("/dev/full", "one line");
+    FAIL();
+  } catch (const WriteError& e) {
+    EXPECT_EQ(e.error(), ENOSPC);
+    EXPECT_EQ(std::string(e.what()), "/dev/full: No space left on device");
+  }
+  AppendLine(dir + "/h.jsonl", "1");
+  AppendLine(dir + "/h.jsonl", "2");
+  std::ifstream in(dir + "/h.jsonl");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(text, "1\n2\n");
   std::filesystem::remove_all(dir);
 }
 
