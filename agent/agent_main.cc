@@ -333,7 +333,11 @@ int Run(int argc, char** argv) {
   const std::string checkpoint_path = out_dir + "/checkpoint.json";
   std::optional<AgentCheckpoint> checkpoint;
   if (resume) {
-    io::CheckpointLoad loaded_checkpoint = io::LoadCheckpoint(checkpoint_path, self, incarnation);
+    // Within the bounds a peer's map must keep: the world's extent, and the run's end (as sensor stamps).
+    io::CheckpointLimits limits;
+    limits.max_abs_coordinate_m = scenario.agent.peer_limits.world_radius_m;
+    limits.max_stamp_s = AgentRunFor(scenario, self).end_s + scenario.agent.max_stamp_jump_s;
+    io::CheckpointLoad loaded_checkpoint = io::LoadCheckpoint(checkpoint_path, self, incarnation, limits);
     if (loaded_checkpoint.missing) {
       spdlog::warn("--resume: no checkpoint at {}; starting afresh", checkpoint_path);
     } else if (!loaded_checkpoint.ok()) {

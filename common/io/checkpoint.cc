@@ -194,6 +194,10 @@ class Validator {
     const json* v = Member(j, key, where);
     if (v == nullptr || !Finite(*v, Where(where, key), out)) return false;
     if (*out < 0) return Fail(Where(where, key) + " is " + Num(*out) + ", expected >= 0");
+    if (*out > limits_.max_stamp_s) {
+      return Fail(Where(where, key) + " is " + Num(*out) + " s, after the end of the run (" + Num(limits_.max_stamp_s) +
+                  " s)");
+    }
     return true;
   }
 

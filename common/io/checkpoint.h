@@ -10,6 +10,7 @@
 // order (an entry, then what it nests).
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -43,10 +44,11 @@ namespace io {
 // Bounds on what a checkpoint file may hold; anything beyond is refused before or while
 // parsing.
 struct CheckpointLimits {
-  std::uint64_t max_file_bytes = 256ull << 20;  // bytes; checked before the file is read
-  std::size_t max_earlier = 64;                 // earlier incarnations in all, nested or not
-  std::size_t max_landmarks = 100000;           // per map (as the wire codec's limit)
-  double max_abs_coordinate_m = 1e5;            // m, world bound on every landmark coordinate
+  std::uint64_t max_file_bytes = 256ull << 20;                   // bytes; checked before the file is read
+  std::size_t max_earlier = 64;                                  // earlier incarnations in all, nested or not
+  std::size_t max_landmarks = 100000;                            // per map (as the wire codec's limit)
+  double max_abs_coordinate_m = 1e5;                             // m, world bound on every landmark coordinate
+  double max_stamp_s = std::numeric_limits<double>::infinity();  // s, no stamp after this (the run's end)
   // Deepest JSON nesting accepted: a checkpoint whose earlier[] entries nest max_earlier deep
   // reaches 2 * max_earlier + 5 levels; deeper text is refused before it is parsed.
   std::size_t MaxJsonDepth() const { return 2 * max_earlier + 8; }
@@ -65,7 +67,8 @@ nlohmann::json CheckpointToJson(const AgentCheckpoint& checkpoint);
 
 // Parses and validates checkpoint text, naming it `name` in the reason. Valid means: the
 // checkpoint and every earlier entry are robot `robot`'s; incarnations are distinct and none
-// is `incarnation` (the resuming process's); stamps are finite and >= 0; every landmark has a
+// is `incarnation` (the resuming process's); stamps are finite, >= 0 and within
+// limits.max_stamp_s; every landmark has a
 // unique id in its map, a finite mean within limits.max_abs_coordinate_m and a finite,
 // symmetric PSD covariance; and the limits hold. Never throws, never aborts; work and stack
 // are bounded by the text's size, not its nesting.

@@ -156,7 +156,23 @@ class ResumeBadCheckpointTest(unittest.TestCase):
         c = good_checkpoint()
         c["local"]["landmarks"][1]["y"] = 3e8
         self.write(c)
-        self.refused("local.landmarks[1].y is 300000000 m, beyond the world bound of 100000 m")
+        self.refused("local.landmarks[1].y is 300000000 m, beyond the world bound of 5000 m")
+
+    def test_a_landmark_beyond_the_world(self):
+        # R2: 50 km away, inside the file format's bound but not the scenario's world
+        # (agent.world_radius_m, which bounds a peer's map too).
+        c = good_checkpoint()
+        c["earlier"][0]["global"]["landmarks"][2]["x"] = 5e4
+        self.write(c)
+        self.refused("earlier[0].global.landmarks[2].x is 50000 m, beyond the world bound of 5000 m")
+
+    def test_stamps_after_the_end_of_the_run(self):
+        # R2: stamps of 1e300 were accepted; the run (three.yaml) ends at 30 s, and stamps up to
+        # agent.max_stamp_jump_s (20 s) beyond are taken, as sensor stamps are.
+        c = good_checkpoint()
+        c["processed_until"] = 1e300
+        self.write(c)
+        self.refused("processed_until is 1e+300 s, after the end of the run (50 s)")
 
     def test_oversize_file(self):
         with open(self.path, "wb") as f:  # sparse: nothing of it may be read

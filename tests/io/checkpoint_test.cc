@@ -177,6 +177,22 @@ TEST(Checkpoint, StampsAreFiniteAndNotNegative) {
             Reason("earlier[0].processed_until is null, expected a finite number (NaN and inf are written as null)"));
 }
 
+// A resuming agent bounds stamps by its run's end: 1e300 s is refused, in any entry.
+TEST(Checkpoint, StampsAfterTheRunsEndAreRefused) {
+  CheckpointLimits limits;
+  limits.max_stamp_s = 320.0;
+  AgentCheckpoint c = Checkpoint();
+  c.processed_until = 1e300;
+  EXPECT_EQ(Refusal(CheckpointToJson(c), limits),
+            Reason("processed_until is 1e+300 s, after the end of the run (320 s)"));
+  c = Checkpoint();
+  c.earlier[1].origin_stamp = 320.5;
+  EXPECT_EQ(Refusal(CheckpointToJson(c), limits),
+            Reason("earlier[1].origin_stamp is 320.5 s, after the end of the run (320 s)"));
+  c.earlier[1].origin_stamp = 320.0;  // on the bound
+  EXPECT_TRUE(Parse(CheckpointToJson(c).dump(), limits).ok());
+}
+
 TEST(Checkpoint, NanMeanIsRefused) {
   AgentCheckpoint c = Checkpoint();
   c.local.landmarks[1].mean.y() = std::nan("");
