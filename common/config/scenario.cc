@@ -1,5 +1,6 @@
 #include "common/config/scenario.h"
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -16,6 +17,50 @@
 
 namespace mapmesh {
 namespace {
+
+// Counts the document's values as the parser streams them, without building it; throws
+// ConfigError at the first value past limits::kMaxScenarioValues. Syntax errors are left to
+// YAML::Load, which reports them.
+class ValueCounter : public YAML::EventHandler {
+ public:
+  explicit ValueCounter(const std::string& file) : file_(file) {}
+  void OnDocumentStart(const YAML::Mark&) override {}
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark& m, YAML::anchor_t) override { Count(m); }
+  void OnAlias(const YAML::Mark& m, YAML::anchor_t) override { Count(m); }
+  void OnScalar(const YAML::Mark& m, const std::string&, YAML::anchor_t, const std::string&) override { Count(m); }
+  void OnSequenceStart(const YAML::Mark& m, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    Count(m);
+  }
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark& m, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    Count(m);
+  }
+  void OnMapEnd() override {}
+
+ private:
+  void Count(const YAML::Mark& m) {
+    if (++values_ <= limits::kMaxScenarioValues) return;
+    throw ConfigError(file_ + ":" + std::to_string(m.line + 1) + ": (top level): more than " +
+                      std::to_string(limits::kMaxScenarioValues) +
+                      " values in the file (a scenario holds hundreds; a large landmark map goes in "
+                      "world.landmarks.csv)");
+  }
+  const std::string& file_;
+  std::size_t values_ = 0;
+};
+
+void CheckValueCount(const std::string& yaml_text, const std::string& file) {
+  std::istringstream in(yaml_text);
+  YAML::Parser parser(in);
+  ValueCounter counter(file);
+  try {
+    while (parser.HandleNextDocument(counter)) {
+    }
+  } catch (const YAML::ParserException&) {
+    // YAML::Load reports it, with its line
+  }
+}
 
 using scenario_internal::ReadAgent;
 using scenario_internal::ReadFeeder;
@@ -197,6 +242,7 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
   auto source = std::make_shared<YamlSource>();
   source->file = file;
   source->keys_read = keys_read;
+  CheckValueCount(yaml_text, file);
   YAML::Node root;
   try {
     root = YAML::Load(yaml_text);

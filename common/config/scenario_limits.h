@@ -21,6 +21,12 @@ inline constexpr int kMaxAlignmentsPerUpdate = 1000;  // agent.max_alignments_pe
 inline constexpr int kMaxRelayComparisonsPerUpdate = 1000000;  // agent.max_relay_comparisons_per_update
 inline constexpr std::size_t kMaxCsvBytes = 64u << 20;         // landmarks.csv file size
 inline constexpr std::size_t kMaxScenarioBytes = 16u << 20;    // the scenario file itself
+// Values (scalars, lists, mappings) in the scenario file, counted by a streaming pass before the
+// document is built: yaml-cpp's document costs about 500 bytes a value, so this bounds a
+// scenario's parse to about 60 MB whatever the file holds (15 MiB of "- 0" cost 2 GB and 8 s
+// before; now 0.2 s and 60 MB to refuse). An inline landmarks.list holds ~33 000 [x, y] points
+// within it; larger maps go in landmarks.csv.
+inline constexpr std::size_t kMaxScenarioValues = 100000;
 
 // Places and lengths (metres).
 inline constexpr double kMaxCoordinateM = 1e5;  // |x|, |y| of every point, area, centre, start

@@ -288,5 +288,27 @@ TEST_F(ScenarioFilesTest, TheScenarioMustBeARegularFile) {
   EXPECT_THROW(LoadScenario(Path("missing.yaml")), ConfigError);
 }
 
+// The file's values are counted before the document is built: the limit itself loads (here an
+// inline landmark list of exactly kMaxScenarioValues values in all), one more is refused at its
+// line, whatever the rest of the file holds.
+TEST(ScenarioLimits, ValuesBeyondTheLimitAreRefusedBeforeTheDocumentIsBuilt) {
+  // Keys are values too. The head: the top map, robots, its map, count, 1, world, its map,
+  // landmarks, its map, list and its list: 11 values on 4 lines.
+  const std::string head = "robots: {count: 1}\nworld:\n  landmarks:\n    list:\n";
+  const std::size_t head_values = 11;
+  // Each point is 3 values (a list and two numbers) on a line; each "kN: 1" after it is 2.
+  const std::size_t points = (limits::kMaxScenarioValues - head_values) / 3;
+  const std::size_t spare = limits::kMaxScenarioValues - head_values - 3 * points;
+  ASSERT_EQ(spare % 2, 0u);
+  std::string at_limit = head;
+  for (std::size_t i = 0; i < points; ++i) at_limit += "      - [" + std::to_string(i % 50) + ", 1]\n";
+  for (std::size_t i = 0; i < spare / 2; ++i) at_limit += "k" + std::to_string(i) + ": 1\n";
+  EXPECT_EQ(ErrorOf(at_limit).find("values in the file"), std::string::npos) << ErrorOf(at_limit);
+  const std::string line = std::to_string(4 + points + spare / 2 + 1);
+  EXPECT_EQ(ErrorOf(at_limit + "one_more: 1\n"),
+            "s.yaml:" + line + ": (top level): more than " + std::to_string(limits::kMaxScenarioValues) +
+                " values in the file (a scenario holds hundreds; a large landmark map goes in world.landmarks.csv)");
+}
+
 }  // namespace
 }  // namespace mapmesh

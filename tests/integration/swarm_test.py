@@ -303,6 +303,29 @@ class BadInputTest(unittest.TestCase):
                 self.assert_fails_fast_with_one_line(SWARM + ["run", str(path), "--out", tmp] + extra, path, expected,
                                                      2)
 
+    def test_a_15_mib_scenario_is_refused_fast_and_small(self):
+        # R2: just under the 16 MiB cap, 15 MiB of list items cost each process 0.8-2 GB and 6-8 s
+        # before its unknown key was refused. Now a streaming count refuses it within about 10x
+        # the file's size.
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "big.yaml"
+            with open(path, "w") as f:
+                f.write((DATA / "three.yaml").read_text() + "\njunk:\n")
+                f.write("- 0\n" * ((15 << 20) // 4))
+            expected = [":", ": (top level): more than 100000 values in the file"]
+            for tool, cmd in [("feeder --check", [str(BIN / "mapmesh-feeder"), "--scenario", str(path), "--check"]),
+                              ("agent", [str(BIN / "mapmesh-agent"), "--scenario", str(path), "--id", "1",
+                                         "--domain", "1"])]:
+                with self.subTest(tool=tool):
+                    code, _, err, wall, rss_mb = run_measured(cmd)
+                    self.assertNotEqual(code, 0, err)
+                    lines = err.strip().splitlines()
+                    self.assertEqual(len(lines), 1, err)
+                    self.assertIn(f"{path}:", lines[0])
+                    self.assertIn(expected[1], lines[0])
+                    self.assertLess(wall, 2.0)
+                    self.assertLess(rss_mb, 150.0)  # 10x the file
+
     def test_bad_arguments(self):
         r = subprocess.run(SWARM + ["run", str(DATA / "three.yaml"), "--out", "/tmp/x", "--kill", "nine@ten"],
                            capture_output=True, text=True, timeout=30)
