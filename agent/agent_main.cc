@@ -418,7 +418,7 @@ int Run(int argc, char** argv) {
   };
   auto from_feeder = [&](tp::FeederSource& source, tp::WriterPartitions& writers, dds_instance_handle_t publication,
                          const char* what) {
-    const tp::FeederSource::Verdict v = source.Judge(writers.Of(publication), publication);
+    const tp::FeederSource::Verdict v = source.Judge(writers.Of(publication), writers.GuidOf(publication));
     if (v == tp::FeederSource::Verdict::kFeeder) return true;
     if (!refusals.feeder_warned) {
       spdlog::warn("refused {} from {} (counted in stats.json not_from_feeder)", what,

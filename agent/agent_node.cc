@@ -185,6 +185,11 @@ void AgentNode::AfterInterval(const Odometry& odom) {
 
 void AgentNode::PublishMaps(std::uint32_t tick, std::vector<Sighting> riders) {
   const LandmarkMap local = mapper_->Map();
+  // Once this session's frame is fixed: earlier incarnations that began where it did share it.
+  if (!continuity_checked_ && sync_.frame_fixed() && sync_.frame_origin_stamp()) {
+    continuity_checked_ = true;
+    exchange_.PlaceOwnCheckpointsAt(*sync_.frame_origin_stamp(), local, sync_.processed_until());
+  }
   exchange_.Update(local, sync_.processed_until());
   Publish(MapKind::kLocal, local, ++local_version_, tick, riders);
   Publish(MapKind::kGlobal, exchange_.published().map, ++global_version_, tick, riders);

@@ -233,6 +233,7 @@ class AgentNode : private SensorSync::Sink {
   std::vector<Sighting> held_sightings_;     // own sightings and answers, to go out at the next tick
   std::optional<std::uint32_t> first_tick_;  // the first exchange tick of this incarnation
   std::uint32_t tick_done_ = 0, tick_published_ = 0, tick_delivered_ = 0;
+  bool continuity_checked_ = false;  // earlier incarnations that share this frame placed (PublishMaps)
   double next_checkpoint_s_ = 0.0;
   bool checkpoint_due_ = false;
 };

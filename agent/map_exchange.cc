@@ -259,6 +259,19 @@ bool MapExchange::Take(const Turn& turn, const LandmarkMap& own_local, double no
   return false;
 }
 
+int MapExchange::PlaceOwnCheckpointsAt(double origin_stamp, const LandmarkMap& own_local, double now) {
+  int placed = 0;
+  for (auto& [key, p] : book_.states()) {
+    if (!p.own_checkpoint || p.Aligned() || p.origin_stamp != origin_stamp) continue;
+    AlignmentResult same;
+    same.verdict = AlignmentVerdict::kAccepted;  // the identity, exactly (cov zero)
+    Use(p, same, own_local, /*reconsider_relay=*/true, now);
+    MarkAligned(p, AlignmentSource::kContinuity, now);
+    ++placed;
+  }
+  return placed;
+}
+
 bool MapExchange::Update(const LandmarkMap& own_local, double now) {
   ++updates_;
   now_ = now;

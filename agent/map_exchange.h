@@ -64,6 +64,11 @@ class MapExchange {
   // Runs the alignments and verifications that are due against the own local map, then
   // rebuilds the global map. Returns true if any alignment changed.
   bool Update(const LandmarkMap& own_local, double now);
+  // Places at the identity every earlier own incarnation not placed yet whose session began at
+  // origin_stamp, as this one's did: the feeder replayed the robot's stream to this incarnation
+  // from the start, so that frame is ours (nothing to search for, nothing to verify). Returns
+  // how many it placed; the next Update fuses them.
+  int PlaceOwnCheckpointsAt(double origin_stamp, const LandmarkMap& own_local, double now);
 
   // How many Updates ran: alignments and the global maps change only in one.
   std::uint64_t updates() const { return updates_; }

@@ -101,6 +101,7 @@ std::vector<PeerFacts> PeerBook::Facts(double now) const {
     f.has_map = p.has_local || p.has_global;
     f.aligned = p.Aligned();
     f.aligned_by_overlap = p.aligned_by == AlignmentSource::kOverlap;
+    f.exact = p.Aligned() && p.aligned_by == AlignmentSource::kContinuity;
     f.awaiting_confirmation = p.candidate.has_value();
     f.stale = p.stale;
     f.silent = p.Silent(now, options_.SilentAfterS());

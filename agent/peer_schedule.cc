@@ -105,6 +105,7 @@ PeerSchedule PlanTurns(const std::vector<PeerFacts>& facts, std::size_t own_size
       s.turns.push_back({f->key, TurnKind::kAlign, true});
       continue;
     }
+    if (f->exact) continue;  // an earlier incarnation in our own frame
     // Aligned, and both maps grew since the last full alignment: align afresh. A transform
     // accepted on small maps can be a coincidence that verification at that same transform keeps
     // passing in a dense map; with more landmarks the true alignment has the larger support.

@@ -40,6 +40,7 @@ struct PeerFacts {
   bool has_map = false;                // a local or global map of it arrived
   bool aligned = false;                // it contributes with a verified alignment
   bool aligned_by_overlap = false;     // ... accepted last from map overlap
+  bool exact = false;                  // ... placed by continuity: its frame is ours, nothing to revisit
   bool awaiting_confirmation = false;  // an accepted answer waits for a second one to agree
   bool stale = false;                  // its writer is gone
   bool silent = false;                 // stale, an own checkpoint, or no map for silent_after_s

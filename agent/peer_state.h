@@ -26,9 +26,17 @@ struct PeerKey {
 };
 
 // Which kind of evidence an alignment came from.
-enum class AlignmentSource : std::uint8_t { kNone = 0, kOverlap, kRendezvous };
+// kContinuity: an earlier incarnation of this agent whose session began where this one's did
+// (the feeder replayed the robot's stream from the start): its frame is ours.
+enum class AlignmentSource : std::uint8_t { kNone = 0, kOverlap, kRendezvous, kContinuity };
 inline const char* ToString(AlignmentSource s) {
-  return s == AlignmentSource::kOverlap ? "overlap" : s == AlignmentSource::kRendezvous ? "rendezvous" : "none";
+  switch (s) {
+    case AlignmentSource::kOverlap: return "overlap";
+    case AlignmentSource::kRendezvous: return "rendezvous";
+    case AlignmentSource::kContinuity: return "continuity";
+    case AlignmentSource::kNone: break;
+  }
+  return "none";
 }
 
 // Where a peer incarnation stands in the exchange. Its transitions (MapExchange):

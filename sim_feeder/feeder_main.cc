@@ -156,7 +156,10 @@ class Feeder {
       }
     }
     for (RobotId id : pacer_.ReapSilent()) spdlog::warn("agent {}'s process is gone", id);
-    for (const auto& [id, writer] : ch_.odom) Resend(id, pacer_.OnMatches(id, ch_.TotalMatches(id)));
+    for (const auto& [id, writer] : ch_.odom) {
+      Resend(id, pacer_.OnMatches(id, ch_.TotalMatches(id)));
+      Resend(id, pacer_.ReplayDue(id), /*replay=*/true);
+    }
     for (const ControlCommand& c : control_.Poll()) {
       if (c.kind == ControlCommand::Kind::kStop) throw Interrupted();
       pacer_.OnControl(c, ch_.TotalMatches(c.id));
@@ -214,9 +217,13 @@ class Feeder {
       Pump();
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
+    const std::uint64_t replayed = pacer_.replayed();
     for (RobotId id : WaitForAgents(sc_.feeder.startup_timeout_s)) {
       spdlog::error("restarted agent {} did not come up within {:.0f} s", id, sc_.feeder.startup_timeout_s);
       pacer_.GiveUp(id);
+    }
+    if (pacer_.replayed() > replayed) {
+      spdlog::info("t={:.1f}s replayed {} sensor messages to restarted agents", stamp, pacer_.replayed() - replayed);
     }
   }
 
@@ -259,9 +266,13 @@ class Feeder {
 
  private:
   // Sensor messages sent again to an agent whose readers came back (see LockstepPacer).
-  void Resend(RobotId id, const std::vector<SentLog::Message>& again) {
+  void Resend(RobotId id, const std::vector<SentLog::Message>& again, bool replay = false) {
     if (again.empty()) return;
-    spdlog::info("agent {} matched again: sending the {} sensor messages it has not processed", id, again.size());
+    if (replay) {
+      spdlog::debug("agent {}: replaying {} sensor messages of its stream", id, again.size());
+    } else {
+      spdlog::info("agent {} matched again: sending the {} sensor messages it has not processed", id, again.size());
+    }
     for (const SentLog::Message& m : again) {
       if (const auto* o = std::get_if<Odometry>(&m)) {
         ch_.odom.at(id)->Write(*o);
@@ -395,7 +406,10 @@ int Run(int argc, char** argv) {
   const bool lockstep = sc.feeder.pace == Pace::kLockstep;
   LockstepPacer pacer(ids,
                       {lockstep, sc.feeder.lockstep_window_s, stall_timeout_s, holds,
-                       lockstep ? sc.agent.exchange.map_publish_period_s : 0.0},
+                       lockstep ? sc.agent.exchange.map_publish_period_s : 0.0, sc.feeder.keep_streams,
+                       // half what an agent takes ahead of its odometry: max_stamp_jump_s for scans,
+                       // 30 s (SensorSync::kMaxScanWaitS) for odometry waiting for its scans
+                       std::min(sc.agent.max_stamp_jump_s, 30.0) / 2.0},
                       StateOf);
   ControlInput control(control_enabled);
   shutdown.Watch(nullptr);
@@ -473,7 +487,7 @@ int Run(int argc, char** argv) {
   }
   if (recording) recording->Close();
   const double wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
-  record.Write(out_dir, source, wall_s, exit_code != 0, pacer.resent());
+  record.Write(out_dir, source, wall_s, exit_code != 0, pacer.resent(), pacer.replayed());
   feeder.Emit({{"event", "done"}, {"wall_s", wall_s}, {"interrupted", exit_code != 0}});
   spdlog::info("done in {:.1f} s wall", wall_s);
   return exit_code;

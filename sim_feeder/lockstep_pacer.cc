@@ -59,12 +59,61 @@ std::vector<SentLog::Message> LockstepPacer::OnMatches(RobotId id, std::uint32_t
   // Matched anew without a restart: the agent's participant lapsed (it was paused) and is
   // back. Whatever it had not processed may have been lost with the old match.
   std::uint32_t& last = last_matches_[id];
+  const bool first = total > base->second && last <= base->second;
   const bool again = total > last && last > base->second && !tracker_.IsDead(id);
   last = total;
+  if (first && replay_due_[id] && !tracker_.IsDead(id)) {
+    replay_due_[id] = false;
+    if (streams_.size(id) > 0) replays_[id] = Replay{};
+  }
   if (!again) return {};
   std::vector<SentLog::Message> out = sent_.Unprocessed(id);
   resent_ += out.size();
   return out;
+}
+
+namespace {
+double StampOf(const SentLog::Message& m) {
+  return std::visit([](const auto& x) { return x.stamp; }, m);
+}
+}  // namespace
+
+std::vector<SentLog::Message> LockstepPacer::ReplayDue(RobotId id) {
+  auto it = replays_.find(id);
+  if (it == replays_.end()) return {};
+  if (tracker_.IsDead(id)) {
+    replays_.erase(it);
+    return {};
+  }
+  Replay& r = it->second;
+  if (r.first_sent && !tracker_.Lagging({{id, r.wait_for}}).empty()) return {};  // the last piece is not done
+  if (r.first_sent && !tracker_.IsUp(id) && !tracker_.IsSilent(id)) return {};
+  const std::vector<SentLog::Message>& stream = streams_.Of(id);
+  if (r.next >= stream.size()) {
+    replays_.erase(it);  // done: the agent has processed its whole stream
+    return {};
+  }
+  // A piece: up to replay_span_s after its first message, ending after an odometry message that
+  // closed a lockstep window when there is one (the agent reports those at once).
+  const double until = StampOf(stream[r.next]) + options_.replay_span_s;
+  std::size_t end = r.next, end_at_sync = r.next;
+  for (std::size_t i = r.next; i < stream.size() && StampOf(stream[i]) <= until; ++i) {
+    end = i + 1;
+    if (const auto* o = std::get_if<Odometry>(&stream[i]); o && o->sync) end_at_sync = i + 1;
+  }
+  if (end_at_sync > r.next) end = end_at_sync;
+  if (end == r.next) end = r.next + 1;
+  std::vector<SentLog::Message> piece(stream.begin() + static_cast<std::ptrdiff_t>(r.next),
+                                      stream.begin() + static_cast<std::ptrdiff_t>(end));
+  for (const SentLog::Message& m : piece) {
+    if (const auto* o = std::get_if<Odometry>(&m)) r.wait_for = std::max(r.wait_for, o->stamp);
+    // Kept again until processed, like anything published in lockstep.
+    if (options_.lockstep) std::visit([&](const auto& x) { sent_.Record(x); }, m);
+  }
+  r.next = end;
+  r.first_sent = true;
+  replayed_ += piece.size();
+  return piece;
 }
 
 void LockstepPacer::OnControl(const ControlCommand& c, std::uint32_t total_matches) {
@@ -77,6 +126,7 @@ void LockstepPacer::OnControl(const ControlCommand& c, std::uint32_t total_match
       }
       tracker_.ExpectRestart(c.id);
       sent_.Forget(c.id);
+      replay_due_[c.id] = options_.keep_streams;
       break;
     case ControlCommand::Kind::kPid: tracker_.SetProcess(c.id, c.pid); break;
     case ControlCommand::Kind::kContinue: continue_ = true; break;
@@ -116,10 +166,12 @@ std::vector<Odometry> LockstepPacer::CloseWindow(double stamp) {
 void LockstepPacer::Published(const Odometry& o) {
   published_until_[o.robot_id] = o.stamp;
   if (options_.lockstep) sent_.Record(o);
+  if (options_.keep_streams) streams_.Record(o);
 }
 
 void LockstepPacer::Published(const Scan& s) {
   if (options_.lockstep) sent_.Record(s);
+  if (options_.keep_streams) streams_.Record(s);
 }
 
 int LockstepPacer::TakeHolds(double stamp) {
@@ -135,6 +187,9 @@ void LockstepPacer::BeginStartup(double wall_now, double timeout_s) { startup_de
 
 std::optional<std::vector<RobotId>> LockstepPacer::PollStartup(double wall_now) const {
   std::vector<RobotId> pending = tracker_.Pending();
+  for (const auto& [id, r] : replays_) {
+    if (std::find(pending.begin(), pending.end(), id) == pending.end()) pending.push_back(id);
+  }
   if (pending.empty() || wall_now >= startup_deadline_) return pending;
   return std::nullopt;
 }

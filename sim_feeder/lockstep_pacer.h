@@ -13,7 +13,13 @@
 // seconds is given up (unless its process is stopped: then it is paused, and waited for).
 // Messages published in lockstep are kept until the agent reports them processed, so that an
 // agent whose readers match anew without a restart (its participant lapsed while paused) gets
-// them again. In real time there is no hold-back and no waiting; windows still mark when the
+// them again. With keep_streams, in either pace, everything published to a robot is kept for
+// the run, and a restarted agent is sent its robot's whole stream again once its readers match,
+// before anything new (a restart happens at a hold point, and the feeder goes on only once the
+// agent is up and the replay done): it rebuilds its map from the start, in its own frame. The
+// replay goes in pieces of at most replay_span_s of scenario time, each once the agent has
+// processed the last: sensor topics are not ordered against each other, and a burst would put
+// scans further ahead of the odometry taken than an agent finds plausible. In real time there is no hold-back and no waiting; windows still mark when the
 // feeder reports progress and stops at hold points.
 
 #include <cstdint>
@@ -41,6 +47,8 @@ class LockstepPacer {
     double stall_timeout_s = 120.0;  // wall seconds without progress before an agent is given up
     std::vector<double> holds;       // scenario times to stop at until the launcher continues
     double exchange_period_s = 0.0;  // lockstep: agent.map_publish_period_s, the exchange points (0: none)
+    bool keep_streams = true;        // feeder.keep_streams: replay a robot's stream to a restarted agent
+    double replay_span_s = 10.0;     // scenario seconds of stream per replay piece (see above)
   };
   LockstepPacer(const std::vector<RobotId>& ids, Options options, ProcessProbe probe);
 
@@ -55,11 +63,16 @@ class LockstepPacer {
   std::vector<RobotId> ReapSilent();
   // The cumulative number of readers matched by both sensor writers of the robot. Returns the
   // messages to send again: those the agent has not processed, when its readers matched anew
-  // without a restart; else nothing.
+  // without a restart; else nothing. (A restarted agent's first match starts its replay.)
   std::vector<SentLog::Message> OnMatches(RobotId id, std::uint32_t total_matches);
   // A launcher command other than stop (the caller handles stop). For "expect", the robot's
   // current cumulative match count is the base its next subscription is counted from.
   void OnControl(const ControlCommand& command, std::uint32_t total_matches);
+
+  // The next piece of a restarted agent's replay, when one is due: the first once its readers
+  // matched, each next once it reported the last processed. Empty otherwise.
+  std::vector<SentLog::Message> ReplayDue(RobotId id);
+  bool Replaying(RobotId id) const { return replays_.count(id) > 0; }
 
   // --- The stream, batch by batch.
   // An odometry message of the current batch: what to publish now (in lockstep, the robot's
@@ -76,8 +89,9 @@ class LockstepPacer {
   int TakeHolds(double stamp);
 
   // --- Waiting. Begin, then poll with the wall time until the poll says it is over.
-  // Startup (or a restart): until no agent is pending. The poll returns nullopt while waiting,
-  // then the agents that did not come up within timeout_s (empty when all did).
+  // Startup (or a restart): until no agent is pending (a restarted one: until its replay is
+  // done). The poll returns nullopt while waiting, then the agents that did not come up within
+  // timeout_s (empty when all did).
   void BeginStartup(double wall_now, double timeout_s);
   std::optional<std::vector<RobotId>> PollStartup(double wall_now) const;
   // A hold point: until the launcher says continue.
@@ -129,6 +143,8 @@ class LockstepPacer {
   const AgentTracker& tracker() const { return tracker_; }
   const Options& options() const { return options_; }
   std::uint64_t resent() const { return resent_; }
+  // Sensor messages replayed to restarted agents (their robots' streams from the start).
+  std::uint64_t replayed() const { return replayed_; }
 
  private:
   Options options_;
@@ -136,6 +152,15 @@ class LockstepPacer {
   AgentTracker tracker_;
   SentLog sent_;
   std::uint64_t resent_ = 0;
+  StreamLog streams_;
+  std::uint64_t replayed_ = 0;
+  std::map<RobotId, bool> replay_due_;  // restarted, its replay not begun
+  struct Replay {
+    std::size_t next = 0;    // the stream's next message to send
+    double wait_for = -1.0;  // the last piece's last odometry stamp, to be reported processed
+    bool first_sent = false;
+  };
+  std::map<RobotId, Replay> replays_;                    // replays under way
   std::map<RobotId, std::uint32_t> matches_at_restart_;  // count before the current incarnation
   std::map<RobotId, std::uint32_t> last_matches_;
   std::map<RobotId, Odometry> held_;

@@ -36,7 +36,7 @@ void PlayRecord::Add(const FeedBatch& b) {
 }
 
 void PlayRecord::Write(const std::string& dir, const FeedSource& source, double wall_s, bool interrupted,
-                       std::uint64_t resent) {
+                       std::uint64_t resent, std::uint64_t replayed) {
   const auto& seen = source.Truth().seen;
   truth_.seen.clear();
   for (std::size_t i = 0; i < seen.size(); ++i) {
@@ -63,6 +63,7 @@ void PlayRecord::Write(const std::string& dir, const FeedSource& source, double 
                                              {"pace", std::string(NameOf(kPaces, sc_.feeder.pace))},
                                              {"interrupted", interrupted},
                                              {"sensor_messages_resent", resent},
+                                             {"sensor_messages_replayed", replayed},
                                              {"robots", robots}});
 }
 

@@ -23,8 +23,9 @@ class PlayRecord {
   void CountSent(const Scan& s) { ++scans_sent_[s.robot_id]; }
   void CountSent(const Odometry& o) { ++odom_sent_[o.robot_id]; }
   // Writes DIR/truth.json and DIR/feeder.json.
+  // resent: sensor messages sent again to paused agents; replayed: to restarted agents.
   void Write(const std::string& dir, const FeedSource& source, double wall_s, bool interrupted,
-             std::uint64_t resent = 0);
+             std::uint64_t resent = 0, std::uint64_t replayed = 0);
 
  private:
   const Scenario& sc_;

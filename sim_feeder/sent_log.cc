@@ -18,6 +18,12 @@ std::vector<SentLog::Message> SentLog::Unprocessed(RobotId id) const {
   return out;
 }
 
+const std::vector<SentLog::Message>& StreamLog::Of(RobotId id) const {
+  static const std::vector<SentLog::Message> kNone;
+  auto it = log_.find(id);
+  return it == log_.end() ? kNone : it->second;
+}
+
 std::size_t SentLog::size(RobotId id) const {
   auto it = log_.find(id);
   return it == log_.end() ? 0 : it->second.size();

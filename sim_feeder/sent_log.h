@@ -38,4 +38,18 @@ class SentLog {
   std::map<RobotId, std::deque<Entry>> log_;
 };
 
+// Everything published to each robot, in publication order, for the whole run: the robot's
+// driver log. A restarted agent is sent its robot's stream again from the start, so that it
+// rebuilds its map in its own frame (LockstepPacer). Pure.
+class StreamLog {
+ public:
+  void Record(const Odometry& o) { log_[o.robot_id].emplace_back(o); }
+  void Record(const Scan& s) { log_[s.robot_id].emplace_back(s); }
+  const std::vector<SentLog::Message>& Of(RobotId id) const;
+  std::size_t size(RobotId id) const { return Of(id).size(); }
+
+ private:
+  std::map<RobotId, std::vector<SentLog::Message>> log_;
+};
+
 }  // namespace mapmesh

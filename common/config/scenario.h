@@ -158,6 +158,7 @@ struct FeederOptions {
   double lockstep_window_s = 0.5;   // lockstep: data published between barriers (<= 10 s)
   double startup_timeout_s = 30.0;  // wall seconds to wait for every agent to appear
   double truth_period_s = 0.5;      // trajectory sampling in truth.json
+  bool keep_streams = true;         // keep what each robot was sent, to replay it to a restarted agent
 };
 
 struct Scenario {

@@ -359,6 +359,7 @@ FeederOptions ReadFeeder(YamlReader f) {
   f.GetInRange("lockstep_window_s", o.lockstep_window_s, limits::kMinLockstepWindowS, limits::kMaxLockstepWindowS);
   f.GetPositiveUpTo("startup_timeout_s", o.startup_timeout_s, limits::kMaxStartupTimeoutS);
   f.GetInRange("truth_period_s", o.truth_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
+  f.Get("keep_streams", o.keep_streams);
   f.Finish();
   return o;
 }

@@ -125,8 +125,9 @@ bool WriterPartitions::Lookup(dds_instance_handle_t publication) {
     }
     dds_free(ps);
   }
+  std::string guid(reinterpret_cast<const char*>(ep->key.v), sizeof(ep->key.v));
   dds_builtintopic_free_endpoint(ep);
-  partitions_[publication] = std::move(names);
+  writers_[publication] = {std::move(names), std::move(guid)};
   return true;
 }
 
@@ -137,15 +138,25 @@ void WriterPartitions::Refresh() {
   std::vector<dds_instance_handle_t> handles(st.current_count + 16);
   const dds_return_t n = dds_get_matched_publications(reader_, handles.data(), handles.size());
   for (dds_return_t i = 0; i < n && i < static_cast<dds_return_t>(handles.size()); ++i) {
-    if (!partitions_.count(handles[i])) Lookup(handles[i]);
+    if (!writers_.count(handles[i])) Lookup(handles[i]);
   }
 }
 
-const std::vector<std::string>* WriterPartitions::Of(dds_instance_handle_t publication) {
+const WriterPartitions::Writer* WriterPartitions::Find(dds_instance_handle_t publication) {
   Refresh();
-  auto it = partitions_.find(publication);
-  if (it == partitions_.end() && Lookup(publication)) it = partitions_.find(publication);
-  return it == partitions_.end() ? nullptr : &it->second;
+  auto it = writers_.find(publication);
+  if (it == writers_.end() && Lookup(publication)) it = writers_.find(publication);
+  return it == writers_.end() ? nullptr : &it->second;
+}
+
+const std::vector<std::string>* WriterPartitions::Of(dds_instance_handle_t publication) {
+  const Writer* w = Find(publication);
+  return w ? &w->partitions : nullptr;
+}
+
+const std::string* WriterPartitions::GuidOf(dds_instance_handle_t publication) {
+  const Writer* w = Find(publication);
+  return w ? &w->guid : nullptr;
 }
 
 GuardCondition::GuardCondition(const Participant& p)

@@ -131,13 +131,21 @@ class WriterPartitions {
   explicit WriterPartitions(const RawReader& reader) : reader_(reader.get()) {}
   // The writer's partitions; nullptr when the writer was never seen matched.
   const std::vector<std::string>* Of(dds_instance_handle_t publication);
+  // The writer's GUID (16 bytes): the same writer keeps it when it is matched anew (after a
+  // lapsed lease, say), where its publication handle changes. nullptr as above.
+  const std::string* GuidOf(dds_instance_handle_t publication);
 
  private:
+  struct Writer {
+    std::vector<std::string> partitions;
+    std::string guid;
+  };
+  const Writer* Find(dds_instance_handle_t publication);
   void Refresh();
   bool Lookup(dds_instance_handle_t publication);
   dds_entity_t reader_;
   std::uint32_t seen_total_ = 0;
-  std::map<dds_instance_handle_t, std::vector<std::string>> partitions_;
+  std::map<dds_instance_handle_t, Writer> writers_;
 };
 
 // A guard condition: something a WaitSet can wait for, triggered from any thread.

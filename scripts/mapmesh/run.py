@@ -32,6 +32,8 @@ PR_SET_PDEATHSIG = 1
 EXIT_WRITE_FAILED = 3  # a process could not write a run file (common/app/process.h kExitWriteFailed)
 DISK_FULL_BYTES = 1 << 20  # less free space than this on --out's file system counts as full
 LOCK = ".lock"  # in DIR while a run uses it (flock): a second run on the same DIR is refused
+HISTORY = "history.jsonl"  # an agent's line of counters at every checkpoint, all incarnations
+SHRINK_FRACTION = 0.9  # a final local map under this share of the most it held is flagged
 
 STOP_GRACE_S = 15.0  # wall seconds the agents have to write their outputs once asked to stop ...
 STOP_GRACE_S_PER_AGENT = 0.5  # ... or this much per agent, when that is longer
@@ -576,6 +578,7 @@ class SwarmRun:
         for rid, slot in self.agents.items():
             # final, or the last checkpoint of a killed agent
             stats = run.read_if_present(STATS, rid) or {}
+            held = most_landmarks(self.out / agent_dir(rid) / HISTORY)
             score = scores.get(str(rid), {})
             sent = feeder_stats.get(rid, {})
             agents.append({
@@ -631,6 +634,11 @@ class SwarmRun:
                 "maps_refused": stats.get("maps_refused", {}),
                 # Writes that failed (a full disk): from the first, no snapshots or checkpoints.
                 "outputs": stats.get("outputs"),
+                # The most landmarks its local and global maps held at any checkpoint of any
+                # incarnation, and whether a final map has fewer than 90 % of them (a restart that
+                # lost what the agent held).
+                "held": held,
+                "map_shrank": shrank(held, stats),
                 "frame_in_world": score.get("frame_in_world"),
                 "cpu_s": round(sum(p.cpu_s for p in slot.procs), 3),
                 "max_rss_mb": round(max((p.max_rss_mb for p in slot.procs), default=0.0), 1),
@@ -707,6 +715,34 @@ def write_json(path, value):
         raise RunError(f"{path} not written: {e.strerror}", 1) from e
 
 
+def most_landmarks(path):
+    """The most landmarks of each map in an agent's history.jsonl (any incarnation):
+    {"local": n, "global": n}, or None without a history."""
+    most = {}
+    try:
+        with open(path) as f:
+            for line in f:
+                try:
+                    entry = json.loads(line)
+                except ValueError:
+                    continue  # a line cut by a kill
+                for kind in ("local", "global"):
+                    n = entry.get(f"{kind}_landmarks")
+                    if isinstance(n, int):
+                        most[kind] = max(most.get(kind, 0), n)
+    except OSError:
+        return None
+    return most or None
+
+
+def shrank(held, stats):
+    """Whether a final map (stats.json) has fewer than SHRINK_FRACTION of the most it held."""
+    if not held:
+        return False
+    return any(isinstance(stats.get(f"{kind}_landmarks"), int) and kind in held
+               and stats[f"{kind}_landmarks"] < SHRINK_FRACTION * held[kind] for kind in ("local", "global"))
+
+
 def disk_full(path):
     """The free bytes on path's file system when it is full (under DISK_FULL_BYTES), else None."""
     try:
@@ -768,6 +804,12 @@ def cmd_run(args):
         report = write_report(args.out)
         if report:
             print(f"report:  {report}")
+    for a in summary["agents"]:
+        if a.get("map_shrank"):
+            held = a["held"]
+            print(f"swarm: agent {a['id']}'s maps shrank: {(a.get('local') or {}).get('landmarks', '-')} local and "
+                  f"{(a.get('global') or {}).get('landmarks', '-')} global landmarks at the end, where it held "
+                  f"{held.get('local')} and {held.get('global')} (map_shrank in summary.json)", file=sys.stderr)
     stopped = [a for a in summary["agents"] if (a.get("outputs") or {}).get("stopped_at") is not None]
     if stopped:
         print(f"swarm: agents {', '.join(str(a['id']) for a in stopped)}: snapshots and checkpoints stopped at a "

@@ -59,6 +59,47 @@ TEST(MapExchange, AlignsAPeerAndFusesItsLandmarksInPlace) {
 // A peer out of radio range sends nothing new while our own map moves on (a loop closure has
 // turned it a little): the peer's landmarks must move with ours. Its transform is refitted on
 // our map as it is now every refine_period_s; with 0 it stays where the peer's last map put it.
+// An earlier incarnation of ours whose session began where ours did (its stream was replayed to
+// us) is placed at the identity at once, exactly, and never revisited; one that began elsewhere
+// is left to alignment. Its global map (what it had fused of others) joins ours.
+TEST(MapExchange, AnEarlierIncarnationInOurFrameIsPlacedAtTheIdentity) {
+  World w(160, 7);
+  std::mt19937_64 rng(8);
+  MapExchange a(1, 3, Immediate(), 9);
+  const LandmarkMap own = w.Map(0, 20, kFrameA, kSigma, rng);
+  const LandmarkMap before = w.Map(0, 12, kFrameA, kSigma, rng);         // incarnation 2, same frame
+  const LandmarkMap before_global = w.Map(0, 30, kFrameA, kSigma, rng);  // ... with a peer's landmarks
+  const LandmarkMap elsewhere = w.Map(10, 30, kFrameB, kSigma, rng);     // incarnation 1, another frame
+  a.AddOwnCheckpoint(2, 0.5, before, before_global);
+  a.AddOwnCheckpoint(1, 7.0, elsewhere, elsewhere);
+  EXPECT_EQ(a.PlaceOwnCheckpointsAt(0.5, own, 10.0), 1);
+  EXPECT_EQ(a.PlaceOwnCheckpointsAt(0.5, own, 10.0), 0);  // once
+  auto report = [&](std::uint32_t incarnation) {
+    for (const PeerReport& r : a.Peers()) {
+      if (r.key == PeerKey{1, incarnation}) return r;
+    }
+    ADD_FAILURE() << "no incarnation " << incarnation;
+    return PeerReport{};
+  };
+  PeerReport placed = report(2);
+  EXPECT_TRUE(placed.aligned);
+  EXPECT_EQ(placed.aligned_by, AlignmentSource::kContinuity);
+  EXPECT_EQ(placed.to_own.x, 0.0);
+  EXPECT_EQ(placed.to_own.y, 0.0);
+  EXPECT_EQ(placed.to_own.theta, 0.0);
+  EXPECT_NE(report(1).aligned_by, AlignmentSource::kContinuity);
+  a.Update(own, 10.0);
+  // What incarnation 2 had fused beyond our map is in ours now, where the truth is.
+  EXPECT_GE(w.PlacedIn(a.global().map, kFrameA, 20, 30, 0.2), w.PlacedIn(before_global, kFrameA, 20, 30, 0.2));
+  for (double t : {20.0, 40.0, 60.0}) {
+    a.Update(w.Map(0, 26, kFrameA, kSigma, rng), t);  // our map grows: nothing to realign
+    placed = report(2);
+    EXPECT_EQ(placed.aligned_by, AlignmentSource::kContinuity);
+    EXPECT_EQ(placed.to_own.theta, 0.0);
+    EXPECT_EQ(placed.realignments + placed.verifications + placed.refinements, 0);
+  }
+}
+
 TEST(MapExchange, AQuietPeersTransformFollowsOurOwnMap) {
   for (double period : {0.0, 5.0}) {
     SCOPED_TRACE(period);

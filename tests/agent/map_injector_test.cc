@@ -41,7 +41,7 @@ std::optional<MapMessage> NextMap(MapInjector& inj) {
 
 TEST(InjectCases, ParsesAllAListAndRefusesUnknownOnes) {
   EXPECT_EQ(ParseInjectCases("all"), AllInjectCases());
-  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 8));
+  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 9));
   EXPECT_EQ(ParseInjectCases("shuffled,truncated,shuffled"), (std::vector<std::string>{"shuffled", "truncated"}));
   EXPECT_FALSE(ParseInjectCases("shuffle").has_value());
   EXPECT_FALSE(ParseInjectCases("").has_value());

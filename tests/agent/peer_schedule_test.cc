@@ -153,6 +153,23 @@ TEST(PeerSchedule, GrowthOrAnUnconfirmedAnswerBringsARealignmentBeforeTheVerific
   EXPECT_EQ(Turns({f}, 15.0, 36, off), (std::vector<Turn>{{{1, 1}, TurnKind::kVerify}}));
 }
 
+// An earlier own incarnation placed by continuity is in our own frame: never realigned,
+// verified or refined, however both maps grow.
+TEST(PeerSchedule, AnExactPlacementIsNeverRevisited) {
+  PeerFacts f = Aligned(3);
+  f.aligned_by_overlap = false;
+  f.exact = true;
+  f.stale = true;
+  f.changed = true;
+  f.own_size_at_attempt = 0;
+  f.map_size_at_attempt = 0;
+  f.last_attempt = -1e300;
+  f.last_refine = -1e300;
+  EXPECT_EQ(Turns({f}, 100.0, 80), std::vector<Turn>{});
+  f.exact = false;  // the same facts placed by overlap: realigned
+  EXPECT_EQ(Turns({f}, 100.0, 80), (std::vector<Turn>{{{3, 1}, TurnKind::kRealign}}));
+}
+
 TEST(PeerSchedule, RealignmentsShareTheBudgetWithFirstAlignments) {
   PeerFacts a = Aligned(1), b = Aligned(2);
   a.changed = b.changed = true;

@@ -152,10 +152,19 @@ class PipelineTest(SwarmCase):
         self.assertTrue(a["alive_at_end"])
         self.assertEqual(a["exit_code"], 0)
         self.assertEqual(a["restarts"], 1)
-        # The new process ran from t = 15 s: it consumed the last 15 s (the first interval
-        # after it joined only moves the pose).
+        # The new process was sent its robot's stream again from the start (feeder.keep_streams):
+        # it processed all of it, none before its join.
+        self.assertEqual(a["odom_processed"], a["odom_sent"])
+        self.assertEqual(a["odom_received"], a["odom_sent"])
+        self.assertEqual(a["odom_before_join"], 0)
+        # Without kept streams it joins the stream where it is, at t = 15 s: it consumes the last
+        # 15 s (the first interval after it joined only moves the pose).
+        r = self.swarm(DATA / "three.yaml", "--kill", "2@10", "--restart", "2@15", "--set", "feeder.keep_streams=false")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        a = {a["id"]: a for a in self.summary()["agents"]}[2]
         self.assertGreaterEqual(a["odom_processed"], 140)
         self.assertLessEqual(a["odom_processed"], 151)
+        self.assertGreater(a["odom_before_join"], 0)
         self.assertEqual(leftover_processes(str(self.out)), [])
 
     def stop_a_running_swarm_with(self, sig):

@@ -172,6 +172,88 @@ TEST_F(LockstepPacerTest, ARestartedAgentIsNotResentWhatItsPredecessorMissed) {
   EXPECT_EQ(p.resent(), 0u);
 }
 
+// A restarted agent is sent its robot's whole stream again, in pieces of at most replay_span_s,
+// each once it reported the last processed; until the replay is done it is not up for startup.
+TEST_F(LockstepPacerTest, ARestartedAgentIsReplayedItsWholeStreamInPieces) {
+  for (const bool lockstep : {true, false}) {
+    SCOPED_TRACE(lockstep ? "lockstep" : "realtime");
+    LockstepPacer::Options o;
+    o.lockstep = lockstep;
+    o.replay_span_s = 2.0;
+    LockstepPacer p({1, 2}, o, [](int) { return ProcessState::kRunning; });
+    for (RobotId id : {1u, 2u}) {
+      p.OnStatus(St(id, 1, 0.0));
+      p.OnMatches(id, 1);
+    }
+    // Robot 1's stream: a scan then an odometry each 0.5 s, the odometry closing each second
+    // flagged sync; robot 2's does not concern it.
+    std::vector<double> odometry;
+    for (int k = 1; k <= 12; ++k) {
+      const double t = 0.5 * k;
+      p.Published(Sc(1, t - 0.25));
+      Odometry od = Od(1, t);
+      od.sync = k % 2 == 0;
+      p.Published(od);
+      odometry.push_back(t);
+      p.Published(Od(2, t));
+    }
+    p.OnControl({ControlCommand::Kind::kDead, 1}, 1);
+    p.OnControl({ControlCommand::Kind::kExpect, 1}, 1);
+    EXPECT_TRUE(p.ReplayDue(1).empty());  // not matched yet
+    p.OnStatus(St(1, 2, 0.0));
+    EXPECT_TRUE(p.OnMatches(1, 2).empty());  // the pause path sends nothing
+    p.BeginStartup(0.0, 100.0);
+    std::vector<double> got;
+    int pieces = 0;
+    double last_odometry = 0.0;
+    while (true) {
+      EXPECT_FALSE(p.PollStartup(1.0).has_value()) << "up before its replay is done";
+      const std::vector<SentLog::Message> piece = p.ReplayDue(1);
+      if (piece.empty()) break;
+      ++pieces;
+      EXPECT_TRUE(p.ReplayDue(1).empty()) << "the next piece before this one is processed";
+      const double first = std::visit([](const auto& x) { return x.stamp; }, piece.front());
+      for (const SentLog::Message& m : piece) {
+        const double t = std::visit([](const auto& x) { return x.stamp; }, m);
+        EXPECT_LE(t, first + 2.0);
+        if (const auto* od = std::get_if<Odometry>(&m)) {
+          EXPECT_EQ(od->robot_id, 1u);
+          got.push_back(t);
+          last_odometry = t;
+        }
+      }
+      // Each piece ends on an odometry that closed a window (the agent reports it at once).
+      const auto* end = std::get_if<Odometry>(&piece.back());
+      ASSERT_NE(end, nullptr);
+      EXPECT_TRUE(end->sync);
+      p.OnStatus(St(1, 2, last_odometry));
+    }
+    EXPECT_EQ(got, odometry);  // everything, in order, once
+    EXPECT_EQ(pieces, 3);      // 0.25-2.0, 2.25-4.0, 4.25-6.0
+    EXPECT_EQ(p.replayed(), 24u);
+    ASSERT_TRUE(p.PollStartup(1.0).has_value());
+    EXPECT_TRUE(p.PollStartup(1.0)->empty());
+    EXPECT_EQ(p.resent(), 0u);
+  }
+}
+
+// feeder.keep_streams false: a restarted agent joins the stream where it is.
+TEST_F(LockstepPacerTest, WithoutKeptStreamsARestartedAgentIsNotReplayed) {
+  LockstepPacer::Options o;
+  o.keep_streams = false;
+  LockstepPacer p({1}, o, [](int) { return ProcessState::kRunning; });
+  p.OnStatus(St(1, 1, 0.0));
+  p.OnMatches(1, 1);
+  p.Published(Od(1, 0.5));
+  p.OnControl({ControlCommand::Kind::kExpect, 1}, 1);
+  p.OnStatus(St(1, 2, 0.0));
+  p.OnMatches(1, 2);
+  EXPECT_TRUE(p.ReplayDue(1).empty());
+  p.BeginStartup(0.0, 100.0);
+  ASSERT_TRUE(p.PollStartup(1.0).has_value());
+  EXPECT_EQ(p.replayed(), 0u);
+}
+
 TEST_F(LockstepPacerTest, RealTimeKeepsNothingToResend) {
   LockstepPacer p = Make(/*lockstep=*/false);
   BringUp(p);

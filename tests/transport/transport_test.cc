@@ -263,7 +263,7 @@ TEST_F(TransportTest, OnlyTheFeedersLinkTablesAreTaken) {
     while (verdicts.size() < n && std::chrono::steady_clock::now() < deadline) {
       ws.Wait(0.1);
       for (const auto& s : r.Take()) {
-        if (s.valid) verdicts[s.value.stamp] = source.Judge(writers.Of(s.publication), s.publication);
+        if (s.valid) verdicts[s.value.stamp] = source.Judge(writers.Of(s.publication), writers.GuidOf(s.publication));
       }
     }
     ASSERT_EQ(verdicts.size(), n);
