@@ -4,6 +4,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "common/transport/security_files.h"
+
 namespace mapmesh::transport {
 namespace {
 
@@ -22,6 +24,10 @@ std::unique_ptr<Domain> MakeDomain(int domain_id, const std::string& config_path
   if (!in) throw std::runtime_error(path + ": cannot open Cyclone DDS config");
   std::stringstream xml;
   xml << in.rdbuf();
+  // Checked before the domain exists: a bad identity would come up and fail every handshake.
+  if (const std::optional<SecurityFiles> files = SecurityFilesOf(xml.str())) {
+    if (const std::optional<std::string> problem = CheckSecurityFiles(*files)) throw std::runtime_error(*problem);
+  }
   used = path;
   return std::make_unique<Domain>(static_cast<dds_domainid_t>(domain_id), xml.str());
 }

@@ -318,6 +318,12 @@ class SwarmRun:
             if self.args.secure:
                 base = self.dds_config or os.environ.get("CYCLONEDDS_URI", f"file://{ddsconfig.DEFAULT}")
                 self.security = secure.RunSecurity(self.out, self.lease.id, str(base).removeprefix("file://"))
+                # Every identity made and checked before anything starts (a restarted agent checks
+                # its own again: mapmesh-agent refuses a key that does not match its certificate).
+                self.security.feeder_config()
+                for rid in self.info["robots"]:
+                    self.security.agent_config(rid)
+                self.security.check()
             for rid in self.info["robots"]:
                 self.agents[rid] = AgentSlot(rid)
                 self.start_agent(rid)

@@ -90,6 +90,28 @@ def make_identity(directory, name, ca_cert, ca_key, days=2):
     return cert, key
 
 
+def identity_problem(cert, key):
+    """What is wrong with an identity, as one line naming its files, or None: the private key
+    must be readable by its owner only (mode 0600 or stricter) and be the certificate's (with a
+    key that does not match, a participant comes up and every handshake fails)."""
+    try:
+        mode = os.stat(key).st_mode & 0o7777
+    except OSError as e:
+        return f"{key}: cannot read the private key ({e.strerror})"
+    if mode & 0o077:
+        return f"{key}: the private key is readable by others (mode {mode:04o}); chmod 600 it"
+    pub = []
+    for args in (["x509", "-in", str(cert), "-noout", "-pubkey"], ["pkey", "-in", str(key), "-pubout"]):
+        r = subprocess.run(["openssl", *args], capture_output=True, text=True)
+        if r.returncode != 0:
+            what = "certificate" if args[0] == "x509" else "private key"
+            return f"{args[2]}: not a PEM {what}"
+        pub.append(r.stdout.strip())
+    if pub[0] != pub[1]:
+        return f"{key}: the private key does not match the certificate {cert}"
+    return None
+
+
 def sign(directory, xml_text, stem, ca_cert, ca_key):
     """The S/MIME-signed document DIR/stem.p7s of xml_text (DDS Security's signed XML)."""
     d = Path(directory)
@@ -218,12 +240,21 @@ class RunSecurity:
         self.ca_cert, self.ca_key = make_ca(self.dir)
         self.governance = sign(self.dir, governance_xml(domain), "governance", self.ca_cert, self.ca_key)
         self.configs = {}
+        self.identities = {}  # name -> (certificate, key)
+
+    def check(self):
+        """Every identity made so far, before anything starts: RunError naming the first bad one."""
+        for name in sorted(self.identities):
+            problem = identity_problem(*self.identities[name])
+            if problem:
+                raise RunError(f"--secure: {problem}", 2)
 
     def config_for(self, name, publish, partition=None):
         """Makes participant `name`'s identity and permissions (once); returns its Cyclone config path."""
         if name in self.configs:
             return self.configs[name]
         cert, key = make_identity(self.dir, name, self.ca_cert, self.ca_key)
+        self.identities[name] = (cert, key)
         perms = sign(self.dir, permissions_xml(name, self.domain, publish, partition), f"{name}.permissions",
                      self.ca_cert, self.ca_key)
         path = self.dir / f"{name}.cyclonedds.xml"

@@ -6,16 +6,25 @@ import json
 import os
 import shutil
 import stat
+import subprocess
 import sys
+import time
 import unittest
 
-from swarm_test import REPO, SwarmCase
+from swarm_test import BIN, REPO, SWARM, SwarmCase, run_measured
 
 sys.path.insert(0, str(REPO / "scripts"))
 from mapmesh import secure  # noqa: E402
 from mapmesh.run_error import RunError  # noqa: E402
 
 PARK4 = REPO / "scenarios" / "park4.yaml"
+
+
+def read_or_empty(path):
+    try:
+        return path.read_text()
+    except OSError:
+        return ""
 
 
 def missing_tools():
@@ -38,6 +47,80 @@ class SecureRunCase(SwarmCase):
 
     def stats(self, rid):
         return json.loads((self.out / f"agent_{rid}" / "stats.json").read_text())
+
+
+class IdentityTest(SecureRunCase):
+    """R2: a participant whose private key did not match its certificate came up, every
+    handshake with it failed, and after 30 s the whole run ended with no summary.json; a key
+    readable by others was taken silently."""
+
+    def identities(self):
+        """A run's security files in self.out/security (for robot 1 and 2), as the launcher makes them."""
+        self.out.mkdir(parents=True)
+        run = secure.RunSecurity(self.out, 0, str(REPO / "config" / "cyclonedds-loopback.xml"))
+        return run, run.agent_config(1), run.agent_config(2)
+
+    def test_the_launcher_checks_each_key_against_its_certificate_and_its_mode(self):
+        run, _, _ = self.identities()
+        d = run.dir
+        self.assertIsNone(secure.identity_problem(d / "agent1.pem", d / "agent1.key"))
+        run.check()  # nothing raised
+        self.assertEqual(secure.identity_problem(d / "agent1.pem", d / "agent2.key"),
+                         f"{d / 'agent2.key'}: the private key does not match the certificate {d / 'agent1.pem'}")
+        os.chmod(d / "agent2.key", 0o644)
+        self.assertEqual(secure.identity_problem(d / "agent2.pem", d / "agent2.key"),
+                         f"{d / 'agent2.key'}: the private key is readable by others (mode 0644); chmod 600 it")
+        with self.assertRaises(RunError) as e:
+            run.check()
+        self.assertEqual(e.exception.exit_code, 2)
+        self.assertIn("agent2.key: the private key is readable by others", str(e.exception))
+
+    def test_a_participant_with_a_mismatched_or_readable_key_exits_in_one_line(self):
+        run, config1, _ = self.identities()
+        d = run.dir
+        key1 = (d / "agent1.key").read_bytes()
+        (d / "agent1.key").write_bytes((d / "agent2.key").read_bytes())  # still 0600
+        for expected in [f"{d / 'agent1.key'}: the private key does not match the certificate {d / 'agent1.pem'}",
+                         f"{d / 'agent1.key'}: the private key is readable by others (mode 0640); chmod 600 it"]:
+            with self.subTest(expected=expected.split(": ", 1)[1]):
+                code, _, err, wall, _ = run_measured(
+                    [str(BIN / "mapmesh-agent"), "--scenario", str(PARK4), "--id", "1", "--domain", "3",
+                     "--dds-config", str(config1)], timeout=10)
+                self.assertNotEqual(code, 0, err)
+                self.assertEqual(err.strip().splitlines(), [f"mapmesh-agent: {expected}"])
+                self.assertLess(wall, 2.0)
+            (d / "agent1.key").write_bytes(key1)
+            os.chmod(d / "agent1.key", 0o640)
+
+    def test_a_restarted_agent_whose_key_went_bad_fails_alone(self):
+        # Agent 2's key is replaced by another's during the run: its restart exits in one line, the
+        # run goes on without it and ends with summary.json naming it.
+        p = subprocess.Popen(SWARM + ["run", str(PARK4), "--secure", "--out", str(self.out), "--pace", "realtime",
+                                      "--rate", "10", "--kill", "2@40", "--restart", "2@150", "--no-report",
+                                      "--no-reference", "--timeout", "200"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            key = self.out / "security" / "agent2.key"
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline and "up:" not in read_or_empty(self.out / "agent_2" / "agent.log"):
+                time.sleep(0.1)
+            key.write_bytes((self.out / "security" / "agent3.key").read_bytes())
+            out, err = p.communicate(timeout=200)
+        finally:
+            if p.poll() is None:
+                p.kill()
+        self.assertEqual(p.returncode, 1, out + err)
+        summary = self.summary()
+        self.assertEqual(summary["failed_agents"], [2])
+        agents = {a["id"]: a for a in summary["agents"]}
+        self.assertEqual([i["killed"] for i in agents[2]["incarnations"]], [True, False])
+        self.assertNotEqual(agents[2]["incarnations"][1]["exit_code"], 0)
+        for rid in (1, 3, 4):
+            self.assertEqual(agents[rid]["exit_code"], 0)
+            self.assertTrue(agents[rid]["final_state"])
+        self.assertIn(f"{key}: the private key does not match the certificate", (self.out / "agent_2" / "agent.log")
+                      .read_text())
+        self.assertIn("swarm: agents [2] failed", err)
 
 
 class SecureTest(SecureRunCase):
