@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <set>
+#include <utility>
 
 #include "common/check.h"
 #include "common/metrics/chi2.h"
@@ -208,12 +209,14 @@ void MapExchange::ChooseSource(PeerState& p, const LandmarkMap& own_local, bool 
 bool MapExchange::Take(const Turn& turn, const LandmarkMap& own_local, double now, Round& round) {
   PeerState& p = book_.states().at(turn.key);
   switch (turn.kind) {
-    case TurnKind::kRendezvous:
+    case TurnKind::kRendezvous: {
+      const bool continuity = std::exchange(p.continuity_prior, false);
       if (!AlignByRendezvous(p, own_local, now)) return false;
       round.chosen.insert(turn.key);
-      MarkAligned(p, AlignmentSource::kRendezvous, now);
+      MarkAligned(p, continuity ? AlignmentSource::kContinuity : AlignmentSource::kRendezvous, now);
       round.changed = true;
       return true;
+    }
     case TurnKind::kAlign:
       ++p.counters.attempts;
       if (!Align(p, own_local, now, /*reconsider_relay=*/true)) return false;

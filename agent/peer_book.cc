@@ -36,6 +36,22 @@ PeerBook::Receipt PeerBook::OnPeerMap(RobotId robot, std::uint32_t incarnation, 
     p.has_global = true;
   }
   p.origin_stamp = origin_stamp;
+  // A later incarnation of a robot whose session began where an aligned earlier one's did (the
+  // feeder replayed its stream to it): the same frame. The earlier one's transform waits to be
+  // weighed like a rendezvous fit, verified on the maps before it is used, instead of a search
+  // from nothing on every restart (which found a false 92 degrees in a restart storm).
+  if (!p.Aligned() && !p.rendezvous) {
+    for (const auto& [k, q] : peers_) {
+      if (k.robot != robot || k.incarnation >= incarnation || !q.Aligned() || q.origin_stamp != origin_stamp) continue;
+      AlignmentResult prior;
+      prior.verdict = AlignmentVerdict::kAccepted;
+      prior.transform = q.to_own;
+      prior.cov = q.to_own_cov;
+      p.rendezvous = prior;
+      p.continuity_prior = true;
+      break;
+    }
+  }
   p.last_heard = now;
   p.changed = true;
   p.stale = false;  // heard again: it speaks for itself
@@ -101,7 +117,7 @@ std::vector<PeerFacts> PeerBook::Facts(double now) const {
     f.has_map = p.has_local || p.has_global;
     f.aligned = p.Aligned();
     f.aligned_by_overlap = p.aligned_by == AlignmentSource::kOverlap;
-    f.exact = p.Aligned() && p.aligned_by == AlignmentSource::kContinuity;
+    f.exact = p.own_checkpoint && p.Aligned() && p.aligned_by == AlignmentSource::kContinuity;
     f.awaiting_confirmation = p.candidate.has_value();
     f.stale = p.stale;
     f.silent = p.Silent(now, options_.SilentAfterS());

@@ -27,7 +27,8 @@ struct PeerKey {
 
 // Which kind of evidence an alignment came from.
 // kContinuity: an earlier incarnation of this agent whose session began where this one's did
-// (the feeder replayed the robot's stream from the start): its frame is ours.
+// (the feeder replayed the robot's stream from the start): its frame is ours. For a peer: a later
+// incarnation placed where its earlier one was (same session start), verified on the maps.
 enum class AlignmentSource : std::uint8_t { kNone = 0, kOverlap, kRendezvous, kContinuity };
 inline const char* ToString(AlignmentSource s) {
   switch (s) {
@@ -140,6 +141,7 @@ struct PeerState {
   std::optional<PeerKey> superseded_by;         // frozen, re-placed by this relay (see MapExchange::Build)
   std::map<PeerKey, double> last_refute_check;  // by relay: when its placement of this peer was last weighed
   std::optional<AlignmentResult> rendezvous;    // the newest accepted rendezvous fit, not yet weighed
+  bool continuity_prior = false;                // rendezvous holds an earlier incarnation's transform (same frame)
 
   // It contributes with a verified alignment (its landmarks may come through a relay).
   bool Aligned() const { return stage == PeerStage::kAligned || stage == PeerStage::kSuperseded; }

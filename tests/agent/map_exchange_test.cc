@@ -100,6 +100,33 @@ TEST(MapExchange, AnEarlierIncarnationInOurFrameIsPlacedAtTheIdentity) {
   }
 }
 
+// A peer's later incarnation whose session began where its aligned earlier one's did (its
+// stream was replayed to it) is placed where that one was, verified on the maps, without a search;
+// one that began elsewhere is searched for as any new frame.
+TEST(MapExchange, APeersRestartInTheSameFrameIsPlacedWhereItsEarlierIncarnationWas) {
+  Pair p(3);
+  auto& [w, rng, a, la, lb] = p;
+  ASSERT_TRUE(a.Update(la, 10.0));
+  auto report = [&](std::uint32_t incarnation) {
+    for (const PeerReport& r : a.Peers()) {
+      if (r.key == PeerKey{2, incarnation}) return r;
+    }
+    return PeerReport{};
+  };
+  const PeerReport first = report(1);
+  ASSERT_TRUE(first.aligned);
+  a.OnPeerMap(2, 2, MapKind::kLocal, 1, 0.0, w.Map(14, 40, kFrameB, kSigma, rng), 12.0);  // same origin
+  a.OnPeerMap(2, 3, MapKind::kLocal, 1, 5.0, w.Map(14, 40, kFrameC, kSigma, rng), 12.0);  // elsewhere
+  a.Update(la, 12.0);
+  const PeerReport same = report(2), other = report(3);
+  EXPECT_TRUE(same.aligned);
+  EXPECT_EQ(same.aligned_by, AlignmentSource::kContinuity);
+  EXPECT_EQ(same.attempts, 0);  // no search
+  EXPECT_NEAR(same.to_own.x, first.to_own.x, 0.1);
+  EXPECT_NEAR(same.to_own.theta, first.to_own.theta, 0.01);
+  EXPECT_NE(other.aligned_by, AlignmentSource::kContinuity);
+}
+
 TEST(MapExchange, AQuietPeersTransformFollowsOurOwnMap) {
   for (double period : {0.0, 5.0}) {
     SCOPED_TRACE(period);
