@@ -39,9 +39,9 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(AgentStats, maps_sent, bytes_sent, maps_recei
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerReport, own_checkpoint, origin_stamp, local_landmarks, global_landmarks, aligned,
                                    ever_aligned, aligned_since, dropped, stale, stale_since, frozen, silent, last_heard,
                                    relayed, relay_conflicts, refuted, refuted_by, replaced, superseded, refuted_answers,
-                                   attempts, unconfirmed, verifications, failures, rejected, drops, realignments,
-                                   refinements, corrections, rendezvous_fits, rendezvous_refused, rendezvous_unjudged,
-                                   rendezvous_confirmed)
+                                   attempts, unconfirmed, outsupported, verifications, failures, rejected, drops,
+                                   realignments, refinements, corrections, rendezvous_fits, rendezvous_refused,
+                                   rendezvous_unjudged, rendezvous_confirmed)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(RendezvousStats, sightings_sent, answers_sent, sightings_used, answers_used, mutual,
                                    refused, unmatched, fits, fits_accepted)
 

@@ -40,17 +40,39 @@ bool MapExchange::Align(PeerState& p, const LandmarkMap& own_local, double now, 
     ++p.counters.refuted_answers;
     return false;
   }
-  // An answer is used once a second, later one agrees with it (or with the transform in use).
-  const bool confirmed = !options_.test_only.confirm_alignments ||
-                         (p.Aligned() && relay_.Agree(p.to_own, r.transform, at)) ||
-                         (p.candidate && relay_.Agree(*p.candidate, r.transform, at));
+  // An answer is used once a second, later one agrees with it (or with the transform in use),
+  // and the second must rest on a landmark pair the first did not: the same pairs again are the
+  // same evidence again. A false match that the maps' shapes allow comes back on every attempt as
+  // reliably as a true one (a survivor of a restart storm confirmed a false 92 degrees from 6
+  // pairs found twice on a dead peer's frozen map).
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  pairs.reserve(r.inliers.size());
+  for (const auto& [i, j] : r.inliers) pairs.emplace_back(own_local.landmarks[i].id, theirs.landmarks[j].id);
+  std::sort(pairs.begin(), pairs.end());
+  const bool agrees_in_use = p.Aligned() && relay_.Agree(p.to_own, r.transform, at);
+  if (p.Aligned() && !agrees_in_use) {
+    // A correction must be better supported than what it corrects: the transform in use,
+    // verified on the same maps, keeps its place when as many pairs hold there.
+    const AlignmentResult held = VerifyAlignment(own_local, theirs, p.to_own, options_.align);
+    if (held.accepted() && held.inliers.size() >= r.inliers.size()) {
+      ++p.counters.outsupported;
+      return false;
+    }
+  }
+  const bool agrees_candidate = p.candidate && relay_.Agree(*p.candidate, r.transform, at);
+  const bool new_evidence = !std::includes(p.candidate_pairs.begin(), p.candidate_pairs.end(), pairs.begin(),
+                                           pairs.end());
+  const bool confirmed = !options_.test_only.confirm_alignments || agrees_in_use || (agrees_candidate && new_evidence);
   if (!confirmed) {
-    p.candidate = r.transform;
-    if (!p.Aligned()) p.stage = PeerStage::kCandidate;
     ++p.counters.unconfirmed;
+    if (agrees_candidate) return false;  // the candidate stands, on its own evidence
+    p.candidate = r.transform;
+    p.candidate_pairs = std::move(pairs);
+    if (!p.Aligned()) p.stage = PeerStage::kCandidate;
     return false;
   }
   p.candidate.reset();
+  p.candidate_pairs.clear();
   Use(p, r, own_local, reconsider_relay, now);
   return true;
 }
@@ -112,6 +134,7 @@ bool MapExchange::AlignByRendezvous(PeerState& p, const LandmarkMap& own_local, 
   }
   ++p.counters.rendezvous_confirmed;
   p.candidate.reset();
+  p.candidate_pairs.clear();
   Use(p, v, own_local, /*reconsider_relay=*/true, now);
   return true;
 }
@@ -149,6 +172,7 @@ bool MapExchange::RefuteByRelay(const PeerState& p, const Pose2& to_own, PeerSta
   ++q.counters.refuted;
   q.refuted_by = p.key.robot;
   q.candidate.reset();
+  q.candidate_pairs.clear();
   if (q.Frozen()) {
     // A frozen q cannot speak for itself any more: its landmarks stay, moved to where the live
     // relay (holding them) places them; while that relay is used it brings them, and q's own
@@ -180,7 +204,16 @@ void MapExchange::ChooseSource(PeerState& p, const LandmarkMap& own_local, bool 
     p.last_relay_judged = now;
     ++p.counters.relays_judged;
     p.relayed = false;
-    if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
+    if (p.own_checkpoint && p.aligned_by == AlignmentSource::kContinuity) {
+      // An earlier incarnation of ours in our own frame: its global map (what it had fused of
+      // others) is in our frame exactly, nothing to verify. It is placed when our frame is
+      // fixed, before our map holds anything it could be verified on; verifying it there lost
+      // every peer's landmarks at each restart (a restart storm's agent ended with its own map).
+      // It is used even when smaller than its local map (written while that one grew faster):
+      // what its local map held, ours rebuilds from the same stream; what it fused of others
+      // it alone still holds.
+      p.relayed = p.has_global && !p.global.empty();
+    } else if (options_.relay_global_maps && p.has_global && p.global.size() > s.map.size()) {
       const AlignmentResult g = VerifyAlignment(own_local, p.global, s.to_own, options_.align);
       if (g.accepted() && relay_.Agree(g.transform, s.to_own, Centroid(p.global))) {
         const std::optional<PeerKey> conflict = options_.test_only.relay_must_agree
@@ -268,10 +301,13 @@ int MapExchange::PlaceOwnCheckpointsAt(double origin_stamp, const LandmarkMap& o
     if (!p.own_checkpoint || p.Aligned() || p.origin_stamp != origin_stamp) continue;
     AlignmentResult same;
     same.verdict = AlignmentVerdict::kAccepted;  // the identity, exactly (cov zero)
-    Use(p, same, own_local, /*reconsider_relay=*/true, now);
     MarkAligned(p, AlignmentSource::kContinuity, now);
+    Use(p, same, own_local, /*reconsider_relay=*/true, now);
     ++placed;
   }
+  // Into the global map at once: a checkpoint written before the next update carries the
+  // global map as its record of them (they are no longer unaligned).
+  if (placed > 0) Build(own_local);
   return placed;
 }
 

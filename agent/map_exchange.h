@@ -66,11 +66,13 @@ class MapExchange {
   bool Update(const LandmarkMap& own_local, double now);
   // Places at the identity every earlier own incarnation not placed yet whose session began at
   // origin_stamp, as this one's did: the feeder replayed the robot's stream to this incarnation
-  // from the start, so that frame is ours (nothing to search for, nothing to verify). Returns
-  // how many it placed; the next Update fuses them.
+  // from the start, so that frame is ours (nothing to search for, nothing to verify), each with
+  // its global map (what it had fused of others). Returns how many it placed; the global map
+  // takes them at once, so that a checkpoint written before the next Update carries them.
   int PlaceOwnCheckpointsAt(double origin_stamp, const LandmarkMap& own_local, double now);
 
-  // How many Updates ran: alignments and the global maps change only in one.
+  // How many Updates ran: alignments and the global maps change only in one (and when earlier
+  // own incarnations are placed).
   std::uint64_t updates() const { return updates_; }
   const GlobalMap& global() const { return global_; }
   // The one-hop global map: the own local map fused with aligned peers' local maps (and an

@@ -108,6 +108,16 @@ void PeerBook::AddOwnCheckpoint(std::uint32_t incarnation, double origin_stamp, 
   p.changed = true;
 }
 
+bool PeerBook::CarriedByLater(const PeerState& p) const {
+  if (p.own_checkpoint) return false;
+  const std::size_t size = p.Map().size();
+  for (auto it = peers_.upper_bound(p.key); it != peers_.end() && it->first.robot == p.key.robot; ++it) {
+    const PeerState& later = it->second;
+    if (later.origin_stamp == p.origin_stamp && later.Map().size() >= size) return true;
+  }
+  return false;
+}
+
 std::vector<PeerFacts> PeerBook::Facts(double now) const {
   std::vector<PeerFacts> facts;
   facts.reserve(peers_.size());
@@ -134,6 +144,7 @@ std::vector<PeerFacts> PeerBook::Facts(double now) const {
     f.global_growth = static_cast<long>(p.global.size()) - static_cast<long>(p.relay_judged_size);
     f.last_judged = p.last_relay_judged;
     f.witness = p.direct && !p.direct->map.empty();
+    f.carried = CarriedByLater(p);
     facts.push_back(f);
   }
   return facts;

@@ -63,6 +63,9 @@ class PeerBook {
   // Whether a new incarnation of robot can be kept (max_incarnations), evicting one if need be.
   bool MakeRoomFor(RobotId robot, double now);
   void SetStale(PeerState& p, bool stale, double now);
+  // A later incarnation of p's robot began at p's origin stamp (the feeder replayed the same
+  // stream to it, so its map grows into a superset of p's) and holds at least as many landmarks.
+  bool CarriedByLater(const PeerState& p) const;
 
   RobotId self_;
   ExchangeOptions options_;

@@ -96,7 +96,7 @@ PeerSchedule PlanTurns(const std::vector<PeerFacts>& facts, std::size_t own_size
           starve(f->key);  // its fit waits (a newer one replaces it)
         }
       }
-      if (!o.ByOverlap() || !AttemptDue(*f, own_size, now, o)) continue;
+      if (f->carried || !o.ByOverlap() || !AttemptDue(*f, own_size, now, o)) continue;
       if (budget <= 0) {
         starve(f->key);
         continue;

@@ -6,7 +6,9 @@
 // The rules (docs/EXCHANGE.md "Bounded work"):
 // - An unaligned peer with a rendezvous fit waiting has it weighed (a rendezvous turn); an
 //   unaligned peer is aligned by overlap when an attempt is due (align_period_s since the last,
-//   and its map changed or ours grew by retry_growth; a silent peer's whenever ours changed).
+//   and its map changed or ours grew by retry_growth; a silent peer's whenever ours changed),
+//   unless a later incarnation in its frame carries its map (then only that one is searched:
+//   every search is a chance of a false answer, and a restart storm would multiply them).
 // - An aligned live peer is aligned afresh when either map grew by retry_growth (a realign turn),
 //   or sooner while a disagreeing answer awaits confirmation; then, when it sent a newer map or
 //   its global map's turn as a relay came, its map is verified at the known transform (a verify
@@ -46,6 +48,8 @@ struct PeerFacts {
   bool silent = false;                 // stale, an own checkpoint, or no map for silent_after_s
   bool changed = false;                // a map arrived since its last attempt or verification
   bool rendezvous_waiting = false;     // a rendezvous fit of its frame waits to be weighed
+  bool carried = false;                // a later incarnation in its frame (the same stream, replayed) holds
+                                       // at least as many landmarks: searching this one adds nothing
   double last_attempt = -1e300;        // its last full alignment
   double last_refine = -1e300;         // its last alignment, verification or refinement
   std::size_t map_size = 0;            // the map of it that is aligned

@@ -57,7 +57,8 @@ struct PeerCounters {
   int replaced = 0;         // ... of which it was frozen and moved to the relay's placement
   int refuted_answers = 0;  // alignments refused for agreeing with a refuted one
   int attempts = 0, verifications = 0;
-  int unconfirmed = 0;           // accepted alignments not (yet) confirmed by a later one
+  int unconfirmed = 0;           // accepted alignments not (yet) confirmed by a later one on new pairs
+  int outsupported = 0;          // answers refused: the transform in use holds as many pairs on the same maps
   int rejected = 0;              // failed verifications in all
   int drops = 0;                 // times the alignment was dropped
   int realignments = 0;          // fresh alignments of an aligned peer (realign_on_growth) ...
@@ -141,7 +142,9 @@ struct PeerState {
   std::optional<PeerKey> superseded_by;         // frozen, re-placed by this relay (see MapExchange::Build)
   std::map<PeerKey, double> last_refute_check;  // by relay: when its placement of this peer was last weighed
   std::optional<AlignmentResult> rendezvous;    // the newest accepted rendezvous fit, not yet weighed
-  bool continuity_prior = false;                // rendezvous holds an earlier incarnation's transform (same frame)
+  // The candidate's inliers as (our landmark id, its landmark id), sorted: what it rests on.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> candidate_pairs;
+  bool continuity_prior = false;  // rendezvous holds an earlier incarnation's transform (same frame)
 
   // It contributes with a verified alignment (its landmarks may come through a relay).
   bool Aligned() const { return stage == PeerStage::kAligned || stage == PeerStage::kSuperseded; }

@@ -430,7 +430,7 @@ int Run(int argc, char** argv) {
     }
     feeder.Emit({{"event", "start"}, {"robots", ids}, {"duration", sc.duration_s}});
     auto last_progress = Clock::now() - std::chrono::seconds(10);
-    const auto play_start = Clock::now();
+    auto play_start = Clock::now();
     auto publish_odom = [&](const Odometry& o) {
       feeder.Publish(o);
       record.CountSent(o);
@@ -468,9 +468,15 @@ int Run(int argc, char** argv) {
         feeder.Emit(feeder.Progress(b.stamp));
         last_progress = Clock::now();
       }
+      const auto hold_start = Clock::now();
       for (int n = pacer.TakeHolds(b.stamp); n > 0; --n) {
         if (control.enabled()) feeder.Hold(b.stamp);
       }
+      // Scenario time stands still at a hold (a restarted agent takes its replayed stream): in
+      // real time the run goes on at its rate from where it stopped. Played as due from the
+      // start, the time held came out as one burst after it, scans up to 22 s of scenario time
+      // ahead of the odometry taken, which an agent refuses as implausible.
+      play_start += Clock::now() - hold_start;
     }
     // A closing tick: every agent ends holding what its peers published last.
     if (const auto closing = pacer.ClosingExchange()) feeder.Exchange(closing->index, closing->stamp);

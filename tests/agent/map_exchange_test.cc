@@ -8,6 +8,7 @@
 #include <set>
 #include <vector>
 
+#include "common/io/run_files.h"
 #include "common/map/map_faults.h"
 #include "tests/testing/exchange_world.h"
 
@@ -72,8 +73,11 @@ TEST(MapExchange, AnEarlierIncarnationInOurFrameIsPlacedAtTheIdentity) {
   const LandmarkMap elsewhere = w.Map(10, 30, kFrameB, kSigma, rng);     // incarnation 1, another frame
   a.AddOwnCheckpoint(2, 0.5, before, before_global);
   a.AddOwnCheckpoint(1, 7.0, elsewhere, elsewhere);
-  EXPECT_EQ(a.PlaceOwnCheckpointsAt(0.5, own, 10.0), 1);
+  // The agent places them when its frame is fixed, before its map holds anything.
+  EXPECT_EQ(a.PlaceOwnCheckpointsAt(0.5, LandmarkMap{}, 10.0), 1);
   EXPECT_EQ(a.PlaceOwnCheckpointsAt(0.5, own, 10.0), 0);  // once
+  // ... and its global map is in ours at once: a checkpoint written now carries it.
+  EXPECT_GE(w.PlacedIn(a.global().map, kFrameA, 20, 30, 0.2), w.PlacedIn(before_global, kFrameA, 20, 30, 0.2));
   auto report = [&](std::uint32_t incarnation) {
     for (const PeerReport& r : a.Peers()) {
       if (r.key == PeerKey{1, incarnation}) return r;
@@ -91,6 +95,7 @@ TEST(MapExchange, AnEarlierIncarnationInOurFrameIsPlacedAtTheIdentity) {
   a.Update(own, 10.0);
   // What incarnation 2 had fused beyond our map is in ours now, where the truth is.
   EXPECT_GE(w.PlacedIn(a.global().map, kFrameA, 20, 30, 0.2), w.PlacedIn(before_global, kFrameA, 20, 30, 0.2));
+  EXPECT_GT(w.PlacedIn(before_global, kFrameA, 20, 30, 0.2), 0);
   for (double t : {20.0, 40.0, 60.0}) {
     a.Update(w.Map(0, 26, kFrameA, kSigma, rng), t);  // our map grows: nothing to realign
     placed = report(2);
@@ -355,8 +360,10 @@ TEST(MapExchange, AnAlignmentAcceptedOnSmallMapsIsCorrectedAsTheMapsGrow) {
 TEST(MapExchange, ARealignmentThatDisagreesIsConfirmedWithThePeersNextMap) {
   const RepeatedPatch w(5);
   MapExchange a(1, 1, ExchangeOptions{}, 6);
+  // The peer's second map has one landmark more of R1: a new pair, so the answer is confirmed.
+  const std::vector<Eigen::Vector2d> most_of_r1(w.r1.begin(), w.r1.end() - 1);
   const LandmarkMap small_b = RepeatedPatch::Map({w.r1}, kFrameB), small_a = RepeatedPatch::Map({w.r2}, kFrameA);
-  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, small_b, 0.0);
+  a.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.0, RepeatedPatch::Map({most_of_r1}, kFrameB), 0.0);
   a.Update(small_a, 10.0);
   a.OnPeerMap(2, 1, MapKind::kLocal, 2, 0.0, small_b, 20.0);
   a.Update(small_a, 20.0);
@@ -366,17 +373,23 @@ TEST(MapExchange, ARealignmentThatDisagreesIsConfirmedWithThePeersNextMap) {
   auto error = [&] { return (a.Peers().front().to_own.Apply(probe) - truth.Apply(probe)).norm(); };
   EXPECT_GT(error(), 10.0);
 
-  const LandmarkMap grown_b = RepeatedPatch::Map({w.r1, w.s}, kFrameB);
+  const std::vector<Eigen::Vector2d> most_of_s(w.s.begin(), w.s.end() - 1);
+  const LandmarkMap grown_b = RepeatedPatch::Map({w.r1, most_of_s}, kFrameB);
   const LandmarkMap grown_a = RepeatedPatch::Map({w.r2, w.r1, w.s}, kFrameA);
   a.OnPeerMap(2, 1, MapKind::kLocal, 3, 0.0, grown_b, 30.0);
   a.Update(grown_a, 30.0);
   EXPECT_GT(error(), 10.0);  // the true answer is a candidate
   EXPECT_EQ(a.Peers().front().unconfirmed, 2);
-  a.OnPeerMap(2, 1, MapKind::kLocal, 4, 0.0, grown_b, 36.0);  // no growth
+  a.OnPeerMap(2, 1, MapKind::kLocal, 4, 0.0, grown_b, 33.0);  // the same map again: the same pairs
   a.Update(grown_a, 36.0);
+  EXPECT_GT(error(), 10.0);
+  EXPECT_EQ(a.Peers().front().unconfirmed, 3);
+  // One landmark more (far less than a fifth of growth): a new pair, and the answer is confirmed.
+  a.OnPeerMap(2, 1, MapKind::kLocal, 5, 0.0, RepeatedPatch::Map({w.r1, w.s}, kFrameB), 40.0);
+  a.Update(grown_a, 42.0);
   EXPECT_LT(error(), 0.1);
   EXPECT_EQ(a.Peers().front().corrections, 1);
-  EXPECT_EQ(a.Peers().front().realignments, 2);
+  EXPECT_EQ(a.Peers().front().realignments, 3);
 }
 
 // Robot 1 maps R2 and T, robot 2 T, V and S, robot 3 R1 and S. Robot 1's only alignment with
@@ -517,14 +530,88 @@ TEST(MapExchange, AlignmentsAreUsedOnceConfirmed) {
   a.OnPeerMap(2, 1, MapKind::kLocal, 2, 0.0, w.Map(14, 40, kFrameB, kSigma, rng), 12.0);
   a.Update(la, 12.0);  // not due yet (align_period_s)
   EXPECT_TRUE(a.AlignedRobots().empty());
-  a.Update(la, 15.0);  // a second, agreeing answer from the grown map
+  // The peer's map grew where ours has nothing: the answer agrees, but on the same landmark
+  // pairs as the first, which is no second piece of evidence.
+  a.Update(la, 15.0);
+  EXPECT_TRUE(a.AlignedRobots().empty());
+  EXPECT_EQ(a.Peers().front().unconfirmed, 2);
+  const LandmarkMap grown = w.Map(0, 30, kFrameA, kSigma, rng);
+  a.Update(grown, 20.0);  // a second, agreeing answer on landmarks the first did not have
   ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{2});
   EXPECT_EQ(a.Peers().front().stage, PeerStage::kAligned);
   const Pose2 truth = kFrameA.Inverse() * kFrameB;
   EXPECT_NEAR(a.Peers().front().to_own.x, truth.x, 0.05);
   EXPECT_NEAR(a.Peers().front().to_own.theta, truth.theta, 0.01);
-  EXPECT_EQ(a.Peers().front().aligned_since, 15.0);
-  EXPECT_GT(a.global().map.size(), la.size());
+  EXPECT_EQ(a.Peers().front().aligned_since, 20.0);
+  EXPECT_GT(a.global().map.size(), grown.size());
+}
+
+// Recorded in a realtime restart storm on park4 (tests/agent/data): agent 2's local map at 115 s
+// and 140.4 s, and robot 3's tenth incarnation's last map (silent: it was killed). The search
+// finds a false -71 degrees from 6 pairs on about half of the seeds, as reliably on every attempt;
+// the true transform (about (5.15, -12.12, 19.5 deg), which robot 3's other incarnations were
+// placed at by rendezvous) holds 8 pairs there but its triangles do not match.
+struct StormMaps {
+  LandmarkMap own_115, own_140, peer;
+  const Pose2 truth{5.15, -12.12, DegToRad(19.5)};
+  StormMaps() {
+    auto load = [](const char* name) {
+      return io::MapFromJson(io::ReadJson(std::string(MAPMESH_SOURCE_DIR) + "/tests/agent/data/" + name));
+    };
+    own_115 = load("storm_agent2_115s.json");
+    own_140 = load("storm_agent2_140s.json");
+    peer = load("storm_robot3_incarnation10.json");
+  }
+  bool AtTruth(const Pose2& t) const {
+    const Eigen::Vector2d probe = Centroid(peer);
+    return (t.Apply(probe) - truth.Apply(probe)).norm() < 1.0;
+  }
+};
+
+// The false answer comes back on every attempt with the same 6 pairs: a second copy of the same
+// evidence confirms nothing (it did, and a survivor's coverage fell from 0.97 to 0.62).
+TEST(MapExchange, AFalseMatchFoundAgainOnTheSamePairsIsNotConfirmed) {
+  const StormMaps m;
+  int candidates = 0;
+  for (std::uint64_t seed = 0; seed < 12; ++seed) {
+    MapExchange a(2, 1, {}, seed);
+    for (std::uint32_t v = 1; v <= 4; ++v) {
+      a.OnPeerMap(3, 10, MapKind::kLocal, v, 0.5, m.peer, 10.0 * v);
+      a.Update(m.own_140, 10.0 * v + 1.0);
+    }
+    const PeerReport r = a.Peers().front();
+    SCOPED_TRACE(seed);
+    EXPECT_TRUE(!r.aligned || m.AtTruth(r.to_own));
+    candidates += r.stage == PeerStage::kCandidate;
+  }
+  EXPECT_GT(candidates, 0);  // the false answer was found, and waits
+}
+
+// Placed at the truth by a rendezvous on the smaller map, the peer is aligned afresh once ours
+// grew by a fifth: the false answer there has 6 pairs, the transform in use holds 8 on the same
+// maps, and it stays (it did not, in a realtime storm: coverage 0.76).
+TEST(MapExchange, ACorrectionMustHoldMorePairsThanTheTransformInUse) {
+  const StormMaps m;
+  int refused = 0;
+  for (std::uint64_t seed = 0; seed < 12; ++seed) {
+    MapExchange a(2, 1, {}, seed);
+    a.OnPeerMap(3, 10, MapKind::kLocal, 1, 0.5, m.peer, 1.0);
+    RendezvousFit fit;
+    fit.verdict = RendezvousVerdict::kAccepted;
+    fit.transform = m.truth;
+    fit.cov = Eigen::Vector3d(0.05, 0.05, 0.001).asDiagonal();
+    a.OnRendezvous({3, 10}, fit);
+    a.Update(m.own_115, 2.0);
+    SCOPED_TRACE(seed);
+    ASSERT_EQ(a.AlignedRobots(), std::vector<RobotId>{3});
+    for (double t = 10.0; t <= 40.0; t += 6.0) a.Update(m.own_140, t);
+    const PeerReport r = a.Peers().front();
+    EXPECT_TRUE(r.aligned);
+    EXPECT_TRUE(m.AtTruth(r.to_own));
+    EXPECT_GE(r.realignments, 1);
+    refused += r.outsupported;
+  }
+  EXPECT_GT(refused, 0);  // the false answer came, and was refused
 }
 
 TEST(MapExchange, AStalePeerKeepsItsLastVerifiedContribution) {

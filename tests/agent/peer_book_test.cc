@@ -124,5 +124,31 @@ TEST(PeerBook, FactsSayWhatTheScheduleReads) {
   EXPECT_TRUE(book.Facts(2.0 + o.SilentAfterS() + 1.0).at(0).silent);
 }
 
+// A later incarnation that began at the same origin stamp (its stream replayed) carries an
+// earlier one's map once it holds as many landmarks; one that began elsewhere never does.
+TEST(PeerBook, ALaterIncarnationInTheSameFrameCarriesAnEarlierOnceItHoldsAsMuch) {
+  ExchangeOptions o;
+  PeerBook book(1, o);
+  auto carried = [&](std::uint32_t incarnation) {
+    for (const PeerFacts& f : book.Facts(10.0))
+      if (f.key == PeerKey{2, incarnation}) return f.carried;
+    ADD_FAILURE() << "no incarnation " << incarnation;
+    return false;
+  };
+  book.OnPeerMap(2, 1, MapKind::kLocal, 1, 0.5, MapOf(8), 1.0);
+  EXPECT_FALSE(carried(1));
+  book.OnPeerMap(2, 2, MapKind::kLocal, 1, 0.5, MapOf(5), 2.0);  // replaying: not yet
+  EXPECT_FALSE(carried(1));
+  EXPECT_FALSE(carried(2));
+  book.OnPeerMap(2, 2, MapKind::kLocal, 2, 0.5, MapOf(8), 3.0);
+  EXPECT_TRUE(carried(1));
+  EXPECT_FALSE(carried(2));                                       // the latest is never carried
+  book.OnPeerMap(2, 3, MapKind::kLocal, 1, 7.5, MapOf(20), 4.0);  // another frame (stream not kept)
+  EXPECT_TRUE(carried(1));
+  EXPECT_FALSE(carried(2));
+  book.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.5, MapOf(20), 4.0);  // another robot
+  EXPECT_FALSE(carried(2));
+}
+
 }  // namespace
 }  // namespace mapmesh
