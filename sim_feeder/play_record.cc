@@ -1,5 +1,6 @@
 #include "sim_feeder/play_record.h"
 
+#include <algorithm>
 #include <utility>
 
 #include "common/types/choice.h"
@@ -25,6 +26,7 @@ PlayRecord::PlayRecord(const Scenario& sc, const FeedSource& source, std::vector
 }
 
 void PlayRecord::Add(const FeedBatch& b) {
+  played_until_ = std::max(played_until_, b.stamp);
   for (const GroundTruth& g : b.truth) {
     double& next = next_sample_[g.robot_id];
     if (g.stamp + 1e-9 < next) continue;
@@ -59,6 +61,7 @@ void PlayRecord::Write(const std::string& dir, const FeedSource& source, double 
   io::WriteJsonAtomic(dir + "/feeder.json", {{"scenario", sc_.name},
                                              {"source", std::string(NameOf(kSourceTypes, sc_.source.type))},
                                              {"sim_duration_s", sc_.duration_s},
+                                             {"played_until_s", played_until_},
                                              {"wall_s", wall_s},
                                              {"pace", std::string(NameOf(kPaces, sc_.feeder.pace))},
                                              {"interrupted", interrupted},

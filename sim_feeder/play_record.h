@@ -18,7 +18,7 @@ namespace mapmesh {
 class PlayRecord {
  public:
   PlayRecord(const Scenario& sc, const FeedSource& source, std::vector<ReplayCounts> counts);
-  // A batch played: its ground truth, at the truth period.
+  // A batch played: its ground truth, at the truth period, and how far the run got.
   void Add(const FeedBatch& b);
   void CountSent(const Scan& s) { ++scans_sent_[s.robot_id]; }
   void CountSent(const Odometry& o) { ++odom_sent_[o.robot_id]; }
@@ -32,6 +32,7 @@ class PlayRecord {
   std::vector<ReplayCounts> counts_;
   io::RunTruth truth_;
   std::map<RobotId, double> next_sample_;
+  double played_until_ = 0.0;  // the stamp of the last batch played (where an interrupted run stopped)
   std::map<RobotId, std::uint32_t> odom_sent_, scans_sent_;
 };
 

@@ -91,6 +91,29 @@ def parse_schedule(items, what):
     return out
 
 
+def check_fault_schedule(kills, restarts, pauses):
+    """The whole fault schedule, in scenario time, before anything starts: every restart follows a
+    kill of its agent (at the same time, the kill goes first), no agent is killed twice without a
+    restart between, and no agent is paused while killed. RunError (one line) on the first that
+    does not hold. kills and restarts as from parse_schedule, pauses as from parse_pauses."""
+    events = sorted([(t, 0, rid) for t, rid in kills] + [(t, 1, rid) for t, rid in restarts] +
+                    [(t, 2, rid) for t, rid, _ in pauses])
+    dead = {}  # robot -> when the kill in force was
+    for t, kind, rid in events:
+        if kind == 0:
+            if rid in dead:
+                raise RunError(f"--kill {rid}@{t:g}: agent {rid} is already killed at {dead[rid]:g} s, with no "
+                               f"--restart {rid}@T between", 2)
+            dead[rid] = t
+        elif kind == 1:
+            if rid not in dead:
+                raise RunError(f"--restart {rid}@{t:g}: agent {rid} is running then (restart only follows a "
+                               f"--kill {rid}@T at or before {t:g} s)", 2)
+            del dead[rid]
+        elif rid in dead:
+            raise RunError(f"--pause {rid}@{t:g}: agent {rid} is killed then (at {dead[rid]:g} s)", 2)
+
+
 def parse_pauses(items):
     """['2@30:10'] -> [(30.0, 2, 10.0)]: agent ID stopped (SIGSTOP) at scenario time T for SECONDS of wall time."""
     out = []
@@ -192,6 +215,7 @@ class SwarmRun:
         self.kills = parse_schedule(args.kill, "kill")
         self.restarts = parse_schedule(args.restart, "restart")
         self.pauses = parse_pauses(getattr(args, "pause", None))
+        check_fault_schedule(self.kills, self.restarts, self.pauses)
         self.paused = []  # pauses under way: [resume at (monotonic), record]
         self.pause_log = []  # what happened: {"id", "t", "seconds", "wall_start", "wall_end"}
         self.common = []  # arguments every process gets
@@ -652,10 +676,15 @@ class SwarmRun:
                                  for i, p in enumerate(slot.procs, start=1)],
                 "failed": any(p.failed for p in slot.procs),
             })
+        # Scenario time played: the whole scenario, or where an interrupted run stopped.
         duration = self.info["duration"]
+        played = (run.read_if_present(FEEDER) or {}).get("played_until_s")
+        if interrupted and played is not None:
+            duration = min(duration, played)
         summary = {
             "scenario": self.info["name"],
             "scenario_file": self.scenario,
+            "scenario_duration_s": self.info["duration"],
             "sim_duration_s": duration,
             "wall_s": round(wall_s, 3),
             "real_time_factor": round(duration / wall_s, 3) if wall_s > 0 else None,

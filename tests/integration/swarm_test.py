@@ -183,14 +183,21 @@ class PipelineTest(SwarmCase):
         self.assertEqual(leftover_processes(str(self.out)), [])
         summary = self.summary()
         self.assertTrue(summary["interrupted"])
-        return summary
+        # X1: the headline and summary said the whole scenario was simulated. About 2 s of
+        # scenario time went by (rate 2, a second after every process ran), not 30.
+        self.assertEqual(summary["scenario_duration_s"], 30.0)
+        self.assertGreater(summary["sim_duration_s"], 0.0)
+        self.assertLess(summary["sim_duration_s"], 15.0)
+        return summary, out
 
     def test_interrupted_run_stops_every_process(self):
-        self.stop_a_running_swarm_with(signal.SIGINT)
+        summary, out = self.stop_a_running_swarm_with(signal.SIGINT)
+        self.assertIn(f"{summary['sim_duration_s']:.1f} s simulated", out)  # the headline too
 
     def test_a_closed_terminal_stops_the_run_like_sigterm(self):
         """SIGHUP (issue R2: it lost the summary, where SIGINT and SIGTERM write it)."""
-        for a in self.stop_a_running_swarm_with(signal.SIGHUP)["agents"]:
+        # (Detached from the closed terminal: what it printed is lost, the summary is not.)
+        for a in self.stop_a_running_swarm_with(signal.SIGHUP)[0]["agents"]:
             self.assertEqual(a["exit_code"], 0, a)
             self.assertTrue((self.out / f"agent_{a['id']}" / "local_map.json").exists())
 
@@ -348,6 +355,29 @@ class BadInputTest(unittest.TestCase):
                            timeout=30)
         self.assertEqual(r.returncode, 2)
         self.assertEqual(len(r.stderr.strip().splitlines()), 1)
+
+    def test_a_fault_schedule_is_checked_as_a_whole_before_anything_starts(self):
+        """X1: a restart with no kill, a restart before its kill and a double kill all ran and
+        exited 0 (the restart was skipped with a note, the second kill did nothing)."""
+        cases = [
+            (["--restart", "2@5"], "--restart 2@5: agent 2 is running then"),
+            (["--restart", "2@5", "--kill", "2@10"], "--restart 2@5: agent 2 is running then"),
+            (["--kill", "2@5", "--kill", "2@10"], "--kill 2@10: agent 2 is already killed at 5 s"),
+            (["--kill", "2@5", "--pause", "2@8:1"], "--pause 2@8: agent 2 is killed then (at 5 s)"),
+            (["--kill", "2@5", "--restart", "2@5", "--kill", "2@7", "--restart", "2@9", "--restart", "2@12"],
+             "--restart 2@12: agent 2 is running then"),
+        ]
+        with tempfile.TemporaryDirectory() as tmp:
+            for args, expected in cases:
+                with self.subTest(args=args):
+                    out = Path(tmp) / "run"
+                    r = subprocess.run(SWARM + ["run", str(DATA / "three.yaml"), "--out", str(out)] + args,
+                                       capture_output=True, text=True, timeout=30)
+                    self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+                    lines = r.stderr.strip().splitlines()
+                    self.assertEqual(len(lines), 1, r.stderr)
+                    self.assertTrue(lines[0].startswith("swarm: " + expected), r.stderr)
+                    self.assertFalse(out.exists())  # refused before anything started
 
 
 class HelpTest(unittest.TestCase):
