@@ -365,7 +365,9 @@ int Run(int argc, char** argv) {
                                {"robots", ids},
                                {"landmarks", source.Truth().landmarks.size()},
                                {"duration", sc.duration_s},
-                               {"pace", std::string(NameOf(kPaces, sc.feeder.pace))}}
+                               {"pace", std::string(NameOf(kPaces, sc.feeder.pace))},
+                               {"seed", sc.seed},
+                               {"resolved", io::ResolvedToJson(sc.resolved)}}
                               .dump()
                               .c_str());
     } else {

@@ -260,8 +260,9 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
     throw ConfigError(file + ": --agents " + std::to_string(agents) + ": must be in [0, " +
                       std::to_string(limits::kMaxRobots) + "] (0: the scenario's robots)");
   }
-  YamlReader top(root, "", source);
   Scenario sc;
+  source->resolved = &sc.resolved;
+  YamlReader top(root, "", source);
   sc.path = file;
   top.Get("version", sc.version);
   if (sc.version != 1) top.Fail("version", "unsupported scenario version (this build reads 1)");

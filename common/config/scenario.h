@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "agent/agent_options.h"
+#include "common/config/resolved.h"
 #include "common/geometry/pose2.h"
 #include "common/slam/motion_model.h"
 #include "common/types/choice.h"
@@ -175,6 +176,9 @@ struct Scenario {
   RadioOptions radio;
   AgentOptions agent;  // the agent section: each module's own options (agent/agent_options.h)
   FeederOptions feeder;
+  // Every value key the loader read, as taken (given, overridden or its default): what the run
+  // was made with (`mapmesh-feeder --check --events`, run.json, `swarm run --print-config`).
+  ResolvedScenario resolved;
 
   // The robot with this id, or nullptr.
   const RobotSpec* FindRobot(RobotId id) const;

@@ -1,5 +1,6 @@
 #include "common/config/yaml_reader.h"
 
+#include <charconv>
 #include <cmath>
 #include <iomanip>
 #include <map>
@@ -69,20 +70,57 @@ YAML::Node YamlReader::Raw(const std::string& key) {
   MarkRead(key, /*leaf=*/true);
   if (!node_ || !node_.IsMap()) return YAML::Node();
   const YAML::Node n = node_[key];
+  if (n && !n.IsNull()) {
+    YAML::Emitter flow;
+    flow.SetMapFormat(YAML::Flow);
+    flow.SetSeqFormat(YAML::Flow);
+    flow << n;
+    Resolve(key, ResolvedValue::Kind::kYaml, flow.c_str());
+  }
   return n ? n : YAML::Node();
 }
+
+namespace {
+
+// The shortest text that reads back to v (std::to_chars), as JSON and YAML read numbers.
+template <typename T>
+std::string ShortestText(T v) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+template <typename T>
+ResolvedValue ValueOf(const T& v) {
+  if constexpr (std::is_same_v<T, bool>) {
+    return {ResolvedValue::Kind::kBool, v ? "true" : "false"};
+  } else if constexpr (std::is_same_v<T, std::string>) {
+    return {ResolvedValue::Kind::kString, v};
+  } else {
+    return {ResolvedValue::Kind::kNumber, ShortestText(v)};
+  }
+}
+
+}  // namespace
 
 template <typename T>
 void YamlReader::GetScalar(const std::string& key, T& out, const char* type_name) {
   MarkRead(key, /*leaf=*/true);
-  if (!Has(key)) return;
-  const YAML::Node n = node_[key];
-  if (!n.IsScalar()) Fail(key, std::string("expected ") + type_name);
-  try {
-    out = n.as<T>();
-  } catch (const YAML::Exception&) {
-    Fail(key, std::string("expected ") + type_name + ", got '" + n.Scalar() + "'");
+  if (Has(key)) {
+    const YAML::Node n = node_[key];
+    if (!n.IsScalar()) Fail(key, std::string("expected ") + type_name);
+    try {
+      out = n.as<T>();
+    } catch (const YAML::Exception&) {
+      Fail(key, std::string("expected ") + type_name + ", got '" + n.Scalar() + "'");
+    }
   }
+  const ResolvedValue v = ValueOf(out);
+  Resolve(key, v.kind, v.text);
+}
+
+void YamlReader::Resolve(const std::string& key, ResolvedValue::Kind kind, std::string text) const {
+  if (source_->resolved != nullptr) (*source_->resolved)[KeyPath(key)] = {kind, std::move(text)};
 }
 
 void YamlReader::Get(const std::string& key, double& out) {
@@ -101,7 +139,10 @@ void YamlReader::Get(const std::string& key, std::string& out) { GetScalar(key, 
 
 void YamlReader::GetVector(const std::string& key, std::vector<double>& out, std::size_t expected_len) {
   MarkRead(key, /*leaf=*/true);
-  if (!Has(key)) return;
+  if (!Has(key)) {
+    ResolveList(key, out);
+    return;
+  }
   const YAML::Node n = node_[key];
   if (!n.IsSequence() || n.size() != expected_len) {
     Fail(key, "expected a list of " + std::to_string(expected_len) + " numbers");
@@ -116,6 +157,13 @@ void YamlReader::GetVector(const std::string& key, std::vector<double>& out, std
     if (!std::isfinite(v.back())) Fail(key, "values must be finite");
   }
   out = std::move(v);
+  ResolveList(key, out);
+}
+
+void YamlReader::ResolveList(const std::string& key, const std::vector<double>& v) const {
+  std::string text = "[";
+  for (std::size_t i = 0; i < v.size(); ++i) text += (i ? ", " : "") + ShortestText(v[i]);
+  Resolve(key, ResolvedValue::Kind::kYaml, text + "]");
 }
 
 void YamlReader::GetChoice(const std::string& key, std::string& out, const std::vector<std::string>& choices) {

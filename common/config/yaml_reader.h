@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/config/config_error.h"
+#include "common/config/resolved.h"
 #include "common/types/choice.h"
 
 namespace mapmesh {
@@ -23,6 +24,7 @@ struct YamlSource {
   std::set<std::string> overridden;            // key paths given with --set
   std::set<std::string>* keys_read = nullptr;  // when set, collects the path of every value key read
                                                // (list indices as [], mappings only through their keys)
+  ResolvedScenario* resolved = nullptr;        // when set, collects the value taken for each of them
 };
 
 // A number as error messages show it (1000000, 0.0524, 1e+300).
@@ -94,6 +96,9 @@ class YamlReader {
   void GetScalar(const std::string& key, T& out, const char* type_name);
   // Remembers key as read (for Finish) and, for a value (leaf), in source().keys_read.
   void MarkRead(const std::string& key, bool leaf);
+  // Records the value taken for key in source().resolved.
+  void Resolve(const std::string& key, ResolvedValue::Kind kind, std::string text) const;
+  void ResolveList(const std::string& key, const std::vector<double>& v) const;
   // Throws ConfigError at node's line in the file, even below a key given with --set.
   [[noreturn]] void FailInFile(const YAML::Node& node, const std::string& key_path, const std::string& reason) const;
 

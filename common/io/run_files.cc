@@ -78,6 +78,23 @@ const RobotTruth* RunTruth::Find(RobotId id) const {
   return nullptr;
 }
 
+json ResolvedToJson(const ResolvedScenario& resolved) {
+  json out = json::object();
+  for (const auto& [key, v] : resolved) {
+    switch (v.kind) {
+      case ResolvedValue::Kind::kNumber: out[key] = json::parse(v.text); break;
+      case ResolvedValue::Kind::kBool: out[key] = v.text == "true"; break;
+      case ResolvedValue::Kind::kString: out[key] = v.text; break;
+      case ResolvedValue::Kind::kYaml: {
+        json parsed = json::parse(v.text, nullptr, /*allow_exceptions=*/false);
+        out[key] = parsed.is_discarded() ? json(v.text) : std::move(parsed);
+        break;
+      }
+    }
+  }
+  return out;
+}
+
 json TruthToJson(const RunTruth& truth) {
   json lms = json::array();
   for (std::size_t i = 0; i < truth.landmarks.size(); ++i) {

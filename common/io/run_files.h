@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "common/config/resolved.h"
 #include "common/geometry/pose2.h"
 #include "common/geometry/pose_track.h"
 #include "common/map/landmark_map.h"
@@ -56,6 +57,11 @@ struct RunTruth {
 };
 
 json TruthToJson(const RunTruth& truth);
+
+// The resolved scenario as one JSON object by key path: numbers and booleans as such, strings
+// as strings, a node read whole as its JSON value when it is one (lists of numbers), else as
+// its YAML flow text.
+json ResolvedToJson(const ResolvedScenario& resolved);
 RunTruth TruthFromJson(const json& j);
 
 // A run file that could not be written: its path and the system's reason (errno: ENOSPC when

@@ -20,7 +20,9 @@ from . import ddsconfig, netns, secure
 from .domain import DomainLease
 from .run_error import RunError  # noqa: F401  (re-exported: sweep and scale raise it)
 from .progress import Progress
-from .rundir import AGENT_LOG, FEEDER, INJECT, REFERENCE, REPORT, STATS, SUMMARY, TIMELINE, TRUTH, RunDir, agent_dir
+from . import provenance
+from .rundir import (AGENT_LOG, FEEDER, INJECT, REFERENCE, REPORT, STATS, SUMMARY, TIMELINE, TRUTH, RunDir, agent_dir,
+                     clear_earlier_run, earlier_run)
 
 REPO = Path(__file__).resolve().parents[2]
 # Plots need matplotlib and numpy from Debian, which /usr/bin/python3 has (another python3 may
@@ -270,9 +272,20 @@ class SwarmRun:
         elif self.args.net_loss or self.args.net_rate:
             raise RunError("--net-loss and --net-rate act on the hosts' links: they need --hosts netns", 2)
         # Every agent, the feeder and the injector join the run's domain.
-        self.out.mkdir(parents=True, exist_ok=True)
+        if self.out.exists() and not self.out.is_dir():
+            raise RunError(f"--out {self.out}: is a file, not a folder; choose a folder", 2)
+        try:
+            self.out.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise RunError(f"--out {self.out}: cannot create the folder ({e.strerror})", 2) from None
         if self.lock is None:  # before anything in DIR changes
             self.lock = lock_run_dir(self.out)
+            earlier = earlier_run(self.out)
+            if earlier and not getattr(self.args, "force", False):
+                shown = ", ".join(earlier[:4]) + (f" and {len(earlier) - 4} more" if len(earlier) > 4 else "")
+                raise RunError(f"--out {self.out}: holds an earlier run ({shown}); choose another folder, or add "
+                               "--force to replace it", 2)
+            clear_earlier_run(self.out)
         if net == "netns":
             return  # the hosts' own config (execute) holds any number of processes
         changes, note = ddsconfig.choose(len(ids) + 1 + (1 if self.args.inject else 0), run_dir=self.out)
@@ -326,10 +339,8 @@ class SwarmRun:
 
     # ----- the run ------------------------------------------------------------------------
     def execute(self):
-        self.check_scenario()
-        self.out.mkdir(parents=True, exist_ok=True)
-        for stale in [SUMMARY, TRUTH, FEEDER, TIMELINE, REPORT, INJECT, REFERENCE]:
-            (self.out / stale).unlink(missing_ok=True)
+        self.check_scenario()  # DIR created, locked, and what an earlier run left there removed (--force)
+        provenance.write_run_json(self.out, self.args, self.info, self.kills, self.restarts, self.pauses, bin_dir())
         self.lease = DomainLease()
         wall_start = time.monotonic()
         interrupted = False
@@ -827,7 +838,42 @@ def write_report(run_dir):
     return Path(run_dir) / REPORT if plot("report.py", run_dir, "report") else None
 
 
+def resolve_config(args):
+    """The scenario as `swarm run` would run it (mapmesh-feeder --check): its info, with `resolved`."""
+    common = ["--agents", str(args.agents)] if args.agents else []
+    for s in args.set or []:
+        common += ["--set", s]
+    if args.pace:
+        common += ["--set", f"feeder.pace={args.pace}"]
+    r = subprocess.run([binary("mapmesh-feeder"), "--scenario", str(args.scenario), "--check", "--events"] + common,
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RunError(last_line(r.stderr, "scenario check failed").removeprefix("mapmesh-feeder: "), 2)
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
 def cmd_run(args):
+    if args.from_run:
+        if args.scenario:
+            raise RunError(f"--from {args.from_run}: the scenario comes from the run.json; give no SCENARIO", 2)
+        defaults = getattr(args, "option_defaults", {})
+        given = [n for n in provenance.OPTIONS if n != "scenario" and n in defaults and getattr(args, n) != defaults[n]]
+        if given:
+            raise RunError(f"--from {args.from_run}: every run option comes from the run.json; give none beside it "
+                           f"(got --{given[0].replace('_', '-')})", 2)
+        try:
+            options, _ = provenance.options_from(args.from_run)
+        except ValueError as e:
+            raise RunError(str(e), 2) from None
+        for name, value in options.items():
+            setattr(args, name, value)
+    if not args.scenario:
+        raise RunError("give a SCENARIO.yaml (or --from DIR/run.json)", 2)
+    if args.print_config:
+        provenance.print_config(resolve_config(args)["resolved"])
+        return 0
+    if not args.out:
+        raise RunError("--out DIR: where the run goes (required)", 2)
     run = SwarmRun(args)
     summary = run.execute()
     print(format_table(summary))

@@ -23,6 +23,40 @@ TRAJECTORY = "trajectory.json"
 AGENT_LOG = "agent.log"
 
 
+# Everything else a run writes in DIR, besides agent_dir(id) for each agent: what an earlier run
+# left there, for earlier_run() and clear_earlier_run().
+RUN_FILES = (SUMMARY, TRUTH, TIMELINE, FEEDER, INJECT, REFERENCE, REPORT, "feeder.log", "inject.log",
+             "cyclonedds.xml", "cyclonedds-netns.xml", "run.json", "scenario.yaml")
+RUN_DIRS = ("report", "security")
+# A run's own files: DIR holds an earlier run when one of them is there.
+RUN_MARKS = (SUMMARY, FEEDER, TRUTH, "feeder.log", "run.json")
+
+
+def earlier_run(out):
+    """What of an earlier run DIR holds (names, sorted; empty when none): its files and agent
+    directories."""
+    out = Path(out)
+    if not out.is_dir():
+        return []
+    agents = [p.name for p in out.glob("agent_*") if p.is_dir() and p.name[6:].isdigit()]
+    marks = [n for n in RUN_MARKS if (out / n).exists()]
+    if not agents and not marks:
+        return []
+    return sorted([n for n in RUN_FILES + RUN_DIRS if (out / n).exists()] + agents)
+
+
+def clear_earlier_run(out):
+    """Removes what an earlier run wrote in DIR (earlier_run), nothing else."""
+    import shutil
+    out = Path(out)
+    for name in earlier_run(out):
+        path = out / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink(missing_ok=True)
+
+
 def agent_dir(rid):
     """The name of agent RID's directory in a run directory."""
     return f"agent_{rid}"

@@ -91,6 +91,7 @@ def cmd_bench_scale(args):
                "--agents", str(n), "--quiet", "--no-report", "--timeout", str(args.timeout),
                # The host is what is measured: the reference (park4 x 64: 7 s after the run) is left out.
                "--no-reference",
+               "--force",  # its own runs/N folder: a benchmark run again replaces its runs
                # N processes discovering each other on two cores take longer than the scenario's
                # 30 s to come up (128 agents: about a minute); a --set of the same key wins.
                "--set", f"feeder.startup_timeout_s={max(30.0, STARTUP_S_PER_AGENT * n):g}"]

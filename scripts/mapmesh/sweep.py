@@ -18,7 +18,8 @@ from .rundir import SUMMARY, read_json
 def _run_one(args, value, seed, run_dir):
     """One `swarm run` with KEY=value (and seed=seed unless None); its summary and exit code."""
     cmd = [sys.executable, str(REPO / "scripts" / "swarm"), "run", args.scenario, "--out", str(run_dir),
-           "--set", f"{args.param}={value}", "--quiet", "--no-report", "--timeout", str(args.timeout)]
+           "--set", f"{args.param}={value}", "--quiet", "--no-report", "--timeout", str(args.timeout),
+           "--force"]  # the sweep's own runs/ folder: a sweep run again replaces its runs, as before
     if seed is not None:
         cmd += ["--set", f"seed={seed}"]
     if args.agents:

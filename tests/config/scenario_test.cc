@@ -5,6 +5,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <regex>
+#include <set>
 
 #include "common/config/config_error.h"
 #include "tests/config/scenario_testing.h"
@@ -294,6 +296,38 @@ robots:
   EXPECT_NE(ErrorOf("world: {landmarks: {list: [[0, 0]]}}\nrobots: {defaults: {preset: fast}, count: 1}\n")
                 .find("robots.defaults.preset: must be one of thesis, downs"),
             std::string::npos);
+}
+
+// X1: what a run was made with. Every value key read is resolved: given in the file, overridden,
+// or its default; numbers as the shortest text that reads back to them.
+TEST_F(ScenarioExtrasTest, EveryKeyReadIsResolvedWithTheValueTaken) {
+  std::set<std::string> keys;
+  const Scenario s = ParseScenario(R"(world: {landmarks: {list: [[0, 0]]}}
+radio: {range_m: 11}
+robots:
+  list:
+    - {id: 1, path: {type: circle, center_m: [0, 0], radius_m: 5}}
+)",
+                                   "x.yaml", {ParseOverride("seed=4"), ParseOverride("agent.align_period_s=0.1")}, 0,
+                                   &keys);
+  const ResolvedScenario& r = s.resolved;
+  using K = ResolvedValue::Kind;
+  EXPECT_EQ(r.at("radio.range_m"), (ResolvedValue{K::kNumber, "11"}));  // given
+  EXPECT_EQ(r.at("seed"), (ResolvedValue{K::kNumber, "4"}));            // overridden
+  EXPECT_EQ(r.at("agent.align_period_s"), (ResolvedValue{K::kNumber, "0.1"}));
+  EXPECT_EQ(r.at("duration_s"), (ResolvedValue{K::kNumber, "60"}));  // defaults
+  EXPECT_EQ(r.at("feeder.pace"), (ResolvedValue{K::kString, "lockstep"}));
+  EXPECT_EQ(r.at("feeder.keep_streams"), (ResolvedValue{K::kBool, "true"}));
+  EXPECT_EQ(r.at("robots.list[0].path.center_m"), (ResolvedValue{K::kYaml, "[0, 0]"}));
+  EXPECT_EQ(r.at("robots.list[0].path.radius_m"), (ResolvedValue{K::kNumber, "5"}));
+  EXPECT_EQ(r.at("world.landmarks.list").kind, K::kYaml);
+  EXPECT_EQ(s.seed, 4u);
+  // Each resolved key is one the loader reads (list indices as []), and nearly every key it
+  // reads here is resolved (those left out are lists read whole and absent).
+  std::set<std::string> resolved_keys;
+  for (const auto& [key, v] : r) resolved_keys.insert(std::regex_replace(key, std::regex(R"(\[[0-9]+\])"), "[]"));
+  for (const std::string& key : resolved_keys) EXPECT_TRUE(keys.count(key)) << key;
+  EXPECT_GT(resolved_keys.size(), 0.8 * static_cast<double>(keys.size()));
 }
 
 TEST_F(ScenarioExtrasTest, DatasetSourcesDecideTheRobots) {

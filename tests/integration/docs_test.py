@@ -1,4 +1,4 @@
-"""docs/OUTPUTS.md against a real run: every field of summary.json's objects is listed there, and
+"""docs/OUTPUTS.md against a real run: every field of summary.json's objects (and run.json's) is listed there, and
 every field listed there is in the run's summary (but those marked *with ...*, which only some
 options write).
 
@@ -44,6 +44,7 @@ class OutputsDocTest(unittest.TestCase):
                                capture_output=True, text=True, timeout=240)
             self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
             s = json.loads((out / "summary.json").read_text())
+            made = json.loads((out / "run.json").read_text())
         docs = documented()
         ref = s["reference"]
         self.assertTrue(ref["available"], ref)
@@ -56,6 +57,7 @@ class OutputsDocTest(unittest.TestCase):
             "A reference map (`reference.central`, `.known_pose`, `.own_batch[]`, `.own_known_pose[]`)":
                 [ref["central"], ref["known_pose"]] + list(ref["own_batch"].values())
                 + list(ref["own_known_pose"].values()),
+            "How the run was made (`run.json`)": [made],
         }
         self.assertEqual(sorted(docs), sorted(objects))
         for title, records in objects.items():

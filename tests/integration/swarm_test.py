@@ -59,7 +59,9 @@ class SwarmCase(unittest.TestCase):
         self.tmp.cleanup()
 
     def swarm(self, *args, timeout=240):
-        r = subprocess.run(SWARM + ["run"] + [str(a) for a in args] + ["--out", str(self.out), "--timeout", "200"],
+        # --force: a test may run again into its own folder (a second run replaces the first).
+        cmd = SWARM + ["run"] + [str(a) for a in args] + ["--out", str(self.out), "--timeout", "200", "--force"]
+        r = subprocess.run(cmd,
                            capture_output=True, text=True, timeout=timeout)
         return r
 
@@ -200,6 +202,98 @@ class PipelineTest(SwarmCase):
         for a in self.stop_a_running_swarm_with(signal.SIGHUP)[0]["agents"]:
             self.assertEqual(a["exit_code"], 0, a)
             self.assertTrue((self.out / f"agent_{a['id']}" / "local_map.json").exists())
+
+
+class RunFolderChoiceTest(SwarmCase):
+    """X1: --out naming a file gave a Python traceback; a folder reused by a run with fewer agents
+    kept the earlier run's agent_5..8 beside the new summary."""
+
+    def run_into(self, *extra):
+        return subprocess.run(SWARM + ["run", str(DATA / "three.yaml"), "--out", str(self.out), "--no-report",
+                                       "--no-reference"] + list(extra), capture_output=True, text=True, timeout=120)
+
+    def test_a_file_is_refused_with_one_line(self):
+        self.out.write_text("notes\n")
+        r = self.run_into()
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertEqual(r.stderr.strip().splitlines(), [f"swarm: --out {self.out}: is a file, not a folder; "
+                                                         "choose a folder"])
+        self.assertEqual(self.out.read_text(), "notes\n")
+
+    def test_an_earlier_run_is_refused_and_replaced_only_with_force(self):
+        self.out.mkdir()
+        for rid in (1, 5, 8):
+            (self.out / f"agent_{rid}").mkdir()
+            (self.out / f"agent_{rid}" / "stats.json").write_text("{}")
+        (self.out / "summary.json").write_text('{"earlier": true}')
+        (self.out / "notes.txt").write_text("mine")
+        r = self.run_into()
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertEqual(r.stderr.strip().splitlines(),
+                         [f"swarm: --out {self.out}: holds an earlier run (agent_1, agent_5, agent_8, summary.json); "
+                          "choose another folder, or add --force to replace it"])
+        self.assertEqual(self.summary(), {"earlier": True})  # nothing touched
+        r = self.run_into("--force")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertEqual(sorted(p.name for p in self.out.glob("agent_*")), ["agent_1", "agent_2", "agent_3"])
+        self.assertEqual(len(self.summary()["agents"]), 3)
+        self.assertEqual((self.out / "notes.txt").read_text(), "mine")  # not the run's: kept
+        r = self.run_into()  # and a second run is refused again
+        self.assertEqual(r.returncode, 2, r.stderr)
+
+
+class ProvenanceTest(SwarmCase):
+    """X1: `--set radio.range_m=11 --set seed=4` left no trace in the run directory; no command
+    line, resolved scenario, seed or code version, and no way to run it again."""
+
+    PARK4 = REPO / "scenarios" / "park4.yaml"
+    OPTIONS = ["--set", "duration_s=40", "--set", "radio.range_m=11", "--set", "seed=4", "--kill", "2@20",
+               "--no-report", "--no-reference"]
+
+    def test_a_run_says_how_it_was_made_and_runs_again_from_it(self):
+        r = self.swarm(self.PARK4, *self.OPTIONS)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        made = json.loads((self.out / "run.json").read_text())
+        self.assertEqual(made["options"]["set"], ["duration_s=40", "radio.range_m=11", "seed=4"])
+        self.assertEqual(made["options"]["kill"], ["2@20"])
+        self.assertEqual(made["faults"]["kills"], [{"id": 2, "t": 20.0}])
+        self.assertEqual(made["seed"], 4)
+        self.assertEqual(made["robots"], [1, 2, 3, 4])
+        res = made["resolved"]
+        self.assertEqual((res["radio.range_m"], res["duration_s"], res["seed"]), (11, 40, 4))
+        self.assertEqual(res["agent.align_period_s"], 5)  # a default, resolved
+        self.assertGreater(len(res), 80)
+        self.assertEqual((self.out / "scenario.yaml").read_bytes(), self.PARK4.read_bytes())
+        self.assertEqual(made["scenario_file"], str(self.PARK4))
+        self.assertTrue(made["code"]["commit"])  # a git work tree
+        self.assertIsInstance(made["code"]["dirty"], bool)
+        self.assertTrue(made["cyclonedds"])
+        self.assertGreater(made["host"]["cpus"], 0)
+        first = self.out
+        again = first.parent / "again"
+        r = subprocess.run(SWARM + ["run", "--from", str(first / "run.json"), "--out", str(again)],
+                           capture_output=True, text=True, timeout=240)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assert_same_maps(again, first)  # lockstep: the same run, byte for byte
+        a, b = (json.loads((d / "summary.json").read_text()) for d in (first, again))
+        self.assertEqual([x["global"] for x in a["agents"]], [x["global"] for x in b["agents"]])
+        self.assertEqual(a["kills"][0]["t"], b["kills"][0]["t"])
+        # Options beside --from would be silently different: refused.
+        r = subprocess.run(SWARM + ["run", "--from", str(first / "run.json"), "--out", str(first.parent / "x"),
+                                    "--kill", "3@5"], capture_output=True, text=True, timeout=60)
+        self.assertEqual(r.returncode, 2)
+        self.assertEqual(r.stderr.strip().splitlines(), [f"swarm: --from {first / 'run.json'}: every run option comes "
+                                                         "from the run.json; give none beside it (got --kill)"])
+
+    def test_print_config_shows_the_resolved_scenario_without_running(self):
+        r = subprocess.run(SWARM + ["run", str(self.PARK4), "--set", "radio.range_m=11", "--print-config"],
+                           capture_output=True, text=True, timeout=60)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        lines = r.stdout.splitlines()
+        self.assertIn("radio.range_m: 11", lines)
+        self.assertIn('feeder.pace: "lockstep"', lines)
+        self.assertGreater(len(lines), 80)
+        self.assertEqual(lines, sorted(lines, key=lambda line: line.split(": ", 1)[0]))
 
 
 class FeederLivelinessTest(SwarmCase):

@@ -115,5 +115,22 @@ TEST(RunFiles, FailedWritesSayWhyAndLeaveNothingBehind) {
   std::filesystem::remove_all(dir);
 }
 
+// run.json's `resolved`: numbers stay numbers (to the last digit), lists of numbers lists, any
+// other node read whole its YAML text.
+TEST(RunFiles, ResolvedScenarioAsJsonKeepsTypes) {
+  using K = ResolvedValue::Kind;
+  const ResolvedScenario r = {{"a.n", {K::kNumber, "0.1"}},  {"a.big", {K::kNumber, "18446744073709551615"}},
+                              {"b", {K::kBool, "false"}},    {"c", {K::kString, "lockstep"}},
+                              {"d", {K::kYaml, "[1, 2.5]"}}, {"e", {K::kYaml, "{x: 1}"}}};
+  const json j = ResolvedToJson(r);
+  EXPECT_EQ(j.at("a.n").get<double>(), 0.1);
+  EXPECT_EQ(j.at("a.big").get<std::uint64_t>(), 18446744073709551615ull);
+  EXPECT_EQ(j.at("b"), false);
+  EXPECT_EQ(j.at("c"), "lockstep");
+  EXPECT_EQ(j.at("d"), json::parse("[1, 2.5]"));
+  EXPECT_EQ(j.at("e"), "{x: 1}");
+  EXPECT_EQ(j.size(), r.size());
+}
+
 }  // namespace
 }  // namespace mapmesh::io

@@ -1,0 +1,115 @@
+"""How a run was made (DIR/run.json): the options it was started with, the scenario as resolved
+(every key the loader read, with the value it took), a copy of the scenario file, the code
+version, the Cyclone DDS version and the host; and the options back from a run.json, for
+`swarm run --from` (docs/OUTPUTS.md "run.json"). Standard library only."""
+
+import hashlib
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+RUN_JSON = "run.json"
+SCENARIO_COPY = "scenario.yaml"
+VERSION = 1
+# The `swarm run` options a run is made with, as argparse names them: what --from restores.
+OPTIONS = ("scenario", "agents", "kill", "restart", "pause", "set", "pace", "rate", "timeout", "inject",
+           "inject_period", "secure", "inject_identity", "hosts", "net_loss", "net_rate", "no_reference")
+REPO = Path(__file__).resolve().parents[2]
+
+
+def sha256_of(path):
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def code_version(repo=REPO):
+    """{"describe", "commit", "dirty"} from git, or None outside a git work tree."""
+    def git(*args):
+        r = subprocess.run(["git", "-C", str(repo)] + list(args), capture_output=True, text=True)
+        return r.stdout.strip() if r.returncode == 0 else None
+    if shutil.which("git") is None or git("rev-parse", "--is-inside-work-tree") != "true":
+        return None
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {"describe": git("describe", "--always", "--dirty", "--tags"), "commit": git("rev-parse", "HEAD"),
+            "dirty": bool(status)}
+
+
+def cyclone_version():
+    """The Cyclone DDS library's Debian package version, or None."""
+    r = subprocess.run(["dpkg-query", "-W", "-f=${Version}", "libddsc0debian"], capture_output=True, text=True) \
+        if shutil.which("dpkg-query") else None
+    return r.stdout.strip() if r is not None and r.returncode == 0 and r.stdout.strip() else None
+
+
+def host_facts():
+    return {"hostname": platform.node(), "system": platform.platform(), "machine": platform.machine(),
+            "cpus": os.cpu_count(), "python": platform.python_version()}
+
+
+def options_of(args):
+    """The run options of parsed `swarm run` arguments, JSON-ready."""
+    return {name: getattr(args, name, None) for name in OPTIONS}
+
+
+def write_run_json(out, args, info, kills, restarts, pauses, bin_dir):
+    """Writes DIR/run.json and DIR/scenario.yaml (a copy of the scenario file) before the run starts."""
+    out = Path(out)
+    scenario = Path(args.scenario).resolve()
+    shutil.copyfile(scenario, out / SCENARIO_COPY)
+    record = {
+        "version": VERSION,
+        "argv": sys.argv,
+        "cwd": os.getcwd(),
+        "options": options_of(args),
+        "scenario_file": str(scenario),
+        "scenario_sha256": sha256_of(scenario),
+        "scenario_copy": SCENARIO_COPY,
+        "scenario_name": info.get("name"),
+        "seed": info.get("seed"),
+        "robots": info.get("robots"),
+        "duration_s": info.get("duration"),
+        "pace": args.pace or info.get("pace"),
+        "faults": {"kills": [{"id": r, "t": t} for t, r in kills],
+                   "restarts": [{"id": r, "t": t} for t, r in restarts],
+                   "pauses": [{"id": r, "t": t, "seconds": s} for t, r, s in pauses]},
+        "resolved": info.get("resolved"),
+        "code": code_version(),
+        "binaries": str(bin_dir),
+        "cyclonedds": cyclone_version(),
+        "host": host_facts(),
+    }
+    tmp = out / (RUN_JSON + ".tmp")
+    tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
+    os.replace(tmp, out / RUN_JSON)
+    return record
+
+
+def options_from(path):
+    """The run options recorded in a run.json, with the scenario file to use: the original when it
+    is still there unchanged, else the copy beside the run.json. Raises ValueError (one line)."""
+    path = Path(path)
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError) as e:
+        raise ValueError(f"--from {path}: not a readable run.json ({e})") from None
+    if not isinstance(record, dict) or record.get("version") != VERSION or not isinstance(record.get("options"), dict):
+        raise ValueError(f"--from {path}: not a run.json of this version (written by `swarm run`)")
+    options = {k: record["options"].get(k) for k in OPTIONS}
+    original = Path(record.get("scenario_file", ""))
+    copy = path.parent / record.get("scenario_copy", SCENARIO_COPY)
+    if original.is_file() and sha256_of(original) == record.get("scenario_sha256"):
+        options["scenario"] = str(original)
+    elif copy.is_file():
+        options["scenario"] = str(copy)
+    else:
+        raise ValueError(f"--from {path}: neither the scenario {original} (unchanged) nor its copy {copy} is there")
+    return options, record
+
+
+def print_config(resolved):
+    """The resolved scenario, one `key: value` line per key in path order (values as JSON)."""
+    for key in sorted(resolved):
+        print(f"{key}: {json.dumps(resolved[key])}")
