@@ -32,6 +32,24 @@ namespace {
 
 namespace tp = transport;
 using io::json;
+
+// The scenario's fault schedule for the launcher, which carries it out (scripts/mapmesh/run.py).
+json FaultsToJson(const FaultOptions& f) {
+  json kills = json::array(), restarts = json::array(), pauses = json::array();
+  for (const FaultEvent& e : f.events) {
+    switch (e.kind) {
+      case FaultEvent::Kind::kKill: kills.push_back({{"id", e.id}, {"t", e.t}}); break;
+      case FaultEvent::Kind::kRestart: restarts.push_back({{"id", e.id}, {"t", e.t}}); break;
+      case FaultEvent::Kind::kPause: pauses.push_back({{"id", e.id}, {"t", e.t}, {"seconds", e.seconds}}); break;
+    }
+  }
+  return {{"kill", kills},
+          {"restart", restarts},
+          {"pause", pauses},
+          {"inject", f.inject},
+          {"inject_period_s", f.inject_period_s}};
+}
+
 using Clock = std::chrono::steady_clock;
 
 // Exit codes: 0 done, 1 internal error, 2 bad arguments or scenario, 3 agents failed to
@@ -367,6 +385,7 @@ int Run(int argc, char** argv) {
                                {"duration", sc.duration_s},
                                {"pace", std::string(NameOf(kPaces, sc.feeder.pace))},
                                {"seed", sc.seed},
+                               {"faults", FaultsToJson(sc.faults)},
                                {"resolved", io::ResolvedToJson(sc.resolved)}}
                               .dump()
                               .c_str());

@@ -63,6 +63,7 @@ void CheckValueCount(const std::string& yaml_text, const std::string& file) {
 }
 
 using scenario_internal::ReadAgent;
+using scenario_internal::ReadFaults;
 using scenario_internal::ReadFeeder;
 using scenario_internal::ReadMotion;
 using scenario_internal::ReadPath;
@@ -281,6 +282,7 @@ Scenario ParseScenario(const std::string& yaml_text, const std::string& file,
   sc.radio = ReadRadio(top.Child("radio"));
   sc.agent = ReadAgent(top.Child("agent"));
   sc.feeder = ReadFeeder(top.Child("feeder"));
+  sc.faults = ReadFaults(top.Child("faults"), dataset && !sc.duration_given ? 0.0 : sc.duration_s);
   if (!dataset && sc.duration_s / sc.world.control_period_s > limits::kMaxSimulationSteps) {
     top.Fail("duration_s", "the run would take " +
                                std::to_string(std::llround(sc.duration_s / sc.world.control_period_s)) +

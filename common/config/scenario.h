@@ -162,6 +162,22 @@ struct FeederOptions {
   bool keep_streams = true;         // keep what each robot was sent, to replay it to a restarted agent
 };
 
+// A fault at scenario time (`faults:`), meaning what swarm run's --kill, --restart and --pause do.
+struct FaultEvent {
+  enum class Kind { kKill, kRestart, kPause };
+  Kind kind = Kind::kKill;
+  RobotId id = 0;
+  double t = 0.0;        // scenario seconds
+  double seconds = 0.0;  // a pause's length, wall seconds
+};
+// The experiment's fault schedule, saved with it; launched by swarm run beside its flags (which
+// add to it), the whole schedule checked before anything starts.
+struct FaultOptions {
+  std::vector<FaultEvent> events;  // kills, then restarts, then pauses, each in file order
+  std::string inject;              // inject.cases: mapmesh-inject's cases ("" none, "all", or a list)
+  double inject_period_s = 0.2;    // inject.period_s
+};
+
 struct Scenario {
   int version = 1;
   std::string name;
@@ -176,6 +192,7 @@ struct Scenario {
   RadioOptions radio;
   AgentOptions agent;  // the agent section: each module's own options (agent/agent_options.h)
   FeederOptions feeder;
+  FaultOptions faults;
   // Every value key the loader read, as taken (given, overridden or its default): what the run
   // was made with (`mapmesh-feeder --check --events`, run.json, `swarm run --print-config`).
   ResolvedScenario resolved;

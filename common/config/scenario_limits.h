@@ -36,6 +36,8 @@ inline constexpr double kMaxAngleDeg = 360.0;   // |start heading|, |circle star
 
 // Times (seconds).
 inline constexpr double kMaxDurationS = 1e6;        // duration_s, overlap_s
+inline constexpr int kMaxFaults = 10000;            // faults.kill, .restart, .pause: entries each
+inline constexpr double kMaxPauseS = 86400.0;       // faults.pause[].seconds (swarm run --pause's bound)
 inline constexpr double kMinControlPeriodS = 1e-3;  // world.control_period_s
 inline constexpr double kMaxControlPeriodS = 10.0;
 inline constexpr double kMaxSimulationSteps = 1e7;  // duration_s / control_period_s

@@ -364,4 +364,43 @@ FeederOptions ReadFeeder(YamlReader f) {
   return o;
 }
 
+FaultOptions ReadFaults(YamlReader f, double duration_s) {
+  FaultOptions o;
+  using Kind = FaultEvent::Kind;
+  for (const auto& [key, kind] :
+       {std::pair{"kill", Kind::kKill}, {"restart", Kind::kRestart}, {"pause", Kind::kPause}}) {
+    f.ForEach(key, limits::kMaxFaults, [&, kind = kind](const YAML::Node& node, const std::string& path) {
+      YamlReader e = f.Element(node, path);  // a mapping such as {id: 3, t: 20}
+      FaultEvent ev;
+      ev.kind = kind;
+      int id = 0;
+      e.Get("id", id);
+      e.Get("t", ev.t);
+      for (const char* required : {"id", "t"}) {
+        if (!e.Has(required)) e.FailAt(node, path + "." + required, "missing required key");
+      }
+      e.CheckRange("id", id, 1, limits::kMaxRobotId);
+      ev.id = static_cast<RobotId>(id);
+      if (duration_s > 0.0) {
+        e.CheckRange("t", ev.t, 0.0, duration_s);
+      } else {
+        e.CheckRange("t", ev.t, 0.0, limits::kMaxDurationS);
+      }
+      if (kind == Kind::kPause) {
+        e.Get("seconds", ev.seconds);
+        if (!e.Has("seconds")) e.FailAt(node, path + ".seconds", "missing required key");
+        e.CheckPositiveUpTo("seconds", ev.seconds, limits::kMaxPauseS);
+      }
+      e.Finish();
+      o.events.push_back(ev);
+    });
+  }
+  YamlReader inject = f.Child("inject");
+  inject.Get("cases", o.inject);
+  inject.GetInRange("period_s", o.inject_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
+  inject.Finish();
+  f.Finish();
+  return o;
+}
+
 }  // namespace mapmesh::scenario_internal

@@ -28,6 +28,8 @@ void ReadPreset(YamlReader& r, RobotSpec& spec);
 RadioOptions ReadRadio(YamlReader r);
 AgentOptions ReadAgent(YamlReader a);
 FeederOptions ReadFeeder(YamlReader f);
+// The `faults:` section; duration_s > 0 bounds the times (0: not known yet, a whole dataset).
+FaultOptions ReadFaults(YamlReader f, double duration_s);
 
 // Fails at key unless every value is within +-limits::kMaxCoordinateM.
 void CheckCoordinates(YamlReader& r, const std::string& key, const std::vector<double>& values);

@@ -93,27 +93,38 @@ def parse_schedule(items, what):
     return out
 
 
-def check_fault_schedule(kills, restarts, pauses):
+FAULT_KINDS = ("kill", "restart", "pause")
+
+
+def fault_label(kind, rid, t, origins=None):
+    """How an error names a fault: the flag as given, or the scenario's faults entry."""
+    where = (origins or {}).get((kind, rid, t))
+    return f"{where} ({kind} {rid}@{t:g})" if where else f"--{kind} {rid}@{t:g}"
+
+
+def check_fault_schedule(kills, restarts, pauses, origins=None):
     """The whole fault schedule, in scenario time, before anything starts: every restart follows a
     kill of its agent (at the same time, the kill goes first), no agent is killed twice without a
     restart between, and no agent is paused while killed. RunError (one line) on the first that
-    does not hold. kills and restarts as from parse_schedule, pauses as from parse_pauses."""
+    does not hold. kills and restarts as from parse_schedule, pauses as from parse_pauses;
+    origins names the faults that came from the scenario ({(kind, id, t): "faults.kill[0]"})."""
     events = sorted([(t, 0, rid) for t, rid in kills] + [(t, 1, rid) for t, rid in restarts] +
                     [(t, 2, rid) for t, rid, _ in pauses])
     dead = {}  # robot -> when the kill in force was
     for t, kind, rid in events:
+        name = fault_label(FAULT_KINDS[kind], rid, t, origins)
         if kind == 0:
             if rid in dead:
-                raise RunError(f"--kill {rid}@{t:g}: agent {rid} is already killed at {dead[rid]:g} s, with no "
-                               f"--restart {rid}@T between", 2)
+                raise RunError(f"{name}: agent {rid} is already killed at {dead[rid]:g} s, with no "
+                               f"restart of it between", 2)
             dead[rid] = t
         elif kind == 1:
             if rid not in dead:
-                raise RunError(f"--restart {rid}@{t:g}: agent {rid} is running then (restart only follows a "
-                               f"--kill {rid}@T at or before {t:g} s)", 2)
+                raise RunError(f"{name}: agent {rid} is running then (restart only follows a "
+                               f"kill of it at or before {t:g} s)", 2)
             del dead[rid]
         elif rid in dead:
-            raise RunError(f"--pause {rid}@{t:g}: agent {rid} is killed then (at {dead[rid]:g} s)", 2)
+            raise RunError(f"{name}: agent {rid} is killed then (at {dead[rid]:g} s)", 2)
 
 
 def parse_pauses(items):
@@ -217,7 +228,7 @@ class SwarmRun:
         self.kills = parse_schedule(args.kill, "kill")
         self.restarts = parse_schedule(args.restart, "restart")
         self.pauses = parse_pauses(getattr(args, "pause", None))
-        check_fault_schedule(self.kills, self.restarts, self.pauses)
+        self.fault_origins = {}  # (kind, id, t) -> the scenario's faults entry it came from
         self.paused = []  # pauses under way: [resume at (monotonic), record]
         self.pause_log = []  # what happened: {"id", "t", "seconds", "wall_start", "wall_end"}
         self.common = []  # arguments every process gets
@@ -240,20 +251,40 @@ class SwarmRun:
         self.lock = None  # DIR/.lock's descriptor while this run holds it
 
     # ----- set-up -------------------------------------------------------------------------
+    def add_scenario_faults(self, faults):
+        """The scenario's `faults:` join the flags' (mapmesh-feeder checked each entry)."""
+        for kind, into in (("kill", self.kills), ("restart", self.restarts)):
+            for i, e in enumerate(faults.get(kind, [])):
+                into.append((float(e["t"]), int(e["id"])))
+                self.fault_origins[(kind, int(e["id"]), float(e["t"]))] = f"faults.{kind}[{i}]"
+        for i, e in enumerate(faults.get("pause", [])):
+            self.pauses.append((float(e["t"]), int(e["id"]), float(e["seconds"])))
+            self.fault_origins[("pause", int(e["id"]), float(e["t"]))] = f"faults.pause[{i}]"
+        if faults.get("inject"):
+            if self.args.inject:
+                raise RunError(f"--inject {self.args.inject}: the scenario injects too (faults.inject.cases: "
+                               f"{faults['inject']}); give one of them", 2)
+            self.args.inject = faults["inject"]
+            self.args.inject_period = float(faults.get("inject_period_s", self.args.inject_period))
+
     def check_scenario(self):
         cmd = [binary("mapmesh-feeder"), "--scenario", self.scenario, "--check", "--events"] + self.common
         r = subprocess.run(cmd, capture_output=True, text=True)
         if r.returncode != 0:
             raise RunError(last_line(r.stderr, "scenario check failed").removeprefix("mapmesh-feeder: "), 2)
         self.info = json.loads(r.stdout.strip().splitlines()[-1])
+        self.add_scenario_faults(self.info.get("faults") or {})
         ids = set(self.info["robots"])
-        for t, rid in self.kills + self.restarts + [(t, rid) for t, rid, _ in self.pauses]:
+        schedule = ([("kill", t, rid) for t, rid in self.kills] + [("restart", t, rid) for t, rid in self.restarts]
+                    + [("pause", t, rid) for t, rid, _ in self.pauses])
+        for kind, t, rid in schedule:
             if rid not in ids:
-                raise RunError(f"--kill/--restart/--pause {rid}@{t}: no robot {rid} in this run "
+                raise RunError(f"{fault_label(kind, rid, t, self.fault_origins)}: no robot {rid} in this run "
                                f"(robots {sorted(ids)})", 2)
             if t > self.info["duration"]:
-                raise RunError(f"--kill/--restart/--pause {rid}@{t}: after the end of the run "
+                raise RunError(f"{fault_label(kind, rid, t, self.fault_origins)}: after the end of the run "
                                f"({self.info['duration']} s)", 2)
+        check_fault_schedule(self.kills, self.restarts, self.pauses, self.fault_origins)
 
         who = self.args.inject_identity
         if who != "none" and not (self.args.inject and self.args.secure):

@@ -137,6 +137,10 @@ TEST_F(ScenarioDocs, EveryDocumentedKeyIsReadAndEveryKeyReadIsDocumented) {
     Parse("version: 1\nworld: {landmarks: {generator: {type: park}}}\nrobots:\n  defaults: {path: " + path +
           "}\n  list: [{id: 1, path: " + path + "}]\n");
   }
+  // Every kind of fault.
+  Parse("version: 1\nworld: {landmarks: {generator: {count: 10}}}\nrobots: {count: 3}\nfaults:\n"
+        "  kill: [{id: 3, t: 20}]\n  restart: [{id: 3, t: 35}]\n  pause: [{id: 2, t: 30, seconds: 3}]\n"
+        "  inject: {cases: all, period_s: 0.5}\n");
   for (const char* preset : {"thesis", "downs"}) {
     Parse(std::string("version: 1\nworld: {landmarks: {generator: {count: 10}}}\nrobots:\n  defaults: {preset: ") +
           preset + "}\n  list: [{id: 1, preset: " + preset + ", start: [0, 0, 0]}]\n");

@@ -330,6 +330,43 @@ robots:
   EXPECT_GT(resolved_keys.size(), 0.8 * static_cast<double>(keys.size()));
 }
 
+// X1: the fault schedule saved with the experiment; each entry checked where it is written.
+TEST_F(ScenarioExtrasTest, FaultsAreReadEntryByEntryAndCheckedInOneLine) {
+  const std::string head = "world: {landmarks: {list: [[0, 0]]}}\nduration_s: 60\nrobots: {count: 3}\n";
+  const Scenario s = ParseScenario(head + R"(faults:
+  kill: [{id: 3, t: 20}, {id: 2, t: 40}]
+  restart: [{id: 3, t: 35}]
+  pause: [{id: 1, t: 30, seconds: 2.5}]
+  inject: {cases: "stale,huge", period_s: 0.5}
+)",
+                                   "x.yaml");
+  using K = FaultEvent::Kind;
+  ASSERT_EQ(s.faults.events.size(), 4u);
+  EXPECT_EQ(s.faults.events[0].kind, K::kKill);
+  EXPECT_EQ(s.faults.events[0].id, 3u);
+  EXPECT_EQ(s.faults.events[0].t, 20.0);
+  EXPECT_EQ(s.faults.events[1].id, 2u);
+  EXPECT_EQ(s.faults.events[2].kind, K::kRestart);
+  EXPECT_EQ(s.faults.events[3].kind, K::kPause);
+  EXPECT_EQ(s.faults.events[3].seconds, 2.5);
+  EXPECT_EQ(s.faults.inject, "stale,huge");
+  EXPECT_EQ(s.faults.inject_period_s, 0.5);
+  EXPECT_TRUE(ParseScenario(head, "x.yaml").faults.events.empty());
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"faults: {kill: [{id: 3}]}", "faults.kill[0].t: missing required key"},
+      {"faults: {kill: [{id: 0, t: 5}]}", "faults.kill[0].id: must be >= 1"},
+      {"faults: {restart: [{id: 3, t: 61}]}", "faults.restart[0].t: must be <= 60"},
+      {"faults: {pause: [{id: 3, t: 5}]}", "faults.pause[0].seconds: missing required key"},
+      {"faults: {pause: [{id: 3, t: 5, seconds: 0}]}", "faults.pause[0].seconds: must be > 0"},
+      {"faults: {kill: [{id: 3, t: 5, when: 2}]}", "faults.kill[0].when: unknown key"},
+      {"faults: {kill: [3@5]}", "faults.kill[0]: expected a mapping of keys"},
+      {"faults: {crash: []}", "faults.crash: unknown key"},
+  };
+  for (const auto& [text, expected] : bad) {
+    EXPECT_NE(ErrorOf(head + text + "\n").find(expected), std::string::npos) << text << ": " << ErrorOf(head + text);
+  }
+}
+
 TEST_F(ScenarioExtrasTest, DatasetSourcesDecideTheRobots) {
   const Scenario m = ParseScenario("source: {type: mrclam, robots: [2, 4]}\n", "m.yaml");
   ASSERT_EQ(m.robots.size(), 2u);

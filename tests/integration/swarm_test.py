@@ -296,6 +296,46 @@ class ProvenanceTest(SwarmCase):
         self.assertEqual(lines, sorted(lines, key=lambda line: line.split(": ", 1)[0]))
 
 
+class ScenarioFaultsTest(SwarmCase):
+    """X1: the fault schedule existed only as flags; it could not be saved with the experiment."""
+
+    def scenario_with(self, faults):
+        path = Path(self.tmp.name) / "faulty.yaml"
+        path.write_text((DATA / "three.yaml").read_text() + "faults:\n" + faults)
+        return path
+
+    def test_the_scenarios_faults_are_carried_out_with_the_flags(self):
+        path = self.scenario_with("  kill: [{id: 2, t: 10}]\n  pause: [{id: 3, t: 12, seconds: 1}]\n")
+        r = self.swarm(path, "--restart", "2@15", "--no-report", "--no-reference")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        s = self.summary()
+        self.assertEqual([(k["id"], k["t"]) for k in s["kills"]], [(2, 10.0)])
+        self.assertEqual(s["restarts"], [{"id": 2, "t": 15.0}])
+        self.assertEqual([(p["id"], p["t"], p["seconds"]) for p in s["pauses"]], [(3, 12.0, 1.0)])
+        a = {a["id"]: a for a in s["agents"]}
+        self.assertEqual(a[2]["killed_at"], [10.0])
+        self.assertEqual(a[2]["restarted_at"], [15.0])
+        self.assertEqual(a[3]["paused_at"], [12.0])
+        made = json.loads((self.out / "run.json").read_text())
+        self.assertEqual(made["faults"]["kills"], [{"id": 2, "t": 10.0}])
+
+    def test_the_whole_schedule_is_checked_and_a_scenario_fault_named_where_it_is_written(self):
+        for faults, extra, expected in [
+            ("  restart: [{id: 2, t: 5}]\n", [],
+             "faults.restart[0] (restart 2@5): agent 2 is running then"),
+            ("  kill: [{id: 2, t: 5}]\n", ["--kill", "2@8"], "--kill 2@8: agent 2 is already killed at 5 s"),
+            ("  kill: [{id: 7, t: 5}]\n", [], "faults.kill[0] (kill 7@5): no robot 7 in this run"),
+            ("  kill: [{id: 2, t: 50}]\n", [], "faulty.yaml:"),  # beyond duration_s: the loader's line
+        ]:
+            with self.subTest(faults=faults, extra=extra):
+                r = self.swarm(self.scenario_with(faults), *extra)
+                self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+                lines = r.stderr.strip().splitlines()
+                self.assertEqual(len(lines), 1, r.stderr)
+                self.assertIn(expected, lines[0])
+                self.assertFalse(self.out.exists())
+
+
 class FeederLivelinessTest(SwarmCase):
     def test_an_agent_killed_behind_the_feeders_back_does_not_stall_lockstep(self):
         """Without the launcher: the feeder must notice the dead agent through DDS liveliness
