@@ -319,6 +319,18 @@ class ScenarioFaultsTest(SwarmCase):
         made = json.loads((self.out / "run.json").read_text())
         self.assertEqual(made["faults"]["kills"], [{"id": 2, "t": 10.0}])
 
+    def test_the_scenarios_injection_runs_as_the_flag_does(self):
+        path = self.scenario_with("  inject: {cases: bad_magic, period_s: 0.05}\n")
+        r = self.swarm(path, "--pace", "realtime", "--rate", "10", "--no-report", "--no-reference")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        injected = self.summary()["injected"]
+        self.assertGreater(injected["cases"]["bad_magic"]["sent"], 0, injected)
+        refused = sum(a["maps_rejected"]["bad_magic"] for a in self.summary()["agents"])
+        self.assertGreater(refused, 0)
+        r = self.swarm(path, "--inject", "truncated")  # not both
+        self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+        self.assertIn("--inject truncated: the scenario injects too (faults.inject.cases: bad_magic)", r.stderr)
+
     def test_the_whole_schedule_is_checked_and_a_scenario_fault_named_where_it_is_written(self):
         for faults, extra, expected in [
             ("  restart: [{id: 2, t: 5}]\n", [],
