@@ -57,12 +57,12 @@ struct RunTruth {
 };
 
 json TruthToJson(const RunTruth& truth);
+RunTruth TruthFromJson(const json& j);
 
 // The resolved scenario as one JSON object by key path: numbers and booleans as such, strings
 // as strings, a node read whole as its JSON value when it is one (lists of numbers), else as
 // its YAML flow text.
 json ResolvedToJson(const ResolvedScenario& resolved);
-RunTruth TruthFromJson(const json& j);
 
 // A run file that could not be written: its path and the system's reason (errno: ENOSPC when
 // the disk is full, EIO, EACCES, ...), as "PATH: REASON".

@@ -231,14 +231,7 @@ class SwarmRun:
         self.fault_origins = {}  # (kind, id, t) -> the scenario's faults entry it came from
         self.paused = []  # pauses under way: [resume at (monotonic), record]
         self.pause_log = []  # what happened: {"id", "t", "seconds", "wall_start", "wall_end"}
-        self.common = []  # arguments every process gets
-        if args.agents:
-            self.common += ["--agents", str(args.agents)]
-        for s in args.set or []:
-            self.common += ["--set", s]
-        # Every process learns the pace: in lockstep the agents exchange maps at the feeder's ticks.
-        if getattr(args, "pace", None):
-            self.common += ["--set", f"feeder.pace={args.pace}"]
+        self.common = common_args(args)  # arguments every process gets
         self.feeder = None
         self.injector = None
         self.kill_wall = {}  # (t, id) -> wall time of the kill
@@ -268,11 +261,7 @@ class SwarmRun:
             self.args.inject_period = float(faults.get("inject_period_s", self.args.inject_period))
 
     def check_scenario(self):
-        cmd = [binary("mapmesh-feeder"), "--scenario", self.scenario, "--check", "--events"] + self.common
-        r = subprocess.run(cmd, capture_output=True, text=True)
-        if r.returncode != 0:
-            raise RunError(last_line(r.stderr, "scenario check failed").removeprefix("mapmesh-feeder: "), 2)
-        self.info = json.loads(r.stdout.strip().splitlines()[-1])
+        self.info = feeder_check(self.scenario, self.common)
         self.add_scenario_faults(self.info.get("faults") or {})
         ids = set(self.info["robots"])
         schedule = ([("kill", t, rid) for t, rid in self.kills] + [("restart", t, rid) for t, rid in self.restarts]
@@ -869,14 +858,21 @@ def write_report(run_dir):
     return Path(run_dir) / REPORT if plot("report.py", run_dir, "report") else None
 
 
-def resolve_config(args):
-    """The scenario as `swarm run` would run it (mapmesh-feeder --check): its info, with `resolved`."""
+def common_args(args):
+    """The arguments every process of a run gets: agents, overrides and the pace (in lockstep the
+    agents exchange maps at the feeder's ticks, so every process learns it)."""
     common = ["--agents", str(args.agents)] if args.agents else []
     for s in args.set or []:
         common += ["--set", s]
-    if args.pace:
+    if getattr(args, "pace", None):
         common += ["--set", f"feeder.pace={args.pace}"]
-    r = subprocess.run([binary("mapmesh-feeder"), "--scenario", str(args.scenario), "--check", "--events"] + common,
+    return common
+
+
+def feeder_check(scenario, common):
+    """The scenario as the run's processes will read it (mapmesh-feeder --check --events): its
+    robots, duration, seed, faults and every key resolved. RunError (one line) when it is bad."""
+    r = subprocess.run([binary("mapmesh-feeder"), "--scenario", str(scenario), "--check", "--events"] + common,
                        capture_output=True, text=True)
     if r.returncode != 0:
         raise RunError(last_line(r.stderr, "scenario check failed").removeprefix("mapmesh-feeder: "), 2)
@@ -901,7 +897,7 @@ def cmd_run(args):
     if not args.scenario:
         raise RunError("give a SCENARIO.yaml (or --from DIR/run.json)", 2)
     if args.print_config:
-        provenance.print_config(resolve_config(args)["resolved"])
+        provenance.print_config(feeder_check(args.scenario, common_args(args))["resolved"])
         return 0
     if not args.out:
         raise RunError("--out DIR: where the run goes (required)", 2)

@@ -5,6 +5,7 @@ truth.json trajectory. Standard library only."""
 
 import json
 import math
+import shutil
 from pathlib import Path
 
 # The run's files.
@@ -47,7 +48,6 @@ def earlier_run(out):
 
 def clear_earlier_run(out):
     """Removes what an earlier run wrote in DIR (earlier_run), nothing else."""
-    import shutil
     out = Path(out)
     for name in earlier_run(out):
         path = out / name
