@@ -91,7 +91,7 @@ BY_KEY = {c.key: c for c in COLUMNS}
 
 TABLE_COLUMNS = [c for c in COLUMNS if c.table]
 HTML_COLUMNS = [c for c in COLUMNS if c.html]
-# sweep.csv: the swept parameter, "seed", these agent columns in this order, then the run's "wall_s".
+# sweep.csv: the swept parameters (one column each), "seed", these agent columns in this order, then the run's "wall_s".
 SWEEP_COLUMNS = [BY_KEY[k] for k in ("id", "alive_at_end", "local.landmarks", "global.landmarks", "global.coverage",
                                      "global.nees_mean", "global.rmse_aligned_m", "global.rmse_m",
                                      "local.rmse_aligned_m", "local.rmse_m", "local.nees_mean",
@@ -112,9 +112,9 @@ def lookup(record, path):
     return value
 
 
-def sweep_row(value, seed, summary, agent):
-    """One sweep.csv row: the parameter's value, the seed, SWEEP_COLUMNS of one agent and the run's wall time."""
-    return [value, seed] + [c.csv_cell(agent) for c in SWEEP_COLUMNS] + [summary["wall_s"]]
+def sweep_row(seed, summary, agent):
+    """One sweep.csv row after the parameters' values: the seed, SWEEP_COLUMNS of one agent and the run's wall time."""
+    return [seed] + [c.csv_cell(agent) for c in SWEEP_COLUMNS] + [summary["wall_s"]]
 
 
 def format_table(summary):

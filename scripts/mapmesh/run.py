@@ -260,7 +260,10 @@ class SwarmRun:
             self.args.inject = faults["inject"]
             self.args.inject_period = float(faults.get("inject_period_s", self.args.inject_period))
 
-    def check_scenario(self):
+    def check_plan(self):
+        """Everything about the run checked before anything starts or is written: the scenario with
+        its overrides, the whole fault schedule (flags and the scenario's faults), the injector's
+        cases and the hosts. RunError (one line) on the first fault."""
         self.info = feeder_check(self.scenario, self.common)
         self.add_scenario_faults(self.info.get("faults") or {})
         ids = set(self.info["robots"])
@@ -291,6 +294,12 @@ class SwarmRun:
             netns.require(self.args.net_loss, self.args.net_rate)
         elif self.args.net_loss or self.args.net_rate:
             raise RunError("--net-loss and --net-rate act on the hosts' links: they need --hosts netns", 2)
+
+    def check_scenario(self):
+        """The run's plan checked (check_plan), then its folder made ready: created, locked, an
+        earlier run refused or (--force) cleared; the DDS config chosen."""
+        self.check_plan()
+        net = getattr(self.args, "hosts", "loopback")
         # Every agent, the feeder and the injector join the run's domain.
         if self.out.exists() and not self.out.is_dir():
             raise RunError(f"--out {self.out}: is a file, not a folder; choose a folder", 2)
@@ -308,7 +317,8 @@ class SwarmRun:
             clear_earlier_run(self.out)
         if net == "netns":
             return  # the hosts' own config (execute) holds any number of processes
-        changes, note = ddsconfig.choose(len(ids) + 1 + (1 if self.args.inject else 0), run_dir=self.out)
+        processes = len(self.info["robots"]) + 1 + (1 if self.args.inject else 0)
+        changes, note = ddsconfig.choose(processes, run_dir=self.out)
         os.environ.update(changes)
         if note and not self.args.quiet:
             print(f"swarm: {note}", file=sys.stderr)

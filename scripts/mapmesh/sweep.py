@@ -1,81 +1,200 @@
-"""`swarm sweep`: one scenario run over a list of values of one scenario key and a list of
-seeds, several runs at a time, each in DIR/runs/; one CSV row per agent and run in
-DIR/sweep.csv, and DIR/sweep.png drawn by scripts/plots/sweep.py."""
+"""`swarm sweep`: one scenario run over a grid of scenario values (every combination of the values
+of each --param) and a list of seeds, with the run options given (faults, pace, injection,
+security, hosts), several runs at a time, each in DIR/runs/. Every run is checked as `swarm run`
+checks it before the first one starts. One CSV row per agent and run in DIR/sweep.csv (a column
+per parameter, then the seed and the agent's figures), and DIR/sweep.png drawn by
+scripts/plots/sweep.py."""
 
 import csv
+import itertools
+import math
 import os
+import re
 import subprocess
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 from .columns import SWEEP_HEADER, sweep_row
-from .run import REPO, RunError, last_line, plot
+from .provenance import OPTIONS
+from .run import REPO, RunError, SwarmRun, last_line, plot
 from .rundir import SUMMARY, read_json
 
+SEED_KEY = "seed"
 
-def _run_one(args, value, seed, run_dir):
-    """One `swarm run` with KEY=value (and seed=seed unless None); its summary and exit code."""
+
+def parse_params(params, values):
+    """[(key, [values])] from the --param items (KEY=V1,V2 each, or one KEY with --values V1,V2).
+    RunError (exit 2) names the item at fault."""
+    if values is not None:
+        if len(params) != 1 or "=" in params[0]:
+            raise RunError("--values goes with a single --param KEY; or give each as --param KEY=V1,V2,...", 2)
+        params = [f"{params[0]}={values}"]
+    grid, seen = [], set()
+    for item in params:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise RunError(f"--param {item}: expected KEY=V1,V2,... (e.g. radio.range_m=8,20)", 2)
+        if key == SEED_KEY:
+            raise RunError(f"--param {item}: give seeds with --seeds", 2)
+        if key in seen:
+            raise RunError(f"--param {item}: {key} is swept twice; give its values once", 2)
+        vals = [v.strip() for v in text.split(",") if v.strip()]
+        if not vals:
+            raise RunError(f"--param {item}: no values; give at least one, e.g. {key}=0,10,20", 2)
+        if len(set(vals)) != len(vals):
+            raise RunError(f"--param {item}: a value is given twice", 2)
+        seen.add(key)
+        grid.append((key, vals))
+    return grid
+
+
+def parse_seeds(text):
+    if not text:
+        return [None]
+    try:
+        seeds = [int(s) for s in text.split(",") if s.strip()]
+    except ValueError:
+        raise RunError(f"--seeds {text}: expected comma-separated integers", 2) from None
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise RunError(f"--seeds {text}: expected distinct comma-separated integers", 2)
+    return seeds
+
+
+def run_name(point, seed):
+    """The run's folder under runs/: KEY=VALUE_..._seedS, with anything but [A-Za-z0-9._=-] as '-'."""
+    name = "_".join(f"{k}={v}" for k, v in point) + (f"_seed{seed}" if seed is not None else "")
+    return re.sub(r"[^A-Za-z0-9._=-]", "-", name)
+
+
+def option_flags(args, defaults):
+    """The `swarm run` flags that give a run the options the sweep was given (provenance.OPTIONS
+    but the scenario; those left at their defaults are not repeated)."""
+    flags = []
+    for name in OPTIONS:
+        if name == "scenario" or name not in defaults:
+            continue
+        value = getattr(args, name, None)
+        if value == defaults[name] or value is None:
+            continue
+        flag = "--" + name.replace("_", "-")
+        if isinstance(value, bool):
+            flags.append(flag)
+        elif isinstance(value, list):
+            for v in value:
+                flags += [flag, str(v)]
+        else:
+            flags += [flag, str(value)]
+    return flags
+
+
+def point_flags(point, seed):
+    seed_flags = ["--set", f"{SEED_KEY}={seed}"] if seed is not None else []
+    return [f for k, v in point for f in ("--set", f"{k}={v}")] + seed_flags
+
+
+def describe(point, seed):
+    return " ".join(f"{k}={v}" for k, v in point) + (f" seed {seed}" if seed is not None else "")
+
+
+def check_all(args, plan, out):
+    """Every run of the plan checked as `swarm run` checks it (scenario and overrides, fault
+    schedule, injector, hosts), before the first starts. RunError names the run at fault."""
+    for point, seed in plan:
+        argv = [args.scenario, "--out", str(out / "runs" / run_name(point, seed))] + option_flags(
+            args, args.run_defaults) + point_flags(point, seed)
+        run_args = args.run_parser.parse_args(argv)
+        try:
+            SwarmRun(run_args).check_plan()
+        except RunError as e:
+            raise RunError(f"{describe(point, seed)}: {e}", 2) from None
+
+
+def _run_one(args, point, seed, run_dir):
+    """One `swarm run` at a point of the grid; (its summary or None, its exit code, why it failed)."""
     cmd = [sys.executable, str(REPO / "scripts" / "swarm"), "run", args.scenario, "--out", str(run_dir),
-           "--set", f"{args.param}={value}", "--quiet", "--no-report", "--timeout", str(args.timeout),
+           "--quiet", "--no-report",
            "--force"]  # the sweep's own runs/ folder: a sweep run again replaces its runs, as before
-    if seed is not None:
-        cmd += ["--set", f"seed={seed}"]
-    if args.agents:
-        cmd += ["--agents", str(args.agents)]
-    for s in args.set or []:
-        cmd += ["--set", s]
-    if getattr(args, "no_reference", False):
-        cmd += ["--no-reference"]
+    cmd += option_flags(args, args.run_defaults) + point_flags(point, seed)
     r = subprocess.run(cmd, capture_output=True, text=True)
     if not (run_dir / SUMMARY).exists():
-        reason = last_line(r.stderr, f"exit code {r.returncode}")
-        raise RunError(f"{args.param}={value}" + (f" seed {seed}" if seed is not None else "") + f": {reason}", 1)
-    return read_json(run_dir / SUMMARY), r.returncode
+        return None, r.returncode, last_line(r.stderr, f"exit code {r.returncode}").removeprefix("swarm: ")
+    return read_json(run_dir / SUMMARY), r.returncode, None
+
+
+def mean_of(summary, *path):
+    vals = []
+    for a in summary["agents"]:
+        v = a
+        for p in path:
+            v = v.get(p) if isinstance(v, dict) else None
+        if isinstance(v, (int, float)) and math.isfinite(v):
+            vals.append(v)
+    return sum(vals) / len(vals) if vals else float("nan")
+
+
+def duration(seconds):
+    seconds = max(0, int(round(seconds)))
+    return f"{seconds // 60} min {seconds % 60:02d} s" if seconds >= 60 else f"{seconds} s"
 
 
 def cmd_sweep(args):
-    values = [v for v in args.values.split(",") if v.strip()]
-    try:
-        seeds = [int(s) for s in args.seeds.split(",") if s.strip()] if args.seeds else [None]
-    except ValueError:
-        raise RunError(f"--seeds {args.seeds}: expected comma-separated integers", 2)
-    if not values:
-        raise RunError("--values: give at least one value, e.g. --values 0,10,20", 2)
+    grid = parse_params(args.param, args.values)
+    seeds = parse_seeds(args.seeds)
+    if args.jobs is not None and args.jobs <= 0:
+        raise RunError("--jobs must be positive", 2)
     out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise RunError(f"--out {out}: is a file, not a folder; choose a folder", 2)
+    keys = [k for k, _ in grid]
+    plan = [(tuple(zip(keys, combo)), s) for combo in itertools.product(*[v for _, v in grid]) for s in seeds]
+    check_all(args, plan, out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     jobs = args.jobs or max(1, min(2, os.cpu_count() or 1))
-    plan = [(v, s) for v in values for s in seeds]
     start = time.monotonic()
-    print(f"sweep: {args.param} over {values}, seeds {seeds if seeds != [None] else 'of the scenario'}: "
-          f"{len(plan)} runs, {jobs} at a time", flush=True)
+    print(f"sweep: {' x '.join(f'{k} {v}' for k, v in grid)}, seeds "
+          f"{seeds if seeds != [None] else 'of the scenario'}: {len(plan)} runs, all checked, {jobs} at a time",
+          flush=True)
 
-    def one(item):
-        v, seed = item
-        name = f"{args.param}={v}" + (f"_seed{seed}" if seed is not None else "")
-        return _run_one(args, v, seed, out / "runs" / name)
-
-    results = {}
-    failed = 0
+    results, failures = {}, []
     with ThreadPoolExecutor(max_workers=jobs) as pool:
-        for done, ((v, s), (summary, code)) in enumerate(zip(plan, pool.map(one, plan)), 1):
-            results[(v, s)] = summary
-            failed += code != 0
-            cov = [a["global"]["coverage"] for a in summary["agents"] if a.get("global") and
-                   a["global"].get("coverage") is not None]
-            mean_cov = sum(cov) / len(cov) if cov else float("nan")
-            print(f"[{done}/{len(plan)}] {args.param}={v}" + (f" seed {s}" if s is not None else "") + ": "
-                  f"mean global coverage {mean_cov:.2f}  ({time.monotonic() - start:.0f} s)", flush=True)
+        futures = {pool.submit(_run_one, args, point, seed, out / "runs" / run_name(point, seed)): (point, seed)
+                   for point, seed in plan}
+        for done, future in enumerate(as_completed(futures), 1):
+            point, seed = futures[future]
+            summary, code, why = future.result()
+            elapsed = time.monotonic() - start
+            eta = elapsed / done * (len(plan) - done)
+            head = f"[{done}/{len(plan)}] {describe(point, seed)}: "
+            tail = f"  ({duration(elapsed)}; about {duration(eta)} to go)" if done < len(plan) else \
+                f"  ({duration(elapsed)})"
+            if summary is None:
+                failures.append(f"{describe(point, seed)} ({why})")
+                print(head + f"failed: {why}" + tail, flush=True)
+                continue
+            results[(point, seed)] = summary
+            if code != 0:
+                failures.append(f"{describe(point, seed)} (exit code {code}; {out / 'runs' / run_name(point, seed)})")
+            print(head + f"mean global coverage {mean_of(summary, 'global', 'coverage'):.2f}, RMSE after rigid fit "
+                  f"{mean_of(summary, 'global', 'rmse_aligned_m'):.3f} m" + (f", exit code {code}" if code else "")
+                  + tail, flush=True)
     path = out / "sweep.csv"
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow([args.param] + SWEEP_HEADER)
-        for (v, s) in plan:
-            summary = results[(v, s)]
-            w.writerows(sweep_row(v, s if s is not None else "", summary, a) for a in summary["agents"])
-    print(f"csv:  {path}")
-    if not plot("sweep.py", out, "sweep plot"):
+        w.writerow(keys + SWEEP_HEADER)
+        for point, s in plan:
+            summary = results.get((point, s))
+            if summary is None:
+                continue
+            values = [v for _, v in point]
+            w.writerows(values + sweep_row(s if s is not None else "", summary, a) for a in summary["agents"])
+    print(f"csv:  {path}  ({len(results)} of {len(plan)} runs)")
+    plotted = bool(results) and plot("sweep.py", out, "sweep plot")
+    if plotted:
+        print(f"plot: {out / 'sweep.png'}")
+    if failures:
+        print(f"swarm: {len(failures)} of {len(plan)} runs failed: " + "; ".join(failures), file=sys.stderr)
         return 1
-    print(f"plot: {out / 'sweep.png'}")
-    return 1 if failed else 0
+    return 0 if plotted else 1

@@ -3,17 +3,19 @@
 
 Usage: /usr/bin/python3 scripts/plots/sweep.py DIR      (reads DIR/sweep.csv, writes DIR/sweep.png)
 
-sweep.csv has one row per run and agent (or per run): its first column is the swept parameter,
-named by its scenario path (e.g. radio.range_m), and it has the columns coverage_global,
+sweep.csv has one row per run and agent (or per run): its columns before `seed` (or its first
+column, without one) are the swept parameters, each named by its scenario path (e.g.
+radio.range_m), and it has the columns coverage_global,
 nees_global and rmse_global_aligned_m (as `swarm sweep` writes them; the summary.json paths
 global.coverage, global.nees_mean and global.rmse_aligned_m are accepted too, with '.' or '_').
 The RMSE panel draws the global map's RMSE after a least-squares rigid fit to the landmark truth,
 the primary accuracy figure (issue 19); a sweep.csv written before it, which has only the RMSE
 in the robot's true frame (rmse_global_m), gets that one, titled so, and a note on stderr. Other
 columns (seed, agent, the true-frame RMSE, ...) are ignored, apart from counting seeds and agents
-in the title. Empty, null, None and nan cells are skipped. For each metric a panel shows, against
-the parameter value, the mean over the seeds and agents as a line and their min-max as a shaded band.
-A parameter whose values are not all numbers is plotted as categories in order of appearance.
+in the title. Empty, null, None and nan cells are skipped. The figure has a row of panels per
+parameter, one panel per metric: against the parameter's value, the mean over the seeds and agents
+as a line and their min-max as a shaded band, one line per combination of the other parameters'
+values. A parameter whose values are not all numbers is plotted as categories in order of appearance.
 Prints the figure's path on stdout.
 Needs Debian's python3-matplotlib and python3-numpy (scripts/install-deps installs them)."""
 
@@ -97,7 +99,8 @@ def main(argv):
     if not header:
         print(f"sweep.py: {csv_path}: no rows", file=sys.stderr)
         return 1
-    param = header[0]
+    seed_col = find_column(header, "seed")
+    params = header[:header.index(seed_col)] if seed_col and header.index(seed_col) > 0 else header[:1]
     columns = {names[0]: find_column(header, *names) for names, _, _ in METRICS}
     titles = {names[0]: title for names, title, _ in METRICS}
     for metric, (names, title) in FALLBACKS.items():
@@ -109,50 +112,61 @@ def main(argv):
     if not any(columns.values()):
         print(f"sweep.py: {csv_path}: none of the columns {', '.join(columns)}", file=sys.stderr)
         return 1
-    data = [r for r in data if (r.get(param) or "").strip()]
-    numeric = all(value(r[param]) is not None for r in data)
-    categories = []
-    for r in data:
-        r["_x"] = value(r[param]) if numeric else r[param].strip()
-        if not numeric and r["_x"] not in categories:
-            categories.append(r["_x"])
-    if numeric:
-        data.sort(key=lambda r: r["_x"])
+    data = [r for r in data if all((r.get(k) or "").strip() for k in params)]
+    numeric = {k: all(value(r[k]) is not None for r in data) for k in params}
+    categories = {k: list(dict.fromkeys(r[k].strip() for r in data)) for k in params}
 
-    fig, axes = plt.subplots(1, len(METRICS), figsize=(15, 4.8))
-    fig.subplots_adjust(left=0.05, right=0.98, top=0.82, bottom=0.13, wspace=0.25)
-    for ax, ((metric, _), _, ylabel) in zip(axes, METRICS):
-        col, title = columns[metric], titles[metric]
-        points = aggregate(data, col) if col else []
-        if points:
-            xs = [p[0] if numeric else categories.index(p[0]) for p in points]
-            ax.fill_between(xs, [p[2] for p in points], [p[3] for p in points], color="tab:blue", alpha=0.2,
-                            lw=0, label="min\u2013max", step=None)
-            ax.plot(xs, [p[1] for p in points], "o-", color="tab:blue", ms=4, label="mean over seeds and agents")
-            if not numeric:
-                ax.set_xticks(range(len(categories)))
-                ax.set_xticklabels(categories, rotation=30, ha="right", fontsize=8)
-            if metric.startswith("nees"):
-                ax.axhline(NEES_EXPECTED, color="black", ls="--", lw=1, label="expected (2 dof)")
-                lo = min(p[2] for p in points)
-                if lo > 0 and max(p[3] for p in points) / lo > 30:
-                    ax.set_yscale("log")
-            if metric.startswith("coverage"):
-                ax.set_ylim(0, 1.02)
-            ax.legend(fontsize=8)
-        else:
-            ax.text(0.5, 0.5, f"no {metric} values" if col else f"no column {metric}", transform=ax.transAxes,
-                    ha="center", va="center", color="grey")
-        ax.set_title(title, fontsize=10)
-        ax.set_xlabel(param)
-        ax.set_ylabel(ylabel)
-        ax.grid(alpha=0.3)
-    counts = [f"{len({r['_x'] for r in data})} values"]
+    fig, axes = plt.subplots(len(params), len(METRICS), figsize=(15, 0.6 + 4.2 * len(params)), squeeze=False)
+    fig.subplots_adjust(left=0.05, right=0.98, top=1 - 0.75 / (0.6 + 4.2 * len(params)),
+                        bottom=0.5 / (0.6 + 4.2 * len(params)), wspace=0.25, hspace=0.45)
+    for row, param in enumerate(params):
+        others = [k for k in params if k != param]
+        for r in data:
+            r["_x"] = value(r[param]) if numeric[param] else r[param].strip()
+        groups = {}  # the other parameters' values -> their rows
+        for r in data:
+            groups.setdefault(tuple(r[k].strip() for k in others), []).append(r)
+        for ax, ((metric, _), _, ylabel) in zip(axes[row], METRICS):
+            col, title = columns[metric], titles[metric]
+            drawn = []
+            for i, (rest, group) in enumerate(groups.items()):
+                if numeric[param]:
+                    group = sorted(group, key=lambda r: r["_x"])
+                points = aggregate(group, col) if col else []
+                if not points:
+                    continue
+                color = f"C{i % 10}"
+                xs = [p[0] if numeric[param] else categories[param].index(p[0]) for p in points]
+                label = ", ".join(f"{k}={v}" for k, v in zip(others, rest)) or "mean over seeds and agents"
+                ax.fill_between(xs, [p[2] for p in points], [p[3] for p in points], color=color, alpha=0.15, lw=0)
+                ax.plot(xs, [p[1] for p in points], "o-", color=color, ms=4, label=label)
+                drawn += points
+            if drawn:
+                if not numeric[param]:
+                    ax.set_xticks(range(len(categories[param])))
+                    ax.set_xticklabels(categories[param], rotation=30, ha="right", fontsize=8)
+                if metric.startswith("nees"):
+                    ax.axhline(NEES_EXPECTED, color="black", ls="--", lw=1, label="expected (2 dof)")
+                    lo = min(p[2] for p in drawn)
+                    if lo > 0 and max(p[3] for p in drawn) / lo > 30:
+                        ax.set_yscale("log")
+                if metric.startswith("coverage"):
+                    ax.set_ylim(0, 1.02)
+                ax.legend(fontsize=7, title="line: mean; band: min\u2013max" if not others else
+                          "mean (line), min\u2013max (band) over seeds and agents", title_fontsize=7)
+            else:
+                ax.text(0.5, 0.5, f"no {metric} values" if col else f"no column {metric}", transform=ax.transAxes,
+                        ha="center", va="center", color="grey")
+            ax.set_title(title, fontsize=10)
+            ax.set_xlabel(param)
+            ax.set_ylabel(ylabel)
+            ax.grid(alpha=0.3)
+    counts = [f"{len(categories[k])} values of {k}" for k in params]
     for name in ("seed", "agent"):
         n = distinct(data, header, name)
         if n:
             counts.append(f"{n} {name}s")
-    fig.suptitle(f"sweep of {param} ({', '.join(counts)}, {len(data)} rows)", fontsize=12)
+    fig.suptitle(f"sweep of {' x '.join(params)} ({', '.join(counts)}, {len(data)} rows)", fontsize=12)
     out = d / "sweep.png"
     fig.savefig(out, dpi=100)
     plt.close(fig)

@@ -2,6 +2,7 @@
 on private domains: alignment and union, multi-hop relay, kills, restarts and liveliness.
 Every run has a hard timeout."""
 
+import csv
 import json
 import math
 import subprocess
@@ -208,15 +209,37 @@ class ExperimentOutputTest(SwarmCase):
         self.assertEqual(r.returncode, 0, r.stderr)
         check_report(self, self.out, run=False)
 
-    def test_sweep_over_three_radio_ranges_and_two_seeds(self):
+    def test_sweep_over_a_grid_with_a_kill(self):
+        """X1: several --param (a grid) with seeds and a fault schedule from one command; a tidy
+        CSV with a column per parameter; progress with what is left; a row of plots per parameter."""
         d = self.out.parent / "sweep"
-        r = subprocess.run(SWARM + ["sweep", str(SCENARIOS / "park4.yaml"), "--param", "radio.range_m",
-                                    "--values", "0,10,40", "--seeds", "1,2", "--set", "duration_s=60",
-                                    "--out", str(d)], capture_output=True, text=True, timeout=280)
+        r = subprocess.run(SWARM + ["sweep", str(SCENARIOS / "park4.yaml"), "--param", "radio.range_m=0,40",
+                                    "--param", "radio.loss_probability=0,0.5", "--seeds", "1,2",
+                                    "--set", "duration_s=60", "--kill", "2@30", "--restart", "2@40",
+                                    "--out", str(d)], capture_output=True, text=True, timeout=400)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
-        rows = (d / "sweep.csv").read_text().splitlines()
-        self.assertEqual(rows[0].split(","), ["radio.range_m"] + SWEEP_HEADER)
-        self.assertEqual(len(rows) - 1, 3 * 2 * 4)  # values x seeds x agents
+        self.assertIn("8 runs, all checked", r.stdout)
+        progress = [line for line in r.stdout.splitlines() if line.startswith("[")]
+        self.assertEqual(len(progress), 8, r.stdout)
+        self.assertTrue(all("to go)" in line for line in progress[:-1]), r.stdout)
+        with open(d / "sweep.csv", newline="") as f:
+            rows = list(csv.reader(f))
+        self.assertEqual(rows[0], ["radio.range_m", "radio.loss_probability"] + SWEEP_HEADER)
+        self.assertEqual(len(rows) - 1, 2 * 2 * 2 * 4)  # grid points x seeds x agents
+        points = {(row[0], row[1], row[2]) for row in rows[1:]}
+        self.assertEqual(points, {(a, b, s) for a in ("0", "40") for b in ("0", "0.5") for s in ("1", "2")})
+        alive = rows[0].index("alive")
+        restarted = [row for row in rows[1:] if row[rows[0].index("agent")] == "2"]
+        self.assertTrue(all(row[alive] == "1" for row in restarted))  # each run's agent 2 came back
+        for point in points:  # each run carried the fault schedule out
+            run = d / "runs" / f"radio.range_m={point[0]}_radio.loss_probability={point[1]}_seed{point[2]}"
+            summary = json.loads((run / "summary.json").read_text())
+            self.assertEqual(next(a for a in summary["agents"] if a["id"] == 2)["restarts"], 1)
+            options = json.loads((run / "run.json").read_text())["options"]
+            self.assertEqual((options["kill"], options["restart"]), (["2@30"], ["2@40"]))
+        cov = rows[0].index("coverage_global")
+        at = {p: [float(row[cov]) for row in rows[1:] if row[0] == p and row[cov]] for p in ("0", "40")}
+        self.assertGreater(sum(at["40"]) / len(at["40"]), sum(at["0"]) / len(at["0"]))  # range matters
         check_png(self, d / "sweep.png")
         check_sweep(self, d)
 

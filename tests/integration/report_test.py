@@ -493,6 +493,24 @@ class SweepTest(unittest.TestCase):
             make_fake_sweep(tmp)
             check_sweep(self, tmp)
 
+    def test_a_grid_draws_a_row_of_panels_per_parameter(self):
+        # X1: the columns before `seed` are the swept parameters; each gets a row of panels.
+        with tempfile.TemporaryDirectory(prefix="mapmesh_sweep_") as tmp:
+            make_fake_sweep(tmp)
+            check_sweep(self, tmp)
+            _, one_row = check_png(self, Path(tmp) / "sweep.png", min_bytes=10_000)
+            with open(Path(tmp) / "sweep.csv", newline="") as f:
+                rows = list(csv.DictReader(f))
+            with open(Path(tmp) / "sweep.csv", "w", newline="") as f:
+                w = csv.DictWriter(f, fieldnames=["radio.range_m", "radio.loss_probability"] + list(rows[0])[1:])
+                w.writeheader()
+                for i, r in enumerate(rows):
+                    w.writerow({**r, "radio.loss_probability": (0, 0.5)[i % 2]})
+            r = subprocess.run([PYTHON, str(SWEEP), tmp], capture_output=True, text=True, timeout=120)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            _, two_rows = check_png(self, Path(tmp) / "sweep.png", min_bytes=10_000)
+            self.assertGreater(two_rows, 1.7 * one_row)
+
     def test_categorical_parameter_and_missing_column(self):
         with tempfile.TemporaryDirectory(prefix="mapmesh_sweep_") as tmp:
             rows = make_fake_sweep(tmp, param="fusion.method")

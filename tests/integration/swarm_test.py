@@ -525,6 +525,33 @@ class BadInputTest(unittest.TestCase):
                     self.assertTrue(lines[0].startswith("swarm: " + expected), r.stderr)
                     self.assertFalse(out.exists())  # refused before anything started
 
+    def test_a_sweep_checks_every_run_before_the_first(self):
+        """X1: `swarm sweep --values 5,abc` failed only after its first run; a sweep took no fault
+        schedule and one --param."""
+        cases = [
+            (["--param", "radio.range_m=5,abc"], "radio.range_m=abc: "),
+            (["--param", "radio.range_m=5", "--param", "radio.loss_probability=0,2"],
+             "radio.range_m=5 radio.loss_probability=2: "),
+            (["--param", "radio.range_m=5,10", "--kill", "7@3"], "radio.range_m=5: --kill 7@3: no robot 7"),
+            (["--param", "duration_s=4,30", "--kill", "2@10"], "duration_s=4: --kill 2@10: after the end of the run"),
+            (["--param", "radio.range_m=5", "--restart", "2@3"], "radio.range_m=5: --restart 2@3: agent 2 is running"),
+            (["--param", "radio.range_m=5", "--param", "radio.range_m=6"], "--param radio.range_m=6: radio.range_m is "
+             "swept twice"),
+            (["--param", "radio.range_m", "--values", "1,2", "--seeds", "1,x"], "--seeds 1,x: expected"),
+            (["--param", "seed=1,2"], "--param seed=1,2: give seeds with --seeds"),
+        ]
+        with tempfile.TemporaryDirectory() as tmp:
+            for args, expected in cases:
+                with self.subTest(args=args):
+                    out = Path(tmp) / "sweep"
+                    r = subprocess.run(SWARM + ["sweep", str(DATA / "three.yaml"), "--out", str(out)] + args,
+                                       capture_output=True, text=True, timeout=60)
+                    self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+                    lines = r.stderr.strip().splitlines()
+                    self.assertEqual(len(lines), 1, r.stderr)
+                    self.assertTrue(lines[0].startswith("swarm: " + expected), r.stderr)
+                    self.assertFalse(out.exists())  # nothing ran
+
 
 class HelpTest(unittest.TestCase):
     def test_every_executable_answers_help(self):
