@@ -2,6 +2,7 @@
 // --reference, against a reference map) and prints one JSON document on stdout (scripts/swarm
 // merges it into summary.json).
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -22,6 +23,10 @@ namespace mapmesh {
 namespace {
 
 using io::json;
+
+// The span of the relative pose error (local.trajectory_rpe): one second, as `evo_rpe --delta 1
+// --delta_unit s`.
+constexpr double kRpeSpanS = 1.0;
 
 json QualityJson(const MapQuality& q) {
   if (!q.evaluated) {
@@ -351,6 +356,27 @@ int Run(int argc, char** argv) {
                                        : CompareTrajectory(est, DropImplausibleFixes(ref, 20.0), true);
       entry["local"]["trajectory_rmse_m"] = e.samples > 0 ? json(e.rmse_m) : json();
       entry["local"]["trajectory_frame"] = origin ? "true_origin" : "aligned";
+      // The absolute trajectory error after a rigid fit (evo_ape --align), and the relative pose
+      // error over 1 s spans (evo_rpe --delta 1 --delta_unit s: needs true headings).
+      const TrajectoryError ate = origin ? CompareTrajectory(est, ref, true) : e;
+      entry["local"]["trajectory_ate_aligned_m"] = ate.samples > 0 ? json(ate.rmse_m) : json();
+      json rpe;
+      if (truth.headings_known) {
+        std::vector<PoseStamp> est_poses, ref_poses;
+        for (const auto& p : traj.at("poses")) {
+          est_poses.push_back({p.at(0).get<double>(),
+                               Pose2{p.at(1).get<double>(), p.at(2).get<double>(), p.at(3).get<double>()}});
+        }
+        for (const io::TruthSample& s : robot.trajectory) ref_poses.push_back({s.t, s.pose});
+        const RelativePoseError r = CompareRelativePoses(est_poses, ref_poses, kRpeSpanS);
+        if (r.pairs > 0) {
+          rpe = {{"delta_s", kRpeSpanS},
+                 {"pairs", r.pairs},
+                 {"translation_rmse_m", r.translation_rmse_m},
+                 {"rotation_rmse_deg", r.rotation_rmse_rad * 180.0 / M_PI}};
+        }
+      }
+      entry["local"]["trajectory_rpe"] = rpe;
     }
     // Where the final map frame lies in the world (for drawing): the true pose at its origin,
     // else its rigid fit by signatures, else unknown.

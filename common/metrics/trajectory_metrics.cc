@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/geometry/pose2.h"
 #include "common/geometry/rigid_fit.h"
 
 namespace mapmesh {
@@ -45,6 +46,48 @@ TrajectoryError CompareTrajectory(const std::vector<TimedPosition>& estimate,
   out.times = std::move(times);
   out.samples = static_cast<int>(est.size());
   if (out.samples > 0) out.rmse_m = std::sqrt(se / out.samples);
+  return out;
+}
+
+namespace {
+
+// The estimate's pose at t, interpolated between the samples around it when they are at most
+// max_gap_s apart; nullopt outside its span or in a longer gap.
+std::optional<Pose2> CoveredPoseAt(const std::vector<PoseStamp>& track, double t, double max_gap_s) {
+  const auto hi = std::lower_bound(track.begin(), track.end(), t, [](const PoseStamp& a, double v) { return a.t < v; });
+  if (hi == track.end()) return std::nullopt;
+  if (hi->t == t) return hi->pose;
+  if (hi == track.begin() || hi->t - (hi - 1)->t > max_gap_s) return std::nullopt;
+  const auto lo = hi - 1;
+  return Interpolate(lo->pose, hi->pose, (t - lo->t) / (hi->t - lo->t));
+}
+
+}  // namespace
+
+RelativePoseError CompareRelativePoses(const std::vector<PoseStamp>& estimate, const std::vector<PoseStamp>& reference,
+                                       double delta_s, double max_gap_s) {
+  RelativePoseError out;
+  double se_t = 0.0, se_r = 0.0;
+  std::size_t j = 0;
+  for (std::size_t i = 0; i < reference.size(); ++i) {
+    j = std::max(j, i + 1);
+    while (j < reference.size() && reference[j].t - reference[i].t < delta_s) ++j;
+    if (j >= reference.size()) break;
+    if (reference[j].t - reference[i].t > delta_s + max_gap_s) continue;
+    const std::optional<Pose2> pi = CoveredPoseAt(estimate, reference[i].t, max_gap_s);
+    const std::optional<Pose2> pj = CoveredPoseAt(estimate, reference[j].t, max_gap_s);
+    if (!pi || !pj) continue;
+    const Pose2 truth_motion = reference[i].pose.Inverse() * reference[j].pose;
+    const Pose2 error = truth_motion.Inverse() * (pi->Inverse() * *pj);
+    se_t += error.x * error.x + error.y * error.y;
+    const double r = WrapAngle(error.theta);
+    se_r += r * r;
+    ++out.pairs;
+  }
+  if (out.pairs > 0) {
+    out.translation_rmse_m = std::sqrt(se_t / out.pairs);
+    out.rotation_rmse_rad = std::sqrt(se_r / out.pairs);
+  }
   return out;
 }
 

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "common/geometry/pose2.h"
+#include "common/geometry/pose_track.h"
 #include "common/types/messages.h"
 
 namespace mapmesh {
@@ -29,6 +30,19 @@ struct TrajectoryError {
 // reference (Umeyama); samples stays 0 if that fit is impossible.
 TrajectoryError CompareTrajectory(const std::vector<TimedPosition>& estimate,
                                   const std::vector<TimedPosition>& reference, bool align, double max_gap_s = 1.0);
+
+// Relative pose error (Sturm et al. 2012, as evo's `evo_rpe`): how well the estimate holds the
+// motion over spans of delta_s, whatever its frame. For each reference pose Q_i and the first
+// reference pose Q_j at least delta_s later (at most max_gap_s past delta_s), with the estimate
+// P interpolated at both times (between samples at most max_gap_s apart; pairs it does not
+// cover are skipped): E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j); the RMSE of |t(E)| and of |theta(E)|.
+struct RelativePoseError {
+  int pairs = 0;
+  double translation_rmse_m = 0.0;
+  double rotation_rmse_rad = 0.0;
+};
+RelativePoseError CompareRelativePoses(const std::vector<PoseStamp>& estimate, const std::vector<PoseStamp>& reference,
+                                       double delta_s, double max_gap_s = 1.0);
 
 // Drops reference fixes that imply a speed above max_speed_mps from the last kept fix
 // (GPS glitches).

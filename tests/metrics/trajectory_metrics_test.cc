@@ -30,6 +30,56 @@ TEST(CompareTrajectory, AlignmentRemovesAnUnknownFrame) {
   EXPECT_NEAR(e.rmse_m, 0.0, 1e-9);
 }
 
+// A wiggly reference track sampled every 0.125 s (times exact in binary).
+std::vector<PoseStamp> WigglyTrack(int n) {
+  std::vector<PoseStamp> track;
+  Pose2 pose;
+  for (int i = 0; i < n; ++i) {
+    track.push_back({0.125 * i, pose});
+    pose = pose * Pose2{0.05, 0.0, 0.1 * std::sin(0.05 * i)};
+  }
+  return track;
+}
+
+TEST(CompareRelativePoses, AnyFrameGivesZeroAndAConstantErrorPerStepIsFound) {
+  const std::vector<PoseStamp> ref = WigglyTrack(200);
+  // The same motion in another frame: no relative error.
+  std::vector<PoseStamp> moved;
+  const Pose2 frame{5, -3, 0.8};
+  for (const PoseStamp& s : ref) moved.push_back({s.t, frame * s.pose});
+  const RelativePoseError same = CompareRelativePoses(moved, ref, 1.0);
+  EXPECT_GT(same.pairs, 150);
+  EXPECT_NEAR(same.translation_rmse_m, 0.0, 1e-9);
+  EXPECT_NEAR(same.rotation_rmse_rad, 0.0, 1e-9);
+  // Every step of the estimate turns 0.002 rad more: over 1 s (8 steps) the relative heading
+  // error is 0.016 rad on every pair, whatever the absolute error has grown to.
+  std::vector<PoseStamp> est;
+  Pose2 pose;
+  for (std::size_t i = 0; i < ref.size(); ++i) {
+    est.push_back({ref[i].t, pose});
+    if (i + 1 < ref.size()) pose = pose * (ref[i].pose.Inverse() * ref[i + 1].pose) * Pose2{0, 0, 0.002};
+  }
+  const RelativePoseError drift = CompareRelativePoses(est, ref, 1.0);
+  EXPECT_EQ(drift.pairs, 200 - 8);
+  EXPECT_NEAR(drift.rotation_rmse_rad, 0.016, 1e-9);
+  EXPECT_GT(drift.translation_rmse_m, 0.0);
+  EXPECT_LT(drift.translation_rmse_m, 0.05 * 8 * 0.016);  // at most the span's length times the turn
+}
+
+TEST(CompareRelativePoses, SkipsSpansTheEstimateDoesNotCover) {
+  const std::vector<PoseStamp> ref = WigglyTrack(100);  // 0-12.375 s
+  std::vector<PoseStamp> est;
+  for (const PoseStamp& s : ref) {
+    if (s.t <= 3.0 || s.t >= 6.0) est.push_back(s);  // a 3 s gap
+  }
+  const RelativePoseError e = CompareRelativePoses(est, ref, 1.0, 0.5);
+  // Pairs starting at 0-2 s and 6-11.375 s: 17 + 44, none reaching into the gap.
+  EXPECT_EQ(e.pairs, 17 + 44);
+  EXPECT_NEAR(e.translation_rmse_m, 0.0, 1e-12);
+  EXPECT_EQ(CompareRelativePoses({}, ref, 1.0).pairs, 0);
+  EXPECT_EQ(CompareRelativePoses(ref, ref, 100.0).pairs, 0);  // no span that long
+}
+
 TEST(DropImplausibleFixes, RemovesJumps) {
   const std::vector<TimedPosition> fixes{{0, {0, 0}}, {1, {2, 0}}, {2, {140, 0}}, {3, {6, 0}}};
   const auto kept = DropImplausibleFixes(fixes, 20.0);
