@@ -132,12 +132,18 @@ json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::
     const json& t = line.value("frame_origin_stamp", json());
     if (t.is_number() && truth.headings_known) origin = robot.PoseAt(t.get<double>());
     const std::string snapshot = line.value("snapshot", "");
+    std::optional<Pose2> fit_start = origin;  // where the maps' frame is thought to lie, for the rigid fit
     for (const char* kind : {"local", "global"}) {
       const std::string path = dir + "/" + snapshot + "_" + kind + ".json";
       if (snapshot.empty() || !std::filesystem::exists(path)) continue;
-      const MapQuality q = EvaluateOwnFrameMap(io::MapFromJson(io::ReadJson(path)), truth.landmarks, truth.seen, origin,
-                                               gate_m);
+      const LandmarkMap map = io::MapFromJson(io::ReadJson(path));
+      const MapQuality q = EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, origin, gate_m);
       line[kind] = QualityJson(q);
+      // As the final maps: after a rigid fit of the whole map to the truth (the global map's fit
+      // starts where the local map's signatures put the frame when the origin is not known).
+      if (!fit_start && std::string(kind) == "local") fit_start = MapFrameInWorld(map, truth.landmarks);
+      const MapQuality aligned = EvaluateFittedMap(map, truth.landmarks, truth.seen, fit_start, gate_m);
+      line[kind]["rmse_aligned_m"] = aligned.evaluated ? json(aligned.rmse_m) : json();
     }
     line.erase("snapshot");
     out.push_back(line);
@@ -288,6 +294,9 @@ int Run(int argc, char** argv) {
       const MapQuality aligned = EvaluateFittedMap(map, truth.landmarks, truth.seen, origin ? origin : f.local_in_world,
                                                    gate_m);
       entry[kind]["rmse_aligned_m"] = aligned.evaluated ? json(aligned.rmse_m) : json();
+      entry[kind]["fit_in_world"] = aligned.evaluated && aligned.fit
+                                        ? json{aligned.fit->x, aligned.fit->y, aligned.fit->theta}
+                                        : json();
       // The limit on the same landmarks (docs/EXPERIMENTS.md "The limit"): the global map against
       // the centralized batch optimum, the local map against the robot's own batch optimum; and
       // the ratio of the two RMSEs after a rigid fit, the map's gap to its limit.
@@ -368,7 +377,7 @@ int Run(int argc, char** argv) {
                                Pose2{p.at(1).get<double>(), p.at(2).get<double>(), p.at(3).get<double>()}});
         }
         for (const io::TruthSample& s : robot.trajectory) ref_poses.push_back({s.t, s.pose});
-        const RelativePoseError r = CompareRelativePoses(est_poses, ref_poses, kRpeSpanS);
+        const RelativeTrajectoryError r = CompareRelativePoses(est_poses, ref_poses, kRpeSpanS);
         if (r.pairs > 0) {
           rpe = {{"delta_s", kRpeSpanS},
                  {"pairs", r.pairs},

@@ -144,6 +144,7 @@ MapQuality EvaluateFittedMap(const LandmarkMap& map, const std::vector<Eigen::Ve
   }
   MapQuality q = EvaluateMap(TransformMap(map, *frame), truth, seen, gate_m);
   q.aligned = true;
+  q.fit = frame;
   return q;
 }
 

@@ -48,6 +48,7 @@ struct MapQuality {
   double consistent_ratio = 0.0;   // share of matched landmarks with NEES below kChi2Dof2P95
   double coverage = 0.0;           // share of `seen` true landmarks that the map contains
   std::vector<int> truth_matched;  // the true landmarks the map holds (indices into truth, increasing)
+  std::optional<Pose2> fit;        // EvaluateFittedMap: the map frame's pose in the world after the rigid fit
 };
 
 // Quality of a map already expressed in the truth frame. seen lists the true landmarks that

@@ -64,9 +64,9 @@ std::optional<Pose2> CoveredPoseAt(const std::vector<PoseStamp>& track, double t
 
 }  // namespace
 
-RelativePoseError CompareRelativePoses(const std::vector<PoseStamp>& estimate, const std::vector<PoseStamp>& reference,
-                                       double delta_s, double max_gap_s) {
-  RelativePoseError out;
+RelativeTrajectoryError CompareRelativePoses(
+    const std::vector<PoseStamp>& estimate, const std::vector<PoseStamp>& reference, double delta_s, double max_gap_s) {
+  RelativeTrajectoryError out;
   double se_t = 0.0, se_r = 0.0;
   std::size_t j = 0;
   for (std::size_t i = 0; i < reference.size(); ++i) {

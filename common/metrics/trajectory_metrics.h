@@ -36,13 +36,14 @@ TrajectoryError CompareTrajectory(const std::vector<TimedPosition>& estimate,
 // reference pose Q_j at least delta_s later (at most max_gap_s past delta_s), with the estimate
 // P interpolated at both times (between samples at most max_gap_s apart; pairs it does not
 // cover are skipped): E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j); the RMSE of |t(E)| and of |theta(E)|.
-struct RelativePoseError {
+struct RelativeTrajectoryError {
   int pairs = 0;
   double translation_rmse_m = 0.0;
   double rotation_rmse_rad = 0.0;
 };
-RelativePoseError CompareRelativePoses(const std::vector<PoseStamp>& estimate, const std::vector<PoseStamp>& reference,
-                                       double delta_s, double max_gap_s = 1.0);
+RelativeTrajectoryError CompareRelativePoses(const std::vector<PoseStamp>& estimate,
+                                             const std::vector<PoseStamp>& reference, double delta_s,
+                                             double max_gap_s = 1.0);
 
 // Drops reference fixes that imply a speed above max_speed_mps from the last kept fix
 // (GPS glitches).

@@ -79,6 +79,10 @@ COLUMNS = [
            plot=("global RMSE over the centralized optimum", "ratio (1: the limit)")),
     Column("gap_to_own_batch", table="gap_own", table_format=".2f", html="local RMSE / own batch optimum",
            csv="gap_to_own_batch"),
+    # The agent's own path (evo's figures): the absolute trajectory error after a rigid fit, and the
+    # relative pose error over 1 s.
+    Column("local.trajectory_ate_aligned_m", html="trajectory ATE after rigid fit (m)"),
+    Column("local.trajectory_rpe.translation_rmse_m", html="trajectory RPE over 1 s (m)"),
     Column("peers_aligned", table="peers", html="peers aligned", csv="peers_aligned", count=True),
     Column("maps_received", table="maps_rx", html="maps received"),
     Column("bytes_sent", table="kB_tx", table_format=".1f", table_scale=1000, html="bytes sent", csv="bytes_sent"),

@@ -21,7 +21,8 @@ import math
 import sys
 
 from .mcap import Writer
-from .rundir import TRAJECTORY, TRUTH, pose_at, truth_robots
+from .rundir import (HISTORY, TRAJECTORY, TRUTH, alignment_changes, pose_at, radio_links, read_history,
+                     truth_robots)
 
 CHI2_95_2DOF = 5.991464547107979  # the 95 % quantile of chi-square with 2 degrees of freedom
 ELLIPSE_HEIGHT_M = 0.02
@@ -119,47 +120,12 @@ def log(t, level, name, message):
 
 def snapshots(run, rid):
     """[(t, snapshot path prefix)] of an agent's history.jsonl, once each, in time order."""
-    path = run.path("history.jsonl", rid)
     out, seen = [], set()
-    if not path.exists():
-        return out
-    for text in path.read_text().splitlines():
-        try:
-            e = json.loads(text)
-        except ValueError:
-            continue
+    for e in read_history(run.path(HISTORY, rid)):
         snap = e.get("snapshot")
         if isinstance(snap, str) and snap not in seen and isinstance(e.get("t"), (int, float)):
             seen.add(snap)
             out.append((float(e["t"]), snap))
-    return out
-
-
-def history(run, rid):
-    path = run.path("history.jsonl", rid)
-    out = []
-    if path.exists():
-        for text in path.read_text().splitlines():
-            try:
-                out.append(json.loads(text))
-            except ValueError:
-                continue
-    return out
-
-
-def alignment_changes(entries):
-    """[(t, peer, aligned?)] from an agent's history: a peer that appears among peers_aligned, or
-    leaves it within one incarnation (a new incarnation starts with none)."""
-    out, held, inc = [], set(), None
-    for e in entries:
-        if not isinstance(e.get("t"), (int, float)):
-            continue
-        if e.get("incarnation") != inc:
-            held, inc = set(), e.get("incarnation")
-        now = {p for p in (e.get("peers_aligned") or []) if isinstance(p, int)}
-        out += [(float(e["t"]), p, True) for p in sorted(now - held)]
-        out += [(float(e["t"]), p, False) for p in sorted(held - now)]
-        held = now
     return out
 
 
@@ -230,26 +196,21 @@ def export_mcap(run, summary, path):
     range_m, period = resolved.get("radio.range_m"), resolved.get("radio.links_period_s") or 0.5
     if isinstance(range_m, (int, float)) and duration and len(robots) > 1:
         ch = w.channel("/radio/links", "foxglove.SceneUpdate", SCENE_UPDATE)
-        ids = sorted(robots)
-        for k in range(int(math.floor(duration / period + 1e-9)) + 1):
-            t = k * period
-            at = {rid: pose_at(robots[rid].get("trajectory") or [], t) for rid in ids}
+        for t, pairs in radio_links(robots, range_m, period, duration):
             points = []
-            for i, ra in enumerate(ids):
-                for rb in ids[i + 1:]:
-                    pa, pb = at[ra], at[rb]
-                    if pa and pb and math.hypot(pa[0] - pb[0], pa[1] - pb[1]) <= range_m:
-                        points += [{"x": pa[0], "y": pa[1], "z": 0.0}, {"x": pb[0], "y": pb[1], "z": 0.0}]
+            for ra, rb in pairs:
+                pa, pb = pose_at(robots[ra]["trajectory"], t), pose_at(robots[rb]["trajectory"], t)
+                points += [{"x": pa[0], "y": pa[1], "z": 0.0}, {"x": pb[0], "y": pb[1], "z": 0.0}]
             update = map_update(None, "world", "radio/links", t, None)
             update["entities"][0]["lines"] = [{
                 "type": 2, "pose": pose(0, 0), "thickness": 2.0, "scale_invariant": True, "points": points,
                 "color": {"r": 0.2, "g": 0.6, "b": 0.2, "a": 0.7}, "colors": [], "indices": []}]
-            update["entities"][0]["metadata"] = [{"key": "links", "value": str(len(points) // 2)}]
+            update["entities"][0]["metadata"] = [{"key": "links", "value": str(len(pairs))}]
             w.message(ch, ns(t), update)
 
     alignments = w.channel("/alignments", "foxglove.Log", LOG)
     for a in agents:
-        for t, peer, aligned in alignment_changes(history(run, a["id"])):
+        for t, peer, aligned in alignment_changes(read_history(run.path(HISTORY, a["id"]))):
             w.message(alignments, ns(t), log(t, LOG_INFO if aligned else LOG_WARNING, f"agent_{a['id']}",
                                              f"agent {a['id']} {'aligned' if aligned else 'no longer holds'} "
                                              f"peer {peer}"))

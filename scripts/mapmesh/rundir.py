@@ -21,6 +21,7 @@ STATS = "stats.json"
 LOCAL_MAP = "local_map.json"
 GLOBAL_MAP = "global_map.json"
 TRAJECTORY = "trajectory.json"
+HISTORY = "history.jsonl"
 AGENT_LOG = "agent.log"
 
 
@@ -141,3 +142,62 @@ def pose_at(trajectory, t):
     a, b = trajectory[lo], trajectory[hi]
     s = (t - a[0]) / (b[0] - a[0]) if b[0] > a[0] else 0.0
     return [a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2]), wrap_angle(a[3] + s * wrap_angle(b[3] - a[3]))]
+
+
+def radio_links(robots, range_m, period_s, duration_s):
+    """[(t, [(a, b), ...])] every period_s from 0 to duration_s: the pairs of robots (a < b) within
+    range_m of each other at t, from their truth.json trajectories, as the feeder decides
+    (sim_feeder/radio_model.h). robots: {id: truth.json record}."""
+    ids = sorted(rid for rid, r in robots.items() if r.get("trajectory"))
+    out = []
+    for k in range(int(math.floor(duration_s / period_s + 1e-9)) + 1):
+        t = k * period_s
+        at = {rid: pose_at(robots[rid]["trajectory"], t) for rid in ids}
+        pairs = [(a, b) for i, a in enumerate(ids) for b in ids[i + 1:]
+                 if math.hypot(at[a][0] - at[b][0], at[a][1] - at[b][1]) <= range_m]
+        out.append((t, pairs))
+    return out
+
+
+def radio_spans(links, period_s):
+    """{(a, b): [(start, end)]}: the spans in which each pair was in range, from radio_links."""
+    spans = {}
+    for t, pairs in links:
+        for pair in pairs:
+            runs = spans.setdefault(pair, [])
+            if runs and abs(runs[-1][1] - t) < 1e-9:
+                runs[-1] = (runs[-1][0], t + period_s)
+            else:
+                runs.append((t, t + period_s))
+    return spans
+
+
+def read_history(path):
+    """The entries of an agent's history.jsonl (a line cut short by a kill is skipped)."""
+    out = []
+    path = Path(path)
+    if path.exists():
+        for text in path.read_text().splitlines():
+            try:
+                e = json.loads(text)
+            except ValueError:
+                continue
+            if isinstance(e, dict):
+                out.append(e)
+    return out
+
+
+def alignment_changes(entries):
+    """[(t, peer, aligned?)] from an agent's history entries: a peer that appears among
+    peers_aligned, or leaves it, within one incarnation (a new incarnation starts with none)."""
+    out, held, inc = [], set(), None
+    for e in entries:
+        if not isinstance(e.get("t"), (int, float)):
+            continue
+        if e.get("incarnation") != inc:
+            held, inc = set(), e.get("incarnation")
+        now = {p for p in (e.get("peers_aligned") or []) if isinstance(p, int)}
+        out += [(float(e["t"]), p, True) for p in sorted(now - held)]
+        out += [(float(e["t"]), p, False) for p in sorted(held - now)]
+        held = now
+    return out

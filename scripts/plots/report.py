@@ -17,17 +17,24 @@ The page shows:
     is its RMSE after a least-squares rigid fit of the map to the landmark truth
     (rmse_aligned_m); its RMSE in the robot's true map frame (rmse_m), which adds the map's
     heading drift, is shown beside it (the table, each map figure's title and caption);
-  - per agent, its maps in the world frame: true landmarks (grey, darker when some robot saw
-    them), true trajectory, the estimated local and global maps with their 95 % ellipses and
-    the estimated trajectory, placed by the agent's frame_in_world from summary.json. When a
-    summary has no frame_in_world (older runs) the frame is taken from the truth, as
-    mapmesh-eval does: the robot's true pose at the map frame's origin stamp. A frame_in_world
-    of null means the pose is unknown: the maps are drawn in the agent's own frame;
-  - from timeline.json (when the run has one): which agent received maps from which and when,
-    mean NEES and coverage over time, bytes exchanged over time. Without it the page says so.
+  - under it, the maps whose mean NEES is outside the consistency band [1, 3] (their cells red);
+  - per agent, its maps in two panels: true landmarks (grey, darker when some robot saw them),
+    true trajectory, the estimated local and global maps with their 95 % ellipses and the
+    estimated trajectory. Left, placed by the agent's frame_in_world from summary.json (the
+    heading drift shows); when a summary has no frame_in_world (older runs) the frame is taken
+    from the truth, as mapmesh-eval does: the robot's true pose at the map frame's origin
+    stamp; a frame_in_world of null means the pose is unknown: the maps are drawn in the agent's
+    own frame. Right, each map placed by its own rigid fit to the truth (local.fit_in_world,
+    global.fit_in_world): what the accuracy figures measure;
+  - from timeline.json (when the run has one): the RMSE after the rigid fit over time; per pair
+    of agents, when they were in radio range (truth and run.json's radio.range_m), when the
+    receiver got maps from the sender and when it aligned it; mean NEES (each map kind on its own
+    axis, the band [1, 3] drawn), coverage and bytes over time; no line across the time an agent
+    was dead. Without it the page says so.
 
-Reads summary.json (required), truth.json, timeline.json and agent_<id>/{local_map,
-global_map,trajectory,stats}.json (each optional; whatever is missing is skipped with a note).
+Reads summary.json (required), truth.json, timeline.json, run.json and agent_<id>/{local_map,
+global_map,trajectory,stats}.json and history.jsonl (each optional; whatever is missing is
+skipped with a note).
 Needs Debian's python3-matplotlib and python3-numpy (scripts/install-deps installs them)."""
 
 import html
@@ -40,8 +47,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
 from plotlib import directory_argument, plt  # noqa: E402
 from mapmesh.columns import HTML_COLUMNS, lookup  # noqa: E402
-from mapmesh.rundir import (GLOBAL_MAP, LOCAL_MAP, REPORT, STATS, SUMMARY, TIMELINE, TRAJECTORY,  # noqa: E402
-                            TRUTH, RunDir, pose_at, truth_robots)
+from mapmesh.rundir import (GLOBAL_MAP, HISTORY, LOCAL_MAP, REPORT, STATS, SUMMARY, TIMELINE,  # noqa: E402
+                            TRAJECTORY, TRUTH, RunDir, alignment_changes, pose_at, radio_links, radio_spans,
+                            read_history, truth_robots)
 
 import numpy as np  # noqa: E402
 from matplotlib.collections import PatchCollection  # noqa: E402
@@ -51,8 +59,10 @@ from matplotlib.patches import Ellipse  # noqa: E402
 DPI = 100
 # Half-axes of the 95 % ellipse of a 2-D Gaussian, in standard deviations: sqrt(chi2_2(0.95)).
 SIGMA_95 = 2.448
-# Expected NEES of a consistent 2-D estimate (its degrees of freedom).
+# Expected NEES of a consistent 2-D estimate (its degrees of freedom), and the band a map's mean
+# NEES is counted consistent in (flagged in the summary outside it).
 NEES_EXPECTED = 2.0
+NEES_BAND = (1.0, 3.0)
 DASH = "\u2013"  # what a cell shows for a null value
 
 LOCAL_COLOUR = "tab:blue"
@@ -153,6 +163,21 @@ class Run(RunDir):
         self.restarts = events(self.summary.get("restarts"), (self.timeline or {}).get("restarts"))
         self.pauses = events(self.summary.get("pauses"), (self.timeline or {}).get("pauses"))
         self.duration = self.summary.get("sim_duration_s") or (self.truth or {}).get("duration_s")
+        resolved = (self.load("run.json", quiet=True) or {}).get("resolved") or {}
+        self.range_m = resolved.get("radio.range_m")  # None for a run without run.json
+        self.links_period = resolved.get("radio.links_period_s") or 0.5
+
+    def radio_spans(self):
+        """{(a, b): [(start, end)]} in which robots a < b were in radio range (truth and
+        radio.range_m of run.json), or {} when the run does not say its range."""
+        if not isinstance(self.range_m, (int, float)) or not self.duration or not self.truth_robots:
+            return {}
+        return radio_spans(radio_links(self.truth_robots, self.range_m, self.links_period, self.duration),
+                           self.links_period)
+
+    def alignments(self, rid):
+        """[(t, peer, aligned?)] of agent rid's history.jsonl."""
+        return alignment_changes(read_history(self.path(HISTORY, rid)))
 
     def agent_file(self, rid, name):
         return self.load(name, rid, quiet=True)
@@ -213,79 +238,75 @@ def landmark_arrays(m):
     return np.array([[lm["x"], lm["y"]] for lm in lms], dtype=float).reshape(-1, 2), [lm.get("cov") for lm in lms]
 
 
-def map_figure(run, agent, path):
-    """The maps of one agent, in the world frame when its frame's pose is known. Returns the
-    frame description."""
-    rid = agent.get("id")
-    local = run.agent_file(rid, LOCAL_MAP)
-    glob = run.agent_file(rid, GLOBAL_MAP)
-    traj = run.agent_file(rid, TRAJECTORY)
-    stats = run.agent_file(rid, STATS)
-    for name, value in ((LOCAL_MAP, local), (GLOBAL_MAP, glob), (TRAJECTORY, traj)):
-        if value is None:
-            run.notes.append(f"agent {rid}: no {name}")
-    frame, frame_text = agent_frame(run, agent, traj, stats)
-    in_world = frame is not None
-    theta = frame[2] if in_world else 0.0
+def valid_frame(frame):
+    """frame as [x, y, theta] floats when it is one, else None."""
+    if isinstance(frame, list) and len(frame) == 3 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in frame):
+        return [float(v) for v in frame]
+    return None
 
-    fig, ax = plt.subplots(figsize=(11, 8.5))
-    fig.subplots_adjust(left=0.07, right=0.76, top=0.90, bottom=0.07)
-    handles = []
-    extent = []  # points the view must hold
-    if in_world and run.truth:
-        lms = run.truth.get("landmarks", [])
-        seen = set(run.truth.get("seen", []))
-        pts = np.array([[lm["x"], lm["y"]] for lm in lms], dtype=float).reshape(-1, 2)
-        mask = np.array([lm.get("id") in seen for lm in lms], dtype=bool)
-        ax.scatter(pts[~mask, 0], pts[~mask, 1], s=6, c="#cfcfcf", zorder=1, linewidths=0)
-        ax.scatter(pts[mask, 0], pts[mask, 1], s=8, c="#8a8a8a", zorder=1, linewidths=0)
-        handles += [Line2D([], [], ls="", marker="o", ms=3, color="#cfcfcf", label="true landmark (unseen)"),
-                    Line2D([], [], ls="", marker="o", ms=3, color="#8a8a8a", label="true landmark (seen)")]
-        extent.append(pts)
-        robot = run.truth_robots.get(rid)
-        true_traj = np.array([p[1:3] for p in (robot or {}).get("trajectory", [])], dtype=float).reshape(-1, 2)
-        if len(true_traj):
-            ax.plot(true_traj[:, 0], true_traj[:, 1], color="black", lw=0.8, zorder=2)
-            ax.plot(true_traj[0, 0], true_traj[0, 1], "k>", ms=7, zorder=6)
-            handles.append(Line2D([], [], color="black", lw=0.8, marker=">", ms=5, label="true trajectory (start)"))
-            extent.append(true_traj)
-            full = robot.get("trajectory")
-            for kid, t in run.kills:
-                if kid == rid and (p := pose_at(full, t)):
-                    ax.plot(p[0], p[1], "x", color="red", ms=12, mew=2.5, zorder=7)
-            for kid, t in run.restarts:
-                if kid == rid and (p := pose_at(full, t)):
-                    ax.plot(p[0], p[1], "^", color="green", ms=10, zorder=7)
-            if any(k == rid for k, _ in run.kills):
-                handles.append(Line2D([], [], ls="", marker="x", color="red", ms=8, mew=2, label="killed"))
-            if any(k == rid for k, _ in run.restarts):
-                handles.append(Line2D([], [], ls="", marker="^", color="green", ms=7, label="restarted"))
 
-    for m, colour, marker, label, z in ((glob, GLOBAL_COLOUR, "+", "global map", 3),
-                                        (local, LOCAL_COLOUR, "o", "local map", 4)):
+def draw_truth(ax, run, rid, handles, extent):
+    """The true landmarks, the robot's true trajectory and its kills and restarts (world frame)."""
+    lms = run.truth.get("landmarks", [])
+    seen = set(run.truth.get("seen", []))
+    pts = np.array([[lm["x"], lm["y"]] for lm in lms], dtype=float).reshape(-1, 2)
+    mask = np.array([lm.get("id") in seen for lm in lms], dtype=bool)
+    ax.scatter(pts[~mask, 0], pts[~mask, 1], s=6, c="#cfcfcf", zorder=1, linewidths=0)
+    ax.scatter(pts[mask, 0], pts[mask, 1], s=8, c="#8a8a8a", zorder=1, linewidths=0)
+    handles += [Line2D([], [], ls="", marker="o", ms=3, color="#cfcfcf", label="true landmark (unseen)"),
+                Line2D([], [], ls="", marker="o", ms=3, color="#8a8a8a", label="true landmark (seen)")]
+    extent.append(pts)
+    robot = run.truth_robots.get(rid)
+    true_traj = np.array([p[1:3] for p in (robot or {}).get("trajectory", [])], dtype=float).reshape(-1, 2)
+    if not len(true_traj):
+        return
+    ax.plot(true_traj[:, 0], true_traj[:, 1], color="black", lw=0.8, zorder=2)
+    ax.plot(true_traj[0, 0], true_traj[0, 1], "k>", ms=7, zorder=6)
+    handles.append(Line2D([], [], color="black", lw=0.8, marker=">", ms=5, label="true trajectory (start)"))
+    extent.append(true_traj)
+    full = robot.get("trajectory")
+    for kid, t in run.kills:
+        if kid == rid and (p := pose_at(full, t)):
+            ax.plot(p[0], p[1], "x", color="red", ms=12, mew=2.5, zorder=7)
+    for kid, t in run.restarts:
+        if kid == rid and (p := pose_at(full, t)):
+            ax.plot(p[0], p[1], "^", color="green", ms=10, zorder=7)
+    if any(k == rid for k, _ in run.kills):
+        handles.append(Line2D([], [], ls="", marker="x", color="red", ms=8, mew=2, label="killed"))
+    if any(k == rid for k, _ in run.restarts):
+        handles.append(Line2D([], [], ls="", marker="^", color="green", ms=7, label="restarted"))
+
+
+def draw_estimates(ax, local, glob, traj, local_frame, global_frame, handles, extent):
+    """The local and global maps with their 95 % ellipses, each placed by its frame (None: as
+    they are), and the estimated trajectory, placed as the local map."""
+    for m, frame, colour, marker, label, z in ((glob, global_frame, GLOBAL_COLOUR, "+", "global map", 3),
+                                               (local, local_frame, LOCAL_COLOUR, "o", "local map", 4)):
         xy, covs = landmark_arrays(m)
         if not len(xy):
             continue
         xy = to_world(frame, xy)
         is_local = marker == "o"
-        ax.add_collection(PatchCollection(ellipse_patches(xy, covs, theta), facecolor="none", edgecolor=colour,
-                                          linewidth=1.0 if is_local else 0.8, alpha=1.0 if is_local else 0.75,
-                                          zorder=z))
+        ax.add_collection(PatchCollection(ellipse_patches(xy, covs, frame[2] if frame else 0.0), facecolor="none",
+                                          edgecolor=colour, linewidth=1.0 if is_local else 0.8,
+                                          alpha=1.0 if is_local else 0.75, zorder=z))
         ax.scatter(xy[:, 0], xy[:, 1], s=9 if is_local else 16, marker=marker, c=[colour], zorder=z,
                    linewidths=0 if is_local else 0.9)
         handles.append(Line2D([], [], ls="-", lw=0.8, marker=marker, ms=5, color=colour,
                               label=f"{label} ({len(xy)}) + 95 % ellipse"))
         extent.append(xy)
-
     poses = np.array([p[1:3] for p in (traj or {}).get("poses", []) if len(p) >= 3], dtype=float).reshape(-1, 2)
     if len(poses):
-        est = to_world(frame, poses)
+        est = to_world(local_frame, poses)
         ax.plot(est[:, 0], est[:, 1], color="tab:purple", lw=1.0, ls="--", zorder=5)
         ax.plot(est[-1, 0], est[-1, 1], "o", color="tab:purple", ms=5, zorder=6)
         handles.append(Line2D([], [], color="tab:purple", lw=1.0, ls="--", marker="o", ms=4,
                               label="estimated trajectory (end)"))
         extent.append(est)
 
+
+def finish_panel(ax, extent, title):
     if extent:
         allpts = np.vstack(extent)
         allpts = allpts[np.all(np.isfinite(allpts), axis=1)]
@@ -300,11 +321,51 @@ def map_figure(run, agent, path):
     ax.grid(alpha=0.25)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
+    ax.set_title(title, fontsize=10)
+
+
+def map_figure(run, agent, path):
+    """The maps of one agent in two panels: as placed in the world by the agent's map frame (the
+    heading drift shows), and each map after its own least-squares rigid fit to the truth (what
+    the accuracy figures measure). Returns the frame description."""
+    rid = agent.get("id")
+    local = run.agent_file(rid, LOCAL_MAP)
+    glob = run.agent_file(rid, GLOBAL_MAP)
+    traj = run.agent_file(rid, TRAJECTORY)
+    stats = run.agent_file(rid, STATS)
+    for name, value in ((LOCAL_MAP, local), (GLOBAL_MAP, glob), (TRAJECTORY, traj)):
+        if value is None:
+            run.notes.append(f"agent {rid}: no {name}")
+    frame, frame_text = agent_frame(run, agent, traj, stats)
     loc, glo = agent.get("local") or {}, agent.get("global") or {}
-    ax.set_title(f"agent {rid} \u2013 {frame_text}\nlandmarks local {cell_text(loc.get('landmarks'))} / "
-                 f"global {cell_text(glo.get('landmarks'))}\n{rmse_text(agent)}", fontsize=11)
+    local_fit, global_fit = valid_frame(loc.get("fit_in_world")), valid_frame(glo.get("fit_in_world"))
+
+    fig, axes = plt.subplots(1, 2, figsize=(16, 8.6))
+    fig.subplots_adjust(left=0.05, right=0.985, top=0.86, bottom=0.17, wspace=0.16)
+    handles = []
+    for i, ax in enumerate(axes):
+        extent, panel = [], []
+        if run.truth and (frame is not None or i == 1):
+            draw_truth(ax, run, rid, panel, extent)
+        if i == 0:
+            draw_estimates(ax, local, glob, traj, frame, frame, panel, extent)
+            title = (f"as placed by the agent's map frame ({frame_text}):\nthe heading drift shows; RMSE true "
+                     f"frame local {cell_text(loc.get('rmse_m'))} m / global {cell_text(glo.get('rmse_m'))} m")
+        elif local_fit or global_fit:
+            draw_estimates(ax, local if local_fit else None, glob if global_fit else None, traj if local_fit else None,
+                           local_fit, global_fit, panel, extent)
+            title = (f"each map after its least-squares rigid fit to the truth:\nRMSE after rigid fit local "
+                     f"{cell_text(loc.get('rmse_aligned_m'))} m / global {cell_text(glo.get('rmse_aligned_m'))} m")
+        else:
+            ax.text(0.5, 0.5, "no rigid fit in summary.json (fit_in_world)", transform=ax.transAxes,
+                    ha="center", va="center", color="grey")
+            title = "each map after its rigid fit to the truth"
+        finish_panel(ax, extent, title)
+        handles += [h for h in panel if h.get_label() not in {x.get_label() for x in handles}]
+    fig.suptitle(f"agent {rid}: landmarks local {cell_text(loc.get('landmarks'))} / global "
+                 f"{cell_text(glo.get('landmarks'))}\n{rmse_text(agent)}", fontsize=12)
     if handles:
-        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9, frameon=False)
+        fig.legend(handles=handles, loc="lower center", ncol=min(4, len(handles)), fontsize=9, frameon=False)
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return frame_text
@@ -322,21 +383,24 @@ def timeline_entries(run):
     return out
 
 
-def series(entries, value, cumulative=False):
-    """(t, v) arrays of one agent's timeline; NaN breaks the line where the incarnation changes.
+def series(entries, value, cumulative=False, breaks=()):
+    """(t, v) arrays of one agent's timeline; NaN breaks the line where the incarnation changes
+    and at each time in breaks (the agent's kills: no line across the time it was dead).
     cumulative: v counts from 0 in each incarnation; add the previous incarnations' totals."""
     ts, vs = [], []
-    offset, last, inc = 0.0, None, None
+    offset, last, inc, prev_t = 0.0, None, None, None
     for e in entries:
         v = value(e)
         v = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
-        if inc is not None and e.get("incarnation") != inc:
+        changed = inc is not None and e.get("incarnation") != inc
+        if changed or (prev_t is not None and any(prev_t < b <= e["t"] for b in breaks)):
             ts.append(math.nan)
             vs.append(math.nan)
+        if changed:
             if cumulative and last is not None:
                 offset += last
             last = None
-        inc = e.get("incarnation")
+        inc, prev_t = e.get("incarnation"), e["t"]
         if cumulative and math.isfinite(v):
             last = v
         ts.append(e["t"])
@@ -372,12 +436,24 @@ def time_axis(ax, run, ylabel, title):
 def agent_lines(ax, run, tl, value, cumulative=False, ls="-", labels=True):
     drawn = False
     for rid, entries in tl.items():
-        t, v = series(entries, value, cumulative)
+        t, v = series(entries, value, cumulative, breaks=[k for i, k in run.kills if i == rid])
         if np.any(np.isfinite(v)):
             ax.plot(t, v, ls=ls, marker=".", ms=3, lw=1.2, color=run.colours.get(rid, "grey"),
                     label=f"agent {rid}" if labels else None)
             drawn = True
     return drawn
+
+
+def legend_below(fig, axes):
+    """One legend for the figure's panels, below them, so that it never hides a value."""
+    handles, labels = [], []
+    for ax in axes:
+        for h, label in zip(*ax.get_legend_handles_labels()):
+            if label not in labels:
+                handles.append(h)
+                labels.append(label)
+    if handles:
+        fig.legend(handles, labels, loc="lower center", ncol=min(len(handles), 6), fontsize=8, frameon=False)
 
 
 def no_data(ax, what):
@@ -408,7 +484,15 @@ def exchanges_figure(run, tl, period, path):
     restarts_at = {}
     for rid, t in run.restarts:
         restarts_at.setdefault(rid, []).append(t)
+    in_range = run.radio_spans()
+    aligned = {r: run.alignments(r) for r in receivers}
     for y, (r, s) in enumerate(rows):
+        spans = in_range.get((min(r, s), max(r, s)), []) if isinstance(r, int) and isinstance(s, int) else []
+        if spans:
+            ax.broken_barh([(a, b - a) for a, b in spans], (y - 0.47, 0.94), facecolors="#d8efd8", zorder=0)
+        for t, peer, now in aligned.get(r, []):
+            if peer == s:
+                ax.plot(t, y, "D", ms=6, mfc="black" if now else "white", mec="black", mew=1.2, zorder=4)
         bars = []
         prev_t, prev_n, inc = None, 0, None
         for e in tl[r]:
@@ -421,7 +505,7 @@ def exchanges_figure(run, tl, period, path):
             if n > prev_n:
                 bars.append((prev_t, e["t"] - prev_t))
             prev_t, prev_n = e["t"], n
-        ax.broken_barh(bars, (y - 0.35, 0.7), facecolors=[run.colours.get(s, "grey")])
+        ax.broken_barh(bars, (y - 0.3, 0.6), facecolors=[run.colours.get(s, "grey")], zorder=2)
     # Group the rows of each receiver, with its kills and dead time.
     y = 0
     for r in receivers:
@@ -453,44 +537,61 @@ def exchanges_figure(run, tl, period, path):
     if run.duration:
         ax.set_xlim(0, run.duration)
     ax.grid(axis="x", alpha=0.3)
-    ax.set_title("maps received: a bar over each checkpoint period in which the receiver got maps from the sender"
-                 "\n(red \u00d7: killed, shaded until restarted; green \u25b2: restarted; orange |: paused)",
-                 fontsize=10)
+    radio = (f"pale green: within radio range ({format_number(run.range_m)} m); " if in_range else "")
+    ax.set_title(radio + "bar: a checkpoint period in which the receiver got maps from the sender;\n"
+                 "\u25c6 the receiver aligned the sender, \u25c7 no longer held it; red \u00d7: killed, shaded until "
+                 "restarted; green \u25b2: restarted; orange |: paused", fontsize=10)
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
 
 
 def nees_figure(run, tl, path):
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.8), sharey=True)
-    fig.subplots_adjust(left=0.06, right=0.98, top=0.86, bottom=0.12, wspace=0.06)
-    finite = []
+    """Local and global NEES over time, each on its own axis (log when the values span more than
+    30x, so that every value shows), with the consistency band [NEES_BAND] shaded."""
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
+    fig.subplots_adjust(left=0.065, right=0.98, top=0.86, bottom=0.24, wspace=0.2)
     for ax, kind in zip(axes, ("local", "global")):
-        drawn = agent_lines(ax, run, tl, lambda e, k=kind: lookup(e, f"{k}.nees_mean"))
+        ax.axhspan(*NEES_BAND, color="tab:green", alpha=0.12, lw=0,
+                   label=f"consistency band [{NEES_BAND[0]:g}, {NEES_BAND[1]:g}]")
         ax.axhline(NEES_EXPECTED, color="black", ls="--", lw=1, label="expected (2 dof)")
+        drawn = agent_lines(ax, run, tl, lambda e, k=kind: lookup(e, f"{k}.nees_mean"))
         time_axis(ax, run, "mean NEES", f"{kind} map: mean NEES of matched landmarks")
-        if drawn:
-            ax.legend(fontsize=8)
-        else:
+        values = [y for line in ax.get_lines()[1:] for y in np.asarray(line.get_ydata(), dtype=float)
+                  if np.isfinite(y) and y > 0]
+        if values and max(values + [NEES_BAND[1]]) / min(values + [NEES_BAND[0]]) > 30:
+            ax.set_yscale("log")
+        if not drawn:
             no_data(ax, f"{kind} NEES")
-        for line in ax.get_lines():
-            y = np.asarray(line.get_ydata(), dtype=float)
-            finite.extend(y[np.isfinite(y) & (y > 0)])
-    if finite and max(finite) / max(min(finite), 1e-9) > 30:
-        axes[0].set_yscale("log")
+    legend_below(fig, axes)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def rmse_figure(run, tl, path):
+    """Local and global RMSE after the rigid fit to the truth over time (timeline.json)."""
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
+    fig.subplots_adjust(left=0.065, right=0.98, top=0.86, bottom=0.24, wspace=0.2)
+    for ax, kind in zip(axes, ("local", "global")):
+        drawn = agent_lines(ax, run, tl, lambda e, k=kind: lookup(e, f"{k}.rmse_aligned_m"))
+        time_axis(ax, run, "RMSE after rigid fit (m)", f"{kind} map: RMSE after a rigid fit to the truth")
+        ax.set_ylim(bottom=0)
+        if not drawn:
+            no_data(ax, f"{kind} RMSE after rigid fit")
+    legend_below(fig, axes)
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
 
 
 def coverage_figure(run, tl, path):
     fig, ax = plt.subplots(figsize=(11, 4.8))
-    fig.subplots_adjust(left=0.07, right=0.98, top=0.86, bottom=0.12)
+    fig.subplots_adjust(left=0.07, right=0.98, top=0.86, bottom=0.24)
     drawn = agent_lines(ax, run, tl, lambda e: lookup(e, "global.coverage"))
     agent_lines(ax, run, tl, lambda e: lookup(e, "local.coverage"), ls=":", labels=False)
     time_axis(ax, run, "coverage", "coverage: share of the seen true landmarks in the map "
                                    "(solid: global map, dotted: local map)")
     ax.set_ylim(0, 1.02)
     if drawn:
-        ax.legend(fontsize=8, loc="lower right")
+        legend_below(fig, [ax])
     else:
         no_data(ax, "coverage")
     fig.savefig(path, dpi=DPI)
@@ -499,28 +600,32 @@ def coverage_figure(run, tl, path):
 
 def bytes_figure(run, tl, path):
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
-    fig.subplots_adjust(left=0.07, right=0.98, top=0.86, bottom=0.12, wspace=0.2)
+    fig.subplots_adjust(left=0.07, right=0.98, top=0.86, bottom=0.24, wspace=0.2)
     for ax, key in zip(axes, ("bytes_sent", "bytes_received")):
         drawn = agent_lines(ax, run, tl, lambda e, k=key: None if e.get(k) is None else e[k] / 1000.0,
                             cumulative=True)
         time_axis(ax, run, "kB (cumulative over incarnations)", key.replace("_", " "))
-        if drawn:
-            ax.legend(fontsize=8, loc="upper left")
-        else:
+        if not drawn:
             no_data(ax, key)
+    legend_below(fig, axes)
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
 
 
 # ----- page ---------------------------------------------------------------------------------
 CSS = """
-body { font-family: sans-serif; margin: 1.5em; color: #222; max-width: 1400px; }
+body { font-family: sans-serif; margin: 1.5em; color: #222; max-width: 1600px; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
 table { border-collapse: collapse; font-size: 0.85em; margin: 0.6em 0; }
+table#summary { font-size: 0.72em; }
+table#summary th, table#summary td { padding: 0.15em 0.3em; }
+div.wide { overflow-x: auto; }
 th, td { border: 1px solid #ccc; padding: 0.2em 0.5em; }
 th { background: #f0f0f0; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; }
 tr.dead td { background: #fdecec; }
+td.flag { background: #f9c9c9; font-weight: bold; }
+ul.flags { color: #8a1010; }
 img { max-width: 100%; height: auto; border: 1px solid #eee; margin: 0.4em 0; }
 .note { color: #7a4b00; }
 figure { margin: 0 0 1.2em 0; } figcaption { font-size: 0.85em; color: #555; }
@@ -535,6 +640,25 @@ def events_text(events):
     return ", ".join(f"agent {rid} at {t:.1f} s" for rid, t in events) or "none"
 
 
+NEES_KEYS = ("local.nees_mean", "global.nees_mean")
+
+
+def outside_band(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and not NEES_BAND[0] <= v <= NEES_BAND[1]
+
+
+def flags_html(run):
+    """A list of the maps whose mean NEES is outside the consistency band (their cells are red)."""
+    items = [f"agent {a.get('id')}: {key.split('.')[0]} map mean NEES {format_number(lookup(a, key))}"
+             for a in run.agents for key in NEES_KEYS if outside_band(lookup(a, key))]
+    if not items:
+        return (f'<p id="flags">Every map\'s mean NEES is within the consistency band [{NEES_BAND[0]:g}, '
+                f"{NEES_BAND[1]:g}].</p>")
+    return (f'<p>Flagged: mean NEES outside the consistency band [{NEES_BAND[0]:g}, {NEES_BAND[1]:g}] (below: '
+            "the map claims less certainty than it has; above: more, an overconfident map).</p>"
+            '<ul id="flags" class="flags">' + "".join(f"<li>{esc(i)}</li>" for i in items) + "</ul>")
+
+
 def summary_table(run):
     out = ['<table id="summary">', "<tr>" + "".join(f'<th data-key="{esc(c.key)}">{esc(c.html)}</th>'
                                                     for c in HTML_COLUMNS) + "</tr>"]
@@ -544,7 +668,8 @@ def summary_table(run):
         for c in HTML_COLUMNS:
             v = c.value(a)
             num = isinstance(v, (int, float, list)) and not isinstance(v, bool)
-            cls_num = ' class="num"' if num else ""
+            classes = (["num"] if num else []) + (["flag"] if c.key in NEES_KEYS and outside_band(v) else [])
+            cls_num = f' class="{" ".join(classes)}"' if classes else ""
             cells.append(f'<td data-key="{esc(c.key)}" data-value="{esc(json.dumps(v))}"{cls_num}>'
                          f"{esc(cell_text(v, c.count))}</td>")
         out.append(f'<tr data-agent="{esc(a.get("id"))}"{cls}>' + "".join(cells) + "</tr>")
@@ -633,22 +758,28 @@ def write_report(d):
         tl = timeline_entries(run)
         period = run.timeline.get("period_s") or typical_period(tl)
         exchanges_figure(run, tl, period, out / "exchanges.png")
+        rmse_figure(run, tl, out / "rmse.png")
         nees_figure(run, tl, out / "nees.png")
         coverage_figure(run, tl, out / "coverage.png")
         bytes_figure(run, tl, out / "bytes.png")
         timeline = [
-            figure_html("report/exchanges.png", "map exchanges over time",
-                        f"Maps received, per receiver \u2190 sender, per checkpoint period ({seconds(period)})."),
+            figure_html("report/rmse.png", "RMSE after rigid fit over time",
+                        "Each map's accuracy over time: its RMSE after a least-squares rigid fit of the whole map "
+                        "to the landmark truth, at each checkpoint. No line across the time an agent was dead."),
+            figure_html("report/exchanges.png", "radio, map exchanges and alignments over time",
+                        "Per receiver \u2190 sender: when the two were within radio range, the checkpoint periods "
+                        f"({seconds(period)}) in which maps arrived, and when the receiver aligned the sender."),
             figure_html("report/nees.png", "NEES over time",
-                        "Mean NEES of the matched landmarks over time; 2 is the expected value of a consistent "
-                        "estimate."),
+                        "Mean NEES of the matched landmarks over time, each map kind on its own axis; 2 is the "
+                        f"expected value of a consistent estimate, and a map outside [{NEES_BAND[0]:g}, "
+                        f"{NEES_BAND[1]:g}] is flagged in the summary."),
             figure_html("report/coverage.png", "coverage over time", "Coverage of the seen true landmarks."),
             figure_html("report/bytes.png", "bytes exchanged over time",
                         "Bytes sent and received, cumulative over an agent's incarnations."),
         ]
     else:
         timeline = ['<p class="note" id="no-timeline">This run has no timeline.json: the plots over time '
-                    "(exchanges, NEES, coverage, bytes) are skipped.</p>"]
+                    "(RMSE, exchanges, NEES, coverage, bytes) are skipped.</p>"]
 
     rtf = s.get("real_time_factor")
     intro = (f"Scenario <b>{esc(s.get('scenario', '?'))}</b>"
@@ -679,7 +810,8 @@ landmarks; coverage is the share of the true landmarks some robot saw that the m
 accuracy is its RMSE after a least-squares rigid fit of the map to the landmark truth; the RMSE
 in the robot's true map frame beside it also holds the heading error the map built up (its
 heading drift). Red rows: agents not alive at the end.</p>
-{summary_table(run)}
+<div class="wide">{summary_table(run)}</div>
+{flags_html(run)}
 <h2>The limit</h2>
 {limit}
 <h2>Peers and events</h2>

@@ -8,7 +8,7 @@ import math
 import subprocess
 import unittest
 
-from report_test import SWEEP_HEADER, check_png, check_report, check_sweep
+from report_test import SWEEP_HEADER, check_in_browser, check_png, check_report, check_sweep
 from swarm_test import REPO, SWARM, SwarmCase
 
 SCENARIOS = REPO / "scenarios"
@@ -208,6 +208,8 @@ class ExperimentOutputTest(SwarmCase):
         r = subprocess.run(SWARM + ["report", str(self.out)], capture_output=True, text=True, timeout=120)
         self.assertEqual(r.returncode, 0, r.stderr)
         check_report(self, self.out, run=False)
+        # X1: what a reader sees in a real browser.
+        check_in_browser(self, self.out, self.out.parent / "report.png")
 
     def test_sweep_over_a_grid_with_a_kill(self):
         """X1: several --param (a grid) with seeds and a fault schedule from one command; a tidy

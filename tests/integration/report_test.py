@@ -34,19 +34,21 @@ SWEEP = REPO / "scripts" / "plots" / "sweep.py"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 sys.path.insert(0, str(REPO / "scripts"))
 from mapmesh import columns  # noqa: E402
-TIMELINE_IMAGES = ["report/exchanges.png", "report/nees.png", "report/coverage.png", "report/bytes.png"]
+TIMELINE_IMAGES = ["report/rmse.png", "report/exchanges.png", "report/nees.png", "report/coverage.png",
+                   "report/bytes.png"]
 # The summary table's columns (data-key = path in a summary.json agent) and their headers: a
 # map's RMSE after a rigid fit to the truth first, its RMSE in the true frame beside it.
 SUMMARY_KEYS = ["id", "alive_at_end", "exit_code", "restarts", "local.landmarks", "local.rmse_aligned_m",
                 "local.rmse_m", "local.nees_mean", "global.landmarks", "global.rmse_aligned_m", "global.rmse_m",
                 "global.nees_mean", "global.coverage", "global.central_rmse_aligned_m", "gap_to_central",
-                "gap_to_own_batch", "peers_aligned", "maps_received", "bytes_sent", "bytes_per_landmark", "cpu_s",
-                "max_rss_mb"]
+                "gap_to_own_batch", "local.trajectory_ate_aligned_m", "local.trajectory_rpe.translation_rmse_m",
+                "peers_aligned", "maps_received", "bytes_sent", "bytes_per_landmark", "cpu_s", "max_rss_mb"]
 SUMMARY_HEADERS = ["agent", "alive", "exit", "restarts", "local landmarks", "local RMSE after rigid fit (m)",
                    "local RMSE, true frame (m)", "local NEES", "global landmarks", "global RMSE after rigid fit (m)",
                    "global RMSE, true frame (m)", "global NEES", "global coverage",
                    "centralized optimum on the same landmarks (m)", "global RMSE / centralized optimum",
-                   "local RMSE / own batch optimum", "peers aligned", "maps received", "bytes sent", "bytes / landmark",
+                   "local RMSE / own batch optimum", "trajectory ATE after rigid fit (m)",
+                   "trajectory RPE over 1 s (m)", "peers aligned", "maps received", "bytes sent", "bytes / landmark",
                    "CPU (s)", "max RSS (MB)"]
 # sweep.csv as `swarm sweep` writes it, after the swept parameter.
 SWEEP_HEADER = ["seed", "agent", "alive", "lm_local", "lm_global", "coverage_global", "nees_global",
@@ -141,7 +143,8 @@ def make_fake_run(d):
                                      "frame_origin_stamp": origin_stamp[rid], "final": True})
         glob_metrics = {"landmarks": 0 if rid == 2 else len(glob), "rmse_m": 0.21 + 0.1 * rid,
                         "rmse_aligned_m": 0.0715 * rid,
-                        "nees_mean": 1.7 + rid / 3, "coverage": round(len(seen) * 0.9 / len(seen), 3),
+                        "nees_mean": 0.2 if rid == 3 else 1.7 + rid / 3,  # 0.2: outside [1, 3], flagged
+                        "coverage": round(len(seen) * 0.9 / len(seen), 3),
                         "consistent_ratio": 0.95, "rmse_own_landmarks_m": 0.2}
         if rid == 2:
             glob_metrics = None
@@ -153,7 +156,7 @@ def make_fake_run(d):
             "frame_in_world": None if rid == 2 else frame,
             "local": {"landmarks": len(local), "matched": len(local), "rmse_m": 0.123456789 * rid,
                       "rmse_aligned_m": None if rid == 2 else 0.0456 * rid,
-                      "nees_mean": None if rid == 3 else 2.0 + rid / 7,
+                      "nees_mean": {1: 848.0, 2: 2.0 + 2 / 7, 3: None}[rid],  # 848: flagged
                       "consistent_ratio": 0.97, "coverage": len(sensed[rid]) / len(seen),
                       "trajectory_rmse_m": 0.3, "frame": "true_origin"},
             "global": glob_metrics,
@@ -228,6 +231,10 @@ class _Page(HTMLParser):
         self.header_keys = []
         self.header_texts = []
         self.captions = {}  # data-agent of a figure's image -> its caption
+        self.flagged = set()  # (data-agent, data-key) of the summary cells of class flag
+        self.flag_items = []  # the texts of ul#flags's items
+        self._in_flags = False
+        self._flag_item = None
         self._in_summary = False
         self._header = None
         self._caption = None
@@ -251,17 +258,29 @@ class _Page(HTMLParser):
             self._caption = ""
         if tag == "table" and a.get("id") == "summary":
             self._in_summary = True
+        if tag == "ul" and a.get("id") == "flags":
+            self._in_flags = True
+        if tag == "li" and self._in_flags:
+            self._flag_item = ""
         if not self._in_summary:
             return
         if tag == "tr" and "data-agent" in a:
             self._row = self.table_rows.setdefault(a["data-agent"], [])
+            self._row_agent = a["data-agent"]
         elif tag == "th" and "data-key" in a:
             self.header_keys.append(a["data-key"])
             self._header = ""
         elif tag == "td" and self._row is not None:
             self._cell = [a.get("data-key"), a.get("data-value"), ""]
+            if "flag" in (a.get("class") or "").split():
+                self.flagged.add((self._row_agent, a.get("data-key")))
 
     def handle_endtag(self, tag):
+        if tag == "li" and self._flag_item is not None:
+            self.flag_items.append(self._flag_item)
+            self._flag_item = None
+        if tag == "ul":
+            self._in_flags = False
         if tag == "figcaption" and self._caption is not None:
             if self._figure_agent is not None:
                 self.captions[self._figure_agent] = self._caption
@@ -278,6 +297,8 @@ class _Page(HTMLParser):
             self._row = None
 
     def handle_data(self, data):
+        if self._flag_item is not None:
+            self._flag_item += data
         if self._cell is not None:
             self._cell[2] += data
         if self._header is not None:
@@ -372,6 +393,14 @@ def check_report(testcase, run_dir, run=True):
             expected = _lookup(a, key)
             testcase.assertEqual(json.loads(data_value), expected, where)
             _check_cell_text(testcase, expected, text, where)
+        # A map whose mean NEES is outside the consistency band [1, 3] is flagged: its cell and a
+        # line in the list under the table; no other is.
+        for key in ("local.nees_mean", "global.nees_mean"):
+            v = _lookup(a, key)
+            outside = isinstance(v, (int, float)) and not 1.0 <= v <= 3.0
+            testcase.assertEqual((str(a["id"]), key) in page.flagged, outside, f"agent {a['id']} {key} = {v}")
+            item = f"agent {a['id']}: {key.split('.')[0]} map mean NEES"
+            testcase.assertEqual(any(i.startswith(item) for i in page.flag_items), outside, page.flag_items)
         # Each map figure's caption quotes the RMSE after a rigid fit first, the true-frame one beside.
         m = re.search(r"RMSE after rigid fit local (\S+) m / global (\S+) m \(true frame (\S+) m / (\S+) m\)",
                       page.captions.get(str(a["id"]), ""))
@@ -380,6 +409,28 @@ def check_report(testcase, run_dir, run=True):
                              m.groups()):
             _check_cell_text(testcase, _lookup(a, key), text, f"agent {a['id']} caption {key}")
     return page
+
+
+def check_in_browser(testcase, run_dir, shot, width=1600):
+    """Opens run_dir/report.html in headless Chromium (tests/js/report_shot.mjs, npm
+    playwright-core driving Debian's chromium) and checks what a reader sees: every image loaded
+    with a size, none wider than the page shows it, the page no wider than the window, no error
+    in the console, the summary table there. Writes a full-page screenshot to shot; returns the
+    browser's facts."""
+    r = subprocess.run(["node", str(REPO / "tests" / "js" / "report_shot.mjs"), str(Path(run_dir) / "report.html"),
+                        str(shot), str(width)], capture_output=True, text=True, timeout=180)
+    testcase.assertEqual(r.returncode, 0, r.stderr)
+    facts = json.loads(r.stdout)
+    page = _Page()
+    page.feed((Path(run_dir) / "report.html").read_text())
+    testcase.assertEqual(facts["images"], len(page.images))
+    testcase.assertEqual(facts["broken"], [])
+    testcase.assertEqual(facts["too_wide"], [])
+    testcase.assertLessEqual(facts["page_width"], facts["view_width"], "the page scrolls sideways")
+    testcase.assertEqual(facts["console_errors"], [])
+    testcase.assertIn("summary", facts["tables"])
+    testcase.assertGreater(Path(shot).stat().st_size, 50_000)
+    return facts
 
 
 def make_fake_sweep(d, param="radio.range_m"):
@@ -461,6 +512,15 @@ class ReportTest(unittest.TestCase):
             self.assertIn("<td>centralized batch optimum (all robots&#x27; data)</td><td>60</td><td>0.0321</td>"
                           "<td>0.0385</td><td>1.97</td><td>yes</td>", text)
             self.assertIn("<td>robot 3&#x27;s own batch optimum</td>", text)
+
+    def test_report_in_a_real_browser(self):
+        with tempfile.TemporaryDirectory(prefix="mapmesh_report_") as tmp:
+            make_fake_run(tmp)
+            check_report(self, tmp)
+            facts = check_in_browser(self, tmp, Path(tmp) / "shot.png")
+            self.assertEqual(facts["title"], "mapmesh run: fake3")
+            self.assertEqual(png_size(Path(tmp) / "shot.png")[0], 1600)
+            self.assertGreater(facts["height"], 3000)  # a map per agent, the figures over time
 
     def test_report_without_timeline_or_agent_files(self):
         with tempfile.TemporaryDirectory(prefix="mapmesh_report_") as tmp:

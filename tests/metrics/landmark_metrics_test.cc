@@ -147,6 +147,11 @@ TEST(EvaluateFittedMap, FitsEveryMatchedLandmarkNotOnlyThoseWithSignatures) {
   for (const Landmark& l : m.landmarks) src.push_back(l.mean);
   const Pose2 best = *FitRigid2D(src, truth);
   EXPECT_NEAR(whole.rmse_m, EvaluateMap(TransformMap(m, best), truth, {}, 2.0).rmse_m, 1e-12);
+  // The placement it reports (drawn by the report's "after rigid fit" panel) is that optimum.
+  ASSERT_TRUE(whole.fit.has_value());
+  EXPECT_NEAR(whole.fit->x, best.x, 1e-9);
+  EXPECT_NEAR(whole.fit->y, best.y, 1e-9);
+  EXPECT_NEAR(whole.fit->theta, best.theta, 1e-9);
   for (const Pose2& nudge : {Pose2{0.01, 0, 0}, Pose2{0, -0.01, 0}, Pose2{0, 0, 0.002}}) {
     EXPECT_GT(EvaluateMap(TransformMap(m, best * nudge), truth, {}, 2.0).rmse_m, whole.rmse_m);
   }

@@ -47,7 +47,7 @@ TEST(CompareRelativePoses, AnyFrameGivesZeroAndAConstantErrorPerStepIsFound) {
   std::vector<PoseStamp> moved;
   const Pose2 frame{5, -3, 0.8};
   for (const PoseStamp& s : ref) moved.push_back({s.t, frame * s.pose});
-  const RelativePoseError same = CompareRelativePoses(moved, ref, 1.0);
+  const RelativeTrajectoryError same = CompareRelativePoses(moved, ref, 1.0);
   EXPECT_GT(same.pairs, 150);
   EXPECT_NEAR(same.translation_rmse_m, 0.0, 1e-9);
   EXPECT_NEAR(same.rotation_rmse_rad, 0.0, 1e-9);
@@ -59,7 +59,7 @@ TEST(CompareRelativePoses, AnyFrameGivesZeroAndAConstantErrorPerStepIsFound) {
     est.push_back({ref[i].t, pose});
     if (i + 1 < ref.size()) pose = pose * (ref[i].pose.Inverse() * ref[i + 1].pose) * Pose2{0, 0, 0.002};
   }
-  const RelativePoseError drift = CompareRelativePoses(est, ref, 1.0);
+  const RelativeTrajectoryError drift = CompareRelativePoses(est, ref, 1.0);
   EXPECT_EQ(drift.pairs, 200 - 8);
   EXPECT_NEAR(drift.rotation_rmse_rad, 0.016, 1e-9);
   EXPECT_GT(drift.translation_rmse_m, 0.0);
@@ -72,7 +72,7 @@ TEST(CompareRelativePoses, SkipsSpansTheEstimateDoesNotCover) {
   for (const PoseStamp& s : ref) {
     if (s.t <= 3.0 || s.t >= 6.0) est.push_back(s);  // a 3 s gap
   }
-  const RelativePoseError e = CompareRelativePoses(est, ref, 1.0, 0.5);
+  const RelativeTrajectoryError e = CompareRelativePoses(est, ref, 1.0, 0.5);
   // Pairs starting at 0-2 s and 6-11.375 s: 17 + 44, none reaching into the gap.
   EXPECT_EQ(e.pairs, 17 + 44);
   EXPECT_NEAR(e.translation_rmse_m, 0.0, 1e-12);
