@@ -29,7 +29,7 @@ AGENT_LOG = "agent.log"
 # left there, for earlier_run() and clear_earlier_run().
 RUN_FILES = (SUMMARY, TRUTH, TIMELINE, FEEDER, INJECT, REFERENCE, REPORT, "feeder.log", "inject.log",
              "cyclonedds.xml", "cyclonedds-netns.xml", "run.json", "scenario.yaml")
-RUN_DIRS = ("report", "security")
+RUN_DIRS = ("report", "security", "export")
 # A run's own files: DIR holds an earlier run when one of them is there.
 RUN_MARKS = (SUMMARY, FEEDER, TRUTH, "feeder.log", "run.json")
 
