@@ -208,6 +208,16 @@ class ExperimentOutputTest(SwarmCase):
         r = subprocess.run(SWARM + ["report", str(self.out)], capture_output=True, text=True, timeout=120)
         self.assertEqual(r.returncode, 0, r.stderr)
         check_report(self, self.out, run=False)
+        # X1: timeline.json has each map's RMSE after the rigid fit at every checkpoint, as the
+        # summary has it at the end (the last checkpoint holds the final maps).
+        timeline = json.loads((self.out / "timeline.json").read_text())
+        summary = json.loads((self.out / "summary.json").read_text())
+        for a in summary["agents"]:
+            entries = timeline["agents"][str(a["id"])]
+            fits = [e["local"]["rmse_aligned_m"] for e in entries if e.get("local")]
+            self.assertGreater(len(fits), 3)
+            self.assertTrue(all(isinstance(v, float) and 0 < v < 1 for v in fits), fits)
+            self.assertAlmostEqual(entries[-1]["local"]["rmse_aligned_m"], a["local"]["rmse_aligned_m"], places=9)
         # X1: what a reader sees in a real browser.
         check_in_browser(self, self.out, self.out.parent / "report.png")
 
