@@ -4,7 +4,6 @@ running any: the grid, and every run option given to each run as `swarm run` tak
 import sys
 import unittest
 from importlib.machinery import SourceFileLoader
-from pathlib import Path
 
 from swarm_test import REPO
 
