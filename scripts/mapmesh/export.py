@@ -1,5 +1,4 @@
-"""`swarm export DIR`: a finished run in standard formats, in DIR/export/ (docs/OUTPUTS.md
-"Exports"):
+"""`swarm export DIR`: a finished run in standard formats, in DIR/export/ (docs/EXPORTS.md):
   --tum   tum/agent_N.tum, each agent's estimated trajectory in its map frame, and
           tum/agent_N_truth.tum, its true one: in the same frame where the run knows where that
           frame lies (simulated worlds), else in the world frame (align it, e.g. evo_ape --align);

@@ -1,5 +1,5 @@
 """A run as an MCAP file (mapmesh/mcap.py) with Foxglove's message types in JSON, so that Foxglove
-(or any MCAP reader) plays it back over scenario time (docs/OUTPUTS.md "Exports"):
+(or any MCAP reader) plays it back over scenario time (docs/EXPORTS.md):
 
   /tf                       foxglove.FrameTransforms  where each agent's map frame agent_N lies in
                                                       the world (as the report draws it), at the start
