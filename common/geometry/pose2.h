@@ -28,6 +28,11 @@ struct Pose2 {
   // Jacobians of the result with respect to this pose (x, y, theta) and to the point.
   Eigen::Vector2d Apply(const Eigen::Vector2d& p, Eigen::Matrix<double, 2, 3>* j_pose = nullptr,
                         Eigen::Matrix2d* j_point = nullptr) const;
+  // The inverse map (GTSAM's transformTo): a parent-frame point in this pose's frame,
+  // R^T (p - t). When asked, also the Jacobians of the result with respect to this pose
+  // (x, y, theta) and to the point.
+  Eigen::Vector2d TransformTo(const Eigen::Vector2d& p, Eigen::Matrix<double, 2, 3>* j_pose = nullptr,
+                              Eigen::Matrix2d* j_point = nullptr) const;
   // Composition: (this * other) maps other's frame into this pose's parent frame.
   Pose2 operator*(const Pose2& o) const {
     const Eigen::Vector2d t = Apply({o.x, o.y});
@@ -72,6 +77,20 @@ inline Eigen::Vector2d Pose2::Apply(const Eigen::Vector2d& p, Eigen::Matrix<doub
 }
 
 inline Eigen::Matrix2d Pose2::Rotation() const { return PoseMap2(*this).Rotation(); }
+
+inline Eigen::Vector2d Pose2::TransformTo(const Eigen::Vector2d& p, Eigen::Matrix<double, 2, 3>* j_pose,
+                                          Eigen::Matrix2d* j_point) const {
+  const double c = std::cos(theta), s = std::sin(theta);
+  const double dx = p.x() - x, dy = p.y() - y;
+  const Eigen::Vector2d q(c * dx + s * dy, -s * dx + c * dy);
+  if (j_pose) {
+    // d q / d t = -R^T; d q / d theta = dR^T/dtheta (p - t) = (q.y, -q.x).
+    *j_pose << -c, -s, q.y(),  //
+        s, -c, -q.x();
+  }
+  if (j_point) *j_point << c, s, -s, c;
+  return q;
+}
 
 // The pose a of the way from p to q (a in [0, 1]): positions linearly, the heading along the
 // shorter arc.

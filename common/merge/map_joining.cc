@@ -1,8 +1,9 @@
 #include "common/merge/map_joining.h"
 
+#include "common/solver/least_squares.h"
+
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
-#include <Eigen/Sparse>
 #include <cmath>
 #include <map>
 #include <tuple>
@@ -15,8 +16,9 @@ struct Observed {
   int landmark;  // global index
   int source;    // -1: the own map
   Eigen::Vector2d z;
-  Eigen::Matrix2d w;    // information
-  double weight = 1.0;  // the robust kernel's weight at the last estimate
+  Eigen::Matrix2d w;       // information
+  Eigen::Matrix2d sqrt_w;  // S with S^T S = w: whitens the residual
+  double weight = 1.0;     // the robust kernel's weight at the last estimate
 };
 
 bool Information(const Eigen::Matrix2d& cov, Eigen::Matrix2d* w) {
@@ -57,7 +59,7 @@ GlobalMap JoinMaps(const LandmarkMap& local, RobotId self, std::uint32_t self_in
       }
       Eigen::Matrix2d w;
       if (!it->second->mean.allFinite() || !Information(it->second->cov, &w)) continue;
-      obs.push_back({k, s, it->second->mean, w});
+      obs.push_back({k, s, it->second->mean, w, Eigen::LLT<Eigen::Matrix2d>(w).matrixU()});
     }
   }
   const int n = 2 * k_count + 3 * s_count;
@@ -78,69 +80,53 @@ GlobalMap JoinMaps(const LandmarkMap& local, RobotId self, std::uint32_t self_in
     prior[s] = c.inverse();
   }
   const std::vector<Pose2> t0 = t;
+  std::vector<Eigen::Matrix3d> prior_sqrt(s_count);  // S with S^T S = the prior's information
+  for (int s = 0; s < s_count; ++s) prior_sqrt[s] = Eigen::LLT<Eigen::Matrix3d>(prior[s]).matrixU();
 
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
-  Eigen::SparseMatrix<double> h(n, n);
+  // The shared least-squares kernel: landmarks (2 each), then the sources' transforms (3 each).
+  std::vector<int> sizes(static_cast<std::size_t>(k_count), 2);
+  sizes.insert(sizes.end(), static_cast<std::size_t>(s_count), 3);
+  BlockNormalEquations eq(std::move(sizes));
+  std::vector<int> handle(obs.size());
+  for (std::size_t i = 0; i < obs.size(); ++i) {
+    handle[i] = obs[i].source < 0 ? eq.Couple({obs[i].landmark})
+                                  : eq.Couple({obs[i].landmark, k_count + obs[i].source});
+  }
+  std::vector<int> prior_handle(s_count), tiny_handle(k_count);
+  for (int s = 0; s < s_count; ++s) prior_handle[s] = eq.Couple({k_count + s});
+  for (int k = 0; k < k_count; ++k) tiny_handle[k] = eq.Couple({k});
+  eq.Finalize();
+  const Eigen::Matrix2d tiny = Eigen::Matrix2d::Identity() * std::sqrt(1e-9);
+
+  Eigen::VectorXd dx;
   for (int iter = 0; iter < options.max_iterations; ++iter) {
-    std::vector<Eigen::Triplet<double>> trip;
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
-    auto add_block = [&](int r0, int c0, const Eigen::MatrixXd& m) {
-      for (int i = 0; i < m.rows(); ++i)
-        for (int j = 0; j < m.cols(); ++j)
-          if (m(i, j) != 0.0) trip.emplace_back(r0 + i, c0 + j, m(i, j));
-    };
-    for (const Observed& o : obs) {
-      const int gi = 2 * o.landmark;
-      const Eigen::Matrix2d w = o.w * o.weight;
+    eq.SetZero();
+    for (std::size_t i = 0; i < obs.size(); ++i) {
+      const Observed& o = obs[i];
       if (o.source < 0) {
-        add_block(gi, gi, w);
-        b.segment<2>(gi) += w * (o.z - g[o.landmark]);
+        eq.Add(handle[i], o.sqrt_w, o.sqrt_w * (g[o.landmark] - o.z), o.weight);
         continue;
       }
-      const Pose2& ts = t[o.source];
-      const double c = std::cos(ts.theta), s = std::sin(ts.theta);
-      Eigen::Matrix2d rt;
-      rt << c, s, -s, c;
-      const Eigen::Vector2d d = g[o.landmark] - Eigen::Vector2d(ts.x, ts.y);
-      const Eigen::Vector2d pred = rt * d;
-      Eigen::Matrix<double, 2, 5> j;  // d pred / d (g, t_x, t_y, theta)
-      j.leftCols<2>() = rt;
-      j.block<2, 2>(0, 2) = -rt;
-      Eigen::Matrix2d drt;
-      drt << -s, c, -c, -s;
-      j.col(4) = drt * d;
-      const Eigen::Matrix<double, 5, 5> jtj = j.transpose() * w * j;
-      const Eigen::Matrix<double, 5, 1> jtr = j.transpose() * w * (o.z - pred);
-      const int ti = 2 * k_count + 3 * o.source;
-      add_block(gi, gi, jtj.topLeftCorner<2, 2>());
-      add_block(gi, ti, jtj.topRightCorner<2, 3>());
-      add_block(ti, gi, jtj.bottomLeftCorner<3, 2>());
-      add_block(ti, ti, jtj.bottomRightCorner<3, 3>());
-      b.segment<2>(gi) += jtr.head<2>();
-      b.segment<3>(ti) += jtr.tail<3>();
+      Eigen::Matrix<double, 2, 3> j_t;
+      Eigen::Matrix2d j_g;
+      const Eigen::Vector2d pred = t[o.source].TransformTo(g[o.landmark], &j_t, &j_g);
+      Eigen::Matrix<double, 2, 5> j;
+      j << o.sqrt_w * j_g, o.sqrt_w * j_t;
+      eq.Add(handle[i], j, o.sqrt_w * (pred - o.z), o.weight);
     }
     for (int s = 0; s < s_count; ++s) {
-      const int ti = 2 * k_count + 3 * s;
-      add_block(ti, ti, prior[s]);
-      const Eigen::Vector3d e(t0[s].x - t[s].x, t0[s].y - t[s].y, WrapAngle(t0[s].theta - t[s].theta));
-      b.segment<3>(ti) += prior[s] * e;
+      const Eigen::Vector3d e(t[s].x - t0[s].x, t[s].y - t0[s].y, WrapAngle(t[s].theta - t0[s].theta));
+      eq.Add(prior_handle[s], prior_sqrt[s], prior_sqrt[s] * e);
     }
-    // A landmark nothing measured (all its inputs invalid) keeps its place: a tiny prior.
-    for (int k = 0; k < k_count; ++k) add_block(2 * k, 2 * k, Eigen::Matrix2d::Identity() * 1e-9);
-    h.setFromTriplets(trip.begin(), trip.end());
-    solver.compute(h);
-    if (solver.info() != Eigen::Success) {
+    // A landmark nothing measured (all its inputs invalid) keeps its place: a tiny damping.
+    for (int k = 0; k < k_count; ++k) eq.Add(tiny_handle[k], tiny, Eigen::Vector2d::Zero());
+    if (!eq.Solve(0.0, &dx) || !dx.allFinite()) {
       if (stats) *stats = st;
       return associated;
     }
-    const Eigen::VectorXd dx = solver.solve(b);
-    if (!dx.allFinite()) {
-      if (stats) *stats = st;
-      return associated;
-    }
-    for (int k = 0; k < k_count; ++k) g[k] += dx.segment<2>(2 * k);
+    for (int k = 0; k < k_count; ++k) g[k] += dx.segment<2>(eq.offset(k));
     for (int s = 0; s < s_count; ++s) {
-      const Eigen::Vector3d d = dx.segment<3>(2 * k_count + 3 * s);
+      const Eigen::Vector3d d = dx.segment<3>(eq.offset(k_count + s));
       t[s] = {t[s].x + d(0), t[s].y + d(1), WrapAngle(t[s].theta + d(2))};
     }
     st.iterations = iter + 1;
@@ -151,11 +137,11 @@ GlobalMap JoinMaps(const LandmarkMap& local, RobotId self, std::uint32_t self_in
     const bool reweighting = options.huber > 0.0 && iter < options.reweightings;
     if (reweighting) {
       st.downweighted = 0;
+      const RobustKernel huber{RobustLoss::kHuber, options.huber};
       for (Observed& o : obs) {
-        const Eigen::Vector2d pred = o.source < 0 ? g[o.landmark] : t[o.source].Inverse().Apply(g[o.landmark]);
+        const Eigen::Vector2d pred = o.source < 0 ? g[o.landmark] : t[o.source].TransformTo(g[o.landmark]);
         const Eigen::Vector2d e = o.z - pred;
-        const double r = std::sqrt(e.dot(o.w * e));
-        o.weight = r > options.huber ? options.huber / r : 1.0;
+        o.weight = huber.Weight(e.dot(o.w * e));
         st.downweighted += o.weight < 1.0 ? 1 : 0;
       }
     }
@@ -164,18 +150,20 @@ GlobalMap JoinMaps(const LandmarkMap& local, RobotId self, std::uint32_t self_in
       break;
     }
   }
-  // Marginal covariances: two columns of the inverse per landmark (the factor from the last
-  // linearisation, at most one step from the optimum).
+  // Marginal covariances of the landmarks, from the normal equations of the last linearisation
+  // (at most one step from the optimum).
+  std::vector<int> landmarks(static_cast<std::size_t>(k_count));
+  for (int k = 0; k < k_count; ++k) landmarks[k] = k;
+  const std::vector<Eigen::MatrixXd> marginals = eq.Marginals(landmarks);
+  if (marginals.size() != landmarks.size()) {
+    if (stats) *stats = st;
+    return associated;
+  }
   st.solved = true;
-  Eigen::MatrixXd e = Eigen::MatrixXd::Zero(n, 2);
   for (int k = 0; k < k_count; ++k) {
-    e.setZero();
-    e(2 * k, 0) = 1.0;
-    e(2 * k + 1, 1) = 1.0;
-    const Eigen::MatrixXd col = solver.solve(e);
     Landmark& l = out.map.landmarks[k];
     l.mean = g[k];
-    const Eigen::Matrix2d c = col.block<2, 2>(2 * k, 0);
+    const Eigen::Matrix2d c = marginals[k];
     l.cov = 0.5 * (c + c.transpose());
   }
   if (stats) *stats = st;

@@ -1,5 +1,7 @@
 #include "common/slam/submap_joiner.h"
 
+#include "common/solver/least_squares.h"
+
 #include <Eigen/Cholesky>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
@@ -11,11 +13,6 @@
 
 namespace mapmesh {
 namespace {
-
-// The Jacobian of R(theta)^T v with respect to theta.
-Eigen::Vector2d DRotTranspose(double c, double s, const Eigen::Vector2d& v) {
-  return {-s * v.x() + c * v.y(), -c * v.x() - s * v.y()};
-}
 
 // Where each variable of a system sits, and the system's size.
 class Layout {
@@ -86,27 +83,23 @@ void SubmapJoiner::Initialise(const Factor& f, State* state) {
 Eigen::VectorXd PredictSubmap(const Pose2& origin, const Pose2& end, const std::vector<Eigen::Vector2d>& landmarks,
                               Eigen::MatrixXd* jacobian) {
   const auto nl = static_cast<Eigen::Index>(landmarks.size());
-  const double c = std::cos(origin.theta), s = std::sin(origin.theta);
-  Eigen::Matrix2d rt;
-  rt << c, s, -s, c;
-  const Eigen::Vector2d ta(origin.x, origin.y);
-  const Eigen::Vector2d d = Eigen::Vector2d(end.x, end.y) - ta;
   Eigen::VectorXd h(3 + 2 * nl);
-  h.head<2>() = rt * d;
-  h(2) = WrapAngle(end.theta - origin.theta);
-  for (Eigen::Index k = 0; k < nl; ++k) h.segment<2>(3 + 2 * k) = rt * (landmarks[k] - ta);
+  Eigen::Matrix3d j_origin, j_end;
+  const Pose2 motion = Between(origin, end, jacobian ? &j_origin : nullptr, jacobian ? &j_end : nullptr);
+  h.head<3>() = motion.Vector();
   if (jacobian) {
-    Eigen::MatrixXd& j = *jacobian;
-    j = Eigen::MatrixXd::Zero(3 + 2 * nl, 6 + 2 * nl);
-    j.block<2, 2>(0, 0) = -rt;
-    j.block<2, 1>(0, 2) = DRotTranspose(c, s, d);
-    j(2, 2) = -1.0;
-    j.block<2, 2>(0, 3) = rt;
-    j(2, 5) = 1.0;
-    for (Eigen::Index k = 0; k < nl; ++k) {
-      j.block<2, 2>(3 + 2 * k, 0) = -rt;
-      j.block<2, 1>(3 + 2 * k, 2) = DRotTranspose(c, s, landmarks[k] - ta);
-      j.block<2, 2>(3 + 2 * k, 6 + 2 * k) = rt;
+    *jacobian = Eigen::MatrixXd::Zero(3 + 2 * nl, 6 + 2 * nl);
+    jacobian->block<3, 3>(0, 0) = j_origin;
+    jacobian->block<3, 3>(0, 3) = j_end;
+  }
+  Eigen::Matrix<double, 2, 3> j_pose;
+  Eigen::Matrix2d j_point;
+  for (Eigen::Index k = 0; k < nl; ++k) {
+    h.segment<2>(3 + 2 * k) = origin.TransformTo(landmarks[k], jacobian ? &j_pose : nullptr,
+                                                 jacobian ? &j_point : nullptr);
+    if (jacobian) {
+      jacobian->block<2, 3>(3 + 2 * k, 0) = j_pose;
+      jacobian->block<2, 2>(3 + 2 * k, 6 + 2 * k) = j_point;
     }
   }
   return h;
@@ -173,79 +166,75 @@ void AddNormalEquations(const Lin& lin, const OffsetOf& offset_of, Eigen::Vector
 }  // namespace
 
 JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state) const {
-  // Variables: the window's frames, then the landmarks, each in increasing order.
+  // Variables of the shared least-squares kernel: the window's frames, then the landmarks, each
+  // in increasing order.
   std::vector<std::size_t> frames;
   for (const auto& [k, p] : state->poses) frames.push_back(k);
   std::sort(frames.begin(), frames.end());
   std::vector<std::uint32_t> keys;
   for (const auto& [k, l] : state->landmarks) keys.push_back(k);
   std::sort(keys.begin(), keys.end());
-  Layout layout;
-  for (std::size_t k : frames) layout.Add(PoseVar(k), 3);
-  for (std::uint32_t k : keys) layout.Add(k, 2);
-  const int n = layout.dim();
+  std::unordered_map<Var, int> index;
+  std::vector<int> sizes;
+  for (std::size_t k : frames) {
+    index[PoseVar(k)] = static_cast<int>(sizes.size());
+    sizes.push_back(3);
+  }
+  for (std::uint32_t k : keys) {
+    index[k] = static_cast<int>(sizes.size());
+    sizes.push_back(2);
+  }
+  BlockNormalEquations eq(std::move(sizes));
+  // A submap factor couples its origin frame (unless it is the first, whose origin is fixed),
+  // its end frame and its landmarks, in Linearise's order.
+  std::vector<int> handles;
+  for (const Factor& f : factors) {
+    std::vector<int> vars;
+    if (f.frame > 0) vars.push_back(index.at(PoseVar(f.frame)));
+    vars.push_back(index.at(PoseVar(f.frame + 1)));
+    for (std::uint32_t k : f.keys) vars.push_back(index.at(k));
+    handles.push_back(eq.Couple(vars));
+  }
+  int prior_handle = -1;
+  if (!prior_.vars.empty()) {
+    std::vector<int> vars;
+    for (Var v : prior_.vars) vars.push_back(index.at(v));
+    prior_handle = eq.Couple(vars);
+  }
+  eq.Finalize();
 
-  auto offset_of = [&](Var v) { return layout.Offset(v); };
-
-  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>> llt;
-  Eigen::SparseMatrix<double> h(n, n);
-  Eigen::VectorXd b(n);
-  // Builds H and b (H dx = b) at the state and returns the cost.
+  // Accumulates the normal equations at the state and returns the cost.
   auto assemble = [&]() {
-    std::vector<Eigen::Triplet<double>> triplets;
-    b.setZero();
+    eq.SetZero();
     double cost = 0.0;
-    auto add_block = [&](int row, int col, const Eigen::MatrixXd& block) {
-      for (Eigen::Index r = 0; r < block.rows(); ++r) {
-        for (Eigen::Index c = 0; c < block.cols(); ++c) triplets.emplace_back(row + r, col + c, block(r, c));
-      }
-    };
-    for (const Factor& f : factors) {
-      const Linearised lin = Linearise(f, *state);
+    for (std::size_t i = 0; i < factors.size(); ++i) {
+      const Linearised lin = Linearise(factors[i], *state);
       cost += 0.5 * lin.r.squaredNorm();
-      AddNormalEquations(lin, offset_of, b, add_block);
+      eq.Add(handles[i], lin.a, -lin.r);  // lin.r whitens z - h; the kernel's residual is h - z
     }
-    if (!prior_.vars.empty()) {
-      // d = x - x0 with angles wrapped; cost 1/2 d'Hd - g'd; b gets g - H d.
+    if (prior_handle >= 0) {
+      // d = x - x0 with angles wrapped; cost 1/2 d'Hd - g'd, whose gradient is Hd - g.
       const Eigen::VectorXd d = PriorOffset(*state);
-      std::vector<int> offs, sizes;
-      for (Var v : prior_.vars) {
-        offs.push_back(layout.Offset(v));
-        sizes.push_back((v & kPoseBit) ? 3 : 2);
-      }
-      const Eigen::VectorXd grad = prior_.g - prior_.h * d;
       cost += 0.5 * d.dot(prior_.h * d) - prior_.g.dot(d);
-      int ri = 0;
-      for (std::size_t i = 0; i < offs.size(); ++i) {
-        b.segment(offs[i], sizes[i]) += grad.segment(ri, sizes[i]);
-        int rj = 0;
-        for (std::size_t k = 0; k < offs.size(); ++k) {
-          add_block(offs[i], offs[k], prior_.h.block(ri, rj, sizes[i], sizes[k]));
-          rj += sizes[k];
-        }
-        ri += sizes[i];
-      }
+      eq.AddInformation(prior_handle, prior_.h, prior_.h * d - prior_.g);
     }
-    h.setFromTriplets(triplets.begin(), triplets.end());
     return cost;
   };
   auto apply = [&](const Eigen::VectorXd& dx, double scale) {
     for (std::size_t k : frames) {
       Pose2& p = state->poses.at(k);
-      const int o = layout.Offset(PoseVar(k));
+      const int o = eq.offset(index.at(PoseVar(k)));
       p = {p.x + scale * dx(o), p.y + scale * dx(o + 1), WrapAngle(p.theta + scale * dx(o + 2))};
     }
-    for (std::uint32_t k : keys) state->landmarks.at(k) += scale * dx.segment<2>(layout.Offset(k));
+    for (std::uint32_t k : keys) state->landmarks.at(k) += scale * dx.segment<2>(eq.offset(index.at(k)));
   };
 
   JoinedMap out;
   out.converged = false;
   double cost = assemble();
-  llt.analyzePattern(h);  // the pattern stays: the same factors over the same variables
+  Eigen::VectorXd dx;
   for (int it = 0; it < options_.max_iterations; ++it) {
-    llt.factorize(h);
-    if (llt.info() != Eigen::Success) break;
-    const Eigen::VectorXd dx = llt.solve(b);
+    if (!eq.Solve(0.0, &dx)) break;
     ++out.iterations;
     // Gauss-Newton step, halved while it raises the cost (far from the minimum).
     const State before = *state;
@@ -275,42 +264,27 @@ JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state
     }
   }
 
-  // The covariances: columns of H^-1 for the landmarks and the newest frame.
-  llt.factorize(h);
+  // The covariances: the joint marginal of the landmarks and the newest frame, from the normal
+  // equations at the final state.
   out.keys = keys;
   out.means.reserve(keys.size());
   for (std::uint32_t k : keys) out.means.push_back(state->landmarks.at(k));
   const std::size_t newest = frames.empty() ? 0 : frames.back();
   out.end = frames.empty() ? Pose2{} : state->poses.at(newest);
-  if (llt.info() != Eigen::Success) {
+  const Eigen::Index nl = 2 * static_cast<Eigen::Index>(keys.size());
+  std::vector<int> wanted;
+  for (std::uint32_t k : keys) wanted.push_back(index.at(k));
+  if (!frames.empty()) wanted.push_back(index.at(PoseVar(newest)));
+  const Eigen::MatrixXd joint = eq.JointMarginal(wanted);
+  if (joint.rows() != nl + (frames.empty() ? 0 : 3)) {
     out.converged = false;
-    out.cov = Eigen::MatrixXd::Constant(2 * static_cast<Eigen::Index>(keys.size()),
-                                        2 * static_cast<Eigen::Index>(keys.size()),
-                                        std::numeric_limits<double>::quiet_NaN());
+    out.cov = Eigen::MatrixXd::Constant(nl, nl, std::numeric_limits<double>::quiet_NaN());
     return out;
   }
-  const Eigen::Index nl = 2 * static_cast<Eigen::Index>(keys.size());
-  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, nl + (frames.empty() ? 0 : 3));
-  for (std::size_t i = 0; i < keys.size(); ++i) {
-    const int o = layout.Offset(keys[i]);
-    rhs(o, 2 * static_cast<Eigen::Index>(i)) = 1.0;
-    rhs(o + 1, 2 * static_cast<Eigen::Index>(i) + 1) = 1.0;
-  }
-  int end_offset = 0;
+  out.cov = joint.topLeftCorner(nl, nl);
   if (!frames.empty()) {
-    end_offset = layout.Offset(PoseVar(newest));
-    for (int r = 0; r < 3; ++r) rhs(end_offset + r, nl + r) = 1.0;
-  }
-  const Eigen::MatrixXd cols = llt.solve(rhs);
-  out.cov.resize(nl, nl);
-  for (std::size_t i = 0; i < keys.size(); ++i) {
-    out.cov.middleRows(2 * static_cast<Eigen::Index>(i), 2) = cols.block(layout.Offset(keys[i]), 0, 2, nl);
-  }
-  out.cov = 0.5 * (out.cov + out.cov.transpose()).eval();
-  if (!frames.empty()) {
-    const Eigen::Matrix3d ec = cols.block<3, 3>(end_offset, nl);
-    out.end_cov = 0.5 * (ec + ec.transpose());
-    out.end_cross = cols.block(end_offset, 0, 3, nl);
+    out.end_cov = joint.block<3, 3>(nl, nl);
+    out.end_cross = joint.block(nl, 0, 3, nl);
   } else {
     out.end_cross = Eigen::MatrixXd::Zero(3, nl);
   }

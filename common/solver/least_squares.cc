@@ -144,6 +144,21 @@ void BlockNormalEquations::Add(int handle, const Eigen::Ref<const Eigen::MatrixX
   factor_is_undamped_ = false;
 }
 
+void BlockNormalEquations::AddInformation(int handle, const Eigen::Ref<const Eigen::MatrixXd>& h,
+                                          const Eigen::Ref<const Eigen::VectorXd>& g) {
+  const Coupling& c = couplings_[static_cast<std::size_t>(handle)];
+  for (std::size_t i = 0; i < c.vars.size(); ++i) {
+    g_.segment(offset(c.vars[i]), size(c.vars[i])) += g.segment(c.cols[i], size(c.vars[i]));
+  }
+  for (const Term& t : c.terms) {
+    const Block& blk = blocks_[static_cast<std::size_t>(t.block)];
+    const int sa = size(blk.a), sb = size(blk.b);
+    Eigen::Map<Eigen::MatrixXd> dst(values_.data() + blk.offset, sa, sb);
+    dst += h.block(t.col_a, t.col_b, sa, sb);
+  }
+  factor_is_undamped_ = false;
+}
+
 void BlockNormalEquations::Assemble(double lambda) {
   double* h = h_.valuePtr();
   std::fill(h, h + h_.nonZeros(), 0.0);
@@ -208,6 +223,24 @@ std::vector<Eigen::MatrixXd> BlockNormalEquations::Marginals(const std::vector<i
     first = last;
   }
   return out;
+}
+
+Eigen::MatrixXd BlockNormalEquations::JointMarginal(const std::vector<int>& vars) {
+  if (vars.empty()) return {};
+  if (!factor_is_undamped_ && !Factorise(0.0)) return {};
+  int cols = 0;
+  for (int v : vars) cols += size(v);
+  // As Marginals: Y = L^-1 P E, and the covariance of the chosen variables is Y^T Y.
+  const auto& to_factor = llt_.permutationP().indices();
+  Eigen::MatrixXd y = Eigen::MatrixXd::Zero(dim_, cols);
+  int col = 0;
+  for (int v : vars) {
+    for (int i = 0; i < size(v); ++i) y(to_factor(offset(v) + i), col + i) = 1.0;
+    col += size(v);
+  }
+  llt_.matrixL().solveInPlace(y);
+  const Eigen::MatrixXd cov = y.transpose() * y;
+  return 0.5 * (cov + cov.transpose());
 }
 
 LevenbergMarquardtReport MinimiseLevenbergMarquardt(LeastSquaresProblem& problem, BlockNormalEquations& eq,

@@ -59,11 +59,20 @@ class BlockNormalEquations {
   void Add(int handle, const Eigen::Ref<const Eigen::MatrixXd>& j, const Eigen::Ref<const Eigen::VectorXd>& r,
            double w = 1.0);
 
+  // Adds a factor given in information form over the variables of coupling `handle`: h to H
+  // and g to the gradient (h square, g a vector, both in Couple's column order). A dense prior
+  // from marginalisation (cost 1/2 d^T h d + g^T d about the current state) enters this way.
+  void AddInformation(int handle, const Eigen::Ref<const Eigen::MatrixXd>& h,
+                      const Eigen::Ref<const Eigen::VectorXd>& g);
+
   // Solves (H + lambda diag(H)) dx = -g; false when that matrix is not positive definite.
   bool Solve(double lambda, Eigen::VectorXd* dx);
   // The marginal covariance block (H^-1) of each of these variables, from H as last
   // accumulated; empty when H is not positive definite.
   std::vector<Eigen::MatrixXd> Marginals(const std::vector<int>& vars);
+  // The joint covariance (H^-1) of these variables together, cross blocks included, in the
+  // order given; empty when H is not positive definite or vars is empty.
+  Eigen::MatrixXd JointMarginal(const std::vector<int>& vars);
 
   const Eigen::VectorXd& gradient() const { return g_; }
   // Non-zeros of H's upper triangle, and of its Cholesky factor after a Solve (fill-in).

@@ -70,6 +70,40 @@ TEST(Pose2, ApplyJacobiansMatchNumericalDifferences) {
   }
 }
 
+// TransformTo is Inverse().Apply, and its Jacobians match central differences, on seeded random
+// poses and points.
+TEST(Pose2, TransformToIsTheInverseMapAndItsJacobiansMatchNumericalDifferences) {
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> u(-50, 50), ua(-M_PI, M_PI);
+  constexpr double kH = 1e-6;
+  for (int i = 0; i < 200; ++i) {
+    const Pose2 t{u(rng), u(rng), ua(rng)};
+    const Eigen::Vector2d p(u(rng), u(rng));
+    Eigen::Matrix<double, 2, 3> j_pose;
+    Eigen::Matrix2d j_point;
+    const Eigen::Vector2d q = t.TransformTo(p, &j_pose, &j_point);
+    EXPECT_LT((q - t.Inverse().Apply(p)).norm(), 1e-9);
+    EXPECT_LT((t.Apply(q) - p).norm(), 1e-9);
+    Eigen::Matrix<double, 2, 3> num_pose;
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Vector3d lo = t.Vector(), hi = t.Vector();
+      lo(k) -= kH;
+      hi(k) += kH;
+      num_pose.col(k) = (Pose2{hi(0), hi(1), hi(2)}.TransformTo(p) - Pose2{lo(0), lo(1), lo(2)}.TransformTo(p)) /
+                        (2 * kH);
+    }
+    Eigen::Matrix2d num_point;
+    for (int k = 0; k < 2; ++k) {
+      Eigen::Vector2d lo = p, hi = p;
+      lo(k) -= kH;
+      hi(k) += kH;
+      num_point.col(k) = (t.TransformTo(hi) - t.TransformTo(lo)) / (2 * kH);
+    }
+    EXPECT_LT((j_pose - num_pose).cwiseAbs().maxCoeff(), 1e-6) << "pose " << i;
+    EXPECT_LT((j_point - num_point).cwiseAbs().maxCoeff(), 1e-6) << "point " << i;
+  }
+}
+
 // Between is a^-1 * b, and its Jacobians match central differences (the heading differences
 // wrapped), on seeded random poses.
 TEST(Pose2, BetweenIsTheRelativePoseAndItsJacobiansMatchNumericalDifferences) {

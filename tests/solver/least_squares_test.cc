@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <Eigen/Dense>
 #include <random>
 
@@ -123,9 +125,56 @@ TEST_P(LinearSystemTest, SolveAndMarginalsMatchTheDenseSystem) {
               1e-9)
         << "variable " << v;
   }
+  // The joint covariance of some variables, in a shuffled order, cross blocks included.
+  std::vector<int> some;
+  for (int v : all) {
+    if (v % 3 != 1) some.push_back(v);
+  }
+  std::reverse(some.begin(), some.end());
+  const Eigen::MatrixXd joint = eq.JointMarginal(some);
+  int row = 0;
+  for (int a : some) {
+    int col = 0;
+    for (int b : some) {
+      EXPECT_LT((joint.block(row, col, eq.size(a), eq.size(b)) -
+                 inv.block(eq.offset(a), eq.offset(b), eq.size(a), eq.size(b)))
+                    .cwiseAbs()
+                    .maxCoeff(),
+                1e-9)
+          << "variables " << a << ", " << b;
+      col += eq.size(b);
+    }
+    row += eq.size(a);
+  }
+  EXPECT_EQ(joint.rows(), row);
+  EXPECT_EQ(eq.JointMarginal({}).size(), 0);
   // Cleared, the system holds nothing but its pattern.
   eq.SetZero();
   EXPECT_EQ(eq.gradient().norm(), 0.0);
+}
+
+// A factor in information form (a dense prior from marginalisation) adds exactly what the same
+// factor as a Jacobian and residual adds: h = w J^T J and g = w J^T r, in the coupling's order.
+TEST_P(LinearSystemTest, InformationFormEqualsTheFactorItCameFrom) {
+  const LinearProblem p = RandomLinearProblem(GetParam());
+  BlockNormalEquations by_factor(p.sizes), by_information(p.sizes);
+  std::vector<int> handles;
+  for (const auto& f : p.factors) {
+    handles.push_back(by_factor.Couple(f.vars));
+    by_information.Couple(f.vars);
+  }
+  by_factor.Finalize();
+  by_information.Finalize();
+  for (std::size_t k = 0; k < p.factors.size(); ++k) {
+    const auto& f = p.factors[k];
+    by_factor.Add(handles[k], f.j, f.r, f.w);
+    by_information.AddInformation(handles[k], f.w * f.j.transpose() * f.j, f.w * f.j.transpose() * f.r);
+  }
+  EXPECT_LT((by_factor.gradient() - by_information.gradient()).cwiseAbs().maxCoeff(), 1e-12);
+  Eigen::VectorXd a, b;
+  ASSERT_TRUE(by_factor.Solve(0.0, &a));
+  ASSERT_TRUE(by_information.Solve(0.0, &b));
+  EXPECT_LT((a - b).cwiseAbs().maxCoeff(), 1e-9);
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, LinearSystemTest, ::testing::Range<std::uint64_t>(1, 21));
