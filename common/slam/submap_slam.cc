@@ -72,6 +72,8 @@ void SubmapSlam::Observe(const std::vector<Observation>& obs, double stamp) {
   // A submap ends before the scan that finds it due, so that the scan is applied from a fresh
   // origin rather than linearised at a pose the submap has grown unsure of.
   if (ShouldClose()) Close();
+  if (!opened_s_) opened_s_ = stamp;
+  last_stamp_s_ = stamp;
   current_->Observe(obs, stamp);
   fresh_ = false;
 }
@@ -178,7 +180,9 @@ void SubmapSlam::Close() {
   if (const std::optional<SubmapEstimate> s = OpenSubmap()) {
     joiner_.Add(*s);
     for (std::uint32_t k : s->keys) next_key_ = std::max(next_key_, k + 1);
+    closed_.push_back({*s, opened_s_.value_or(last_stamp_s_), last_stamp_s_});
   }
+  opened_s_.reset();
   AddStats(&closed_stats_, current_->stats());
   current_ = std::make_unique<LocalSlam>(noise_, options_);
   travelled_m_ = 0.0;
@@ -241,6 +245,17 @@ const MapperStats& SubmapSlam::stats() const {
   stats_ = closed_stats_;
   AddStats(&stats_, current_->stats());
   return stats_;
+}
+
+std::optional<WireSubmap> ToWire(const SubmapEstimate& estimate, const SubmapId& id, double opened_s, double closed_s) {
+  WireSubmap w;
+  w.id = id;
+  w.opened_s = opened_s;
+  w.closed_s = closed_s;
+  w.keys = estimate.keys;
+  w.x = estimate.x;
+  if (!w.SetCovariance(estimate.p)) return std::nullopt;
+  return w;
 }
 
 }  // namespace mapmesh

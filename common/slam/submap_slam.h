@@ -16,10 +16,16 @@
 #include <optional>
 #include <vector>
 
+#include "common/map/submap_codec.h"
 #include "common/slam/local_slam.h"
 #include "common/slam/submap_joiner.h"
 
 namespace mapmesh {
+
+// A closed submap as it travels (common/map/submap_codec.h): its estimate with the covariance
+// factored and rounded as the wire holds it; nullopt when that covariance is not positive
+// definite.
+std::optional<WireSubmap> ToWire(const SubmapEstimate& estimate, const SubmapId& id, double opened_s, double closed_s);
 
 class SubmapSlam : public LocalMapper {
  public:
@@ -35,6 +41,15 @@ class SubmapSlam : public LocalMapper {
 
   std::size_t submaps_closed() const { return joiner_.submaps(); }
   const SubmapJoiner& joiner() const { return joiner_; }
+
+  // A closed submap as it went to the joiner, with the scan stamps that opened and closed it:
+  // what the agent publishes, once each (issue J1). Every submap closed so far, in order; a
+  // submap that held no information (none went to the joiner) is not among them.
+  struct Closed {
+    SubmapEstimate estimate;
+    double opened_s = 0.0, closed_s = 0.0;
+  };
+  const std::vector<Closed>& closed() const { return closed_; }
 
  private:
   // The open submap as the joiner takes it: keys assigned, nothing if it holds no information.
@@ -54,6 +69,9 @@ class SubmapSlam : public LocalMapper {
   SubmapJoiner joiner_;
   std::uint32_t next_key_ = 0;  // unknown association: the next new landmark's key
   double travelled_m_ = 0.0, elapsed_s_ = 0.0;
+  std::vector<Closed> closed_;
+  std::optional<double> opened_s_;  // the first scan stamp of the open submap
+  double last_stamp_s_ = 0.0;
   MapperStats closed_stats_;
   mutable MapperStats stats_;
   // The map, made when asked and kept until the next Predict or Observe.

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
 
 #include "common/config/scenario.h"
 #include "sim_feeder/simulator.h"
@@ -111,6 +113,52 @@ TEST(SubmapSlam, ShortSubmapsJoinIntoOneConsistentMap) {
   EXPECT_LT(MeanNees(m, truth), 6.0);  // one run: loose; the 20-seed bands are SlamQuality's
   EXPECT_EQ(slam.size(), m.size());
   EXPECT_GT(slam.stats().associated, 100u);
+}
+
+// J1: the closed submaps, sent over the wire (encoded, decoded) and joined by a receiver's own
+// joiner, give the sender's joined map: a submap carries all its information, once, with the
+// covariance rounded to f32 and nothing else lost. Their stamps follow one another.
+TEST(SubmapSlam, ClosedSubmapsOnTheWireJoinToTheSendersMap) {
+  LocalSlamOptions o = Options();
+  o.submaps.distance_m = 4.0;
+  o.submaps.join.window = 3;
+  SubmapSlam slam(Noise(), o);
+  Drive(World(), slam);
+  ASSERT_EQ(slam.closed().size(), slam.submaps_closed());
+  ASSERT_GT(slam.closed().size(), 5u);
+  SubmapJoiner receiver(o.submaps.join);
+  std::size_t bytes = 0;
+  double last_closed = -1.0;
+  for (std::size_t i = 0; i < slam.closed().size(); ++i) {
+    const SubmapSlam::Closed& c = slam.closed()[i];
+    EXPECT_LE(c.opened_s, c.closed_s);
+    EXPECT_GT(c.opened_s, last_closed);
+    last_closed = c.closed_s;
+    const std::optional<WireSubmap> w = ToWire(c.estimate, {3, 1, static_cast<std::uint32_t>(i)}, c.opened_s,
+                                               c.closed_s);
+    ASSERT_TRUE(w.has_value());
+    const std::vector<std::uint8_t> payload = EncodeSubmap(*w);
+    ASSERT_FALSE(payload.empty());
+    bytes += payload.size();
+    const SubmapDecodeResult d = DecodeSubmap(payload);
+    ASSERT_TRUE(d.ok()) << ToString(d.error);
+    EXPECT_EQ(d.submap.id.index, i);
+    receiver.Add({d.submap.x, d.submap.Covariance(), d.submap.keys});
+  }
+  const JoinedMap& sent = slam.joiner().last();
+  const JoinedMap& got = receiver.last();
+  ASSERT_EQ(got.keys, sent.keys);
+  double worst_mean = 0.0, worst_sigma = 0.0;
+  for (std::size_t i = 0; i < sent.keys.size(); ++i) {
+    worst_mean = std::max(worst_mean, (got.means[i] - sent.means[i]).norm());
+    worst_sigma = std::max(worst_sigma, std::abs(std::sqrt(got.Cov(i).trace()) - std::sqrt(sent.Cov(i).trace())) /
+                                            std::sqrt(sent.Cov(i).trace()));
+  }
+  EXPECT_LT(worst_mean, 1e-5);   // metres (1e-7 seen: the f32 covariance factor)
+  EXPECT_LT(worst_sigma, 1e-5);  // relative
+  EXPECT_LT((got.end.Vector() - sent.end.Vector()).norm(), 1e-5);
+  // Sent once each: well under the whole map sent every period.
+  EXPECT_LT(bytes, 200u * 1000u);
 }
 
 TEST(SubmapSlam, UnknownAssociationMatchesLandmarksAcrossSubmaps) {

@@ -1,0 +1,44 @@
+#include "common/map/submap_book.h"
+
+#include <algorithm>
+
+namespace mapmesh {
+
+SubmapBook::Offer SubmapBook::Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes) {
+  const auto it = held_.find(submap.id);
+  if (it != held_.end()) {
+    const bool same = std::equal(bytes.begin(), bytes.end(), it->second.bytes.begin(), it->second.bytes.end());
+    if (same) {
+      ++duplicates_;
+      return Offer::kDuplicate;
+    }
+    ++conflicts_;
+    return Offer::kConflict;
+  }
+  held_.emplace(submap.id, Entry{submap, std::vector<std::uint8_t>(bytes.begin(), bytes.end())});
+  bytes_ += bytes.size();
+  return Offer::kNew;
+}
+
+const WireSubmap* SubmapBook::Find(const SubmapId& id) const {
+  const auto it = held_.find(id);
+  return it == held_.end() ? nullptr : &it->second.submap;
+}
+
+std::uint32_t SubmapBook::ChainLength(RobotId robot, std::uint32_t incarnation) const {
+  std::uint32_t n = 0;
+  for (auto it = held_.lower_bound({robot, incarnation, 0}); it != held_.end(); ++it) {
+    if (it->first.robot != robot || it->first.incarnation != incarnation || it->first.index != n) break;
+    ++n;
+  }
+  return n;
+}
+
+std::vector<SubmapId> SubmapBook::Ids() const {
+  std::vector<SubmapId> out;
+  out.reserve(held_.size());
+  for (const auto& [id, e] : held_) out.push_back(id);
+  return out;
+}
+
+}  // namespace mapmesh

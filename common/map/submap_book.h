@@ -1,0 +1,48 @@
+#pragma once
+// The submaps an agent holds, by identity (issue J1): a submap enters once, whoever relayed it.
+// The same submap again is a duplicate (counted, ignored); a different submap under an identity
+// already held is a conflict (counted and refused: the first one stays), as a robot's submap,
+// once closed, never changes. Reads nothing but what it is given; changes nothing but itself.
+//
+// Pure: no DDS, clocks or random numbers.
+
+#include <cstdint>
+#include <map>
+#include <span>
+#include <vector>
+
+#include "common/map/submap_codec.h"
+
+namespace mapmesh {
+
+class SubmapBook {
+ public:
+  enum class Offer { kNew, kDuplicate, kConflict };
+
+  // Offers a decoded submap with the bytes it was decoded from (its identity's content).
+  Offer Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes);
+
+  const WireSubmap* Find(const SubmapId& id) const;
+  // How many of a robot incarnation's submaps are held without a gap from index 0: those a
+  // receiver can chain.
+  std::uint32_t ChainLength(RobotId robot, std::uint32_t incarnation) const;
+
+  std::size_t size() const { return held_.size(); }
+  std::size_t bytes() const { return bytes_; }
+  int duplicates() const { return duplicates_; }
+  int conflicts() const { return conflicts_; }
+  // Every submap held, in identity order (robot, incarnation, index).
+  std::vector<SubmapId> Ids() const;
+
+ private:
+  struct Entry {
+    WireSubmap submap;
+    std::vector<std::uint8_t> bytes;
+  };
+  std::map<SubmapId, Entry> held_;
+  std::size_t bytes_ = 0;
+  int duplicates_ = 0;
+  int conflicts_ = 0;
+};
+
+}  // namespace mapmesh

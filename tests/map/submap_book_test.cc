@@ -1,0 +1,62 @@
+#include "common/map/submap_book.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+namespace mapmesh {
+namespace {
+
+WireSubmap Submap(RobotId robot, std::uint32_t incarnation, std::uint32_t index, double x = 1.0) {
+  WireSubmap s;
+  s.id = {robot, incarnation, index};
+  s.opened_s = 10.0 * index;
+  s.closed_s = 10.0 * index + 9.0;
+  s.keys = {3, 4};
+  s.x = Eigen::VectorXd::Constant(7, x);
+  EXPECT_TRUE(s.SetCovariance(Eigen::MatrixXd::Identity(7, 7) * 0.01));
+  return s;
+}
+
+// A submap enters once however often it arrives; a different one under a held identity is
+// refused and counted, and the first stays.
+TEST(SubmapBook, EachIdentityEntersOnceAndAConflictIsRefused) {
+  SubmapBook book;
+  const WireSubmap a = Submap(2, 1, 0);
+  const std::vector<std::uint8_t> a_bytes = EncodeSubmap(a);
+  EXPECT_EQ(book.Add(a, a_bytes), SubmapBook::Offer::kNew);
+  EXPECT_EQ(book.Add(a, a_bytes), SubmapBook::Offer::kDuplicate);  // relayed again
+  const WireSubmap forged = Submap(2, 1, 0, 5.0);
+  EXPECT_EQ(book.Add(forged, EncodeSubmap(forged)), SubmapBook::Offer::kConflict);
+  EXPECT_EQ(book.size(), 1u);
+  EXPECT_EQ(book.duplicates(), 1);
+  EXPECT_EQ(book.conflicts(), 1);
+  ASSERT_NE(book.Find({2, 1, 0}), nullptr);
+  EXPECT_EQ(book.Find({2, 1, 0})->x, a.x);
+  EXPECT_EQ(book.bytes(), a_bytes.size());
+  EXPECT_EQ(book.Find({2, 1, 1}), nullptr);
+}
+
+// The chain a receiver can use: held from index 0 without a gap, per robot incarnation.
+TEST(SubmapBook, ChainLengthStopsAtTheFirstGap) {
+  SubmapBook book;
+  for (std::uint32_t i : {0u, 1u, 3u}) {
+    const WireSubmap s = Submap(4, 2, i);
+    book.Add(s, EncodeSubmap(s));
+  }
+  const WireSubmap other = Submap(4, 3, 0);
+  book.Add(other, EncodeSubmap(other));
+  EXPECT_EQ(book.ChainLength(4, 2), 2u);
+  EXPECT_EQ(book.ChainLength(4, 3), 1u);
+  EXPECT_EQ(book.ChainLength(4, 1), 0u);
+  EXPECT_EQ(book.ChainLength(5, 2), 0u);
+  const WireSubmap gap = Submap(4, 2, 2);
+  book.Add(gap, EncodeSubmap(gap));
+  EXPECT_EQ(book.ChainLength(4, 2), 4u);
+  const std::vector<SubmapId> ids = book.Ids();
+  ASSERT_EQ(ids.size(), 5u);
+  EXPECT_TRUE(std::is_sorted(ids.begin(), ids.end()));
+}
+
+}  // namespace
+}  // namespace mapmesh
