@@ -7,24 +7,13 @@
 #include <limits>
 #include <unordered_set>
 
+#include "common/map/wire_bytes.h"
+
 namespace mapmesh {
 namespace {
 
-static_assert(std::endian::native == std::endian::little, "codec assumes little-endian host");
-
-template <typename T>
-void Put(std::vector<std::uint8_t>& out, T v) {
-  std::uint8_t b[sizeof(T)];
-  std::memcpy(b, &v, sizeof(T));
-  out.insert(out.end(), b, b + sizeof(T));
-}
-
-template <typename T>
-T Get(const std::uint8_t* p) {
-  T v;
-  std::memcpy(&v, p, sizeof(T));
-  return v;
-}
+using wire::Get;
+using wire::Put;
 
 void PutI24(std::vector<std::uint8_t>& out, std::int32_t v) {
   const auto u = static_cast<std::uint32_t>(v);

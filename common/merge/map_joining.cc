@@ -1,13 +1,13 @@
 #include "common/merge/map_joining.h"
 
-#include "common/solver/least_squares.h"
-
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <cmath>
 #include <map>
 #include <tuple>
 #include <vector>
+
+#include "common/solver/least_squares.h"
 
 namespace mapmesh {
 namespace {

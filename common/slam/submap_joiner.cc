@@ -1,15 +1,14 @@
 #include "common/slam/submap_joiner.h"
 
-#include "common/solver/least_squares.h"
-
 #include <Eigen/Cholesky>
-#include <Eigen/SparseCholesky>
-#include <Eigen/SparseCore>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
+
+#include "common/solver/least_squares.h"
 
 namespace mapmesh {
 namespace {

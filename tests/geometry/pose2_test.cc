@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <utility>
 
 namespace mapmesh {
 namespace {
@@ -40,10 +41,32 @@ TEST(Pose2, ComposeAndInverseAreConsistentOnRandomPoses) {
 }
 
 // Apply's Jacobians against central differences, on seeded random poses and points.
+// Central differences of a map f(pose, point) -> R^2 with respect to the pose (x, y, theta) and
+// to the point.
+template <typename F>
+std::pair<Eigen::Matrix<double, 2, 3>, Eigen::Matrix2d> NumericalJacobians(const F& f, const Pose2& t,
+                                                                           const Eigen::Vector2d& p) {
+  constexpr double kH = 1e-6;
+  Eigen::Matrix<double, 2, 3> j_pose;
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Vector3d lo = t.Vector(), hi = t.Vector();
+    lo(k) -= kH;
+    hi(k) += kH;
+    j_pose.col(k) = (f(Pose2{hi(0), hi(1), hi(2)}, p) - f(Pose2{lo(0), lo(1), lo(2)}, p)) / (2 * kH);
+  }
+  Eigen::Matrix2d j_point;
+  for (int k = 0; k < 2; ++k) {
+    Eigen::Vector2d lo = p, hi = p;
+    lo(k) -= kH;
+    hi(k) += kH;
+    j_point.col(k) = (f(t, hi) - f(t, lo)) / (2 * kH);
+  }
+  return {j_pose, j_point};
+}
+
 TEST(Pose2, ApplyJacobiansMatchNumericalDifferences) {
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> u(-50, 50), ua(-M_PI, M_PI);
-  constexpr double kH = 1e-6;
   for (int i = 0; i < 200; ++i) {
     const Pose2 t{u(rng), u(rng), ua(rng)};
     const Eigen::Vector2d p(u(rng), u(rng));
@@ -51,20 +74,8 @@ TEST(Pose2, ApplyJacobiansMatchNumericalDifferences) {
     Eigen::Matrix2d j_point;
     const Eigen::Vector2d q = t.Apply(p, &j_pose, &j_point);
     EXPECT_EQ(q, t.Apply(p));
-    Eigen::Matrix<double, 2, 3> num_pose;
-    for (int k = 0; k < 3; ++k) {
-      Eigen::Vector3d lo = t.Vector(), hi = t.Vector();
-      lo(k) -= kH;
-      hi(k) += kH;
-      num_pose.col(k) = (Pose2{hi(0), hi(1), hi(2)}.Apply(p) - Pose2{lo(0), lo(1), lo(2)}.Apply(p)) / (2 * kH);
-    }
-    Eigen::Matrix2d num_point;
-    for (int k = 0; k < 2; ++k) {
-      Eigen::Vector2d lo = p, hi = p;
-      lo(k) -= kH;
-      hi(k) += kH;
-      num_point.col(k) = (t.Apply(hi) - t.Apply(lo)) / (2 * kH);
-    }
+    const auto [num_pose, num_point] = NumericalJacobians(
+        [](const Pose2& a, const Eigen::Vector2d& b) { return a.Apply(b); }, t, p);
     EXPECT_LT((j_pose - num_pose).cwiseAbs().maxCoeff(), 1e-6) << "pose " << i;
     EXPECT_LT((j_point - num_point).cwiseAbs().maxCoeff(), 1e-6) << "point " << i;
   }
@@ -75,7 +86,6 @@ TEST(Pose2, ApplyJacobiansMatchNumericalDifferences) {
 TEST(Pose2, TransformToIsTheInverseMapAndItsJacobiansMatchNumericalDifferences) {
   std::mt19937_64 rng(23);
   std::uniform_real_distribution<double> u(-50, 50), ua(-M_PI, M_PI);
-  constexpr double kH = 1e-6;
   for (int i = 0; i < 200; ++i) {
     const Pose2 t{u(rng), u(rng), ua(rng)};
     const Eigen::Vector2d p(u(rng), u(rng));
@@ -84,21 +94,8 @@ TEST(Pose2, TransformToIsTheInverseMapAndItsJacobiansMatchNumericalDifferences) 
     const Eigen::Vector2d q = t.TransformTo(p, &j_pose, &j_point);
     EXPECT_LT((q - t.Inverse().Apply(p)).norm(), 1e-9);
     EXPECT_LT((t.Apply(q) - p).norm(), 1e-9);
-    Eigen::Matrix<double, 2, 3> num_pose;
-    for (int k = 0; k < 3; ++k) {
-      Eigen::Vector3d lo = t.Vector(), hi = t.Vector();
-      lo(k) -= kH;
-      hi(k) += kH;
-      num_pose.col(k) = (Pose2{hi(0), hi(1), hi(2)}.TransformTo(p) - Pose2{lo(0), lo(1), lo(2)}.TransformTo(p)) /
-                        (2 * kH);
-    }
-    Eigen::Matrix2d num_point;
-    for (int k = 0; k < 2; ++k) {
-      Eigen::Vector2d lo = p, hi = p;
-      lo(k) -= kH;
-      hi(k) += kH;
-      num_point.col(k) = (t.TransformTo(hi) - t.TransformTo(lo)) / (2 * kH);
-    }
+    const auto [num_pose, num_point] = NumericalJacobians(
+        [](const Pose2& a, const Eigen::Vector2d& b) { return a.TransformTo(b); }, t, p);
     EXPECT_LT((j_pose - num_pose).cwiseAbs().maxCoeff(), 1e-6) << "pose " << i;
     EXPECT_LT((j_point - num_point).cwiseAbs().maxCoeff(), 1e-6) << "point " << i;
   }

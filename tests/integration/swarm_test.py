@@ -513,17 +513,7 @@ class BadInputTest(unittest.TestCase):
             (["--kill", "2@5", "--restart", "2@5", "--kill", "2@7", "--restart", "2@9", "--restart", "2@12"],
              "--restart 2@12: agent 2 is running then"),
         ]
-        with tempfile.TemporaryDirectory() as tmp:
-            for args, expected in cases:
-                with self.subTest(args=args):
-                    out = Path(tmp) / "run"
-                    r = subprocess.run(SWARM + ["run", str(DATA / "three.yaml"), "--out", str(out)] + args,
-                                       capture_output=True, text=True, timeout=30)
-                    self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
-                    lines = r.stderr.strip().splitlines()
-                    self.assertEqual(len(lines), 1, r.stderr)
-                    self.assertTrue(lines[0].startswith("swarm: " + expected), r.stderr)
-                    self.assertFalse(out.exists())  # refused before anything started
+        self.check_refused_before_anything_starts("run", cases)
 
     def test_a_sweep_checks_every_run_before_the_first(self):
         """X1: `swarm sweep --values 5,abc` failed only after its first run; a sweep took no fault
@@ -540,17 +530,22 @@ class BadInputTest(unittest.TestCase):
             (["--param", "radio.range_m", "--values", "1,2", "--seeds", "1,x"], "--seeds 1,x: expected"),
             (["--param", "seed=1,2"], "--param seed=1,2: give seeds with --seeds"),
         ]
+        self.check_refused_before_anything_starts("sweep", cases)
+
+    def check_refused_before_anything_starts(self, command, cases):
+        """`swarm COMMAND three.yaml --out DIR ARGS` for each (ARGS, the start of the expected
+        error): exit status 2, one line, and DIR never made."""
         with tempfile.TemporaryDirectory() as tmp:
             for args, expected in cases:
                 with self.subTest(args=args):
-                    out = Path(tmp) / "sweep"
-                    r = subprocess.run(SWARM + ["sweep", str(DATA / "three.yaml"), "--out", str(out)] + args,
+                    out = Path(tmp) / command
+                    r = subprocess.run(SWARM + [command, str(DATA / "three.yaml"), "--out", str(out)] + args,
                                        capture_output=True, text=True, timeout=60)
                     self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
                     lines = r.stderr.strip().splitlines()
                     self.assertEqual(len(lines), 1, r.stderr)
                     self.assertTrue(lines[0].startswith("swarm: " + expected), r.stderr)
-                    self.assertFalse(out.exists())  # nothing ran
+                    self.assertFalse(out.exists())  # refused before anything started
 
 
 class HelpTest(unittest.TestCase):
