@@ -26,6 +26,7 @@
 #include "common/io/checkpoint.h"
 #include "common/map/landmark_map.h"
 #include "common/map/map_codec.h"
+#include "common/map/submap_codec.h"
 
 namespace mapmesh {
 namespace {
@@ -422,6 +423,71 @@ void ScenarioSeeds(const fs::path& dir, const fs::path& source_dir) {
 }  // namespace
 }  // namespace mapmesh
 
+namespace mapmesh {
+namespace {
+
+// Submap seeds: encodings (EncodeSubmap) of seeded random submaps of 0-40 landmarks, plus
+// payloads refused for each reason.
+void SubmapSeeds(const fs::path& dir) {
+  std::mt19937 rng(20261127);
+  std::normal_distribution<double> g;
+  int k = 0;
+  const auto add = [&](const std::string& what, const Bytes& b) {
+    char name[64];
+    std::snprintf(name, sizeof name, "seed-%03d-%s", k++, what.c_str());
+    WriteBytes(dir / name, b);
+  };
+  const auto random_submap = [&](std::uint32_t n) {
+    WireSubmap s;
+    s.id = {static_cast<RobotId>(1 + rng() % 8), static_cast<std::uint32_t>(1 + rng() % 3),
+            static_cast<std::uint32_t>(rng() % 50)};
+    s.opened_s = 10.0 * (rng() % 30);
+    s.closed_s = s.opened_s + 1.0 + rng() % 20;
+    const auto m = static_cast<Eigen::Index>(3 + 2 * n);
+    s.x.resize(m);
+    for (Eigen::Index i = 0; i < m; ++i) s.x(i) = 20.0 * g(rng);
+    for (std::uint32_t i = 0; i < n; ++i) s.keys.push_back(3 * i + rng() % 3);
+    Eigen::MatrixXd a(m, m);
+    for (Eigen::Index i = 0; i < a.size(); ++i) a.data()[i] = 0.05 * g(rng);
+    s.SetCovariance(a * a.transpose() + 1e-4 * Eigen::MatrixXd::Identity(m, m));
+    return s;
+  };
+  Bytes one;
+  for (const std::uint32_t n : {0u, 1u, 2u, 5u, 12u, 40u}) {
+    const Bytes b = EncodeSubmap(random_submap(n));
+    if (n == 2) one = b;
+    add("submap-" + std::to_string(n), b);
+  }
+  Bytes x = one;
+  x.pop_back();
+  add("truncated", x);
+  x = one;
+  x.push_back(0);
+  add("oversized", x);
+  x = one;
+  x[2] = 2;
+  add("version", x);
+  x = one;
+  Poke<double>(x, 24, -1.0);  // closed before it opened
+  add("stamps", x);
+  x = one;
+  Poke<std::uint32_t>(x, kSubmapCodecHeaderBytes + 4, 0);  // both ids 0
+  Poke<std::uint32_t>(x, kSubmapCodecHeaderBytes, 0);
+  add("duplicate-id", x);
+  x = one;
+  Poke<float>(x, kSubmapCodecHeaderBytes + 4 * 2 + 8 * 7, -1.0f);  // L(0, 0)
+  add("covariance", x);
+  x = one;
+  Poke<double>(x, kSubmapCodecHeaderBytes + 4 * 2 + 8 * 3, 9000.0);
+  add("out-of-bounds", x);
+  WriteDict(dir.parent_path() / "submap_decoder.dict",
+            {std::string("MS\x01\x00", 4), std::string("\x00\x00\x80\x7f", 4), std::string("\x00\x00\x80\xbf", 4),
+             std::string("\x00\x00\x00\x00\x00\x00\xf8\x7f", 8), std::string("\xf4\x01\x00\x00", 4)});
+}
+
+}  // namespace
+}  // namespace mapmesh
+
 int main(int argc, char** argv) {
   namespace fs = std::filesystem;
   if (argc != 3) {
@@ -431,7 +497,7 @@ int main(int argc, char** argv) {
     return help ? 0 : 2;
   }
   const fs::path out = argv[1], source = argv[2];
-  for (const char* t : {"map_decoder", "checkpoint", "scenario"}) {
+  for (const char* t : {"map_decoder", "submap_decoder", "checkpoint", "scenario"}) {
     fs::create_directories(out / t);
     for (const auto& e : fs::directory_iterator(out / t)) {
       const std::string name = e.path().filename().string();
@@ -441,6 +507,7 @@ int main(int argc, char** argv) {
     }
   }
   mapmesh::MapSeeds(out / "map_decoder");
+  mapmesh::SubmapSeeds(out / "submap_decoder");
   mapmesh::CheckpointSeeds(out / "checkpoint", source);
   mapmesh::ScenarioSeeds(out / "scenario", source);
   std::printf("fuzz_corpus: seed corpora and dictionaries written to %s\n", out.c_str());
