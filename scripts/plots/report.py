@@ -545,41 +545,46 @@ def exchanges_figure(run, tl, period, path):
     plt.close(fig)
 
 
-def nees_figure(run, tl, path):
-    """Local and global NEES over time, each on its own axis (log when the values span more than
-    30x, so that every value shows), with the consistency band [NEES_BAND] shaded."""
+def map_kinds_figure(run, tl, path, key, ylabel, title, before=None, after=None):
+    """One panel per map kind (local, global), each on its own axis: the timeline's `kind.key`
+    per agent over time; before(ax) and after(ax) draw what a panel adds under and over the lines."""
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
     fig.subplots_adjust(left=0.065, right=0.98, top=0.86, bottom=0.24, wspace=0.2)
     for ax, kind in zip(axes, ("local", "global")):
+        if before:
+            before(ax)
+        drawn = agent_lines(ax, run, tl, lambda e, k=kind: lookup(e, f"{k}.{key}"))
+        time_axis(ax, run, ylabel, f"{kind} map: {title}")
+        if after:
+            after(ax)
+        if not drawn:
+            no_data(ax, f"{kind} {title}")
+    legend_below(fig, axes)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def nees_figure(run, tl, path):
+    """Local and global NEES over time, each on its own axis (log when the values span more than
+    30x, so that every value shows), with the consistency band [NEES_BAND] shaded."""
+    def band(ax):
         ax.axhspan(*NEES_BAND, color="tab:green", alpha=0.12, lw=0,
                    label=f"consistency band [{NEES_BAND[0]:g}, {NEES_BAND[1]:g}]")
         ax.axhline(NEES_EXPECTED, color="black", ls="--", lw=1, label="expected (2 dof)")
-        drawn = agent_lines(ax, run, tl, lambda e, k=kind: lookup(e, f"{k}.nees_mean"))
-        time_axis(ax, run, "mean NEES", f"{kind} map: mean NEES of matched landmarks")
+
+    def scale(ax):
         values = [y for line in ax.get_lines()[1:] for y in np.asarray(line.get_ydata(), dtype=float)
                   if np.isfinite(y) and y > 0]
         if values and max(values + [NEES_BAND[1]]) / min(values + [NEES_BAND[0]]) > 30:
             ax.set_yscale("log")
-        if not drawn:
-            no_data(ax, f"{kind} NEES")
-    legend_below(fig, axes)
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+
+    map_kinds_figure(run, tl, path, "nees_mean", "mean NEES", "mean NEES of matched landmarks", band, scale)
 
 
 def rmse_figure(run, tl, path):
     """Local and global RMSE after the rigid fit to the truth over time (timeline.json)."""
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
-    fig.subplots_adjust(left=0.065, right=0.98, top=0.86, bottom=0.24, wspace=0.2)
-    for ax, kind in zip(axes, ("local", "global")):
-        drawn = agent_lines(ax, run, tl, lambda e, k=kind: lookup(e, f"{k}.rmse_aligned_m"))
-        time_axis(ax, run, "RMSE after rigid fit (m)", f"{kind} map: RMSE after a rigid fit to the truth")
-        ax.set_ylim(bottom=0)
-        if not drawn:
-            no_data(ax, f"{kind} RMSE after rigid fit")
-    legend_below(fig, axes)
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+    map_kinds_figure(run, tl, path, "rmse_aligned_m", "RMSE after rigid fit (m)", "RMSE after a rigid fit to the truth",
+                     after=lambda ax: ax.set_ylim(bottom=0))
 
 
 def coverage_figure(run, tl, path):
