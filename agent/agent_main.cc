@@ -18,6 +18,7 @@
 #include "common/app/process.h"
 #include "common/io/checkpoint.h"
 #include "common/io/run_files.h"
+#include "common/map/wire_bytes.h"
 #include "common/transport/session.h"
 #include "common/transport/shutdown.h"
 #include "common/transport/topics.h"
@@ -216,6 +217,29 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
   json refused = json::object();
   for (int i = 0; i < kMapRefusalCount; ++i)
     refused[std::string(ToString(static_cast<MapRefusal>(i)))] = s.maps_refused[i];
+  json submap_rejected = json::object();
+  for (int i = 1; i < kSubmapDecodeErrorCount; ++i) {
+    submap_rejected[std::string(ToString(static_cast<SubmapDecodeError>(i)))] = s.submaps_rejected[i];
+  }
+  json submap_refused = json::object();
+  for (int i = 0; i < kSubmapRefusalCount; ++i) {
+    submap_refused[std::string(ToString(static_cast<SubmapRefusal>(i)))] = s.submaps_refused[i];
+  }
+  const SubmapRelay::Counters& sc = node.submaps().counters();
+  // Each chain held: how many from index 0 without a gap, how many in all, and the digest of
+  // each of the first (FNV-1a of its bytes): two agents holding a submap hold the same bytes.
+  json chains = json::array();
+  const SubmapBook& book = node.submaps().book();
+  for (const SubmapChain& c : book.Chains()) {
+    json digests = json::array();
+    for (std::uint32_t i = 0; i < c.count; ++i) {
+      digests.push_back(fmt::format("{:016x}", wire::Fnv1a64(*book.Bytes({c.robot, c.incarnation, i}))));
+    }
+    std::size_t held = 0;
+    for (const SubmapId& id : book.Ids()) held += id.robot == c.robot && id.incarnation == c.incarnation ? 1 : 0;
+    chains.push_back(
+        {{"robot", c.robot}, {"incarnation", c.incarnation}, {"count", c.count}, {"held", held}, {"digests", digests}});
+  }
   const Pose2 pose = node.Pose();
   const AgentStatus status = node.Status();
   json j = s;
@@ -243,6 +267,32 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"gated", s.sightings_gated},
               {"implausible", s.sightings_implausible},
               {"tracker", node.rendezvous_stats()}}},
+            {"submaps",
+             {{"own", sc.own},
+              {"unsendable", s.submaps_unsendable},
+              {"held", node.submaps().book().size()},
+              {"held_bytes", node.submaps().book().bytes()},
+              {"chains", chains},
+              {"received_new", sc.received_new},
+              {"duplicates", sc.duplicates},
+              {"conflicts", sc.conflicts},
+              {"full", sc.full},
+              {"sent", sc.sent},
+              {"bytes_sent", sc.bytes_sent},
+              {"sent_again", sc.sent_again},
+              {"held_back", sc.held_back},
+              {"rejected", submap_rejected},
+              {"refused", submap_refused}}},
+            {"joining",
+             {{"solves", node.exchange().joining().solves},
+              {"chains", node.exchange().joining().chains},
+              {"chains_joined", node.exchange().joining().chains_joined},
+              {"submaps", node.exchange().joining().submaps},
+              {"iterations", node.exchange().joining().iterations},
+              {"converged", node.exchange().joining().converged},
+              {"solved", node.exchange().joining().solved},
+              {"ties", node.exchange().joining().ties},
+              {"ties_dropped", node.exchange().joining().ties_dropped}}},
             {"impersonations_refused", {{"maps", ByRobot(refusals.maps)}, {"sightings", ByRobot(refusals.sightings)}}},
             {"not_from_feeder", {{"links", refusals.links.refused()}, {"ticks", refusals.ticks.refused()}}},
             {"outputs",

@@ -36,7 +36,16 @@ std::unique_ptr<LocalMapper> MakeLocalMapper(const AgentOptions& options, const 
   return std::make_unique<LocalSlam>(noise, options.slam.ForSensor(sensor));
 }
 
-std::size_t WireBytes(const MapMessage& msg) { return kMapMessageFixedBytes + msg.payload.size(); }
+std::size_t WireBytes(const MapMessage& msg) {
+  std::size_t bytes = kMapMessageFixedBytes + msg.payload.size();
+  // Submaps and the chains held (issue J1): the two sequences' lengths, 12 bytes a chain, and
+  // each submap with its length.
+  if (!msg.submaps_held.empty() || !msg.submaps.empty() || !msg.open_submap.empty()) {
+    bytes += 12 + 12 * msg.submaps_held.size() + msg.open_submap.size();
+    for (const auto& b : msg.submaps) bytes += 4 + b.size();
+  }
+  return bytes;
+}
 
 std::string_view ToString(MapRefusal r) {
   switch (r) {
@@ -46,6 +55,19 @@ std::string_view ToString(MapRefusal r) {
     case MapRefusal::kCovarianceTooLarge: return "covariance_too_large";
     case MapRefusal::kVersionJump: return "version_jump";
     case MapRefusal::kTooManyIncarnations: return "too_many_incarnations";
+  }
+  return "unknown";
+}
+
+std::string_view ToString(SubmapRefusal r) {
+  switch (r) {
+    case SubmapRefusal::kTooManyOnOneMap: return "too_many_on_one_map";
+    case SubmapRefusal::kUnknownRobot: return "unknown_robot";
+    case SubmapRefusal::kImplausibleStamp: return "implausible_stamp";
+    case SubmapRefusal::kTooManyLandmarks: return "too_many_landmarks";
+    case SubmapRefusal::kOutOfWorld: return "out_of_world";
+    case SubmapRefusal::kCovarianceTooLarge: return "covariance_too_large";
+    case SubmapRefusal::kNotThePublishers: return "not_the_publishers";
   }
   return "unknown";
 }
@@ -93,6 +115,8 @@ AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId s
                      run.seed * 998244353ULL + self * 104729ULL + incarnation),
       rendezvous_(self, incarnation, run.robots, options.rendezvous, run.sensor.sigma_range_m,
                   run.sensor.sigma_bearing_rad),
+      submaps_(options.exchange.Submaps()),
+      joining_(options.exchange.global.method == FusionMethod::kJoining),
       exchange_ticks_(run.exchange_ticks),
       next_checkpoint_s_(options.checkpoint_period_s) {}
 
@@ -190,10 +214,28 @@ void AgentNode::PublishMaps(std::uint32_t tick, std::vector<Sighting> riders) {
     continuity_checked_ = true;
     exchange_.PlaceOwnCheckpointsAt(*sync_.frame_origin_stamp(), local, sync_.processed_until());
   }
+  TakeOwnSubmaps();
+  if (joining_) {
+    own_open_ = mapper_->CurrentSubmap({self_, incarnation_, static_cast<std::uint32_t>(own_submaps_taken_)});
+    exchange_.SetSubmapInputs({&submaps_.book(), own_open_, &peers_open_});
+  }
   exchange_.Update(local, sync_.processed_until());
   Publish(MapKind::kLocal, local, ++local_version_, tick, riders);
   Publish(MapKind::kGlobal, exchange_.published().map, ++global_version_, tick, riders);
   stats_.sightings_unsent += static_cast<std::uint32_t>(riders.size());  // neither map could be encoded
+}
+
+void AgentNode::TakeOwnSubmaps() {
+  for (; own_submaps_taken_ < mapper_->SubmapsClosed(); ++own_submaps_taken_) {
+    const SubmapId id{self_, incarnation_, static_cast<std::uint32_t>(own_submaps_taken_)};
+    const std::optional<WireSubmap> w = mapper_->ClosedSubmap(own_submaps_taken_, id);
+    const std::vector<std::uint8_t> bytes = w ? EncodeSubmap(*w) : std::vector<std::uint8_t>{};
+    if (bytes.empty()) {
+      ++stats_.submaps_unsendable;
+      continue;
+    }
+    submaps_.AddOwn(*w, bytes);
+  }
 }
 
 bool AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version, std::uint32_t tick,
@@ -224,6 +266,17 @@ bool AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t vers
     ++stats_.maps_encode_failed;
     stats_.last_encode_error = why;
     return false;
+  }
+  if (kind == MapKind::kLocal) {
+    // The submap chains held, and what the peers in range lack of them (SubmapRelay).
+    std::set<RobotId> in_range;
+    for (RobotId r : robot_ids_) {
+      if (r != self_ && gate_.InRange(r)) in_range.insert(r);
+    }
+    msg.submaps_held = submaps_.Advert();
+    for (const std::vector<std::uint8_t>* b : submaps_.Due(in_range, sync_.processed_until()))
+      msg.submaps.push_back(*b);
+    if (own_open_) msg.open_submap = EncodeSubmap(*own_open_);
   }
   ++stats_.maps_sent;
   stats_.bytes_sent += WireBytes(msg);
@@ -287,6 +340,7 @@ void AgentNode::ProcessMap(const MapMessage& msg) {
     case GateVerdict::kPass: break;
   }
   stats_.bytes_received += WireBytes(msg);
+  if (msg.kind == MapKind::kLocal) ProcessSubmaps(msg, now);
   // A map larger than we will align is refused before it is decoded (kept within the codec's
   // own limit, so that a malformed count is still reported as such).
   if (const auto n = MapPayloadCount(msg.payload);
@@ -313,6 +367,58 @@ void AgentNode::ProcessMap(const MapMessage& msg) {
   }
   ++stats_.maps_received;
   ++stats_.maps_received_from[msg.robot_id];
+}
+
+void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
+  submaps_.OnAdvert({msg.robot_id, msg.incarnation}, msg.submaps_held, now);
+  auto refuse = [this](SubmapRefusal r) { ++stats_.submaps_refused[static_cast<int>(r)]; };
+  // The robot, the stamp and the limits, for every submap taken (a peer's open one too).
+  auto admissible = [&](const WireSubmap& s) {
+    if (!InRun(s.id.robot)) {
+      refuse(SubmapRefusal::kUnknownRobot);
+      return false;
+    }
+    if (s.closed_s > now + options_.max_stamp_jump_s) {
+      refuse(SubmapRefusal::kImplausibleStamp);
+      return false;
+    }
+    switch (CheckSubmapLimits(s, options_.peer_limits)) {
+      case MapLimitViolation::kNone: return true;
+      case MapLimitViolation::kTooManyLandmarks: refuse(SubmapRefusal::kTooManyLandmarks); break;
+      case MapLimitViolation::kOutOfWorld: refuse(SubmapRefusal::kOutOfWorld); break;
+      case MapLimitViolation::kCovarianceTooLarge: refuse(SubmapRefusal::kCovarianceTooLarge); break;
+    }
+    return false;
+  };
+  if (joining_ && !msg.open_submap.empty()) {
+    const SubmapDecodeResult d = DecodeSubmap(msg.open_submap);
+    if (!d.ok()) {
+      ++stats_.submaps_rejected[static_cast<int>(d.error)];
+    } else if (d.submap.id.robot != msg.robot_id || d.submap.id.incarnation != msg.incarnation) {
+      refuse(SubmapRefusal::kNotThePublishers);
+    } else if (admissible(d.submap)) {
+      // The latest: a later index, or the same one mapped further (an older map arriving late
+      // changes nothing).
+      const PeerKey key{msg.robot_id, msg.incarnation};
+      const auto held = peers_open_.find(key);
+      if (held == peers_open_.end() ||
+          std::tie(d.submap.id.index, d.submap.closed_s) > std::tie(held->second.id.index, held->second.closed_s)) {
+        peers_open_[key] = d.submap;
+      }
+    }
+  }
+  for (std::size_t i = 0; i < msg.submaps.size(); ++i) {
+    if (i >= kMaxSubmapsPerMap) {
+      refuse(SubmapRefusal::kTooManyOnOneMap);
+      continue;
+    }
+    const SubmapDecodeResult d = DecodeSubmap(msg.submaps[i]);
+    if (!d.ok()) {
+      ++stats_.submaps_rejected[static_cast<int>(d.error)];
+      continue;
+    }
+    if (admissible(d.submap)) submaps_.Add(d.submap, msg.submaps[i], now);
+  }
 }
 
 bool AgentNode::InRun(RobotId robot) const {

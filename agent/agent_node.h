@@ -18,6 +18,7 @@
 #include "agent/radio_gate.h"
 #include "agent/rendezvous_tracker.h"
 #include "agent/sensor_sync.h"
+#include "agent/submap_relay.h"
 #include "common/geometry/pose_track.h"
 #include "common/io/checkpoint.h"
 #include "common/map/landmark_map.h"
@@ -73,6 +74,22 @@ enum class MapRefusal {
 inline constexpr int kMapRefusalCount = 6;
 std::string_view ToString(MapRefusal r);
 
+// Why a well-formed closed submap riding on a peer's local map was refused (issue J1); each
+// refusal changes nothing.
+enum class SubmapRefusal {
+  kTooManyOnOneMap = 0,  // beyond kMaxSubmapsPerMap on one map (the rest of them)
+  kUnknownRobot,         // made by a robot not of this run
+  kImplausibleStamp,     // closed after what we have received (agent.max_stamp_jump_s)
+  kTooManyLandmarks,     // the map limits, as for maps
+  kOutOfWorld,
+  kCovarianceTooLarge,
+  kNotThePublishers,  // an open submap that is not the publisher's own incarnation's
+};
+inline constexpr int kSubmapRefusalCount = 7;
+std::string_view ToString(SubmapRefusal r);
+// A local map carries at most this many submaps (the first are taken, the rest refused).
+inline constexpr std::size_t kMaxSubmapsPerMap = 1024;
+
 // Counters of the maps the agent sent, received, dropped or rejected, and why.
 struct AgentStats {
   std::uint32_t maps_sent = 0;
@@ -100,6 +117,9 @@ struct AgentStats {
   std::uint32_t sightings_gated = 0;        // ... that it dropped (out of range, lost, busy)
   std::uint32_t sightings_implausible = 0;  // ... refused before it: unknown sender or a stamp ahead of ours
   std::uint32_t inbox_full = 0;             // lockstep: peers' messages dropped on arrival, the inbox holding kMaxInbox
+  std::array<std::uint32_t, kSubmapDecodeErrorCount> submaps_rejected{};  // peers' submaps, by SubmapDecodeError
+  std::array<std::uint32_t, kSubmapRefusalCount> submaps_refused{};       // by SubmapRefusal
+  std::uint32_t submaps_unsendable = 0;  // own closed submaps that cannot go on the wire (never sent)
   std::uint32_t MapsRejected() const;
   // Encoded bytes per landmark sent (header included), 0 before anything was sent.
   double BytesPerLandmark() const;
@@ -165,6 +185,8 @@ class AgentNode : private SensorSync::Sink {
   using PoseStamp = mapmesh::PoseStamp;
   const std::vector<PoseStamp>& trajectory() const { return trajectory_; }
   const MapExchange& exchange() const { return exchange_; }
+  // The closed submaps held (own and peers') and what was sent of them (issue J1).
+  const SubmapRelay& submaps() const { return submaps_; }
   const RendezvousStats& rendezvous_stats() const { return rendezvous_.stats(); }
   const GlobalMap& global() const { return exchange_.global(); }
   std::uint32_t incarnation() const { return incarnation_; }
@@ -185,6 +207,10 @@ class AgentNode : private SensorSync::Sink {
                std::vector<Sighting>& riders);
   // A peer's map or sighting through the gates into the exchange (at once, or at a tick).
   void ProcessMap(const MapMessage& msg);
+  // The submaps and advertisement riding on a peer's local map that passed the gate, at `now`.
+  void ProcessSubmaps(const MapMessage& msg, double now);
+  // Own submaps closed since the last call into the relay's book.
+  void TakeOwnSubmaps();
   void ProcessSighting(const Sighting& msg);
   // The exchange phase of a tick, its link table present (OnTick).
   void Exchange(const ExchangeTick& tick);
@@ -215,6 +241,11 @@ class AgentNode : private SensorSync::Sink {
   MapExchange exchange_;
   RadioGate sighting_gate_;  // the radio gate for sightings: its own loss draws, so maps see the same ones
   RendezvousTracker rendezvous_;
+  SubmapRelay submaps_;
+  std::size_t own_submaps_taken_ = 0;         // the mapper's closed submaps taken into submaps_
+  bool joining_ = false;                      // agent.fusion joining: the back-end joins submap chains
+  std::optional<WireSubmap> own_open_;        // joining: the open submap at the last publication
+  std::map<PeerKey, WireSubmap> peers_open_;  // joining: each peer incarnation's latest open submap
   // Publishes sightings and answers (when the run aligns by rendezvous); in lockstep holds them
   // for the next tick.
   void PublishSightings(const std::vector<Sighting>& out);

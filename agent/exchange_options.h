@@ -4,6 +4,7 @@
 
 #include <cstdint>
 
+#include "agent/submap_relay.h"
 #include "common/config/scenario_limits.h"
 #include "common/merge/global_map.h"
 #include "common/merge/map_alignment.h"
@@ -89,12 +90,20 @@ struct ExchangeOptions {
   int rendezvous_min_inliers = 3;
   double rendezvous_gate_probability = 0.999;  // the maps' transform must lie within this gate of the fit
   GlobalMapOptions global;
+  SubmapRelayOptions submaps;   // closed submaps held and relayed (issue J1); zero periods resolved by Submaps()
   ExchangeAblations test_only;  // all on outside unit tests
 
   // silent_after_s resolved.
   double SilentAfterS() const { return silent_after_s > 0 ? silent_after_s : 3.0 * map_publish_period_s; }
   // How fast a peer's map versions can grow: one of each kind per period, twice over.
   double MaxVersionsPerS() const { return 2.0 / map_publish_period_s; }
+  // submaps with its zero periods resolved: 3 map periods each.
+  SubmapRelayOptions Submaps() const {
+    SubmapRelayOptions o = submaps;
+    if (o.resend_after_s <= 0) o.resend_after_s = 3.0 * map_publish_period_s;
+    if (o.advert_max_age_s <= 0) o.advert_max_age_s = 3.0 * map_publish_period_s;
+    return o;
+  }
 
   // Reads its keys of the scenario's agent section (docs/SCENARIOS.md).
   template <typename Reader>
@@ -112,6 +121,13 @@ struct ExchangeOptions {
     r.GetInRange("max_relay_checks_per_update", max_relay_checks_per_update, 1, limits::kMaxAlignmentsPerUpdate);
     r.GetInRange("max_relay_comparisons_per_update", max_relay_comparisons_per_update, 1,
                  limits::kMaxRelayComparisonsPerUpdate);
+    int send_bytes = static_cast<int>(submaps.send_bytes);
+    r.GetInRange("submap_send_bytes", send_bytes, 1, limits::kMaxSubmapSendBytes);
+    submaps.send_bytes = static_cast<std::size_t>(send_bytes);
+    r.GetZeroOrInRange("submap_resend_after_s", submaps.resend_after_s, limits::kMinPeriodS, limits::kMaxPeriodS);
+    int held = static_cast<int>(submaps.max_held);
+    r.GetInRange("max_submaps_held", held, 1, limits::kMaxSubmapsHeld);
+    submaps.max_held = static_cast<std::size_t>(held);
   }
 };
 

@@ -1,6 +1,9 @@
 #include "agent/fusion_backend.h"
 
+#include <algorithm>
+
 #include "common/merge/map_joining.h"
+#include "common/merge/submap_network.h"
 
 namespace mapmesh {
 namespace {
@@ -11,8 +14,8 @@ class CloneFusion : public FusionBackend {
  public:
   CloneFusion(RobotId self, std::uint32_t incarnation, const GlobalMapOptions& options)
       : self_(self), incarnation_(incarnation), options_(options) {}
-  Built Build(const LandmarkMap& own_local, const std::vector<MapSource>& sources,
-              const std::vector<MapSource>& direct) override {
+  Built Build(const LandmarkMap& own_local, const std::vector<MapSource>& sources, const std::vector<MapSource>& direct,
+              const SubmapInputs&) override {
     Built b;
     b.global = BuildGlobalMap(own_local, self_, sources, options_, incarnation_, &global_memo_);
     b.published = BuildGlobalMap(own_local, self_, direct, options_, incarnation_, &published_memo_);
@@ -35,20 +38,80 @@ class JoiningFusion : public FusionBackend {
       : self_(self), incarnation_(incarnation), association_(options) {
     association_.method = FusionMethod::kCiConstant;
   }
-  Built Build(const LandmarkMap& own_local, const std::vector<MapSource>&,
-              const std::vector<MapSource>& direct) override {
+  Built Build(const LandmarkMap& own_local, const std::vector<MapSource>&, const std::vector<MapSource>& direct,
+              const SubmapInputs& submaps) override {
     const GlobalMap associated = BuildGlobalMap(own_local, self_, direct, association_, incarnation_, &memo_);
     Built b;
-    b.global = JoinMaps(own_local, self_, incarnation_, direct, associated);
+    if (submaps.book != nullptr && (submaps.own_open || submaps.book->ChainLength(self_, incarnation_) > 0)) {
+      b.global = JoinChains(associated, direct, submaps);
+    } else {
+      b.global = JoinMaps(own_local, self_, incarnation_, direct, associated);
+    }
     b.published = b.global;
+    b.joining = report_;
     return b;
   }
 
+ private:
+  // The submap chains joined (submap_network.h): the own chain (closed submaps, then the open
+  // one) in the own frame, and each aligned peer's (closed, then its latest open one) from its
+  // alignment, the association from the CI build's groups. Each landmark a chain holds gets the
+  // joint estimate; one no chain holds keeps the CI build's.
+  GlobalMap JoinChains(const GlobalMap& associated, const std::vector<MapSource>& direct, const SubmapInputs& submaps) {
+    const SubmapBook& book = *submaps.book;
+    auto chain = [&](RobotId robot, std::uint32_t incarnation, const Pose2& origin) {
+      ChainInput c{robot, incarnation, {}, origin};
+      const std::uint32_t n = book.ChainLength(robot, incarnation);
+      for (std::uint32_t i = 0; i < n; ++i) c.submaps.push_back(book.Find({robot, incarnation, i}));
+      return c;
+    };
+    std::vector<ChainInput> chains = {chain(self_, incarnation_, Pose2{})};
+    if (submaps.own_open && submaps.own_open->id.index == chains[0].submaps.size()) {
+      chains[0].submaps.push_back(&*submaps.own_open);  // it continues the chain (none is missing before it)
+    }
+    for (const MapSource& s : direct) {
+      ChainInput c = chain(s.robot, s.incarnation, s.to_own);
+      if (submaps.peers_open != nullptr) {
+        const auto open = submaps.peers_open->find({s.robot, s.incarnation});
+        if (open != submaps.peers_open->end() && open->second.id.index == c.submaps.size()) {
+          c.submaps.push_back(&open->second);
+        }
+      }
+      if (!c.submaps.empty()) chains.push_back(std::move(c));
+    }
+    std::map<LandmarkRef, int> groups;
+    for (std::size_t g = 0; g < associated.origins.size(); ++g) {
+      for (const LandmarkOrigin& o : associated.origins[g])
+        groups[{o.robot, o.incarnation, o.id}] = static_cast<int>(g);
+    }
+    const NetworkResult r = JoinSubmapNetwork(chains, groups);
+    report_.chains = static_cast<int>(chains.size());
+    report_.chains_joined = static_cast<int>(std::count(r.joined.begin(), r.joined.end(), true));
+    report_.submaps = r.submaps;
+    report_.iterations = r.iterations;
+    report_.converged = r.converged;
+    report_.solved = r.solved;
+    report_.ties = r.ties;
+    report_.ties_dropped = r.ties_dropped;
+    ++report_.solves;
+    if (!r.solved) return associated;
+    GlobalMap out = associated;
+    for (std::size_t g = 0; g < out.map.landmarks.size(); ++g) {
+      const NetworkLandmark* l = r.OfGroup(static_cast<int>(g));
+      if (l == nullptr) continue;
+      out.map.landmarks[g].mean = l->mean;
+      out.map.landmarks[g].cov = l->cov;
+    }
+    return out;
+  }
+
+ public:
  private:
   RobotId self_;
   std::uint32_t incarnation_;
   GlobalMapOptions association_;
   AssociationMemo memo_;
+  JoiningReport report_;
 };
 
 }  // namespace

@@ -1,15 +1,45 @@
 #pragma once
 // How an agent builds its global maps from its own local map and its peers' placed maps
 // (agent.fusion), chosen once when the exchange starts: Covariance Intersection into the cloned
-// global map (the thesis's method and the default), or least-squares joining of the one-hop
-// maps. A back-end reads the maps it is given and changes only its own association memory.
+// global map (the thesis's method and the default), or least-squares joining: of the own and
+// the aligned peers' submap chains where the agent holds them (agent.slam cekf_submaps; the
+// landmarks only the peers' open submaps hold are placed as the CI build places them), else of
+// the one-hop maps. A back-end reads what it is given and changes only its own association
+// memory.
 
+#include <map>
 #include <memory>
+#include <optional>
 #include <vector>
 
+#include "agent/peer_state.h"
+#include "common/map/submap_book.h"
 #include "common/merge/global_map.h"
 
 namespace mapmesh {
+
+// What a back-end may use besides maps (issue J1): the closed submaps the agent holds, by
+// identity (its own and its peers'), and its own open submap (index: its closed ones' count).
+struct SubmapInputs {
+  const SubmapBook* book = nullptr;
+  std::optional<WireSubmap> own_open;
+  // Each peer incarnation's latest open submap (its index: the count of its closed ones); null
+  // for none.
+  const std::map<PeerKey, WireSubmap>* peers_open = nullptr;
+};
+
+// What the joining back-end's last solve on submap chains did (all zero before one).
+struct JoiningReport {
+  int solves = 0;         // solves on submap chains so far
+  int chains = 0;         // chains offered at the last (own, then each aligned peer's) ...
+  int chains_joined = 0;  // ... and joined (tied to the others by enough landmarks)
+  int submaps = 0;        // submaps joined
+  int iterations = 0;     // Levenberg-Marquardt iterations, both passes
+  bool converged = false;
+  bool solved = false;
+  int ties = 0;          // pairings of landmarks across chains offered by the association ...
+  int ties_dropped = 0;  // ... and not used (contradicted by the submaps, or redundant)
+};
 
 class FusionBackend {
  public:
@@ -19,9 +49,10 @@ class FusionBackend {
   struct Built {
     GlobalMap global;
     GlobalMap published;
+    JoiningReport joining;
   };
   virtual Built Build(const LandmarkMap& own_local, const std::vector<MapSource>& sources,
-                      const std::vector<MapSource>& direct) = 0;
+                      const std::vector<MapSource>& direct, const SubmapInputs& submaps = {}) = 0;
 };
 
 // The back-end options.method names, for robot `self` in its incarnation.

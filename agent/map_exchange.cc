@@ -357,9 +357,10 @@ void MapExchange::Build(const LandmarkMap& own_local) {
     }
     sources.push_back(*p.source);
   }
-  FusionBackend::Built built = fusion_->Build(own_local, sources, direct);
+  FusionBackend::Built built = fusion_->Build(own_local, sources, direct, submap_inputs_);
   global_ = std::move(built.global);
   published_ = std::move(built.published);
+  joining_ = built.joining;
 }
 
 }  // namespace mapmesh

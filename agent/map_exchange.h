@@ -61,6 +61,9 @@ class MapExchange {
     book_.AddOwnCheckpoint(incarnation, origin_stamp, std::move(local), std::move(global));
   }
 
+  // The submaps the fusion back-end may use from now on (fusion_backend.h): the book must
+  // outlive the exchange's use of it.
+  void SetSubmapInputs(SubmapInputs inputs) { submap_inputs_ = std::move(inputs); }
   // Runs the alignments and verifications that are due against the own local map, then
   // rebuilds the global map. Returns true if any alignment changed.
   bool Update(const LandmarkMap& own_local, double now);
@@ -75,6 +78,8 @@ class MapExchange {
   // own incarnations are placed).
   std::uint64_t updates() const { return updates_; }
   const GlobalMap& global() const { return global_; }
+  // The joining back-end's last solve on submap chains (fusion_backend.h).
+  const JoiningReport& joining() const { return joining_; }
   // The one-hop global map: the own local map fused with aligned peers' local maps (and an
   // earlier own incarnation's maps). This is what the agent publishes as its GLOBAL map.
   const GlobalMap& published() const { return published_; }
@@ -143,6 +148,8 @@ class MapExchange {
   bool refuted_ = false;  // the Update in progress refuted an alignment
   PeerKey next_turn_;     // the peer whose turn is first in the next Update (round robin)
   std::unique_ptr<FusionBackend> fusion_;  // agent.fusion, chosen once
+  SubmapInputs submap_inputs_;
+  JoiningReport joining_;
   GlobalMap global_;
   GlobalMap published_;
   std::uint64_t updates_ = 0;

@@ -19,6 +19,8 @@ inline constexpr int kMaxScanEverySteps = 100000;     // sensor.scan_every_steps
 inline constexpr int kMaxDropAfterFailures = 1000;    // agent.drop_after_failures
 inline constexpr int kMaxAlignmentsPerUpdate = 1000;  // agent.max_alignments_per_update, max_relay_checks_per_update
 inline constexpr int kMaxRelayComparisonsPerUpdate = 1000000;  // agent.max_relay_comparisons_per_update
+inline constexpr int kMaxSubmapSendBytes = 64 << 20;           // agent.submap_send_bytes
+inline constexpr int kMaxSubmapsHeld = 1000000;                // agent.max_submaps_held
 inline constexpr std::size_t kMaxCsvBytes = 64u << 20;         // landmarks.csv file size
 inline constexpr std::size_t kMaxScenarioBytes = 16u << 20;    // the scenario file itself
 // Values (scalars, lists, mappings) in the scenario file, counted by a streaming pass before the

@@ -28,4 +28,22 @@ MapLimitViolation CheckMapLimits(const LandmarkMap& map, const MapLimits& limits
   return MapLimitViolation::kNone;
 }
 
+MapLimitViolation CheckSubmapLimits(const WireSubmap& submap, const MapLimits& limits) {
+  const Eigen::Index n = static_cast<Eigen::Index>(submap.keys.size());
+  if (submap.keys.size() > limits.max_landmarks) return MapLimitViolation::kTooManyLandmarks;
+  for (Eigen::Index i = 0; i <= n; ++i) {  // the end pose, then each landmark
+    const Eigen::Index at = i == 0 ? 0 : 1 + 2 * i;
+    if (!(std::abs(submap.x(at)) <= limits.world_radius_m && std::abs(submap.x(at + 1)) <= limits.world_radius_m)) {
+      return MapLimitViolation::kOutOfWorld;
+    }
+  }
+  // Variances are the squared norms of l's rows (p = l l^T).
+  const double max_var = limits.max_sigma_m * limits.max_sigma_m;
+  for (Eigen::Index i = 0; i < 3 + 2 * n; ++i) {
+    if (i == 2) continue;  // the end heading is an angle
+    if (!(submap.l.row(i).squaredNorm() <= max_var)) return MapLimitViolation::kCovarianceTooLarge;
+  }
+  return MapLimitViolation::kNone;
+}
+
 }  // namespace mapmesh

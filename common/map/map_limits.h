@@ -9,6 +9,7 @@
 #include "common/config/scenario_limits.h"
 #include "common/map/landmark_map.h"
 #include "common/map/map_codec.h"
+#include "common/map/submap_codec.h"
 
 namespace mapmesh {
 
@@ -36,5 +37,8 @@ std::string_view ToString(MapLimitViolation v);
 // The first limit the map exceeds, checked in the order of the enum (a decoded map is finite
 // with valid covariances already).
 MapLimitViolation CheckMapLimits(const LandmarkMap& map, const MapLimits& limits);
+// The same for a decoded closed submap (issue J1), in its own frame: its landmarks, its end
+// pose and landmarks within world_radius_m, and each position's standard deviation.
+MapLimitViolation CheckSubmapLimits(const WireSubmap& submap, const MapLimits& limits);
 
 }  // namespace mapmesh

@@ -25,6 +25,11 @@ const WireSubmap* SubmapBook::Find(const SubmapId& id) const {
   return it == held_.end() ? nullptr : &it->second.submap;
 }
 
+const std::vector<std::uint8_t>* SubmapBook::Bytes(const SubmapId& id) const {
+  const auto it = held_.find(id);
+  return it == held_.end() ? nullptr : &it->second.bytes;
+}
+
 std::uint32_t SubmapBook::ChainLength(RobotId robot, std::uint32_t incarnation) const {
   std::uint32_t n = 0;
   for (auto it = held_.lower_bound({robot, incarnation, 0}); it != held_.end(); ++it) {
@@ -38,6 +43,16 @@ std::vector<SubmapId> SubmapBook::Ids() const {
   std::vector<SubmapId> out;
   out.reserve(held_.size());
   for (const auto& [id, e] : held_) out.push_back(id);
+  return out;
+}
+
+std::vector<SubmapChain> SubmapBook::Chains() const {
+  std::vector<SubmapChain> out;
+  for (auto it = held_.begin(); it != held_.end();) {
+    const SubmapId& id = it->first;
+    out.push_back({id.robot, id.incarnation, ChainLength(id.robot, id.incarnation)});
+    it = held_.upper_bound({id.robot, id.incarnation, UINT32_MAX});
+  }
   return out;
 }
 

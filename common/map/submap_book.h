@@ -23,6 +23,8 @@ class SubmapBook {
   Offer Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes);
 
   const WireSubmap* Find(const SubmapId& id) const;
+  // The bytes a held submap came in (what a relay sends on); null when not held.
+  const std::vector<std::uint8_t>* Bytes(const SubmapId& id) const;
   // How many of a robot incarnation's submaps are held without a gap from index 0: those a
   // receiver can chain.
   std::uint32_t ChainLength(RobotId robot, std::uint32_t incarnation) const;
@@ -33,6 +35,9 @@ class SubmapBook {
   int conflicts() const { return conflicts_; }
   // Every submap held, in identity order (robot, incarnation, index).
   std::vector<SubmapId> Ids() const;
+  // Every robot incarnation of which a submap is held, with its ChainLength (0 when index 0 is
+  // missing), in (robot, incarnation) order.
+  std::vector<SubmapChain> Chains() const;
 
  private:
   struct Entry {

@@ -4,6 +4,7 @@
 #include <bit>
 #include <cstdint>
 #include <cstring>
+#include <span>
 #include <vector>
 
 namespace mapmesh::wire {
@@ -24,6 +25,17 @@ T Get(const std::uint8_t* p) {
   T v;
   std::memcpy(&v, p, sizeof(T));
   return v;
+}
+
+// FNV-1a, 64 bits, of the bytes: a short name for a payload in the records (which submap a
+// robot holds), not a check against forgery.
+inline std::uint64_t Fnv1a64(std::span<const std::uint8_t> bytes) {
+  std::uint64_t h = 0xcbf29ce484222325ULL;
+  for (std::uint8_t b : bytes) {
+    h ^= b;
+    h *= 0x100000001b3ULL;
+  }
+  return h;
 }
 
 }  // namespace mapmesh::wire

@@ -5,10 +5,12 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
+#include "common/map/submap_codec.h"
 #include "common/slam/motion_model.h"
 #include "common/types/choice.h"
 #include "common/types/messages.h"
@@ -47,6 +49,16 @@ class LocalMapper {
   virtual Eigen::Matrix3d pose_cov() const = 0;
   virtual std::size_t size() const = 0;
   virtual const MapperStats& stats() const = 0;
+  // Closed submaps (issue J1): how many this mapper has closed so far, and the i-th (i below
+  // that) as it travels under identity id (nullopt when it cannot go on the wire). Mappers
+  // without submaps close none.
+  virtual std::size_t SubmapsClosed() const { return 0; }
+  virtual std::optional<WireSubmap> ClosedSubmap(std::size_t /*i*/, const SubmapId& /*id*/) const {
+    return std::nullopt;
+  }
+  // The submap being mapped, as it would travel under identity id (nullopt when none holds
+  // information yet, or for mappers without submaps).
+  virtual std::optional<WireSubmap> CurrentSubmap(const SubmapId& /*id*/) const { return std::nullopt; }
 };
 
 // True when an observation can be used at all: finite, non-negative range, finite bearing.

@@ -50,6 +50,15 @@ class SubmapSlam : public LocalMapper {
     double opened_s = 0.0, closed_s = 0.0;
   };
   const std::vector<Closed>& closed() const { return closed_; }
+  std::size_t SubmapsClosed() const override { return closed_.size(); }
+  std::optional<WireSubmap> ClosedSubmap(std::size_t i, const SubmapId& id) const override {
+    return ToWire(closed_.at(i).estimate, id, closed_.at(i).opened_s, closed_.at(i).closed_s);
+  }
+  std::optional<WireSubmap> CurrentSubmap(const SubmapId& id) const override {
+    const std::optional<SubmapEstimate> open = OpenSubmap();
+    if (!open) return std::nullopt;
+    return ToWire(*open, id, opened_s_.value_or(last_stamp_s_), last_stamp_s_);
+  }
 
  private:
   // The open submap as the joiner takes it: keys assigned, nothing if it holds no information.

@@ -92,6 +92,29 @@ mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch& scratch) {
   m.sightings._length = m.sightings._maximum;
   m.sightings._buffer = scratch.sightings.data();
   m.sightings._release = false;
+  scratch.chains.clear();
+  for (const SubmapChain& c : v.submaps_held) scratch.chains.push_back({c.robot, c.incarnation, c.count});
+  m.submaps_held._maximum = static_cast<std::uint32_t>(scratch.chains.size());
+  m.submaps_held._length = m.submaps_held._maximum;
+  m.submaps_held._buffer = scratch.chains.data();
+  m.submaps_held._release = false;
+  scratch.blobs.clear();
+  for (const std::vector<std::uint8_t>& b : v.submaps) {
+    mapmesh_msg_SubmapBlob blob{};
+    blob.bytes._maximum = static_cast<std::uint32_t>(b.size());
+    blob.bytes._length = blob.bytes._maximum;
+    blob.bytes._buffer = const_cast<std::uint8_t*>(b.data());
+    blob.bytes._release = false;
+    scratch.blobs.push_back(blob);
+  }
+  m.submaps._maximum = static_cast<std::uint32_t>(scratch.blobs.size());
+  m.submaps._length = m.submaps._maximum;
+  m.submaps._buffer = scratch.blobs.data();
+  m.submaps._release = false;
+  m.open_submap._maximum = static_cast<std::uint32_t>(v.open_submap.size());
+  m.open_submap._length = m.open_submap._maximum;
+  m.open_submap._buffer = const_cast<std::uint8_t*>(v.open_submap.data());
+  m.open_submap._release = false;
   return m;
 }
 
@@ -107,6 +130,18 @@ MapMessage FromMsg(const mapmesh_msg_MapMessage& m) {
   if (m.payload._length > 0) v.payload.assign(m.payload._buffer, m.payload._buffer + m.payload._length);
   v.sightings.reserve(m.sightings._length);
   for (std::uint32_t i = 0; i < m.sightings._length; ++i) v.sightings.push_back(FromMsg(m.sightings._buffer[i]));
+  v.submaps_held.reserve(m.submaps_held._length);
+  for (std::uint32_t i = 0; i < m.submaps_held._length; ++i) {
+    const mapmesh_msg_SubmapChain& c = m.submaps_held._buffer[i];
+    v.submaps_held.push_back({c.robot, c.incarnation, c.count});
+  }
+  v.submaps.reserve(m.submaps._length);
+  for (std::uint32_t i = 0; i < m.submaps._length; ++i) {
+    const auto& b = m.submaps._buffer[i].bytes;
+    v.submaps.emplace_back(b._buffer, b._buffer + b._length);
+  }
+  if (m.open_submap._length > 0)
+    v.open_submap.assign(m.open_submap._buffer, m.open_submap._buffer + m.open_submap._length);
   return v;
 }
 

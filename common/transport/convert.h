@@ -34,6 +34,8 @@ struct MsgScratch {
   std::vector<mapmesh_msg_Link> links;
   std::vector<mapmesh_msg_TickPeer> tick_peers;
   std::vector<mapmesh_msg_Sighting> sightings;
+  std::vector<mapmesh_msg_SubmapChain> chains;
+  std::vector<mapmesh_msg_SubmapBlob> blobs;
   std::vector<std::uint32_t> ids, ids2;
 };
 

@@ -98,6 +98,16 @@ struct Sighting {
 enum class MapKind : std::uint8_t { kLocal = 0, kGlobal = 1 };
 
 // A map as it travels: the payload is the codec of common/map/map_codec.h.
+// A chain of closed submaps an agent holds (issue J1): robot's incarnation's submaps 0 ..
+// count - 1, without a gap. Advertised on every local map, so that peers send only what is
+// missing (agent/submap_relay.h).
+struct SubmapChain {
+  RobotId robot = 0;
+  std::uint32_t incarnation = 0;
+  std::uint32_t count = 0;
+  friend auto operator<=>(const SubmapChain&, const SubmapChain&) = default;
+};
+
 struct MapMessage {
   RobotId robot_id = 0;
   MapKind kind = MapKind::kLocal;
@@ -110,6 +120,14 @@ struct MapMessage {
   // Lockstep: the publisher's sightings and answers of the tick ride on one of its maps (the
   // local one), so that rendezvous costs no message of its own; each must be the publisher's.
   std::vector<Sighting> sightings;
+  // Closed submaps (issue J1), on the local map only: the chains the publisher holds, and the
+  // closed submaps it sends (its own or relayed, each the bytes of common/map/submap_codec.h).
+  std::vector<SubmapChain> submaps_held;
+  std::vector<std::vector<std::uint8_t>> submaps;
+  // With fusion joining: the publisher's open submap as it stands (the submap codec; its index
+  // is the count of the publisher's closed ones, its closed_s the map's stamp). It changes at
+  // every publication until it closes, so it is never relayed nor kept beyond the next one.
+  std::vector<std::uint8_t> open_submap;
 };
 
 // The lockstep exchange, from the feeder to the agents (feeder.pace lockstep). At each exchange

@@ -61,6 +61,67 @@ TEST_F(FusionBackendTest, CovarianceIntersectionNeverCountsASharedLandmarkTwice)
   EXPECT_EQ(b.published.map.size(), 9u);
 }
 
+// A submap of the world's landmarks [first, last) seen exactly from `frame` (keys from 0, as Seen's
+// ids), its end pose 1 m ahead.
+WireSubmap ExactSubmap(RobotId robot, std::uint32_t index, int first, int last, const Pose2& frame) {
+  WireSubmap s;
+  s.id = {robot, 1, index};
+  s.closed_s = 1.0;
+  s.x = Eigen::VectorXd(3 + 2 * (last - first));
+  s.x.head<3>() << 1.0, 0.5, 0.1;
+  for (int i = first; i < last; ++i) {
+    const Eigen::Vector2d world(3.0 * i, (i % 3) * 4.0 + (i % 2) * 1.5);
+    s.keys.push_back(static_cast<std::uint32_t>(i - first));
+    s.x.segment<2>(3 + 2 * (i - first)) = frame.Inverse().Apply(world);
+  }
+  const auto n = s.x.size();
+  Eigen::MatrixXd p = kSigma * kSigma * Eigen::MatrixXd::Identity(n, n);
+  p.topLeftCorner<3, 3>() *= 0.01;
+  EXPECT_TRUE(s.SetCovariance(p));
+  return s;
+}
+
+// With submap chains (cekf_submaps), joining takes every landmark a chain holds from the joint
+// estimate of the chains (here exact measurements: the truth, whatever the noisy maps say), and
+// a landmark no chain holds (robot 2's last, mapped after its submap) from the CI build.
+TEST_F(FusionBackendTest, JoiningOnSubmapChainsTakesTheChainsEstimates) {
+  GlobalMapOptions o;
+  o.method = FusionMethod::kJoining;
+  SubmapBook book;
+  const WireSubmap theirs = ExactSubmap(2, 0, 3, 8, frame2);  // landmarks 3-7 (their ids 0-4), not 8
+  book.Add(theirs, EncodeSubmap(theirs));
+  SubmapInputs inputs{&book, ExactSubmap(1, 0, 0, 6, Pose2{}), nullptr};
+  const FusionBackend::Built b = MakeFusionBackend(1, 1, o)->Build(own, {Source(2, two, frame2)},
+                                                                   {Source(2, two, frame2)}, inputs);
+  GlobalMapOptions ci;
+  ci.method = FusionMethod::kCiConstant;
+  const std::vector<MapSource> sources = {Source(2, two, frame2)};
+  const GlobalMap by_ci = BuildGlobalMap(own, 1, sources, ci, 1);
+  ASSERT_EQ(b.global.map.size(), 9u);
+  EXPECT_TRUE(b.joining.solved);
+  EXPECT_EQ(b.joining.chains_joined, 2);
+  EXPECT_EQ(b.joining.submaps, 2);
+  int exact = 0;
+  for (std::size_t g = 0; g < b.global.map.size(); ++g) {
+    const LandmarkOrigin& first = b.global.origins[g].front();
+    const bool only_theirs_unjoined = first.robot == 2 && first.id == 5;  // landmark 8
+    const int world_i = first.robot == 1 ? static_cast<int>(first.id) : static_cast<int>(first.id) + 3;
+    const Eigen::Vector2d truth(3.0 * world_i, (world_i % 3) * 4.0 + (world_i % 2) * 1.5);
+    if (only_theirs_unjoined) {
+      EXPECT_EQ(b.global.map.landmarks[g].mean, by_ci.map.landmarks[g].mean);
+      continue;
+    }
+    EXPECT_LT((b.global.map.landmarks[g].mean - truth).norm(), 1e-6) << "landmark " << world_i;
+    ++exact;
+  }
+  EXPECT_EQ(exact, 8);
+  // Without submaps the same back-end joins the maps (noisy: not the truth).
+  const FusionBackend::Built maps = MakeFusionBackend(1, 1, o)->Build(own, {Source(2, two, frame2)},
+                                                                      {Source(2, two, frame2)});
+  EXPECT_FALSE(maps.joining.solved);
+  EXPECT_GT((Fused(maps.global, 4).mean - Eigen::Vector2d(12.0, 4.0)).norm(), 1e-3);
+}
+
 TEST_F(FusionBackendTest, JoiningCountsEachRobotsInformationOnce) {
   GlobalMapOptions o;
   o.method = FusionMethod::kJoining;

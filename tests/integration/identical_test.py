@@ -10,6 +10,8 @@ from swarm_test import REPO, SWARM, SwarmCase
 
 PARK4 = REPO / "scenarios" / "park4.yaml"
 CIRCLE = REPO / "scenarios" / "thesis_circle_pair.yaml"
+LINE3 = REPO / "scenarios" / "line3.yaml"
+SUBMAPS = ["--set", "agent.slam=cekf_submaps"]
 LAB = [os.path.join(os.environ.get("MAPMESH_BIN", str(REPO / "build" / "bin")), "mapmesh-lab")]
 FAULTS = ["--kill", "2@60", "--kill", "5@90", "--restart", "2@100", "--pause", "3@120:2"]
 
@@ -41,6 +43,15 @@ class IdenticalRunsTest(SwarmCase):
         self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
         self.assertIn("agent_1/local_map.json: differs", r.stdout)
 
+    def test_two_lockstep_runs_relaying_submaps_are_the_same_run(self):
+        # Submaps relayed by identity (cekf_submaps) keep runs identical: the same submaps go
+        # out at the same ticks (stats.json's per-chain digests are compared too).
+        first = self.run_to("first", LINE3, *SUBMAPS)
+        second = self.run_to("second", LINE3, *SUBMAPS)
+        r = compare(first, second)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertRegex(r.stdout, r"\d+ files compared, 0 differ")
+
 
 class BusMatchesSwarmTest(SwarmCase):
     def check(self, scenario, *args):
@@ -61,6 +72,9 @@ class BusMatchesSwarmTest(SwarmCase):
 
     def test_circle_pair(self):
         self.check(CIRCLE)
+
+    def test_line3_relaying_submaps(self):
+        self.check(LINE3, *SUBMAPS)
 
 
 if __name__ == "__main__":

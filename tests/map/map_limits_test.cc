@@ -40,5 +40,35 @@ TEST(MapLimits, EachLimitIsItsOwnReason) {
   EXPECT_EQ(ToString(MapLimitViolation::kOutOfWorld), "out_of_world");
 }
 
+// A submap (issue J1) is held to the same limits in its own frame: its end pose and landmarks
+// within the world radius, each position's standard deviation (not the end heading's) within
+// max_sigma_m.
+TEST(MapLimits, ASubmapIsHeldToTheSameLimits) {
+  MapLimits limits;
+  limits.max_landmarks = 2;
+  limits.world_radius_m = 100.0;
+  limits.max_sigma_m = 2.0;
+  WireSubmap s;
+  s.keys = {1, 2};
+  s.x = Eigen::VectorXd::Zero(7);
+  s.x << 100.0, -100.0, 3.0, 99.0, 0.0, 0.0, -100.0;  // on the bound
+  Eigen::MatrixXd p = Eigen::MatrixXd::Identity(7, 7) * 3.99;
+  p(2, 2) = 50.0;  // the heading's variance is no position's
+  ASSERT_TRUE(s.SetCovariance(p));
+  EXPECT_EQ(CheckSubmapLimits(s, limits), MapLimitViolation::kNone);
+  WireSubmap far = s;
+  far.x(0) = 100.01;  // the end pose
+  EXPECT_EQ(CheckSubmapLimits(far, limits), MapLimitViolation::kOutOfWorld);
+  far = s;
+  far.x(6) = -100.01;  // the last landmark
+  EXPECT_EQ(CheckSubmapLimits(far, limits), MapLimitViolation::kOutOfWorld);
+  WireSubmap vague = s;
+  p(5, 5) = 4.1;
+  ASSERT_TRUE(vague.SetCovariance(p));
+  EXPECT_EQ(CheckSubmapLimits(vague, limits), MapLimitViolation::kCovarianceTooLarge);
+  limits.max_landmarks = 1;
+  EXPECT_EQ(CheckSubmapLimits(vague, limits), MapLimitViolation::kTooManyLandmarks);
+}
+
 }  // namespace
 }  // namespace mapmesh

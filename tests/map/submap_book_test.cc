@@ -35,6 +35,9 @@ TEST(SubmapBook, EachIdentityEntersOnceAndAConflictIsRefused) {
   EXPECT_EQ(book.Find({2, 1, 0})->x, a.x);
   EXPECT_EQ(book.bytes(), a_bytes.size());
   EXPECT_EQ(book.Find({2, 1, 1}), nullptr);
+  ASSERT_NE(book.Bytes({2, 1, 0}), nullptr);
+  EXPECT_EQ(*book.Bytes({2, 1, 0}), a_bytes);  // what a relay sends on: the first one's bytes
+  EXPECT_EQ(book.Bytes({2, 1, 1}), nullptr);
 }
 
 // The chain a receiver can use: held from index 0 without a gap, per robot incarnation.
@@ -56,6 +59,13 @@ TEST(SubmapBook, ChainLengthStopsAtTheFirstGap) {
   const std::vector<SubmapId> ids = book.Ids();
   ASSERT_EQ(ids.size(), 5u);
   EXPECT_TRUE(std::is_sorted(ids.begin(), ids.end()));
+  // One chain per robot incarnation held, a chain without its first submap of length 0; the
+  // largest identities too.
+  const WireSubmap late = Submap(6, 1, 2);
+  book.Add(late, EncodeSubmap(late));
+  const WireSubmap last = Submap(UINT32_MAX, UINT32_MAX, UINT32_MAX);
+  book.Add(last, EncodeSubmap(last));
+  EXPECT_EQ(book.Chains(), (std::vector<SubmapChain>{{4, 2, 4}, {4, 3, 1}, {6, 1, 0}, {UINT32_MAX, UINT32_MAX, 0}}));
 }
 
 }  // namespace

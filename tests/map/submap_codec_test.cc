@@ -1,5 +1,7 @@
 #include "common/map/submap_codec.h"
 
+#include "common/map/wire_bytes.h"
+
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -139,8 +141,18 @@ TEST(SubmapCodec, DecoderRefusesMalformedPayloadsAndSurvivesByteFlips) {
     const std::size_t at = rng() % b.size();
     b[at] ^= static_cast<std::uint8_t>(1u << (rng() % 8));
     const SubmapDecodeResult d = DecodeSubmap(b);
-    if (d.ok()) EXPECT_EQ(EncodeSubmap(d.submap), b) << "byte " << at;
+    if (d.ok()) {
+      EXPECT_EQ(EncodeSubmap(d.submap), b) << "byte " << at;
+    }
   }
+}
+
+// The digest that names a submap in the records is FNV-1a 64 (the published test vectors).
+TEST(SubmapCodec, DigestIsFnv1a64) {
+  const std::vector<std::uint8_t> empty, a = {'a'}, foobar = {'f', 'o', 'o', 'b', 'a', 'r'};
+  EXPECT_EQ(wire::Fnv1a64(empty), 0xcbf29ce484222325ULL);
+  EXPECT_EQ(wire::Fnv1a64(a), 0xaf63dc4c8601ec8cULL);
+  EXPECT_EQ(wire::Fnv1a64(foobar), 0x85944171f73967e8ULL);
 }
 
 }  // namespace

@@ -1,0 +1,418 @@
+#include "common/merge/submap_network.h"
+
+#include <algorithm>
+#include <memory>
+#include <set>
+#include <tuple>
+
+#include "common/slam/submap_joiner.h"
+#include "common/solver/least_squares.h"
+
+namespace mapmesh {
+namespace {
+
+// One submap as a factor: its measurement, the whitening L^-1 (p = L L^T), its chain and place
+// in it, and the landmark slot of each of its landmarks.
+struct Factor {
+  int chain = 0;
+  int index = 0;  // k: it joins frames k and k + 1 of its chain
+  Eigen::VectorXd z;
+  Eigen::MatrixXd sqrt_info;
+  std::vector<int> slots;
+};
+
+// Two slots whose positions should be equal (the first pass's pairings).
+struct Tie {
+  int a = 0, b = 0;
+};
+
+// The problem for the Levenberg-Marquardt driver: frames per chain (frame 0 of the first chain
+// fixed), landmark slots, the submap factors and the ties.
+class Network : public LeastSquaresProblem {
+ public:
+  std::vector<Factor> factors;
+  std::vector<Tie> ties;
+  double tie_sigma = 1.0;
+  RobustKernel kernel;
+  std::vector<std::vector<Pose2>> frames;   // per chain taken, its frames 0 .. K
+  std::vector<std::vector<int>> frame_var;  // ... their variables (-1: fixed)
+  std::map<int, Eigen::Vector2d> slots;     // landmark positions by slot
+  std::map<int, int> slot_var;
+  std::vector<int> factor_handles, tie_handles;
+
+  double Linearise(BlockNormalEquations& eq) override {
+    double cost = 0.0;
+    for (std::size_t i = 0; i < factors.size(); ++i) {
+      Eigen::MatrixXd j;
+      const Eigen::VectorXd r = Residual(factors[i], &j);
+      cost += 0.5 * r.squaredNorm();
+      const Factor& f = factors[i];
+      // Columns of the fixed origin (the first chain's frame 0) are dropped.
+      const bool fixed = frame_var[static_cast<std::size_t>(f.chain)][static_cast<std::size_t>(f.index)] < 0;
+      eq.Add(factor_handles[i], fixed ? Eigen::MatrixXd(j.rightCols(j.cols() - 3)) : j, r);
+    }
+    Eigen::Matrix<double, 2, 4> jt;
+    jt << Eigen::Matrix2d::Identity() / tie_sigma, -Eigen::Matrix2d::Identity() / tie_sigma;
+    for (std::size_t i = 0; i < ties.size(); ++i) {
+      const Eigen::Vector2d r = TieResidual(ties[i]);
+      const double s = r.squaredNorm();
+      cost += 0.5 * kernel.Rho(s);
+      eq.Add(tie_handles[i], jt, r, kernel.Weight(s));
+    }
+    return cost;
+  }
+  double Cost() const override {
+    double cost = 0.0;
+    for (const Factor& f : factors) cost += 0.5 * Residual(f, nullptr).squaredNorm();
+    for (const Tie& t : ties) cost += 0.5 * kernel.Rho(TieResidual(t).squaredNorm());
+    return cost;
+  }
+  void Step(const Eigen::VectorXd& dx) override {
+    for (std::size_t c = 0; c < frames.size(); ++c) {
+      for (std::size_t k = 0; k < frames[c].size(); ++k) {
+        const int v = frame_var[c][k];
+        if (v < 0) continue;
+        const int o = offsets_[static_cast<std::size_t>(v)];
+        Pose2& p = frames[c][k];
+        p = {p.x + dx(o), p.y + dx(o + 1), WrapAngle(p.theta + dx(o + 2))};
+      }
+    }
+    for (auto& [slot, l] : slots) l += dx.segment<2>(offsets_[static_cast<std::size_t>(slot_var.at(slot))]);
+  }
+  void Save() override {
+    saved_frames_ = frames;
+    saved_slots_ = slots;
+  }
+  void Restore() override {
+    frames = saved_frames_;
+    slots = saved_slots_;
+  }
+  void SetOffsets(const BlockNormalEquations& eq) {
+    offsets_.resize(static_cast<std::size_t>(eq.variables()));
+    for (int v = 0; v < eq.variables(); ++v) offsets_[static_cast<std::size_t>(v)] = eq.offset(v);
+  }
+  Eigen::Vector2d TieResidual(const Tie& t) const { return (slots.at(t.a) - slots.at(t.b)) / tie_sigma; }
+
+ private:
+  // Whitened residual S (h - z) and, if asked, its Jacobian S dh/dx over [X_k, X_k+1, L...].
+  Eigen::VectorXd Residual(const Factor& f, Eigen::MatrixXd* j) const {
+    std::vector<Eigen::Vector2d> points;
+    points.reserve(f.slots.size());
+    for (int g : f.slots) points.push_back(slots.at(g));
+    const std::vector<Pose2>& chain = frames[static_cast<std::size_t>(f.chain)];
+    const auto k = static_cast<std::size_t>(f.index);
+    Eigen::VectorXd e = PredictSubmap(chain[k], chain[k + 1], points, j) - f.z;
+    e(2) = WrapAngle(e(2));
+    if (j) *j = f.sqrt_info.triangularView<Eigen::Lower>() * (*j);
+    return f.sqrt_info.triangularView<Eigen::Lower>() * e;
+  }
+
+  std::vector<int> offsets_;
+  std::vector<std::vector<Pose2>> saved_frames_;
+  std::map<int, Eigen::Vector2d> saved_slots_;
+};
+
+// Union-find over slots.
+class Unions {
+ public:
+  int Find(int a) {
+    auto it = parent_.find(a);
+    if (it == parent_.end()) return a;
+    const int root = Find(it->second);
+    parent_[a] = root;
+    return root;
+  }
+  void Join(int a, int b) {
+    a = Find(a);
+    b = Find(b);
+    if (a != b) parent_[std::max(a, b)] = std::min(a, b);
+  }
+
+ private:
+  std::map<int, int> parent_;
+};
+
+// One solve: the chains of `order` with each reference in the slot slot_of names, the ties
+// given, started from `frames` and `slots` where given (else composed along the chains from the
+// chains' origins). On return, the network holds the solution and eq its normal equations.
+struct Solved {
+  Network net;
+  LevenbergMarquardtReport report;
+};
+
+Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>& order,
+             const std::map<LandmarkRef, int>& slot_of, const std::vector<Tie>& ties, double tie_sigma,
+             const RobustKernel& kernel, const std::vector<std::vector<Pose2>>* start_frames,
+             const std::map<int, Eigen::Vector2d>* start_slots, int max_iterations,
+             std::unique_ptr<BlockNormalEquations>* eq_out) {
+  Solved s;
+  Network& net = s.net;
+  net.tie_sigma = tie_sigma;
+  net.kernel = kernel;
+  std::vector<int> sizes;
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    const ChainInput& c = chains[order[i]];
+    std::vector<Pose2> frames = {i == 0 ? Pose2{} : c.origin};
+    if (start_frames) frames = {(*start_frames)[i][0]};
+    std::vector<int> vars = {i == 0 ? -1 : static_cast<int>(sizes.size())};
+    if (i > 0) sizes.push_back(3);
+    for (std::size_t k = 0; k < c.submaps.size(); ++k) {
+      const WireSubmap& w = *c.submaps[k];
+      Factor f;
+      f.chain = static_cast<int>(i);
+      f.index = static_cast<int>(k);
+      f.z = w.x;
+      f.z(2) = WrapAngle(f.z(2));
+      const auto n = w.l.rows();
+      f.sqrt_info = w.l.triangularView<Eigen::Lower>().solve(Eigen::MatrixXd::Identity(n, n));
+      for (std::uint32_t key : w.keys) f.slots.push_back(slot_of.at({c.robot, c.incarnation, key}));
+      for (std::size_t j = 0; j < f.slots.size(); ++j) {
+        if (!net.slots.count(f.slots[j])) {
+          net.slots[f.slots[j]] = frames.back().Apply(w.x.segment<2>(3 + 2 * static_cast<Eigen::Index>(j)));
+        }
+      }
+      frames.push_back(start_frames ? (*start_frames)[i][k + 1] : frames.back() * Pose2{w.x(0), w.x(1), w.x(2)});
+      vars.push_back(static_cast<int>(sizes.size()));
+      sizes.push_back(3);
+      net.factors.push_back(std::move(f));
+    }
+    net.frames.push_back(std::move(frames));
+    net.frame_var.push_back(std::move(vars));
+  }
+  if (start_slots) {
+    for (auto& [slot, l] : net.slots) {
+      const auto it = start_slots->find(slot);
+      if (it != start_slots->end()) l = it->second;
+    }
+  }
+  for (const auto& [slot, l] : net.slots) {
+    net.slot_var[slot] = static_cast<int>(sizes.size());
+    sizes.push_back(2);
+  }
+  for (const Tie& t : ties) {
+    if (net.slots.count(t.a) && net.slots.count(t.b)) net.ties.push_back(t);
+  }
+  *eq_out = std::make_unique<BlockNormalEquations>(std::move(sizes));
+  BlockNormalEquations& eq = **eq_out;
+  for (const Factor& f : net.factors) {
+    std::vector<int> vars;
+    const auto c = static_cast<std::size_t>(f.chain);
+    const auto k = static_cast<std::size_t>(f.index);
+    if (net.frame_var[c][k] >= 0) vars.push_back(net.frame_var[c][k]);
+    vars.push_back(net.frame_var[c][k + 1]);
+    for (int g : f.slots) vars.push_back(net.slot_var.at(g));
+    net.factor_handles.push_back(eq.Couple(vars));
+  }
+  for (const Tie& t : net.ties) net.tie_handles.push_back(eq.Couple({net.slot_var.at(t.a), net.slot_var.at(t.b)}));
+  eq.Finalize();
+  net.SetOffsets(eq);
+  LevenbergMarquardtOptions lm;
+  lm.max_iterations = max_iterations;
+  s.report = MinimiseLevenbergMarquardt(net, eq, lm);
+  return s;
+}
+
+}  // namespace
+
+NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::map<LandmarkRef, int>& groups,
+                                const NetworkOptions& options) {
+  NetworkResult out;
+  out.joined.assign(chains.size(), false);
+  out.origins.reserve(chains.size());
+  for (const ChainInput& c : chains) out.origins.push_back(c.origin);
+  int caller_groups = 0;
+  for (const auto& [ref, g] : groups) caller_groups = std::max(caller_groups, g + 1);
+  out.of_group.assign(static_cast<std::size_t>(caller_groups), -1);
+  if (chains.empty()) return out;
+
+  // Every reference its own slot, in chain order; a chain whose submaps name one key twice (or
+  // none at all) is malformed and stays out.
+  std::map<LandmarkRef, int> slot_of;
+  std::vector<LandmarkRef> refs;
+  std::vector<bool> wellformed(chains.size(), true);
+  for (std::size_t c = 0; c < chains.size(); ++c) {
+    if (chains[c].submaps.empty()) wellformed[c] = false;
+    for (const WireSubmap* s : chains[c].submaps) {
+      std::set<std::uint32_t> keys(s->keys.begin(), s->keys.end());
+      if (keys.size() != s->keys.size()) wellformed[c] = false;
+      for (std::uint32_t key : s->keys) {
+        const LandmarkRef ref{chains[c].robot, chains[c].incarnation, key};
+        if (slot_of.emplace(ref, static_cast<int>(refs.size())).second) refs.push_back(ref);
+      }
+    }
+  }
+  if (!wellformed[0]) return out;
+  // The caller's pairings across chains: every two references of one group in different chains.
+  std::map<int, std::vector<int>> members;
+  for (const auto& [ref, g] : groups) {
+    const auto it = slot_of.find(ref);
+    if (it != slot_of.end()) members[g].push_back(it->second);
+  }
+  std::vector<Tie> ties;
+  for (const auto& [g, slots] : members) {
+    for (std::size_t i = 0; i < slots.size(); ++i) {
+      for (std::size_t j = i + 1; j < slots.size(); ++j) {
+        const LandmarkRef& a = refs[static_cast<std::size_t>(slots[i])];
+        const LandmarkRef& b = refs[static_cast<std::size_t>(slots[j])];
+        if (a.robot != b.robot || a.incarnation != b.incarnation) ties.push_back({slots[i], slots[j]});
+      }
+    }
+  }
+  out.ties = static_cast<int>(ties.size());
+
+  // The chains that enter: the first, then each tied to those in by enough landmarks, until
+  // none more is.
+  auto enter = [&](const std::vector<Tie>& usable) {
+    std::vector<std::size_t> order = {0};
+    std::vector<bool> in(chains.size(), false);
+    in[0] = true;
+    std::map<std::pair<RobotId, std::uint32_t>, std::size_t> chain_of;
+    for (std::size_t c = 0; c < chains.size(); ++c) chain_of[{chains[c].robot, chains[c].incarnation}] = c;
+    for (bool more = true; more;) {
+      more = false;
+      for (std::size_t c = 1; c < chains.size(); ++c) {
+        if (in[c] || !wellformed[c]) continue;
+        std::set<int> shared;  // this chain's slots tied to a chain in
+        for (const Tie& t : usable) {
+          const LandmarkRef& a = refs[static_cast<std::size_t>(t.a)];
+          const LandmarkRef& b = refs[static_cast<std::size_t>(t.b)];
+          const std::size_t ca = chain_of.at({a.robot, a.incarnation}), cb = chain_of.at({b.robot, b.incarnation});
+          if (ca == c && in[cb]) shared.insert(t.a);
+          if (cb == c && in[ca]) shared.insert(t.b);
+        }
+        if (static_cast<int>(shared.size()) < options.min_shared_landmarks) continue;
+        in[c] = true;
+        order.push_back(c);
+        more = true;
+      }
+    }
+    return order;
+  };
+
+  // First pass: every reference its own landmark, the pairings soft ties under Cauchy's kernel.
+  const std::vector<std::size_t> first_order = enter(ties);
+  std::unique_ptr<BlockNormalEquations> eq;
+  RobustKernel cauchy{RobustLoss::kCauchy, options.tie_cauchy};
+  const Solved first = Solve(chains, first_order, slot_of, ties, options.tie_sigma_m, cauchy, nullptr, nullptr,
+                             options.max_iterations, &eq);
+  // The pairings kept; their unions are the landmarks. A union that one submap would reach twice
+  // keeps the pairings made first (closest first) and drops the rest.
+  std::vector<std::pair<double, Tie>> kept;
+  for (const Tie& t : first.net.ties) {
+    const double d = (first.net.slots.at(t.a) - first.net.slots.at(t.b)).norm();
+    if (d <= options.keep_tie_m) kept.push_back({d, t});
+  }
+  std::sort(kept.begin(), kept.end(), [](const auto& x, const auto& y) {
+    return std::tie(x.first, x.second.a, x.second.b) < std::tie(y.first, y.second.a, y.second.b);
+  });
+  // The slots each submap holds, to refuse a union that would name one landmark twice in one.
+  std::vector<std::vector<int>> submap_slots;
+  std::map<int, std::vector<int>> submaps_of_slot;
+  for (const ChainInput& c : chains) {
+    for (const WireSubmap* s : c.submaps) {
+      std::vector<int> slots;
+      for (std::uint32_t key : s->keys) slots.push_back(slot_of.at({c.robot, c.incarnation, key}));
+      for (int slot : slots) submaps_of_slot[slot].push_back(static_cast<int>(submap_slots.size()));
+      submap_slots.push_back(std::move(slots));
+    }
+  }
+  Unions unions;
+  std::map<int, std::set<int>> submaps_of_root;  // per union root: the submaps its slots are in
+  auto submaps_of = [&](int root) -> std::set<int>& {
+    auto [it, fresh] = submaps_of_root.try_emplace(root);
+    if (fresh) {
+      const auto s = submaps_of_slot.find(root);
+      if (s != submaps_of_slot.end()) it->second.insert(s->second.begin(), s->second.end());
+    }
+    return it->second;
+  };
+  std::vector<Tie> used;
+  for (const auto& [d, t] : kept) {
+    const int ra = unions.Find(t.a), rb = unions.Find(t.b);
+    if (ra == rb) continue;
+    std::set<int>& sa = submaps_of(ra);
+    std::set<int>& sb = submaps_of(rb);
+    const bool overlap = std::any_of(sa.begin(), sa.end(), [&](int s) { return sb.count(s) > 0; });
+    if (overlap) continue;
+    std::set<int> merged = sa;
+    merged.insert(sb.begin(), sb.end());
+    unions.Join(ra, rb);
+    submaps_of_root[unions.Find(ra)] = std::move(merged);
+    used.push_back(t);
+  }
+  out.ties_dropped = out.ties - static_cast<int>(used.size());
+
+  // Second pass: the exact join, each union one landmark, from the first pass's solution.
+  const std::vector<std::size_t> order = enter(used);  // those of the first pass, or fewer
+  std::map<LandmarkRef, int> landmark_of;
+  for (const auto& [ref, slot] : slot_of) landmark_of[ref] = unions.Find(slot);
+  std::map<int, Eigen::Vector2d> start;
+  std::map<int, int> count;
+  for (const auto& [slot, l] : first.net.slots) {
+    const int root = unions.Find(slot);
+    start[root] = start.count(root) ? Eigen::Vector2d(start[root] + l) : l;
+    ++count[root];
+  }
+  for (auto& [root, l] : start) l /= count[root];
+  // The first pass's frames, for the chains that enter again (by their place in its order).
+  std::vector<std::vector<Pose2>> frames;
+  for (std::size_t c : order) {
+    const auto at = std::find(first_order.begin(), first_order.end(), c) - first_order.begin();
+    frames.push_back(first.net.frames[static_cast<std::size_t>(at)]);
+  }
+  const Solved second = Solve(chains, order, landmark_of, {}, 1.0, RobustKernel{}, &frames, &start,
+                              options.max_iterations, &eq);
+  out.iterations = first.report.iterations + second.report.iterations;
+  out.converged = second.report.converged;
+  out.cost = second.report.final_cost;
+
+  std::vector<int> wanted, wanted_slots;
+  for (const auto& [slot, v] : second.net.slot_var) {
+    wanted.push_back(v);
+    wanted_slots.push_back(slot);
+  }
+  const std::vector<Eigen::MatrixXd> marginals = eq->Marginals(wanted);
+  if (marginals.size() != wanted.size()) return out;
+  out.solved = true;
+  std::map<int, int> index_of;  // landmark slot -> place in out.landmarks
+  for (std::size_t i = 0; i < wanted_slots.size(); ++i) {
+    NetworkLandmark l;
+    l.mean = second.net.slots.at(wanted_slots[i]);
+    l.cov = marginals[i];
+    index_of[wanted_slots[i]] = static_cast<int>(out.landmarks.size());
+    out.landmarks.push_back(std::move(l));
+  }
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    const ChainInput& c = chains[order[i]];
+    out.joined[order[i]] = true;
+    out.origins[order[i]] = second.net.frames[i][0];
+    out.submaps += static_cast<int>(c.submaps.size());
+    std::set<std::uint32_t> keys;
+    for (const WireSubmap* s : c.submaps) keys.insert(s->keys.begin(), s->keys.end());
+    for (std::uint32_t key : keys) {
+      const LandmarkRef ref{c.robot, c.incarnation, key};
+      out.landmarks[static_cast<std::size_t>(index_of.at(landmark_of.at(ref)))].refs.push_back(ref);
+    }
+  }
+  // Each caller group: the landmark of its first reference in chain order that entered.
+  for (const auto& [ref, g] : groups) {
+    const auto l = landmark_of.find(ref);
+    if (l == landmark_of.end()) continue;
+    const auto i = index_of.find(l->second);
+    if (i == index_of.end()) continue;
+    int& slot = out.of_group[static_cast<std::size_t>(g)];
+    const auto held = [&](int index) {
+      const NetworkLandmark& lm = out.landmarks[static_cast<std::size_t>(index)];
+      for (std::size_t c : order) {
+        for (const LandmarkRef& r : lm.refs) {
+          if (r.robot == chains[c].robot && r.incarnation == chains[c].incarnation) return c;
+        }
+      }
+      return chains.size();
+    };
+    if (slot < 0 || held(i->second) < held(slot)) slot = i->second;
+  }
+  return out;
+}
+
+}  // namespace mapmesh

@@ -1,0 +1,106 @@
+#pragma once
+// Least-squares joining of several robots' submap chains (issue J1, the `joining` back-end):
+// the multi-robot form of SubmapJoiner (I-SLSJF; Downs 4.3).
+//
+// Chain c is one robot incarnation's closed submaps 0 .. K_c - 1 (and, for the own robot, its
+// open one last). Submap k of chain c is an estimate, in its frame F_{c,k}, of the robot's pose
+// at its end (the origin of F_{c,k+1}) and of its landmarks, with their joint covariance. The
+// unknowns are every chain's frames X_{c,k} in the joined frame (the first chain's X_{0,0} is
+// the joined frame's origin, fixed) and the landmarks; each landmark is a group of
+// (robot, incarnation, key) references that the caller associates (the same landmark mapped by
+// several robots, or by one robot's several incarnations). The joint estimate minimises
+//   sum_{c,k} || z_{c,k} - h(X_{c,k}, X_{c,k+1}, L) ||^2 over P_{c,k}^-1
+// by Levenberg-Marquardt on the shared kernel (common/solver/least_squares.h), started from the
+// chains' origins as the caller places them (alignments) and the submaps composed along each
+// chain. Every submap is independent of every other (each starts from no prior), so as long as
+// each enters once nothing is counted twice, whichever robot relayed it.
+//
+// The caller's association is not trusted blindly: one wrong pairing of two robots' landmarks
+// (neighbouring trees of a row, 1.5 m apart) drags a whole chain metres off, since a submap is
+// one joint measurement and cannot down-weight one of its landmarks. So the join runs twice.
+// First every reference is a landmark of its own, and the caller's pairings across chains are
+// soft ties (the two positions equal within tie_sigma_m) under Cauchy's kernel, started from
+// the caller's placement of the chains: pairings that the submaps contradict stop pulling. A
+// pairing whose two positions end further apart than keep_tie_m is dropped. Then the pairings
+// kept make the landmarks, and the exact join starts from the first solution.
+//
+// A chain that shares too little with the others to be placed by the landmarks (fewer than
+// min_shared_landmarks landmarks with the chains placed before it, in the given order, directly
+// or through others) is left out and reported, as is one whose submaps repeat a landmark. Each
+// landmark's covariance is its marginal of the inverse normal matrix at the solution, so the
+// frames' uncertainty is in it.
+//
+// Pure: Eigen only, no clocks, threads or random numbers.
+
+#include <Eigen/Core>
+#include <compare>
+#include <cstdint>
+#include <map>
+#include <span>
+#include <vector>
+
+#include "common/geometry/pose2.h"
+#include "common/map/submap_codec.h"
+
+namespace mapmesh {
+
+// A landmark as one chain knows it: the robot's incarnation and its key there.
+struct LandmarkRef {
+  RobotId robot = 0;
+  std::uint32_t incarnation = 0;
+  std::uint32_t key = 0;
+  friend auto operator<=>(const LandmarkRef&, const LandmarkRef&) = default;
+};
+
+struct ChainInput {
+  RobotId robot = 0;
+  std::uint32_t incarnation = 0;
+  std::vector<const WireSubmap*> submaps;  // in chain order from index 0, without a gap (not null)
+  Pose2 origin;                            // the chain's first frame in the joined frame: where to start
+};
+
+struct NetworkOptions {
+  int max_iterations = 50;
+  // A chain enters when it shares this many landmarks with the chains already in.
+  int min_shared_landmarks = 3;
+  double tie_sigma_m = 0.1;  // the first pass's ties: two paired positions equal within this ...
+  double tie_cauchy = 2.0;   // ... under Cauchy's kernel of this scale (in tie sigmas)
+  double keep_tie_m = 0.5;   // a pairing whose positions end further apart is dropped
+};
+
+struct NetworkLandmark {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Identity();
+  std::vector<LandmarkRef> refs;  // every chain's name for it, in chain order
+};
+
+struct NetworkResult {
+  std::vector<NetworkLandmark> landmarks;  // every landmark of the chains that entered
+  // Per caller group: the landmark that holds it (the one with the first chain's reference when
+  // its pairings were split), -1 when no chain that entered holds it.
+  std::vector<int> of_group;
+  std::vector<bool> joined;    // per input chain: whether it entered
+  std::vector<Pose2> origins;  // per input chain: its first frame as solved (as given if left out)
+  int iterations = 0;
+  bool converged = false;
+  bool solved = false;   // false: nothing could be solved (the first chain left out, or a singular system)
+  double cost = 0.0;     // 1/2 the sum of the squared whitened residuals at the solution
+  int submaps = 0;       // submaps joined
+  int ties = 0;          // pairings across chains offered ...
+  int ties_dropped = 0;  // ... and dropped by the first pass
+
+  // The landmark of a caller group, or null.
+  const NetworkLandmark* OfGroup(int group) const {
+    if (group < 0 || static_cast<std::size_t>(group) >= of_group.size() || of_group[group] < 0) return nullptr;
+    return &landmarks[static_cast<std::size_t>(of_group[group])];
+  }
+};
+
+// Joins the chains (the first is the joined frame's: its origin is fixed, and it always enters
+// unless malformed). `groups` names the landmark group of each associated reference (ids from
+// 0); a reference it does not name is a landmark of its own. A group that one submap would
+// reach twice is split there.
+NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::map<LandmarkRef, int>& groups,
+                                const NetworkOptions& options = {});
+
+}  // namespace mapmesh

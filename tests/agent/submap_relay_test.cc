@@ -1,0 +1,223 @@
+#include "agent/submap_relay.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace mapmesh {
+namespace {
+
+WireSubmap Submap(RobotId robot, std::uint32_t incarnation, std::uint32_t index, int landmarks = 2, double x = 1.0) {
+  WireSubmap s;
+  s.id = {robot, incarnation, index};
+  s.opened_s = 10.0 * index;
+  s.closed_s = 10.0 * index + 9.0;
+  for (int i = 0; i < landmarks; ++i) s.keys.push_back(static_cast<std::uint32_t>(i));
+  s.x = Eigen::VectorXd::Constant(3 + 2 * landmarks, x);
+  EXPECT_TRUE(s.SetCovariance(Eigen::MatrixXd::Identity(3 + 2 * landmarks, 3 + 2 * landmarks) * 0.01));
+  return s;
+}
+
+SubmapRelayOptions Options() {
+  SubmapRelayOptions o;
+  o.send_bytes = 100000;
+  o.resend_after_s = 6.0;
+  o.advert_max_age_s = 6.0;
+  return o;
+}
+
+void AddOwn(SubmapRelay& r, const WireSubmap& s) {
+  const std::vector<std::uint8_t> b = EncodeSubmap(s);
+  ASSERT_FALSE(b.empty());
+  EXPECT_EQ(r.AddOwn(s, b), SubmapRelay::Offer::kNew);
+}
+
+std::vector<SubmapId> Ids(const std::vector<const std::vector<std::uint8_t>*>& sent) {
+  std::vector<SubmapId> out;
+  for (const auto* b : sent) {
+    const SubmapDecodeResult d = DecodeSubmap(*b);
+    EXPECT_TRUE(d.ok());
+    out.push_back(d.submap.id);
+  }
+  return out;
+}
+
+// Nothing goes out until a peer in range says what it lacks: a peer out of range, or whose
+// advertisement is older than advert_max_age_s, is not listening.
+TEST(SubmapRelay, SendsOnlyWhatAPeerInRangeLacks) {
+  SubmapRelay r(Options());
+  for (std::uint32_t i = 0; i < 3; ++i) AddOwn(r, Submap(1, 1, i));
+  EXPECT_TRUE(r.Due({2}, 10.0).empty());  // no advertisement yet
+  const std::vector<SubmapChain> has_first = {{1, 1, 1}, {2, 1, 4}};
+  r.OnAdvert({2, 1}, has_first, 10.0);
+  EXPECT_TRUE(r.Due({3}, 10.0).empty());  // robot 2 out of range
+  EXPECT_TRUE(r.Due({2}, 16.5).empty());  // its advertisement too old
+  EXPECT_EQ(Ids(r.Due({2}, 12.0)), (std::vector<SubmapId>{{1, 1, 1}, {1, 1, 2}}));
+  // Once its advertisement shows them, they do not go again, however long after.
+  const std::vector<SubmapChain> has_all = {{1, 1, 3}};
+  r.OnAdvert({2, 1}, has_all, 14.0);
+  EXPECT_TRUE(r.Due({2}, 20.0).empty());
+  EXPECT_EQ(r.counters().sent, 2u);
+  EXPECT_EQ(r.counters().sent_again, 0u);
+}
+
+// A submap sent and still lacked (lost on the way) goes again after resend_after_s, not before.
+TEST(SubmapRelay, ALostSubmapIsSentAgainAfterTheResendDelay) {
+  SubmapRelay r(Options());
+  AddOwn(r, Submap(1, 1, 0));
+  const std::vector<SubmapChain> none;
+  r.OnAdvert({2, 1}, none, 10.0);
+  EXPECT_EQ(r.Due({2}, 10.0).size(), 1u);
+  r.OnAdvert({2, 1}, none, 12.0);
+  EXPECT_TRUE(r.Due({2}, 12.0).empty());
+  EXPECT_TRUE(r.Due({2}, 15.99).empty());
+  r.OnAdvert({2, 1}, none, 16.0);
+  EXPECT_EQ(r.Due({2}, 16.0).size(), 1u);
+  EXPECT_EQ(r.counters().sent, 2u);
+  EXPECT_EQ(r.counters().sent_again, 1u);
+}
+
+// A submap just heard (another robot broadcast it) is not sent on a peer's advertisement from
+// before: the peer probably heard it too. Its next advertisement decides.
+TEST(SubmapRelay, ASubmapJustHeardWaitsForThePeersNextAdvertisement) {
+  SubmapRelay r(Options());
+  const std::vector<SubmapChain> none;
+  r.OnAdvert({2, 1}, none, 10.0);
+  const WireSubmap s = Submap(3, 1, 0);
+  ASSERT_EQ(r.Add(s, EncodeSubmap(s), 10.0), SubmapRelay::Offer::kNew);
+  EXPECT_TRUE(r.Due({2}, 10.0).empty());  // robot 2 spoke before it went round
+  const std::vector<SubmapChain> got = {{3, 1, 1}};
+  r.OnAdvert({2, 1}, got, 12.0);
+  EXPECT_TRUE(r.Due({2}, 12.0).empty());  // it heard it
+  r.OnAdvert({4, 1}, none, 12.0);
+  EXPECT_EQ(Ids(r.Due({2, 4}, 12.0)), (std::vector<SubmapId>{{3, 1, 0}}));  // robot 4 did not
+  // Heard again (a duplicate) later: robot 4 is waited for again.
+  EXPECT_EQ(r.Add(s, EncodeSubmap(s), 20.0), SubmapRelay::Offer::kDuplicate);
+  r.OnAdvert({4, 1}, none, 20.0);
+  EXPECT_TRUE(r.Due({4}, 20.0).empty());
+  r.OnAdvert({4, 1}, none, 22.0);
+  EXPECT_EQ(r.Due({4}, 22.0).size(), 1u);
+}
+
+// Within send_bytes, lowest indices first across chains (every chain grows alike); the first one
+// due goes whatever its size, and the rest wait for later publications.
+TEST(SubmapRelay, TheBudgetTakesTheLowestIndicesFirst) {
+  SubmapRelayOptions o = Options();
+  const std::size_t one = SubmapPayloadBytes(2);
+  o.send_bytes = 3 * one;
+  SubmapRelay r(o);
+  for (std::uint32_t i = 0; i < 3; ++i) {
+    AddOwn(r, Submap(1, 1, i));
+    ASSERT_EQ(r.Add(Submap(5, 2, i), EncodeSubmap(Submap(5, 2, i)), -1.0), SubmapRelay::Offer::kNew);
+  }
+  const std::vector<SubmapChain> none;
+  r.OnAdvert({2, 1}, none, 0.0);
+  EXPECT_EQ(Ids(r.Due({2}, 0.0)), (std::vector<SubmapId>{{1, 1, 0}, {5, 2, 0}, {1, 1, 1}}));
+  EXPECT_EQ(r.counters().held_back, 3u);
+  EXPECT_EQ(Ids(r.Due({2}, 0.0)), (std::vector<SubmapId>{{5, 2, 1}, {1, 1, 2}, {5, 2, 2}}));
+  o.send_bytes = 1;
+  SubmapRelay tight(o);
+  AddOwn(tight, Submap(1, 1, 0, 30));
+  AddOwn(tight, Submap(1, 1, 1));
+  tight.OnAdvert({2, 1}, none, 0.0);
+  EXPECT_EQ(Ids(tight.Due({2}, 0.0)), (std::vector<SubmapId>{{1, 1, 0}}));
+}
+
+// Each identity enters once; a different submap under a held identity is refused and counted;
+// beyond max_held a peer's new submap is refused, the agent's own never.
+TEST(SubmapRelay, EachIdentityOnceAndTheBookIsBounded) {
+  SubmapRelayOptions o = Options();
+  o.max_held = 2;
+  SubmapRelay r(o);
+  const WireSubmap a = Submap(3, 1, 0);
+  EXPECT_EQ(r.Add(a, EncodeSubmap(a), 0.0), SubmapRelay::Offer::kNew);
+  EXPECT_EQ(r.Add(a, EncodeSubmap(a), 0.0), SubmapRelay::Offer::kDuplicate);
+  const WireSubmap forged = Submap(3, 1, 0, 2, 7.0);
+  EXPECT_EQ(r.Add(forged, EncodeSubmap(forged), 0.0), SubmapRelay::Offer::kConflict);
+  const WireSubmap b = Submap(3, 1, 1);
+  EXPECT_EQ(r.Add(b, EncodeSubmap(b), 0.0), SubmapRelay::Offer::kNew);
+  const WireSubmap c = Submap(3, 1, 2);
+  EXPECT_EQ(r.Add(c, EncodeSubmap(c), 0.0), SubmapRelay::Offer::kFull);
+  EXPECT_EQ(r.Add(a, EncodeSubmap(a), 0.0), SubmapRelay::Offer::kDuplicate);  // held ones are still recognised
+  AddOwn(r, Submap(1, 1, 0));
+  EXPECT_EQ(r.book().size(), 3u);
+  EXPECT_EQ(r.counters().received_new, 2u);
+  EXPECT_EQ(r.counters().duplicates, 2u);
+  EXPECT_EQ(r.counters().conflicts, 1u);
+  EXPECT_EQ(r.counters().full, 1u);
+  EXPECT_EQ(r.counters().own, 1u);
+  EXPECT_EQ(r.Advert(), (std::vector<SubmapChain>{{1, 1, 1}, {3, 1, 2}}));
+}
+
+// The protocol over a line of robots that hear only their neighbours, through a seeded lossy
+// radio, in lockstep ticks (what is sent at one tick arrives at the next): every robot ends up
+// holding every robot's whole chain, however many hops away, each submap entered once; and a
+// submap is sent a bounded number of times (once per neighbourhood, plus resends for losses).
+TEST(SubmapRelay, EveryChainReachesEveryHopThroughALossyLine) {
+  for (std::uint64_t seed = 1; seed <= 5; ++seed) {
+    const int n = 6;
+    const std::uint32_t per_robot = 8;
+    const double period = 2.0, loss = 0.3;
+    std::mt19937_64 rng(seed);
+    std::bernoulli_distribution lost(loss);
+    SubmapRelayOptions o = Options();
+    o.resend_after_s = 3 * period;
+    o.advert_max_age_s = 3 * period;
+    o.send_bytes = 4 * SubmapPayloadBytes(2);
+    std::vector<SubmapRelay> relays(n, SubmapRelay(o));
+    struct Message {
+      int from;
+      std::vector<SubmapChain> advert;
+      std::vector<std::vector<std::uint8_t>> submaps;
+    };
+    std::vector<Message> in_flight;
+    const int ticks = 120;
+    for (int t = 0; t < ticks; ++t) {
+      const double now = t * period;
+      // Delivery of the last tick's messages to the sender's neighbours, each copy lost alone.
+      for (const Message& m : in_flight) {
+        for (int to : {m.from - 1, m.from + 1}) {
+          if (to < 0 || to >= n || lost(rng)) continue;
+          relays[to].OnAdvert({static_cast<RobotId>(m.from + 1), 1}, m.advert, now);
+          for (const auto& b : m.submaps) {
+            const SubmapDecodeResult d = DecodeSubmap(b);
+            ASSERT_TRUE(d.ok());
+            relays[to].Add(d.submap, b, now);
+          }
+        }
+      }
+      in_flight.clear();
+      for (int i = 0; i < n; ++i) {
+        const auto robot = static_cast<RobotId>(i + 1);
+        if (t % 5 == 0 && t / 5 < static_cast<int>(per_robot)) {
+          const WireSubmap own = Submap(robot, 1, static_cast<std::uint32_t>(t / 5), 2, robot);
+          relays[i].AddOwn(own, EncodeSubmap(own));
+        }
+        std::set<RobotId> in_range;
+        if (i > 0) in_range.insert(robot - 1);
+        if (i + 1 < n) in_range.insert(robot + 1);
+        Message m{i, relays[i].Advert(), {}};
+        for (const auto* b : relays[i].Due(in_range, now)) m.submaps.push_back(*b);
+        in_flight.push_back(std::move(m));
+      }
+    }
+    std::uint32_t sent = 0;
+    for (int i = 0; i < n; ++i) {
+      const SubmapRelay& r = relays[i];
+      EXPECT_EQ(r.book().size(), n * per_robot) << "seed " << seed << " robot " << i + 1;
+      for (int j = 0; j < n; ++j) {
+        EXPECT_EQ(r.book().ChainLength(static_cast<RobotId>(j + 1), 1), per_robot) << "seed " << seed;
+      }
+      EXPECT_EQ(r.counters().conflicts, 0u);
+      EXPECT_EQ(r.counters().received_new + r.counters().own, n * per_robot);
+      sent += r.counters().sent;
+    }
+    // Each submap is sent by about every robot once (each must pass it to the next hop); the
+    // losses add resends. Flooding every submap at every tick would send 120 times as many.
+    EXPECT_LE(sent, 3u * n * n * per_robot) << "seed " << seed;
+    EXPECT_GE(sent, static_cast<std::uint32_t>(n - 1) * per_robot) << "seed " << seed;
+  }
+}
+
+}  // namespace
+}  // namespace mapmesh

@@ -1,0 +1,283 @@
+#include "common/merge/submap_network.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <random>
+#include <set>
+
+#include "common/slam/submap_joiner.h"
+
+namespace mapmesh {
+namespace {
+
+// A world of landmarks on a grid and robots whose submaps are exact Gaussian measurements of
+// it: z = h(true frames, true landmarks) + L n with p = L L^T a random covariance (correlated
+// across the submap's entries, as an EKF's is).
+struct World {
+  std::vector<Eigen::Vector2d> landmarks;
+  explicit World(int side, double spacing) {
+    for (int i = 0; i < side; ++i) {
+      for (int j = 0; j < side; ++j) landmarks.emplace_back(i * spacing, j * spacing);
+    }
+  }
+};
+
+// A chain's true frames and the landmarks (indices into the world) each submap holds.
+struct TrueChain {
+  std::vector<Pose2> frames;           // 0 .. K in the world
+  std::vector<std::vector<int>> seen;  // per submap
+};
+
+Eigen::MatrixXd RandomCovariance(int n, std::mt19937_64& rng, double scale) {
+  std::normal_distribution<double> g;
+  Eigen::MatrixXd a(n, n);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) a(i, j) = g(rng);
+  }
+  return scale * scale * (a * a.transpose() / n + Eigen::MatrixXd::Identity(n, n));
+}
+
+WireSubmap Measure(const World& w, const TrueChain& c, std::size_t k, RobotId robot, std::mt19937_64& rng) {
+  std::vector<Eigen::Vector2d> points;
+  for (int i : c.seen[k]) points.push_back(w.landmarks[static_cast<std::size_t>(i)]);
+  const Eigen::VectorXd h = PredictSubmap(c.frames[k], c.frames[k + 1], points);
+  const int n = static_cast<int>(h.size());
+  WireSubmap s;
+  s.id = {robot, 1, static_cast<std::uint32_t>(k)};
+  s.opened_s = 10.0 * k;
+  s.closed_s = 10.0 * k + 9;
+  for (int i : c.seen[k]) s.keys.push_back(static_cast<std::uint32_t>(i));
+  EXPECT_TRUE(s.SetCovariance(RandomCovariance(n, rng, 0.05)));
+  std::normal_distribution<double> g;
+  Eigen::VectorXd noise(n);
+  for (int i = 0; i < n; ++i) noise(i) = g(rng);
+  s.x = h + s.l * noise;  // the covariance as the wire holds it is the one the noise has
+  return s;
+}
+
+// A robot driving along a row of the grid: its submaps each hold the landmarks near it.
+TrueChain Drive(const World& w, Pose2 start, int submaps, double step) {
+  TrueChain c;
+  c.frames.push_back(start);
+  for (int k = 0; k < submaps; ++k) c.frames.push_back(c.frames.back() * Pose2{step, 0.3, 0.15});
+  for (int k = 0; k < submaps; ++k) {
+    std::vector<int> seen;
+    for (std::size_t i = 0; i < w.landmarks.size(); ++i) {
+      const Eigen::Vector2d mid = 0.5 * (Eigen::Vector2d(c.frames[k].x, c.frames[k].y) +
+                                         Eigen::Vector2d(c.frames[k + 1].x, c.frames[k + 1].y));
+      if ((w.landmarks[i] - mid).norm() < 6.0) seen.push_back(static_cast<int>(i));
+    }
+    c.seen.push_back(seen);
+  }
+  return c;
+}
+
+std::map<LandmarkRef, int> ByTruth(const std::vector<std::pair<RobotId, const TrueChain*>>& chains) {
+  std::map<LandmarkRef, int> groups;
+  for (const auto& [robot, c] : chains) {
+    for (const auto& seen : c->seen) {
+      for (int i : seen) groups[{robot, 1, static_cast<std::uint32_t>(i)}] = i;
+    }
+  }
+  return groups;
+}
+
+// One chain alone is what the single-robot joiner gives: the same landmarks to 1e-6 m and the
+// same covariances.
+TEST(SubmapNetwork, OneChainIsTheSubmapJoiner) {
+  const World w(8, 2.0);
+  std::mt19937_64 rng(3);
+  const TrueChain t = Drive(w, Pose2{1.0, 1.0, 0.1}, 4, 3.0);
+  std::vector<WireSubmap> subs;
+  for (std::size_t k = 0; k < 4; ++k) subs.push_back(Measure(w, t, k, 1, rng));
+  JoinerOptions jo;
+  jo.window = 100;
+  SubmapJoiner joiner(jo);
+  for (const WireSubmap& s : subs) joiner.Add(SubmapEstimate{s.x, s.Covariance(), s.keys});
+  ChainInput c{1, 1, {}, Pose2{}};
+  for (const WireSubmap& s : subs) c.submaps.push_back(&s);
+  const NetworkResult r = JoinSubmapNetwork(std::span<const ChainInput>(&c, 1), {});
+  ASSERT_TRUE(r.solved);
+  EXPECT_TRUE(r.converged);
+  EXPECT_EQ(r.submaps, 4);
+  const JoinedMap& j = joiner.last();
+  int compared = 0;
+  for (const NetworkLandmark& l : r.landmarks) {
+    if (l.refs.empty()) continue;
+    ASSERT_EQ(l.refs.size(), 1u);
+    const auto i = j.Find(l.refs[0].key);
+    ASSERT_TRUE(i.has_value());
+    EXPECT_LT((l.mean - j.means[*i]).norm(), 1e-6);
+    EXPECT_LT((l.cov - j.Cov(*i)).norm(), 1e-8 + 1e-5 * j.Cov(*i).norm());
+    ++compared;
+  }
+  EXPECT_EQ(compared, static_cast<int>(j.keys.size()));
+}
+
+// Two robots that start far apart, the second placed 1.5 m and 8 degrees off: the join places
+// it and is consistent over seeded draws (landmark NEES near 2, the second chain's origin within
+// its sampling error), and more accurate than either chain alone where they overlap.
+TEST(SubmapNetwork, TwoRobotsAreJoinedConsistently) {
+  const World w(10, 2.0);
+  const TrueChain a = Drive(w, Pose2{0.0, 4.0, 0.0}, 4, 3.5);
+  const TrueChain b = Drive(w, Pose2{18.0, 9.0, M_PI}, 4, 3.5);
+  const std::map<LandmarkRef, int> groups = ByTruth({{1, &a}, {2, &b}});
+  // The truth in the joined frame (a's first frame).
+  const Pose2 to_joined = a.frames[0].Inverse();
+  const Pose2 b_origin = to_joined * b.frames[0];
+  double nees = 0.0;
+  int count = 0;
+  double origin_err2 = 0.0;
+  const int runs = 200;
+  for (int run = 0; run < runs; ++run) {
+    std::mt19937_64 rng(100 + run);
+    std::vector<WireSubmap> sa, sb;
+    for (std::size_t k = 0; k < 4; ++k) sa.push_back(Measure(w, a, k, 1, rng));
+    for (std::size_t k = 0; k < 4; ++k) sb.push_back(Measure(w, b, k, 2, rng));
+    std::vector<ChainInput> chains(2);
+    chains[0] = {1, 1, {}, Pose2{}};
+    chains[1] = {2, 1, {}, b_origin * Pose2{1.5, -1.0, 0.14}};
+    for (const auto& s : sa) chains[0].submaps.push_back(&s);
+    for (const auto& s : sb) chains[1].submaps.push_back(&s);
+    const NetworkResult r = JoinSubmapNetwork(chains, groups);
+    ASSERT_TRUE(r.solved) << run;
+    ASSERT_TRUE(r.joined[1]) << run;
+    EXPECT_EQ(r.ties_dropped, 0) << run;
+    for (std::size_t g = 0; g < w.landmarks.size(); ++g) {
+      const NetworkLandmark* l = r.OfGroup(static_cast<int>(g));
+      if (l == nullptr) continue;
+      const Eigen::Vector2d e = l->mean - to_joined.Apply(w.landmarks[g]);
+      nees += e.dot(l->cov.ldlt().solve(e));
+      ++count;
+    }
+    const Pose2 d = b_origin.Inverse() * r.origins[1];
+    origin_err2 += d.x * d.x + d.y * d.y;
+  }
+  nees /= count;
+  EXPECT_GT(nees, 1.8);
+  EXPECT_LT(nees, 2.2);
+  EXPECT_LT(std::sqrt(origin_err2 / runs), 0.2);  // from 1.8 m off
+}
+
+// Wrong pairings (each of robot 2's landmarks paired with a neighbour of the true one, 2 m away,
+// as a gate in a row of trees would) are dropped by the first pass, and the chain is placed and
+// joined exactly as with the right association less those four pairings.
+TEST(SubmapNetwork, WrongPairingsAreDroppedNotJoined) {
+  const World w(10, 2.0);
+  const TrueChain a = Drive(w, Pose2{0.0, 4.0, 0.0}, 4, 3.5);
+  const TrueChain b = Drive(w, Pose2{18.0, 9.0, M_PI}, 4, 3.5);
+  const std::map<LandmarkRef, int> right = ByTruth({{1, &a}, {2, &b}});
+  std::set<int> in_a, in_b;
+  for (const auto& seen : a.seen) in_a.insert(seen.begin(), seen.end());
+  for (const auto& seen : b.seen) in_b.insert(seen.begin(), seen.end());
+  std::map<LandmarkRef, int> wrong = right;
+  int planted = 0;
+  std::set<int> swapped;
+  for (int i : in_b) {
+    // Robot 2's landmark i and its neighbour 2 m away swapped, both seen by robot 1 too.
+    if (planted == 4 || !in_a.count(i) || !in_a.count(i + 1) || (i + 1) % 10 == 0) continue;
+    if (!in_b.count(i + 1) || swapped.count(i) || swapped.count(i + 1)) continue;
+    std::swap(wrong[{2, 1, static_cast<std::uint32_t>(i)}], wrong[{2, 1, static_cast<std::uint32_t>(i + 1)}]);
+    swapped.insert({i, i + 1});
+    planted += 2;
+  }
+  ASSERT_EQ(planted, 4);
+  std::mt19937_64 rng(5);
+  std::vector<WireSubmap> sa, sb;
+  for (std::size_t k = 0; k < 4; ++k) sa.push_back(Measure(w, a, k, 1, rng));
+  for (std::size_t k = 0; k < 4; ++k) sb.push_back(Measure(w, b, k, 2, rng));
+  const Pose2 b_origin = a.frames[0].Inverse() * b.frames[0];
+  std::vector<ChainInput> chains(2);
+  chains[0] = {1, 1, {}, Pose2{}};
+  chains[1] = {2, 1, {}, b_origin * Pose2{0.4, -0.3, 0.02}};
+  for (const auto& s : sa) chains[0].submaps.push_back(&s);
+  for (const auto& s : sb) chains[1].submaps.push_back(&s);
+  // The right association without the swapped landmarks' pairings: what the join should keep.
+  std::map<LandmarkRef, int> right_less = right;
+  for (int i : swapped) right_less.erase({2, 1, static_cast<std::uint32_t>(i)});
+  const NetworkResult good = JoinSubmapNetwork(chains, right_less);
+  const NetworkResult r = JoinSubmapNetwork(chains, wrong);
+  ASSERT_TRUE(good.solved);
+  ASSERT_TRUE(r.solved);
+  EXPECT_EQ(good.ties_dropped, 0);
+  EXPECT_EQ(r.ties_dropped, 4);  // the planted ones (the true pairings they displaced were never offered)
+  const Pose2 d = good.origins[1].Inverse() * r.origins[1];
+  EXPECT_LT(std::hypot(d.x, d.y), 1e-6);
+  // The landmarks the planted pairings do not reach are where the right join puts them.
+  int compared = 0;
+  for (int g : in_a) {
+    if (swapped.count(g)) continue;
+    ASSERT_NE(good.OfGroup(g), nullptr);
+    ASSERT_NE(r.OfGroup(g), nullptr);
+    EXPECT_LT((good.OfGroup(g)->mean - r.OfGroup(g)->mean).norm(), 1e-6);
+    ++compared;
+  }
+  EXPECT_GT(compared, 10);
+}
+
+// A chain that shares too few landmarks with those in is left out (and its landmarks with it);
+// one that shares them only with a chain placed after it enters through that chain.
+TEST(SubmapNetwork, AChainEntersOnlyThroughSharedLandmarks) {
+  const World w(14, 2.0);
+  std::mt19937_64 rng(7);
+  const TrueChain a = Drive(w, Pose2{0.0, 2.0, 0.0}, 2, 3.0);
+  const TrueChain far = Drive(w, Pose2{0.0, 18.0, 0.0}, 2, 3.0);    // never near a
+  const TrueChain bridge = Drive(w, Pose2{4.0, 2.0, 1.2}, 4, 3.5);  // from a's ground up to far's
+  std::vector<WireSubmap> sa, sf, sb;
+  for (std::size_t k = 0; k < 2; ++k) sa.push_back(Measure(w, a, k, 1, rng));
+  for (std::size_t k = 0; k < 2; ++k) sf.push_back(Measure(w, far, k, 2, rng));
+  for (std::size_t k = 0; k < 4; ++k) sb.push_back(Measure(w, bridge, k, 3, rng));
+  const Pose2 to_joined = a.frames[0].Inverse();
+  std::vector<ChainInput> chains(3);
+  chains[0] = {1, 1, {}, Pose2{}};
+  chains[1] = {2, 1, {}, to_joined * far.frames[0]};
+  chains[2] = {3, 1, {}, to_joined * bridge.frames[0]};
+  for (const auto& s : sa) chains[0].submaps.push_back(&s);
+  for (const auto& s : sf) chains[1].submaps.push_back(&s);
+  for (const auto& s : sb) chains[2].submaps.push_back(&s);
+  const std::map<LandmarkRef, int> groups = ByTruth({{1, &a}, {2, &far}, {3, &bridge}});
+  // Without the bridge, the far chain shares nothing with a.
+  const NetworkResult alone = JoinSubmapNetwork(std::span<const ChainInput>(chains.data(), 2), groups);
+  ASSERT_TRUE(alone.solved);
+  EXPECT_FALSE(alone.joined[1]);
+  for (const NetworkLandmark& l : alone.landmarks) {
+    for (const LandmarkRef& ref : l.refs) EXPECT_EQ(ref.robot, 1u);
+  }
+  const NetworkResult all = JoinSubmapNetwork(chains, groups);
+  ASSERT_TRUE(all.solved);
+  EXPECT_TRUE(all.joined[1]);
+  EXPECT_TRUE(all.joined[2]);
+  const Pose2 d = (to_joined * far.frames[0]).Inverse() * all.origins[1];
+  EXPECT_LT(std::hypot(d.x, d.y), 0.5);
+}
+
+// An association that puts two of one submap's landmarks into one group is split there rather
+// than joined (a landmark cannot be two of one submap's), and nothing throws.
+TEST(SubmapNetwork, AGroupOneSubmapWouldReachTwiceIsSplit) {
+  const World w(6, 2.0);
+  std::mt19937_64 rng(11);
+  const TrueChain a = Drive(w, Pose2{1.0, 3.0, 0.0}, 2, 3.0);
+  std::vector<WireSubmap> sa;
+  for (std::size_t k = 0; k < 2; ++k) sa.push_back(Measure(w, a, k, 1, rng));
+  std::map<LandmarkRef, int> groups = ByTruth({{1, &a}});
+  const std::uint32_t k0 = sa[0].keys[0], k1 = sa[0].keys[1];
+  groups[{1, 1, k1}] = groups[{1, 1, k0}];
+  ChainInput c{1, 1, {&sa[0], &sa[1]}, Pose2{}};
+  const NetworkResult r = JoinSubmapNetwork(std::span<const ChainInput>(&c, 1), groups);
+  ASSERT_TRUE(r.solved);
+  int holding_k0 = 0, holding_k1 = 0;
+  for (const NetworkLandmark& l : r.landmarks) {
+    for (const LandmarkRef& ref : l.refs) {
+      holding_k0 += ref.key == k0;
+      holding_k1 += ref.key == k1;
+    }
+    EXPECT_LE(l.refs.size(), 1u);
+  }
+  EXPECT_EQ(holding_k0, 1);
+  EXPECT_EQ(holding_k1, 1);
+}
+
+}  // namespace
+}  // namespace mapmesh
