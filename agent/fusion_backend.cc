@@ -84,7 +84,19 @@ class JoiningFusion : public FusionBackend {
       for (const LandmarkOrigin& o : associated.origins[g])
         groups[{o.robot, o.incarnation, o.id}] = static_cast<int>(g);
     }
+    // Each chain starts where the last solve left it: the chains change little from one period
+    // to the next.
+    for (ChainInput& c : chains) {
+      const auto it = last_frames_.find({c.robot, c.incarnation});
+      if (it != last_frames_.end()) c.start_frames = it->second;
+    }
     const NetworkResult r = JoinSubmapNetwork(chains, groups);
+    if (r.solved) {
+      last_frames_.clear();
+      for (std::size_t i = 0; i < chains.size(); ++i) {
+        if (r.joined[i]) last_frames_[{chains[i].robot, chains[i].incarnation}] = r.frames[i];
+      }
+    }
     report_.chains = static_cast<int>(chains.size());
     report_.chains_joined = static_cast<int>(std::count(r.joined.begin(), r.joined.end(), true));
     report_.submaps = r.submaps;
@@ -105,13 +117,13 @@ class JoiningFusion : public FusionBackend {
     return out;
   }
 
- public:
- private:
   RobotId self_;
   std::uint32_t incarnation_;
   GlobalMapOptions association_;
   AssociationMemo memo_;
   JoiningReport report_;
+  // The last solve's frames per chain: where the next one starts.
+  std::map<std::pair<RobotId, std::uint32_t>, std::vector<Pose2>> last_frames_;
 };
 
 }  // namespace

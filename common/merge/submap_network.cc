@@ -152,8 +152,10 @@ Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>&
   std::vector<int> sizes;
   for (std::size_t i = 0; i < order.size(); ++i) {
     const ChainInput& c = chains[order[i]];
-    std::vector<Pose2> frames = {i == 0 ? Pose2{} : c.origin};
-    if (start_frames) frames = {(*start_frames)[i][0]};
+    // From the given frames (the first pass's, or a previous solve's where the chain has them),
+    // else composed along the submaps from the chain's origin.
+    const std::vector<Pose2>& given = start_frames ? (*start_frames)[i] : c.start_frames;
+    std::vector<Pose2> frames = {i == 0 ? Pose2{} : (given.empty() ? c.origin : given[0])};
     std::vector<int> vars = {i == 0 ? -1 : static_cast<int>(sizes.size())};
     if (i > 0) sizes.push_back(3);
     for (std::size_t k = 0; k < c.submaps.size(); ++k) {
@@ -171,7 +173,7 @@ Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>&
           net.slots[f.slots[j]] = frames.back().Apply(w.x.segment<2>(3 + 2 * static_cast<Eigen::Index>(j)));
         }
       }
-      frames.push_back(start_frames ? (*start_frames)[i][k + 1] : frames.back() * Pose2{w.x(0), w.x(1), w.x(2)});
+      frames.push_back(k + 1 < given.size() ? given[k + 1] : frames.back() * Pose2{w.x(0), w.x(1), w.x(2)});
       vars.push_back(static_cast<int>(sizes.size()));
       sizes.push_back(3);
       net.factors.push_back(std::move(f));
@@ -208,6 +210,9 @@ Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>&
   net.SetOffsets(eq);
   LevenbergMarquardtOptions lm;
   lm.max_iterations = max_iterations;
+  // Micrometres and a millionth of the cost are far below what a map can tell apart.
+  lm.step_tolerance = 1e-6;
+  lm.function_tolerance = 1e-6;
   s.report = MinimiseLevenbergMarquardt(net, eq, lm);
   return s;
 }
@@ -218,6 +223,7 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
                                 const NetworkOptions& options) {
   NetworkResult out;
   out.joined.assign(chains.size(), false);
+  out.frames.assign(chains.size(), {});
   out.origins.reserve(chains.size());
   for (const ChainInput& c : chains) out.origins.push_back(c.origin);
   int caller_groups = 0;
@@ -386,6 +392,7 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     const ChainInput& c = chains[order[i]];
     out.joined[order[i]] = true;
     out.origins[order[i]] = second.net.frames[i][0];
+    out.frames[order[i]] = second.net.frames[i];
     out.submaps += static_cast<int>(c.submaps.size());
     std::set<std::uint32_t> keys;
     for (const WireSubmap* s : c.submaps) keys.insert(s->keys.begin(), s->keys.end());

@@ -57,6 +57,10 @@ struct ChainInput {
   std::uint32_t incarnation = 0;
   std::vector<const WireSubmap*> submaps;  // in chain order from index 0, without a gap (not null)
   Pose2 origin;                            // the chain's first frame in the joined frame: where to start
+  // Where to start its frames 0, 1, ... instead (a previous solve's; fewer than the frames is
+  // fine: the rest are composed along the submaps). Landmarks always start where their chain's
+  // first submap to hold them places them, so that a pairing dropped once is judged afresh.
+  std::vector<Pose2> start_frames;
 };
 
 struct NetworkOptions {
@@ -79,8 +83,9 @@ struct NetworkResult {
   // Per caller group: the landmark that holds it (the one with the first chain's reference when
   // its pairings were split), -1 when no chain that entered holds it.
   std::vector<int> of_group;
-  std::vector<bool> joined;    // per input chain: whether it entered
-  std::vector<Pose2> origins;  // per input chain: its first frame as solved (as given if left out)
+  std::vector<bool> joined;                // per input chain: whether it entered
+  std::vector<Pose2> origins;              // per input chain: its first frame as solved (as given if left out)
+  std::vector<std::vector<Pose2>> frames;  // per input chain: every frame as solved (empty if left out)
   int iterations = 0;
   bool converged = false;
   bool solved = false;   // false: nothing could be solved (the first chain left out, or a singular system)
