@@ -52,6 +52,15 @@ class IdenticalRunsTest(SwarmCase):
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         self.assertRegex(r.stdout, r"\d+ files compared, 0 differ")
 
+    def test_two_lockstep_runs_joining_submap_chains_are_the_same_run(self):
+        # The joining back-end (each solve started from the last) keeps runs identical too.
+        joining = [*SUBMAPS, "--set", "agent.fusion=joining"]
+        first = self.run_to("first", LINE3, *joining)
+        second = self.run_to("second", LINE3, *joining)
+        r = compare(first, second)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertRegex(r.stdout, r"\d+ files compared, 0 differ")
+
 
 class BusMatchesSwarmTest(SwarmCase):
     def check(self, scenario, *args):
