@@ -217,7 +217,7 @@ void AgentNode::PublishMaps(std::uint32_t tick, std::vector<Sighting> riders) {
   TakeOwnSubmaps();
   if (joining_) {
     own_open_ = mapper_->CurrentSubmap({self_, incarnation_, static_cast<std::uint32_t>(own_submaps_taken_)});
-    exchange_.SetSubmapInputs({&submaps_.book(), own_open_, &peers_open_});
+    exchange_.SetSubmapInputs({&submaps_.book(), own_open_ ? &*own_open_ : nullptr, &peers_open_});
   }
   exchange_.Update(local, sync_.processed_until());
   Publish(MapKind::kLocal, local, ++local_version_, tick, riders);

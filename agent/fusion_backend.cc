@@ -67,7 +67,7 @@ class JoiningFusion : public FusionBackend {
     };
     std::vector<ChainInput> chains = {chain(self_, incarnation_, Pose2{})};
     if (submaps.own_open && submaps.own_open->id.index == chains[0].submaps.size()) {
-      chains[0].submaps.push_back(&*submaps.own_open);  // it continues the chain (none is missing before it)
+      chains[0].submaps.push_back(submaps.own_open);  // it continues the chain (none is missing before it)
     }
     for (const MapSource& s : direct) {
       ChainInput c = chain(s.robot, s.incarnation, s.to_own);

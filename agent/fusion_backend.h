@@ -9,7 +9,6 @@
 
 #include <map>
 #include <memory>
-#include <optional>
 #include <vector>
 
 #include "agent/peer_state.h"
@@ -19,10 +18,11 @@
 namespace mapmesh {
 
 // What a back-end may use besides maps (issue J1): the closed submaps the agent holds, by
-// identity (its own and its peers'), and its own open submap (index: its closed ones' count).
+// identity (its own and its peers'), and its own open submap (index: its closed ones' count;
+// null for none). Everything is the agent's and only pointed to: it must outlive the use.
 struct SubmapInputs {
   const SubmapBook* book = nullptr;
-  std::optional<WireSubmap> own_open;
+  const WireSubmap* own_open = nullptr;
   // Each peer incarnation's latest open submap (its index: the count of its closed ones); null
   // for none.
   const std::map<PeerKey, WireSubmap>* peers_open = nullptr;

@@ -90,7 +90,8 @@ TEST_F(FusionBackendTest, JoiningOnSubmapChainsTakesTheChainsEstimates) {
   SubmapBook book;
   const WireSubmap theirs = ExactSubmap(2, 0, 3, 8, frame2);  // landmarks 3-7 (their ids 0-4), not 8
   book.Add(theirs, EncodeSubmap(theirs));
-  SubmapInputs inputs{&book, ExactSubmap(1, 0, 0, 6, Pose2{}), nullptr};
+  const WireSubmap ours = ExactSubmap(1, 0, 0, 6, Pose2{});
+  SubmapInputs inputs{&book, &ours, nullptr};
   const FusionBackend::Built b = MakeFusionBackend(1, 1, o)->Build(own, {Source(2, two, frame2)},
                                                                    {Source(2, two, frame2)}, inputs);
   GlobalMapOptions ci;

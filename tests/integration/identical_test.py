@@ -43,23 +43,22 @@ class IdenticalRunsTest(SwarmCase):
         self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
         self.assertIn("agent_1/local_map.json: differs", r.stdout)
 
-    def test_two_lockstep_runs_relaying_submaps_are_the_same_run(self):
-        # Submaps relayed by identity (cekf_submaps) keep runs identical: the same submaps go
-        # out at the same ticks (stats.json's per-chain digests are compared too).
-        first = self.run_to("first", LINE3, *SUBMAPS)
-        second = self.run_to("second", LINE3, *SUBMAPS)
+    def assert_same_run(self, *args):
+        """Two lockstep runs with these arguments are the same run."""
+        first = self.run_to("first", *args)
+        second = self.run_to("second", *args)
         r = compare(first, second)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         self.assertRegex(r.stdout, r"\d+ files compared, 0 differ")
 
+    def test_two_lockstep_runs_relaying_submaps_are_the_same_run(self):
+        # Submaps relayed by identity (cekf_submaps) keep runs identical: the same submaps go
+        # out at the same ticks (stats.json's per-chain digests are compared too).
+        self.assert_same_run(LINE3, *SUBMAPS)
+
     def test_two_lockstep_runs_joining_submap_chains_are_the_same_run(self):
         # The joining back-end (each solve started from the last) keeps runs identical too.
-        joining = [*SUBMAPS, "--set", "agent.fusion=joining"]
-        first = self.run_to("first", LINE3, *joining)
-        second = self.run_to("second", LINE3, *joining)
-        r = compare(first, second)
-        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
-        self.assertRegex(r.stdout, r"\d+ files compared, 0 differ")
+        self.assert_same_run(LINE3, *SUBMAPS, "--set", "agent.fusion=joining")
 
 
 class BusMatchesSwarmTest(SwarmCase):

@@ -57,6 +57,20 @@ WireSubmap Measure(const World& w, const TrueChain& c, std::size_t k, RobotId ro
   return s;
 }
 
+// Every submap of a chain, measured.
+std::vector<WireSubmap> MeasureAll(const World& w, const TrueChain& c, RobotId robot, std::mt19937_64& rng) {
+  std::vector<WireSubmap> out;
+  for (std::size_t k = 0; k < c.seen.size(); ++k) out.push_back(Measure(w, c, k, robot, rng));
+  return out;
+}
+
+// The chain input of a robot's submaps (incarnation 1), started at `origin`.
+ChainInput Chain(RobotId robot, const std::vector<WireSubmap>& submaps, const Pose2& origin) {
+  ChainInput c{robot, 1, {}, origin};
+  for (const WireSubmap& s : submaps) c.submaps.push_back(&s);
+  return c;
+}
+
 // A robot driving along a row of the grid: its submaps each hold the landmarks near it.
 TrueChain Drive(const World& w, Pose2 start, int submaps, double step) {
   TrueChain c;
@@ -90,14 +104,12 @@ TEST(SubmapNetwork, OneChainIsTheSubmapJoiner) {
   const World w(8, 2.0);
   std::mt19937_64 rng(3);
   const TrueChain t = Drive(w, Pose2{1.0, 1.0, 0.1}, 4, 3.0);
-  std::vector<WireSubmap> subs;
-  for (std::size_t k = 0; k < 4; ++k) subs.push_back(Measure(w, t, k, 1, rng));
+  const std::vector<WireSubmap> subs = MeasureAll(w, t, 1, rng);
   JoinerOptions jo;
   jo.window = 100;
   SubmapJoiner joiner(jo);
   for (const WireSubmap& s : subs) joiner.Add(SubmapEstimate{s.x, s.Covariance(), s.keys});
-  ChainInput c{1, 1, {}, Pose2{}};
-  for (const WireSubmap& s : subs) c.submaps.push_back(&s);
+  const ChainInput c = Chain(1, subs, Pose2{});
   const NetworkResult r = JoinSubmapNetwork(std::span<const ChainInput>(&c, 1), {});
   ASSERT_TRUE(r.solved);
   EXPECT_TRUE(r.converged);
@@ -133,14 +145,8 @@ TEST(SubmapNetwork, TwoRobotsAreJoinedConsistently) {
   const int runs = 200;
   for (int run = 0; run < runs; ++run) {
     std::mt19937_64 rng(100 + run);
-    std::vector<WireSubmap> sa, sb;
-    for (std::size_t k = 0; k < 4; ++k) sa.push_back(Measure(w, a, k, 1, rng));
-    for (std::size_t k = 0; k < 4; ++k) sb.push_back(Measure(w, b, k, 2, rng));
-    std::vector<ChainInput> chains(2);
-    chains[0] = {1, 1, {}, Pose2{}};
-    chains[1] = {2, 1, {}, b_origin * Pose2{1.5, -1.0, 0.14}};
-    for (const auto& s : sa) chains[0].submaps.push_back(&s);
-    for (const auto& s : sb) chains[1].submaps.push_back(&s);
+    const std::vector<WireSubmap> sa = MeasureAll(w, a, 1, rng), sb = MeasureAll(w, b, 2, rng);
+    const std::vector<ChainInput> chains = {Chain(1, sa, Pose2{}), Chain(2, sb, b_origin * Pose2{1.5, -1.0, 0.14})};
     const NetworkResult r = JoinSubmapNetwork(chains, groups);
     ASSERT_TRUE(r.solved) << run;
     ASSERT_TRUE(r.joined[1]) << run;
@@ -185,15 +191,9 @@ TEST(SubmapNetwork, WrongPairingsAreDroppedNotJoined) {
   }
   ASSERT_EQ(planted, 4);
   std::mt19937_64 rng(5);
-  std::vector<WireSubmap> sa, sb;
-  for (std::size_t k = 0; k < 4; ++k) sa.push_back(Measure(w, a, k, 1, rng));
-  for (std::size_t k = 0; k < 4; ++k) sb.push_back(Measure(w, b, k, 2, rng));
+  const std::vector<WireSubmap> sa = MeasureAll(w, a, 1, rng), sb = MeasureAll(w, b, 2, rng);
   const Pose2 b_origin = a.frames[0].Inverse() * b.frames[0];
-  std::vector<ChainInput> chains(2);
-  chains[0] = {1, 1, {}, Pose2{}};
-  chains[1] = {2, 1, {}, b_origin * Pose2{0.4, -0.3, 0.02}};
-  for (const auto& s : sa) chains[0].submaps.push_back(&s);
-  for (const auto& s : sb) chains[1].submaps.push_back(&s);
+  const std::vector<ChainInput> chains = {Chain(1, sa, Pose2{}), Chain(2, sb, b_origin * Pose2{0.4, -0.3, 0.02})};
   // The right association without the swapped landmarks' pairings: what the join should keep.
   std::map<LandmarkRef, int> right_less = right;
   for (int i : swapped) right_less.erase({2, 1, static_cast<std::uint32_t>(i)});
@@ -225,18 +225,11 @@ TEST(SubmapNetwork, AChainEntersOnlyThroughSharedLandmarks) {
   const TrueChain a = Drive(w, Pose2{0.0, 2.0, 0.0}, 2, 3.0);
   const TrueChain far = Drive(w, Pose2{0.0, 18.0, 0.0}, 2, 3.0);    // never near a
   const TrueChain bridge = Drive(w, Pose2{4.0, 2.0, 1.2}, 4, 3.5);  // from a's ground up to far's
-  std::vector<WireSubmap> sa, sf, sb;
-  for (std::size_t k = 0; k < 2; ++k) sa.push_back(Measure(w, a, k, 1, rng));
-  for (std::size_t k = 0; k < 2; ++k) sf.push_back(Measure(w, far, k, 2, rng));
-  for (std::size_t k = 0; k < 4; ++k) sb.push_back(Measure(w, bridge, k, 3, rng));
+  const std::vector<WireSubmap> sa = MeasureAll(w, a, 1, rng), sf = MeasureAll(w, far, 2, rng),
+                                sb = MeasureAll(w, bridge, 3, rng);
   const Pose2 to_joined = a.frames[0].Inverse();
-  std::vector<ChainInput> chains(3);
-  chains[0] = {1, 1, {}, Pose2{}};
-  chains[1] = {2, 1, {}, to_joined * far.frames[0]};
-  chains[2] = {3, 1, {}, to_joined * bridge.frames[0]};
-  for (const auto& s : sa) chains[0].submaps.push_back(&s);
-  for (const auto& s : sf) chains[1].submaps.push_back(&s);
-  for (const auto& s : sb) chains[2].submaps.push_back(&s);
+  const std::vector<ChainInput> chains = {Chain(1, sa, Pose2{}), Chain(2, sf, to_joined * far.frames[0]),
+                                          Chain(3, sb, to_joined * bridge.frames[0])};
   const std::map<LandmarkRef, int> groups = ByTruth({{1, &a}, {2, &far}, {3, &bridge}});
   // Without the bridge, the far chain shares nothing with a.
   const NetworkResult alone = JoinSubmapNetwork(std::span<const ChainInput>(chains.data(), 2), groups);
@@ -259,8 +252,7 @@ TEST(SubmapNetwork, AGroupOneSubmapWouldReachTwiceIsSplit) {
   const World w(6, 2.0);
   std::mt19937_64 rng(11);
   const TrueChain a = Drive(w, Pose2{1.0, 3.0, 0.0}, 2, 3.0);
-  std::vector<WireSubmap> sa;
-  for (std::size_t k = 0; k < 2; ++k) sa.push_back(Measure(w, a, k, 1, rng));
+  const std::vector<WireSubmap> sa = MeasureAll(w, a, 1, rng);
   std::map<LandmarkRef, int> groups = ByTruth({{1, &a}});
   const std::uint32_t k0 = sa[0].keys[0], k1 = sa[0].keys[1];
   groups[{1, 1, k1}] = groups[{1, 1, k0}];
