@@ -91,21 +91,29 @@ FeedBatch Simulator::Next() {
       const RobotSpec& spec = *r.spec;
       const UnicycleControl u = FollowWaypoints(r.pose, spec.path, spec.motion, dt_, r.follower);
       r.pose = UnicycleMotion(r.pose, u, dt_);
+      r.sum_v += u.v_mps + spec.motion.sigma_v_mps * n01(r.rng);
+      r.sum_w += u.w_radps + spec.motion.sigma_w_radps * n01(r.rng);
+      ++r.steps;
+      // The first interval also carries the scan from the start pose (at its opening stamp).
+      r.scans += r.start_scans;
+      r.start_scans = 0;
+      if (k % static_cast<std::uint64_t>(spec.sensor.scan_every_steps) == 0) {
+        b.scans.push_back(Sense(r, b.stamp));
+        ++r.scans;
+      }
+      if (r.steps < spec.motion.odometry_every_steps && k < last_step_) continue;
       Odometry o;
       o.robot_id = spec.id;
       o.seq = r.odom_seq++;
       o.stamp = b.stamp;
-      o.dt = dt_;
-      o.v = u.v_mps + spec.motion.sigma_v_mps * n01(r.rng);
-      o.w = u.w_radps + spec.motion.sigma_w_radps * n01(r.rng);
-      // The first interval also carries the scan from the start pose (at its opening stamp).
-      o.scans_in_interval = r.start_scans;
-      r.start_scans = 0;
-      if (k % static_cast<std::uint64_t>(spec.sensor.scan_every_steps) == 0) {
-        b.scans.push_back(Sense(r, b.stamp));
-        ++o.scans_in_interval;
-      }
+      o.dt = dt_ * r.steps;
+      o.v = r.sum_v / r.steps;
+      o.w = r.sum_w / r.steps;
+      o.scans_in_interval = r.scans;
       b.odom.push_back(o);
+      r.steps = 0;
+      r.sum_v = r.sum_w = 0.0;
+      r.scans = 0;
     }
   }
   // Every robot has moved: the scans of this step see the others where they are now.

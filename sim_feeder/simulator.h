@@ -23,7 +23,11 @@ class Simulator : public FeedSource {
 
   bool Done() const override;
   // Step 0 is the initial instant (truth and links only); each later step advances one
-  // control period and carries every robot's odometry, and scans every scan_every_steps.
+  // control period and carries scans every scan_every_steps. A robot's odometry comes every
+  // motion.odometry_every_steps steps (and at the last step): the mean of the steps' noisy
+  // controls over their time, as an odometer integrating its encoders reports it. The noise
+  // of each step is drawn alike whatever that rate, so runs at two odometry rates share their
+  // truth and their draws.
   FeedBatch Next() override;
   const WorldTruth& Truth() const override { return truth_; }
 
@@ -37,6 +41,11 @@ class Simulator : public FeedSource {
     std::uint32_t odom_seq = 0;
     std::uint32_t scan_seq = 0;
     std::uint32_t start_scans = 0;  // taken from the start pose: announced by the first odometry
+    // The odometry interval being gathered (motion.odometry_every_steps): steps, the sums of
+    // their noisy controls, and the scans taken in it.
+    int steps = 0;
+    double sum_v = 0.0, sum_w = 0.0;
+    std::uint32_t scans = 0;
   };
   // One scan of robot r from its true pose at `stamp`.
   Scan Sense(Robot& r, double stamp);

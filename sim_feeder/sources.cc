@@ -21,7 +21,9 @@ Feed MakeFeed(Scenario& scenario, const std::string& datasets_root) {
     feed.source = std::make_unique<Simulator>(scenario, BuildWorld(scenario));
     return feed;
   }
-  const std::string dir = datasets_root + "/" + scenario.source.dataset;
+  // An absolute dataset path is taken as it is (a variant made by scripts/mrclam-variant, say).
+  const std::string& name = scenario.source.dataset;
+  const std::string dir = !name.empty() && name.front() == '/' ? name : datasets_root + "/" + name;
   ReplayData data = scenario.source.type == SourceType::kMrclam ? LoadMrclam(dir, scenario)
                                                                 : LoadVictoriaPark(dir, scenario);
   if (scenario.duration_given) Truncate(data, scenario.duration_s);

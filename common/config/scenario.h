@@ -91,6 +91,7 @@ struct MotionOptions {
   double sigma_w_radps = 0.0524;    // odometry noise on w (3 deg/s)
   double sigma_steering_rad = 0.0;  // odometry noise on the steering angle (ackermann)
   double waypoint_radius_m = 1.0;   // switch to the next waypoint inside this radius
+  int odometry_every_steps = 1;     // simulated odometry reports the mean control over this many steps
   static MotionOptions ThesisDefaults() { return {}; }
   static MotionOptions DownsDefaults();
 };

@@ -265,6 +265,7 @@ void ReadMotion(YamlReader m, MotionOptions& o) {
   m.GetInRange("sigma_w_radps", o.sigma_w_radps, 0.0, limits::kMaxSigmaWRadps);
   m.GetInRange("sigma_steering_rad", o.sigma_steering_rad, 0.0, limits::kMaxSigmaSteeringRad);
   m.GetPositiveUpTo("waypoint_radius_m", o.waypoint_radius_m, kMaxLengthM);
+  m.GetInRange("odometry_every_steps", o.odometry_every_steps, 1, limits::kMaxScanEverySteps);
   m.Finish();
 }
 

@@ -34,11 +34,11 @@ BatchLogBuilder::BatchLogBuilder(RobotId robot, const FilterNoise& noise, double
 void BatchLogBuilder::Move(const OdometryControl& u, double dt) {
   if (!(dt > 0)) return;
   Eigen::Matrix3d j_pose;
-  Eigen::Matrix<double, 3, 2> j_control;
   // The models are invariant to the frame they start in, so integrating from the identity
   // gives the motion in the last node's frame, and the covariance propagates as the filter's.
-  delta_ = MoveRobot(noise_.motion, delta_, u, dt, &j_pose, &j_control);
-  delta_cov_ = j_pose * delta_cov_ * j_pose.transpose() + j_control * noise_.ControlCovFor(dt) * j_control.transpose();
+  const Eigen::Matrix3d q = noise_.MotionCov(delta_, u, dt);
+  delta_ = MoveRobot(noise_.motion, delta_, u, dt, &j_pose);
+  delta_cov_ = j_pose * delta_cov_ * j_pose.transpose() + q;
   moved_ = true;
 }
 

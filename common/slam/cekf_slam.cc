@@ -60,7 +60,7 @@ void CekfSlam::StartPeriod() {
 }
 
 void CekfSlam::Predict(const OdometryControl& u, double dt) {
-  const Eigen::Matrix3d j = active_.Predict(noise_.motion, u, dt, noise_.ControlCovFor(dt));
+  const Eigen::Matrix3d j = active_.Predict(noise_, u, dt);
   // Only the robot rows of the active state move: Phi <- blockdiag(J, I) Phi.
   phi_.topRows<3>() = (j * phi_.topRows<3>()).eval();
   const Pose2 r = active_.robot();

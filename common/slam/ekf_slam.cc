@@ -17,9 +17,7 @@ void GatherState(const Eigen::VectorXd& x, const Eigen::MatrixXd& p, const std::
 
 EkfSlam::EkfSlam(const FilterNoise& noise, const EkfOptions& options) : noise_(noise), state_(options) {}
 
-void EkfSlam::Predict(const OdometryControl& u, double dt) {
-  state_.Predict(noise_.motion, u, dt, noise_.ControlCovFor(dt));
-}
+void EkfSlam::Predict(const OdometryControl& u, double dt) { state_.Predict(noise_, u, dt); }
 
 bool EkfSlam::Update(const std::vector<std::pair<LandmarkId, Eigen::Vector2d>>& obs) {
   std::vector<EkfState::Measurement> m;

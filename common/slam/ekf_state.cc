@@ -51,18 +51,17 @@ void SetHeadingColumn(const Eigen::Vector2d& moved, const Eigen::Vector2d& from,
 
 }  // namespace
 
-Eigen::Matrix3d EkfState::Predict(const MotionModel& model, const OdometryControl& u, double dt,
-                                  const Eigen::Matrix2d& control_cov) {
+Eigen::Matrix3d EkfState::Predict(const FilterNoise& noise, const OdometryControl& u, double dt) {
   Eigen::Matrix3d j;
-  Eigen::Matrix<double, 3, 2> w;
-  const Pose2 next = MoveRobot(model, robot(), u, dt, &j, &w);
+  const Eigen::Matrix3d q = noise.MotionCov(robot(), u, dt);
+  const Pose2 next = MoveRobot(noise.motion, robot(), u, dt, &j);
   // FEJ: the position change counted from the propagated position, not the updated one, so
   // that the Jacobians of successive steps chain to one global rotation (Huang et al. 2008).
   if (options_.first_estimates_jacobians) SetHeadingColumn({next.x, next.y}, fe_.head<2>(), j);
   x_.head<3>() = next.Vector();
   fe_.head<3>() = next.Vector();
   const Eigen::Matrix3d prr = P_.topLeftCorner<3, 3>();
-  P_.topLeftCorner<3, 3>() = j * prr * j.transpose() + w * control_cov * w.transpose();
+  P_.topLeftCorner<3, 3>() = j * prr * j.transpose() + q;
   const int m = n_ - 3;
   if (m > 0) {
     P_.block(0, 3, 3, m) = (j * P_.block(0, 3, 3, m)).eval();

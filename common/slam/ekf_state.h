@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "common/geometry/pose2.h"
+#include "common/slam/landmark_filter.h"
 #include "common/slam/motion_model.h"
 #include "common/slam/observation_model.h"
 
@@ -64,9 +65,10 @@ class EkfState {
   Eigen::Vector2d first_estimate(int slot) const { return fe_.segment<2>(3 + 2 * slot); }
 
   // EKF prediction (thesis eq. 19-22): only the robot rows and columns of P change; the
-  // landmark block is not touched. Returns the robot Jacobian of the motion that was used.
-  Eigen::Matrix3d Predict(const MotionModel& model, const OdometryControl& u, double dt,
-                          const Eigen::Matrix2d& control_cov);
+  // landmark block is not touched. The pose gains the motion's covariance noise.MotionCov
+  // (white control noise integrated along the motion). Returns the robot Jacobian of the
+  // motion that was used.
+  Eigen::Matrix3d Predict(const FilterNoise& noise, const OdometryControl& u, double dt);
 
   // One observation of a landmark slot.
   struct Measurement {

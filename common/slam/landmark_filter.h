@@ -19,13 +19,18 @@ using LandmarkId = std::uint32_t;
 struct FilterNoise {
   MotionModel motion;
   // Covariance of the model's control vector averaged over control_period_s. Odometry
-  // errors are treated as white noise, so over an interval dt the filter uses
-  // control_cov * control_period_s / dt: the pose uncertainty then grows with time, not
-  // with how often odometry arrives or how an interval is split at scans.
+  // errors are white noise of spectral density control_cov * control_period_s (Density()):
+  // the mean control over an interval dt errs by Density() / dt, and the pose gains
+  // MotionCov over it, the same whether odometry comes at 4 or 100 Hz and however an
+  // interval is split at scans.
   Eigen::Matrix2d control_cov = Eigen::Matrix2d::Identity();
   double control_period_s = 0.1;
   Eigen::Matrix2d obs_cov = Eigen::Matrix2d::Identity();  // of [range, bearing]
-  Eigen::Matrix2d ControlCovFor(double dt) const { return control_cov * (control_period_s / dt); }
+  Eigen::Matrix2d Density() const { return control_cov * control_period_s; }
+  // The covariance the pose gains moving by u over dt from pose (MotionNoise).
+  Eigen::Matrix3d MotionCov(const Pose2& pose, const OdometryControl& u, double dt) const {
+    return MotionNoise(motion, pose, u, dt, Density());
+  }
 };
 
 class LandmarkFilter {

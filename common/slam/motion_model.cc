@@ -1,5 +1,6 @@
 #include "common/slam/motion_model.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace mapmesh {
@@ -79,6 +80,57 @@ Pose2 MoveRobot(const MotionModel& model, const Pose2& pose, const OdometryContr
     return AckermannMotion(pose, {u.v_mps, u.steering_rad}, dt, model.ackermann, j_pose, j_control);
   }
   return UnicycleMotion(pose, {u.v_mps, u.w_radps}, dt, j_pose, j_control);
+}
+
+namespace {
+
+// d(pose rate)/d(controls) at pose: the unicycle's, or the car's (its step is Euler's, so its
+// control Jacobian over 1 s is the rate's).
+Eigen::Matrix<double, 3, 2> ControlRate(const MotionModel& model, const Pose2& pose, const OdometryControl& u) {
+  Eigen::Matrix<double, 3, 2> b;
+  if (model.kind == MotionModel::Kind::kAckermann) {
+    AckermannMotion(pose, {u.v_mps, u.steering_rad}, 1.0, model.ackermann, nullptr, &b);
+    return b;
+  }
+  b << std::cos(pose.theta), 0, std::sin(pose.theta), 0, 0, 1;
+  return b;
+}
+
+// The model's turn rate (rad/s).
+double TurnRate(const MotionModel& model, const OdometryControl& u) {
+  if (model.kind == MotionModel::Kind::kAckermann) {
+    const AckermannParams& p = model.ackermann;
+    const double t = std::tan(u.steering_rad);
+    return u.v_mps / (1.0 - t * p.encoder_offset_m / p.wheelbase_m) * t / p.wheelbase_m;
+  }
+  return u.w_radps;
+}
+
+}  // namespace
+
+Eigen::Matrix3d MotionNoise(const MotionModel& model, const Pose2& pose, const OdometryControl& u, double dt,
+                            const Eigen::Matrix2d& density) {
+  Eigen::Matrix3d q = Eigen::Matrix3d::Zero();
+  if (!(dt > 0)) return q;
+  // Gauss-Legendre on [-1, 1], 5 nodes: exact for polynomials of degree 9.
+  static constexpr double kNode[5] = {-0.9061798459386640, -0.5384693101056831, 0.0, 0.5384693101056831,
+                                      0.9061798459386640};
+  static constexpr double kWeight[5] = {0.2369268850561891, 0.4786286704993665, 0.5688888888888889, 0.4786286704993665,
+                                        0.2369268850561891};
+  const double turned = std::abs(TurnRate(model, u)) * dt;
+  const int panels = static_cast<int>(std::clamp(std::ceil(turned), 1.0, 64.0));
+  const double h = dt / panels;
+  for (int p = 0; p < panels; ++p) {
+    for (int k = 0; k < 5; ++k) {
+      const double s = h * (p + 0.5 * (kNode[k] + 1.0));
+      const Pose2 at = MoveRobot(model, pose, u, s);
+      Eigen::Matrix3d phi;
+      MoveRobot(model, at, u, dt - s, &phi);
+      const Eigen::Matrix<double, 3, 2> g = phi * ControlRate(model, at, u);
+      q.noalias() += (0.5 * h * kWeight[k]) * g * density * g.transpose();
+    }
+  }
+  return 0.5 * (q + q.transpose());
 }
 
 }  // namespace mapmesh

@@ -67,4 +67,17 @@ struct OdometryControl {
 Pose2 MoveRobot(const MotionModel& model, const Pose2& pose, const OdometryControl& u, double dt,
                 Eigen::Matrix3d* j_pose = nullptr, Eigen::Matrix<double, 3, 2>* j_control = nullptr);
 
+// The covariance a pose gains moving by u over dt when the controls err by white noise of
+// spectral density `density` (2x2, of the model's control vector, in control^2 * s: the
+// covariance of the mean control over an interval T is density / T):
+//   Q(dt) = integral over s in [0, dt] of Phi(dt, s) B(s) density B(s)^T Phi(dt, s)^T,
+// with B(s) how the pose's rate depends on the controls at the pose reached at s, and Phi(dt, s)
+// the pose Jacobian of the rest of the motion (Gauss-Legendre, 5 nodes per radian turned).
+// Unlike J density/dt J^T of one step, which is singular (the arc's sideways error is tied to
+// its heading error), it is the same whether an interval is integrated whole or in pieces:
+// Q(dt) = Phi Q(dt1) Phi^T + Q(dt - dt1), so a filter's uncertainty does not depend on the
+// odometry's rate. As dt -> 0 it tends to J density/dt J^T.
+Eigen::Matrix3d MotionNoise(const MotionModel& model, const Pose2& pose, const OdometryControl& u, double dt,
+                            const Eigen::Matrix2d& density);
+
 }  // namespace mapmesh

@@ -160,6 +160,13 @@ Eigen::Vector2d Turned(const Eigen::Vector2d& v) { return {-v.y(), v.x()}; }  //
 Eigen::Vector2d Position(const Pose2& p) { return {p.x, p.y}; }
 
 const Eigen::Matrix2d kControlCov = Eigen::Vector2d(0.03 * 0.03, 0.05 * 0.05).asDiagonal();
+// Odometry noise of kControlCov over 0.1 s (the unicycle).
+FilterNoise ControlNoise() {
+  FilterNoise n;
+  n.control_cov = kControlCov;
+  n.control_period_s = 0.1;
+  return n;
+}
 const Eigen::Matrix2d kObsCov = Eigen::Vector2d(0.05 * 0.05, std::pow(DegToRad(1.0), 2)).asDiagonal();
 
 // A state whose robot has moved and seen two landmarks, then moved on, and an update with
@@ -171,13 +178,12 @@ struct MovedState {
   Pose2 propagated;  // the robot before the update
 
   explicit MovedState(bool fej) : s(EkfOptions{fej}) {
-    const MotionModel model;
-    s.Predict(model, {0.3, 0.1, 0.0}, 1.0, kControlCov);
+    s.Predict(ControlNoise(), {0.3, 0.1, 0.0}, 1.0);
     a = s.Augment({5.0, 0.4}, kObsCov);
     b = s.Augment({6.0, -0.5}, kObsCov);
     first_a = s.landmark(a);
     first_b = s.landmark(b);
-    for (int k = 0; k < 5; ++k) s.Predict(model, {0.3, 0.1, 0.0}, 1.0, kControlCov);
+    for (int k = 0; k < 5; ++k) s.Predict(ControlNoise(), {0.3, 0.1, 0.0}, 1.0);
     propagated = s.robot();
     const Eigen::Vector2d za = s.Predicted(a, nullptr, nullptr) + Eigen::Vector2d(0.3, 0.05);
     const Eigen::Vector2d zb = s.Predicted(b, nullptr, nullptr) + Eigen::Vector2d(-0.2, 0.04);
@@ -221,7 +227,7 @@ TEST(EkfSlamFirstEstimates, PropagationJacobianCountsThePositionChangeFromThePro
     const MotionModel model;
     Eigen::Matrix3d j_latest;
     MoveRobot(model, updated, {0.3, -0.2, 0.0}, 0.5, &j_latest);
-    const Eigen::Matrix3d j = s.Predict(model, {0.3, -0.2, 0.0}, 0.5, kControlCov);
+    const Eigen::Matrix3d j = s.Predict(ControlNoise(), {0.3, -0.2, 0.0}, 0.5);
     const Pose2 next = s.robot();
     // The standard EKF: J (p' - p_updated); FEJ: J (p' - p_propagated), so that successive
     // steps chain: J (p3 - p2) + J (p2 - p1) = J (p3 - p1).
@@ -279,14 +285,13 @@ TEST(EkfSlamFirstEstimates, UnobservableDirectionsGainNoInformation) {
   double largest_gain[2] = {0.0, 0.0};
   for (bool fej : {false, true}) {
     EkfState s(x0, p0, EkfOptions{fej});
-    const MotionModel model;
     Pose2 truth;
     std::vector<int> slot(world.size(), -1);
     for (int step = 1; step <= 300; ++step) {
       const UnicycleControl u{0.3, 0.25};
       truth = UnicycleMotion(truth, u, 0.1);
       Eigen::MatrixXd before = information(s, fej);
-      s.Predict(model, {u.v_mps + 0.03 * n01(rng), u.w_radps + 0.05 * n01(rng), 0.0}, 0.1, kControlCov);
+      s.Predict(ControlNoise(), {u.v_mps + 0.03 * n01(rng), u.w_radps + 0.05 * n01(rng), 0.0}, 0.1);
       Eigen::MatrixXd after = information(s, fej);
       largest_gain[fej] = std::max(largest_gain[fej], (after - before).eigenvalues().real().maxCoeff() / before.norm());
       if (step % 5 != 0) continue;

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/LU>
+
 #include <random>
 
 #include "tests/testing/numeric_jacobian.h"
@@ -152,6 +154,99 @@ TEST(MoveRobot, HeadingColumnIsThePositionChangeTurnedBy90Degrees) {
       const Pose2 q = MoveRobot(model, p, c, 0.25, &j);
       EXPECT_NEAR(j(0, 2), -(q.y - p.y), 1e-12);
       EXPECT_NEAR(j(1, 2), q.x - p.x, 1e-12);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace mapmesh
+
+namespace mapmesh {
+namespace {
+
+const Eigen::Matrix2d kDensity = Eigen::Vector2d(0.03 * 0.03 * 0.1, 0.05 * 0.05 * 0.1).asDiagonal();
+
+// Straight ahead along x, the integral in closed form: along-track q_v dt, heading q_w dt,
+// sideways v^2 q_w dt^3 / 3 and its covariance with the heading v q_w dt^2 / 2.
+TEST(MotionNoise, StraightAheadIsTheIntegralInClosedForm) {
+  const MotionModel model;
+  const double v = 0.7, dt = 0.8, qv = kDensity(0, 0), qw = kDensity(1, 1);
+  const Eigen::Matrix3d q = MotionNoise(model, Pose2{}, {v, 0.0, 0.0}, dt, kDensity);
+  Eigen::Matrix3d expected;
+  expected << qv * dt, 0, 0,                                   //
+      0, v * v * qw * dt * dt * dt / 3, v * qw * dt * dt / 2,  //
+      0, v * qw * dt * dt / 2, qw * dt;
+  EXPECT_LT((q - expected).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_GT(q.determinant(), 0.0);  // one step's J (density / dt) J^T is singular
+}
+
+// The point: an interval integrated whole gains what its two pieces do, propagated, for any
+// split, turn and heading, so the filter's uncertainty does not depend on the odometry's rate
+// (the unicycle; the car's step is Euler's, whose pieces do not compose to the whole).
+TEST(MotionNoise, AnIntervalGainsWhatItsPiecesDo) {
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const MotionModel model;
+  for (int trial = 0; trial < 200; ++trial) {
+    const Pose2 start{4 * u01(rng) - 2, 4 * u01(rng) - 2, 6 * u01(rng) - 3};
+    const OdometryControl u{0.1 + 2 * u01(rng), 4 * u01(rng) - 2, 0.0};
+    const double dt = 0.05 + 2 * u01(rng), split = dt * (0.05 + 0.9 * u01(rng));
+    const Eigen::Matrix3d whole = MotionNoise(model, start, u, dt, kDensity);
+    const Pose2 mid = MoveRobot(model, start, u, split);
+    Eigen::Matrix3d phi;
+    MoveRobot(model, mid, u, dt - split, &phi);
+    const Eigen::Matrix3d pieces = phi * MotionNoise(model, start, u, split, kDensity) * phi.transpose() +
+                                   MotionNoise(model, mid, u, dt - split, kDensity);
+    EXPECT_LT((whole - pieces).cwiseAbs().maxCoeff(), 1e-9 * whole.cwiseAbs().maxCoeff()) << "trial " << trial;
+  }
+}
+
+// As the interval shrinks it is one step's J (density / dt) J^T.
+TEST(MotionNoise, ShortIntervalsAreOneStepsLinearisation) {
+  for (const MotionModel::Kind kind : {MotionModel::Kind::kUnicycle, MotionModel::Kind::kAckermann}) {
+    MotionModel model;
+    model.kind = kind;
+    const Pose2 start{1.0, -2.0, 0.7};
+    const OdometryControl u{1.2, 0.8, 0.2};
+    const double dt = 1e-3;
+    Eigen::Matrix<double, 3, 2> j;
+    MoveRobot(model, start, u, dt, nullptr, &j);
+    const Eigen::Matrix3d one_step = j * (kDensity / dt) * j.transpose();
+    const Eigen::Matrix3d q = MotionNoise(model, start, u, dt, kDensity);
+    EXPECT_LT((q - one_step).cwiseAbs().maxCoeff(), 2e-3 * one_step.cwiseAbs().maxCoeff());
+  }
+}
+
+// Against the truth it models: a unicycle driven by the control plus white noise (fine steps
+// of piecewise-constant noise of that density), 20000 seeded runs; the sample covariance of
+// the end pose within its sampling error of Q, entry by entry.
+TEST(MotionNoise, MatchesMonteCarloOfWhiteControlNoise) {
+  const MotionModel model;
+  const Pose2 start{0.5, 0.2, 0.3};
+  const OdometryControl u{0.6, 0.9, 0.0};
+  const double dt = 1.5, h = 5e-3;
+  const Eigen::Matrix2d density = Eigen::Vector2d(0.01, 0.02).asDiagonal();
+  const Eigen::Matrix3d q = MotionNoise(model, start, u, dt, density);
+  const Pose2 mean = MoveRobot(model, start, u, dt);
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const int runs = 20000, steps = static_cast<int>(std::lround(dt / h));
+  Eigen::Matrix3d sample = Eigen::Matrix3d::Zero();
+  for (int r = 0; r < runs; ++r) {
+    Pose2 p = start;
+    for (int k = 0; k < steps; ++k) {
+      p = UnicycleMotion(
+          p, {u.v_mps + std::sqrt(density(0, 0) / h) * n01(rng), u.w_radps + std::sqrt(density(1, 1) / h) * n01(rng)},
+          h);
+    }
+    const Eigen::Vector3d e(p.x - mean.x, p.y - mean.y, WrapAngle(p.theta - mean.theta));
+    sample += e * e.transpose() / runs;
+  }
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      // The sampling error of a covariance entry: sqrt((q_ii q_jj + q_ij^2) / runs); 4 of them.
+      const double tolerance = 4.0 * std::sqrt((q(i, i) * q(j, j) + q(i, j) * q(i, j)) / runs);
+      EXPECT_NEAR(sample(i, j), q(i, j), tolerance) << i << "," << j;
     }
   }
 }
