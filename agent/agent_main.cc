@@ -33,7 +33,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SyncStats, odom_received, odom_processed, odo
                                    scans_out_of_sequence, scans_before_join, scans_processed, scans_empty,
                                    scans_rejected, scans_before_start, scans_late, scans_missing)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MapperStats, offered, associated, initialised, tentative, rejected_gate, ambiguous,
-                                   unidentified, out_of_range, invalid, failed_updates)
+                                   unidentified, out_of_range, invalid, failed_updates, diverged)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(AgentStats, maps_sent, bytes_sent, maps_received, bytes_received, maps_out_of_range,
                                    maps_lost, maps_over_bandwidth, maps_unknown_sender, maps_stale_version,
                                    maps_encode_failed, maps_encode_trimmed, links_refused)

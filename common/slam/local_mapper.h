@@ -37,6 +37,7 @@ struct MapperStats {
   std::uint64_t out_of_range = 0;    // beyond the configured range limits: dropped
   std::uint64_t invalid = 0;         // NaN, inf or negative range: dropped
   std::uint64_t failed_updates = 0;  // updates refused (innovation covariance not positive definite)
+  std::uint64_t diverged = 0;        // cekf_submaps: submaps re-placed by the divergence guard (SubmapOptions)
 };
 
 class LocalMapper {

@@ -34,6 +34,15 @@ struct SubmapOptions {
   double association_gate = 13.82;  // unknown association: chi-square (2 dof) gate of a submap's landmark
                                     // against the joined map's (99.9 %)
   JoinerOptions join;               // agent.join_window: submaps relinearised at each join
+  // The divergence guard (known association): a submap whose landmarks the joined map holds
+  // mostly disagree with it (at least 2, more than half, outside association_gate) started
+  // where the robot was lost, not where the last one ended (a heading error no sighting
+  // corrected, as after a blind turn on bad odometry). It is re-placed by a rigid fit of those
+  // landmarks, its placement made unknown (5 m, 2 rad: the joiner places it by what it
+  // shares), when at most a quarter of them (and at least 3 shared) then disagree; counted in
+  // MapperStats::diverged. Off by default: on MRCLAM 7 as logged it also re-places robot 4's
+  // submaps where its biased landmarks disagree (docs/EXPERIMENTS.md "Other odometry rates").
+  bool divergence_guard = false;  // agent.divergence_guard
 
   template <typename Reader>
   void Read(Reader& r) {
@@ -42,6 +51,7 @@ struct SubmapOptions {
     r.GetInRange("submap_landmarks", landmarks, 0, 1000000);
     r.GetInRange("submap_heading_sigma_deg", heading_sigma_deg, 0.0, 180.0);
     r.GetInRange("join_window", join.window, 1, 100000);
+    r.Get("divergence_guard", divergence_guard);
   }
 };
 

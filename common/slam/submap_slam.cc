@@ -7,6 +7,8 @@
 #include <cmath>
 #include <limits>
 
+#include "common/geometry/rigid_fit.h"
+
 namespace mapmesh {
 namespace {
 
@@ -87,22 +89,11 @@ std::vector<std::int64_t> SubmapSlam::Keys(const Eigen::VectorXd& x, const Eigen
     for (std::size_t i = 0; i < n; ++i) keys[i] = known_association_ ? static_cast<std::int64_t>(ids[i]) : next++;
     return keys;
   }
-  // Each joined landmark as the open submap's origin (the joined end pose) sees it, with the
-  // covariance of that relative position.
   const JoinedMap& j = joiner_.last();
   const std::size_t nj = j.keys.size();
-  std::vector<Eigen::Vector2d> rel(nj);
-  std::vector<Eigen::Matrix2d> rel_cov(nj);
-  for (std::size_t k = 0; k < nj; ++k) {
-    Eigen::MatrixXd jac;
-    const Eigen::VectorXd h = PredictSubmap(j.end, j.end, {j.means[k]}, &jac);
-    rel[k] = h.segment<2>(3);
-    const Eigen::Matrix<double, 2, 3> jx = jac.block<2, 3>(3, 0);
-    const Eigen::Matrix2d jl = jac.block<2, 2>(3, 6);
-    const Eigen::Matrix<double, 3, 2> xl = j.end_cross.block<3, 2>(0, 2 * static_cast<Eigen::Index>(k));
-    rel_cov[k] = jx * j.end_cov * jx.transpose() + jl * j.Cov(k) * jl.transpose() + jx * xl * jl.transpose() +
-                 jl * xl.transpose() * jx.transpose();
-  }
+  std::vector<Eigen::Vector2d> rel;
+  std::vector<Eigen::Matrix2d> rel_cov;
+  Relative(&rel, &rel_cov);
   auto d2 = [&](std::size_t i, std::size_t k) {
     const auto row = static_cast<Eigen::Index>(3 + 2 * i);
     const Eigen::Vector2d d = x.segment<2>(row) - rel[k];
@@ -150,12 +141,83 @@ std::vector<std::int64_t> SubmapSlam::Keys(const Eigen::VectorXd& x, const Eigen
   return keys;
 }
 
-std::optional<SubmapEstimate> SubmapSlam::OpenSubmap() const {
+void SubmapSlam::Relative(std::vector<Eigen::Vector2d>* rel, std::vector<Eigen::Matrix2d>* rel_cov) const {
+  const JoinedMap& j = joiner_.last();
+  const std::size_t nj = j.keys.size();
+  rel->resize(nj);
+  rel_cov->resize(nj);
+  for (std::size_t k = 0; k < nj; ++k) {
+    Eigen::MatrixXd jac;
+    const Eigen::VectorXd h = PredictSubmap(j.end, j.end, {j.means[k]}, &jac);
+    (*rel)[k] = h.segment<2>(3);
+    const Eigen::Matrix<double, 2, 3> jx = jac.block<2, 3>(3, 0);
+    const Eigen::Matrix2d jl = jac.block<2, 2>(3, 6);
+    const Eigen::Matrix<double, 3, 2> xl = j.end_cross.block<3, 2>(0, 2 * static_cast<Eigen::Index>(k));
+    (*rel_cov)[k] = jx * j.end_cov * jx.transpose() + jl * j.Cov(k) * jl.transpose() + jx * xl * jl.transpose() +
+                    jl * xl.transpose() * jx.transpose();
+  }
+}
+
+bool SubmapSlam::Replace(Eigen::VectorXd* x, Eigen::MatrixXd* p, const std::vector<LandmarkId>& ids) const {
+  if (!submap_.divergence_guard || !known_association_ || joiner_.submaps() == 0) return false;
+  const JoinedMap& j = joiner_.last();
+  std::vector<Eigen::Vector2d> rel;
+  std::vector<Eigen::Matrix2d> rel_cov;
+  Relative(&rel, &rel_cov);
+  // The landmarks both hold: (row of x, index in the joined map).
+  std::vector<std::pair<Eigen::Index, std::size_t>> shared;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    if (const std::optional<std::size_t> k = j.Find(ids[i]))
+      shared.emplace_back(3 + 2 * static_cast<Eigen::Index>(i), *k);
+  }
+  auto disagreeing = [&](const Eigen::VectorXd& xs, const Eigen::MatrixXd& ps) {
+    std::size_t n = 0;
+    for (const auto& [row, k] : shared) {
+      const Eigen::Vector2d d = xs.segment<2>(row) - rel[k];
+      n += d.dot((ps.block<2, 2>(row, row) + rel_cov[k]).ldlt().solve(d)) < submap_.association_gate ? 0 : 1;
+    }
+    return n;
+  };
+  const std::size_t bad = disagreeing(*x, *p);
+  if (shared.size() < 3 || bad < 2 || 2 * bad <= shared.size()) return false;
+  std::vector<Eigen::Vector2d> src, dst;
+  for (const auto& [row, k] : shared) {
+    src.push_back(x->segment<2>(row));
+    dst.push_back(rel[k]);
+  }
+  const std::optional<Pose2> t = FitRigid2D(src, dst);
+  if (!t) return false;
+  // x' = T(x): the end pose composed, every landmark moved; J = dx'/dx, G = dx'/d(tx, ty, theta).
+  const Eigen::Index n = x->size();
+  Eigen::VectorXd moved = *x;
+  Eigen::MatrixXd jac = Eigen::MatrixXd::Identity(n, n), g = Eigen::MatrixXd::Zero(n, 3);
+  const double c = std::cos(t->theta), s = std::sin(t->theta);
+  Eigen::Matrix2d r;
+  r << c, -s, s, c;
+  for (Eigen::Index row = 0; row < n; row += (row == 0 ? 3 : 2)) {
+    const Eigen::Vector2d q = t->Apply(Eigen::Vector2d(x->segment<2>(row)));
+    moved.segment<2>(row) = q;
+    jac.block<2, 2>(row, row) = r;
+    g.block<2, 2>(row, 0).setIdentity();
+    g.block<2, 1>(row, 2) = Eigen::Vector2d(-(q.y() - t->y), q.x() - t->x);
+  }
+  moved(2) = WrapAngle((*x)(2) + t->theta);
+  g(2, 2) = 1.0;
+  const Eigen::MatrixXd rotated = jac * *p * jac.transpose();
+  if (4 * disagreeing(moved, rotated) > shared.size()) return false;  // no placement agrees: leave it
+  *x = moved;
+  *p = rotated + g * Eigen::Vector3d(25.0, 25.0, 4.0).asDiagonal() * g.transpose();
+  return true;
+}
+
+std::optional<SubmapEstimate> SubmapSlam::OpenSubmap(bool* replaced) const {
   Eigen::VectorXd x;
   Eigen::MatrixXd p;
   std::vector<LandmarkId> ids;
   current_->FullState(&x, &p, &ids);
   if (ids.empty() && elapsed_s_ == 0.0) return std::nullopt;
+  const bool moved = Replace(&x, &p, ids);
+  if (replaced) *replaced = moved;
   const std::vector<std::int64_t> keys = Keys(x, p, ids);
   std::vector<Eigen::Index> rows = {0, 1, 2};
   SubmapEstimate s;
@@ -177,7 +239,9 @@ std::optional<SubmapEstimate> SubmapSlam::OpenSubmap() const {
 }
 
 void SubmapSlam::Close() {
-  if (const std::optional<SubmapEstimate> s = OpenSubmap()) {
+  bool replaced = false;
+  if (const std::optional<SubmapEstimate> s = OpenSubmap(&replaced)) {
+    diverged_ += replaced ? 1 : 0;
     joiner_.Add(*s);
     for (std::uint32_t k : s->keys) next_key_ = std::max(next_key_, k + 1);
     closed_.push_back({*s, opened_s_.value_or(last_stamp_s_), last_stamp_s_});
@@ -244,6 +308,7 @@ std::size_t SubmapSlam::size() const {
 const MapperStats& SubmapSlam::stats() const {
   stats_ = closed_stats_;
   AddStats(&stats_, current_->stats());
+  stats_.diverged = diverged_;
   return stats_;
 }
 

@@ -61,8 +61,15 @@ class SubmapSlam : public LocalMapper {
   }
 
  private:
-  // The open submap as the joiner takes it: keys assigned, nothing if it holds no information.
-  std::optional<SubmapEstimate> OpenSubmap() const;
+  // The open submap as the joiner takes it: keys assigned, nothing if it holds no information;
+  // re-placed by the divergence guard when *replaced is set true.
+  std::optional<SubmapEstimate> OpenSubmap(bool* replaced = nullptr) const;
+  // Each joined landmark as the open submap's origin (the joined end pose) sees it, and the
+  // covariance of that relative position.
+  void Relative(std::vector<Eigen::Vector2d>* rel, std::vector<Eigen::Matrix2d>* rel_cov) const;
+  // The divergence guard (SubmapOptions::divergence_guard): re-places the open submap's state
+  // x, p (landmarks ids) when it disagrees with the joined map; true if it did.
+  bool Replace(Eigen::VectorXd* x, Eigen::MatrixXd* p, const std::vector<LandmarkId>& ids) const;
   // Keys for the open submap's landmarks (ids): matched into the joined map, or new ones
   // counted from next_key_; -1 for a landmark to leave out (ambiguous).
   std::vector<std::int64_t> Keys(const Eigen::VectorXd& x, const Eigen::MatrixXd& p,
@@ -82,6 +89,7 @@ class SubmapSlam : public LocalMapper {
   std::optional<double> opened_s_;  // the first scan stamp of the open submap
   double last_stamp_s_ = 0.0;
   MapperStats closed_stats_;
+  std::uint64_t diverged_ = 0;
   mutable MapperStats stats_;
   // The map, made when asked and kept until the next Predict or Observe.
   mutable bool fresh_ = false;
