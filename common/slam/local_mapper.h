@@ -19,9 +19,10 @@ namespace mapmesh {
 
 // The agent's local estimator (agent.slam): the filters of LocalSlam, the compressed EKF in
 // submaps joined by least squares (SubmapSlam), or the dead-reckoning baseline.
-enum class SlamMethod { kCekf, kEkf, kCekfSubmaps, kDeadReckoning };
-inline constexpr ChoiceTable<SlamMethod, 4> kSlamMethods{{{SlamMethod::kCekf, "cekf"},
+enum class SlamMethod { kCekf, kEkf, kIekf, kCekfSubmaps, kDeadReckoning };
+inline constexpr ChoiceTable<SlamMethod, 5> kSlamMethods{{{SlamMethod::kCekf, "cekf"},
                                                           {SlamMethod::kEkf, "ekf"},
+                                                          {SlamMethod::kIekf, "iekf"},
                                                           {SlamMethod::kCekfSubmaps, "cekf_submaps"},
                                                           {SlamMethod::kDeadReckoning, "dead_reckoning"}}};
 

@@ -8,16 +8,20 @@
 #include "common/check.h"
 #include "common/merge/spatial.h"
 #include "common/slam/ekf_slam.h"
+#include "common/slam/iekf_slam.h"
 #include "common/slam/observation_model.h"
 
 namespace mapmesh {
 
 LocalSlam::LocalSlam(const FilterNoise& noise, const LocalSlamOptions& options) : noise_(noise), options_(options) {
-  MAPMESH_CHECK(options.filter == SlamMethod::kEkf || options.filter == SlamMethod::kCekf,
-                "LocalSlam runs the ekf or the cekf");
+  MAPMESH_CHECK(options.filter == SlamMethod::kEkf || options.filter == SlamMethod::kCekf ||
+                    options.filter == SlamMethod::kIekf,
+                "LocalSlam runs the ekf, the cekf or the iekf");
   MAPMESH_CHECK(options.association.method != AssociationMethod::kAuto, "resolve the association method (ForSensor)");
   if (options.filter == SlamMethod::kEkf) {
     filter_ = std::make_unique<EkfSlam>(noise, options.ekf);
+  } else if (options.filter == SlamMethod::kIekf) {
+    filter_ = std::make_unique<IekfSlam>(noise);
   } else {
     filter_ = std::make_unique<CekfSlam>(noise, options.cekf, options.ekf);
   }

@@ -56,8 +56,9 @@ struct SubmapOptions {
 };
 
 struct LocalSlamOptions {
-  SlamMethod filter = SlamMethod::kCekf;  // agent.slam (LocalSlam runs kCekf or kEkf; SubmapSlam runs kCekfSubmaps;
-                                          // kDeadReckoning is the baseline mapper)
+  SlamMethod
+      filter = SlamMethod::kCekf;  // agent.slam (LocalSlam runs kCekf, kEkf or kIekf; SubmapSlam runs kCekfSubmaps;
+                                   // kDeadReckoning is the baseline mapper)
   SubmapOptions submaps;
   AssociationOptions association;
   EkfOptions ekf;  // linearisation, of either filter

@@ -115,5 +115,35 @@ TEST(SlamQuality, JoinedSubmapsAreConsistentAndNoLessAccurate) {
   }
 }
 
+// Rate-independent odometry (issue Q2): the same worlds with odometry at 2 Hz instead of 10
+// (robots.defaults.motion.odometry_every_steps 5: the mean of five steps' noisy controls), 10
+// seeds of the park runs and of the circle pair (20 in docs/EXPERIMENTS.md): consistent at both
+// rates, and the maps after a rigid fit within 10 % of each other.
+TEST(SlamQuality, OdometryAtTwoHertzMeansWhatItDoesAtTen) {
+  for (const char* scenario : {"park4.yaml", "thesis_circle_pair.yaml"}) {
+    const std::string key = "robots.defaults.motion.odometry_every_steps";
+    const Means ten = MeansOverSeeds(scenario, key, std::string("1"), 10);
+    const Means two = MeansOverSeeds(scenario, key, std::string("5"), 10);
+    for (const Means& m : {ten, two}) {
+      EXPECT_GE(m.landmark_nees, 1.0) << scenario;
+      EXPECT_LE(m.landmark_nees, 3.0) << scenario;
+    }
+    EXPECT_NEAR(two.aligned / ten.aligned, 1.0, 0.1) << scenario;
+  }
+}
+
+// The invariant EKF (agent.slam: iekf) against the compressed EKF, 10 seeds of the park runs
+// and of the circle pair (20 in docs/EXPERIMENTS.md): consistent (landmark NEES in [1, 3]) and
+// as accurate after a rigid fit.
+TEST(SlamQuality, TheInvariantFilterIsConsistentAndAsAccurate) {
+  for (const char* scenario : {"park4.yaml", "thesis_circle_pair.yaml"}) {
+    const Means cekf = MeansOverSeeds(scenario, "agent.slam", std::string("cekf"), 10);
+    const Means iekf = MeansOverSeeds(scenario, "agent.slam", std::string("iekf"), 10);
+    EXPECT_GE(iekf.landmark_nees, 1.0) << scenario;
+    EXPECT_LE(iekf.landmark_nees, 3.0) << scenario;
+    EXPECT_LE(iekf.aligned, 1.05 * cekf.aligned) << scenario;
+  }
+}
+
 }  // namespace
 }  // namespace mapmesh
