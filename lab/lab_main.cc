@@ -69,6 +69,7 @@ int RunSlamCommand(const app::ProcessOptions& po, int seeds, std::uint64_t first
       sum["nees"] += r.landmark_nees;
       sum["pose_nees"] += r.pose_nees;
       sum["traj"] += r.trajectory_rmse_m;
+      sum["traj_aligned"] += r.trajectory_rmse_aligned_m;
       sum["assoc"] += r.associations;
       sum["wrong"] += r.wrong_associations;
       ++rows;
@@ -79,9 +80,9 @@ int RunSlamCommand(const app::ProcessOptions& po, int seeds, std::uint64_t first
   if (rows > 0) {
     std::fprintf(stderr,
                  "mean over %d robot runs: landmark RMSE %.3f m (aligned %.3f m), landmark NEES %.2f, pose NEES %.2f, "
-                 "trajectory RMSE %.3f m",
+                 "trajectory RMSE %.3f m (aligned %.3f m)",
                  rows, sum["rmse"] / rows, sum["rmse_aligned"] / rows, sum["nees"] / rows, sum["pose_nees"] / rows,
-                 sum["traj"] / rows);
+                 sum["traj"] / rows, sum["traj_aligned"] / rows);
     if (hide) {
       std::fprintf(stderr, ", wrong associations %.0f of %.0f (%.3f %%)", sum["wrong"], sum["assoc"],
                    sum["assoc"] > 0 ? 100.0 * sum["wrong"] / sum["assoc"] : 0.0);

@@ -35,8 +35,9 @@ struct SlamRunResult {
   double pose_nees = 0.0;          // mean over scans (3 dof); needs true headings
   double trajectory_rmse_m = 0.0;  // position error at each scan (after a rigid fit when the start is unknown)
   bool trajectory_aligned = false;
-  long associations = 0;        // hide_signatures: observations fused into a landmark
-  long wrong_associations = 0;  // ... into a landmark started by another true landmark
+  double trajectory_rmse_aligned_m = 0.0;  // the same after a rigid fit of the whole path to the truth
+  long associations = 0;                   // hide_signatures: observations fused into a landmark
+  long wrong_associations = 0;             // ... into a landmark started by another true landmark
   long new_landmarks = 0;
   long dropped = 0;
   double wall_s = 0.0;

@@ -180,6 +180,11 @@ class MrclamVariantTest(unittest.TestCase):
         # its own frame metres off; the invariant filter's NEES is single-digit.
         scenario = self.variant("logged") / "scenario.yaml"
         self.assertGreater(lab(scenario, column="landmark_nees")[1], 100.0)
+        # The trajectory after a rigid fit (the lab's new column) is no worse than in the own frame.
+        own = lab(scenario, column="trajectory_rmse_m")
+        for n, e in lab(scenario, column="trajectory_rmse_aligned_m").items():
+            self.assertLessEqual(e, own[n] + 1e-9, f"robot {n}")
+            self.assertGreater(e, 0.0)
         iekf_nees = lab(scenario, "agent.slam=iekf", column="landmark_nees")
         self.assertLess(iekf_nees[1], 10.0)
         self.assertLess(lab(scenario, "agent.slam=iekf", column="landmark_rmse_m")[1], 1.5)
