@@ -9,6 +9,7 @@
 #include "common/slam/ekf_slam.h"
 #include "common/slam/observation_model.h"
 #include "sim_feeder/simulator.h"
+#include "tests/testing/feed_filters.h"
 
 namespace mapmesh {
 namespace {
@@ -28,29 +29,6 @@ robots:
   defaults: {preset: thesis, path: {type: random, count: 6}, sensor: {signatures: true}}
 )",
                        "cekf.yaml");
-}
-
-// Feeds the simulator's stream to several filters with known association.
-void Feed(const Scenario& sc, const std::vector<LandmarkFilter*>& filters, int* inits = nullptr) {
-  Simulator sim(sc, BuildWorld(sc));
-  while (!sim.Done()) {
-    const FeedBatch b = sim.Next();
-    for (const Odometry& o : b.odom) {
-      for (LandmarkFilter* f : filters) f->Predict({o.v, o.w, 0.0}, o.dt);
-    }
-    for (const Scan& s : b.scans) {
-      std::vector<std::pair<LandmarkId, Eigen::Vector2d>> known, fresh;
-      for (const Observation& o : s.obs) {
-        const auto id = static_cast<LandmarkId>(o.signature);
-        (filters[0]->Has(id) ? known : fresh).push_back({id, {o.range, o.bearing}});
-      }
-      for (LandmarkFilter* f : filters) {
-        ASSERT_TRUE(f->Update(known));
-        for (const auto& [id, z] : fresh) f->Add(id, z);
-      }
-      if (inits) *inits += static_cast<int>(fresh.size());
-    }
-  }
 }
 
 // The compressed filter's full state (mean and covariance) equals the full EKF's to 1e-9 of
@@ -77,7 +55,7 @@ TEST_P(CekfEqualsEkfTest, FinalMeanAndCovarianceEqualTheFullEkf) {
   EkfSlam ekf(ThesisNoise(), eo);
   CekfSlam cekf(ThesisNoise(), {/*region_half_m=*/3.0, /*reach_m=*/9.0}, eo);
   int inits = 0;
-  Feed(sc, {&ekf, &cekf}, &inits);
+  testing::FeedFilters(sc, {&ekf, &cekf}, &inits);
   // The run switched regions many times, and added landmarks inside compressed periods.
   EXPECT_GE(cekf.switches(), 5);
   EXPECT_GT(inits, 10);
@@ -121,7 +99,7 @@ TEST(EkfSlam, CovarianceStaysSymmetricPositiveSemiDefiniteOverALongRun) {
     const Scenario sc = RandomWorld(seed, 900);
     EkfSlam ekf(ThesisNoise(), {fej});
     CekfSlam cekf(ThesisNoise(), {/*region_half_m=*/5.0, /*reach_m=*/12.0}, {fej});
-    Feed(sc, {&ekf, &cekf});
+    testing::FeedFilters(sc, {&ekf, &cekf});
     for (const LandmarkFilter* f :
          {static_cast<const LandmarkFilter*>(&ekf), static_cast<const LandmarkFilter*>(&cekf)}) {
       Eigen::VectorXd x;

@@ -9,7 +9,7 @@
 #include "common/config/scenario.h"
 #include "common/slam/ekf_slam.h"
 #include "common/slam/observation_model.h"
-#include "sim_feeder/simulator.h"
+#include "tests/testing/feed_filters.h"
 #include "tests/testing/filter_noise.h"
 
 namespace mapmesh {
@@ -136,27 +136,7 @@ robots:
   FilterNoise noise = TestFilterNoise();
   EkfSlam ekf(noise);
   IekfSlam iekf(noise);
-  Simulator sim(sc, BuildWorld(sc));
-  while (!sim.Done()) {
-    const FeedBatch b = sim.Next();
-    for (const Odometry& o : b.odom) {
-      ekf.Predict({o.v, o.w, 0.0}, o.dt);
-      iekf.Predict({o.v, o.w, 0.0}, o.dt);
-    }
-    for (const Scan& s : b.scans) {
-      std::vector<std::pair<LandmarkId, Eigen::Vector2d>> known, fresh;
-      for (const Observation& o : s.obs) {
-        const auto id = static_cast<LandmarkId>(o.signature);
-        (ekf.Has(id) ? known : fresh).push_back({id, {o.range, o.bearing}});
-      }
-      ASSERT_TRUE(ekf.Update(known));
-      ASSERT_TRUE(iekf.Update(known));
-      for (const auto& [id, z] : fresh) {
-        ekf.Add(id, z);
-        iekf.Add(id, z);
-      }
-    }
-  }
+  testing::FeedFilters(sc, {&ekf, &iekf});
   ASSERT_GT(ekf.size(), 10u);
   ASSERT_EQ(ekf.size(), iekf.size());
   const LandmarkMap a = ekf.Map(), b = iekf.Map();
