@@ -39,10 +39,9 @@ struct SubmapOptions {
   // where the robot was lost, not where the last one ended (a heading error no sighting
   // corrected, as after a blind turn on bad odometry). It is re-placed by a rigid fit of those
   // landmarks, its placement made unknown (5 m, 2 rad: the joiner places it by what it
-  // shares), when at most a quarter of them (and at least 3 shared) then disagree; counted in
-  // MapperStats::diverged. Off by default: on MRCLAM 7 as logged it also re-places robot 4's
-  // submaps where its biased landmarks disagree (docs/EXPERIMENTS.md "Other odometry rates").
-  bool divergence_guard = false;  // agent.divergence_guard
+  // shares), when they are at least 3 spanning 1 m or more and at most a quarter of them then
+  // disagree; counted in MapperStats::diverged (docs/EXPERIMENTS.md "Other odometry rates").
+  bool divergence_guard = true;  // agent.divergence_guard
 
   template <typename Reader>
   void Read(Reader& r) {

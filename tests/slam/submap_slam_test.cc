@@ -180,3 +180,80 @@ TEST(SubmapSlam, UnknownAssociationMatchesLandmarksAcrossSubmaps) {
 
 }  // namespace
 }  // namespace mapmesh
+
+namespace mapmesh {
+namespace {
+
+// A planted divergence: the robot maps a fan of landmarks, turns in place with no landmark in
+// view while its odometry reports 1.5 rad more turn than it made, then sees them again and six
+// more beyond them. The submap after the turn starts at a heading 1.5 rad wrong. With the
+// divergence guard it is re-placed by the landmarks it shares, and the new ones land where they
+// are; without, it is joined where its wrong origin puts it (the shared landmarks left out), so
+// the new ones are metres off. A fan too tight to fix a heading (0.25 m) does not set it off.
+struct Divergence {
+  double rmse_m = 0.0;
+  std::uint64_t diverged = 0;
+};
+Divergence PlantedDivergence(bool guard, double ring_radius_m) {
+  LocalSlamOptions o = Options();
+  o.submaps.heading_sigma_deg = 1.0;  // the blind turn ends the submap
+  o.submaps.distance_m = 1.0;         // and 1 m after it the next one, which the guard counts
+  o.submaps.divergence_guard = guard;
+  SubmapSlam m(Noise(), o);
+  std::vector<Eigen::Vector2d> landmarks;
+  for (int i = 0; i < 6; ++i) {
+    const double a = 0.2 * i - 0.5;  // a fan in front of the start pose
+    landmarks.emplace_back(4.0 + ring_radius_m * std::cos(a), ring_radius_m * std::sin(a));
+  }
+  for (int i = 0; i < 6; ++i) landmarks.emplace_back(7.0, 0.8 * i - 2.0);  // seen after the turn only
+  bool turned = false;
+  Pose2 truth;
+  double t = 0.0;
+  auto look = [&] {
+    std::vector<Observation> obs;
+    for (std::size_t i = 0; i < (turned ? landmarks.size() : 6); ++i) {
+      const Eigen::Vector2d z = ObserveRangeBearing(truth, landmarks[i]);
+      if (z(0) > 8.0 || std::abs(z(1)) > 1.0) continue;
+      Observation ob;
+      ob.range = z(0);
+      ob.bearing = z(1);
+      ob.signature = static_cast<std::int32_t>(i);
+      obs.push_back(ob);
+    }
+    m.Observe(obs, t);
+  };
+  auto move = [&](double v, double w_true, double w_reported, double dt) {
+    truth = UnicycleMotion(truth, {v, w_true}, dt);
+    m.Predict({v, w_reported, 0.0}, dt);
+    t += dt;
+  };
+  for (int k = 0; k < 20; ++k) {
+    move(0.05, 0.0, 0.0, 0.1);
+    look();
+  }
+  // Blind: a full turn, reported as a full turn plus 1.5 rad.
+  for (int k = 0; k < 100; ++k) move(0.0, 2 * M_PI / 10.0, (2 * M_PI + 1.5) / 10.0, 0.1);
+  turned = true;
+  for (int k = 0; k < 250; ++k) {
+    move(0.05, 0.0, 0.0, 0.1);
+    look();
+  }
+  const LandmarkMap map = m.Map();
+  double sq = 0.0;
+  for (const Landmark& l : map.landmarks) sq += (l.mean - landmarks.at(l.id)).squaredNorm();
+  return {std::sqrt(sq / static_cast<double>(map.size())), m.stats().diverged};
+}
+
+TEST(SubmapSlam, TheDivergenceGuardReplacesASubmapThatStartedLost) {
+  const Divergence guarded = PlantedDivergence(true, 3.0);
+  const Divergence unguarded = PlantedDivergence(false, 3.0);
+  EXPECT_EQ(guarded.diverged, 1u);
+  EXPECT_LT(guarded.rmse_m, 0.05);
+  EXPECT_EQ(unguarded.diverged, 0u);
+  EXPECT_GT(unguarded.rmse_m, 1.0);
+  // A cluster 0.3 m across fixes no heading: left alone.
+  EXPECT_EQ(PlantedDivergence(true, 0.25).diverged, 0u);
+}
+
+}  // namespace
+}  // namespace mapmesh
