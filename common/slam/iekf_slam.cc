@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/slam/ekf_slam.h"
 #include "common/slam/observation_model.h"
 
 namespace mapmesh {
@@ -117,32 +118,37 @@ void IekfSlam::Add(LandmarkId id, const Eigen::Vector2d& z) {
   ids_.push_back(id);
 }
 
-Eigen::MatrixXd IekfSlam::ToStandard(const std::vector<Eigen::Index>& rows) const {
+void IekfSlam::Standard(const std::vector<int>& rows, Eigen::VectorXd* x, Eigen::MatrixXd* p) const {
+  GatherState(x_, p_, rows, x, p);
   const auto m = static_cast<Eigen::Index>(rows.size());
   Eigen::MatrixXd t = Eigen::MatrixXd::Identity(m, m);
   const auto heading = std::find(rows.begin(), rows.end(), 2) - rows.begin();
   for (Eigen::Index i = 0; i < m; ++i) {
-    const Eigen::Index r = rows[i];
+    const int r = rows[i];
     if (r == 2) continue;
-    const Eigen::Index base = r < 2 ? 0 : 3 + 2 * ((r - 3) / 2);
+    const int base = r < 2 ? 0 : 3 + 2 * ((r - 3) / 2);
     t(i, heading) = Quarter(x_.segment<2>(base))(r - base);
   }
-  Eigen::MatrixXd sub(m, m);
-  for (Eigen::Index i = 0; i < m; ++i) {
-    for (Eigen::Index j = 0; j < m; ++j) sub(i, j) = p_(rows[i], rows[j]);
-  }
-  return t * sub * t.transpose();
+  *p = t * *p * t.transpose();
 }
 
-Eigen::Matrix3d IekfSlam::robot_cov() const { return ToStandard({0, 1, 2}); }
+Eigen::Matrix3d IekfSlam::robot_cov() const {
+  Eigen::VectorXd x;
+  Eigen::MatrixXd p;
+  Standard({0, 1, 2}, &x, &p);
+  return p;
+}
 
 Eigen::MatrixXd IekfSlam::JointCov(const std::vector<LandmarkId>& ids) const {
-  std::vector<Eigen::Index> rows{0, 1, 2};
+  std::vector<int> rows{0, 1, 2};
   for (LandmarkId id : ids) {
-    rows.push_back(Row(id));
-    rows.push_back(Row(id) + 1);
+    rows.push_back(static_cast<int>(Row(id)));
+    rows.push_back(static_cast<int>(Row(id)) + 1);
   }
-  return ToStandard(rows);
+  Eigen::VectorXd x;
+  Eigen::MatrixXd p;
+  Standard(rows, &x, &p);
+  return p;
 }
 
 Eigen::Matrix2d IekfSlam::CrossCov(LandmarkId a, LandmarkId b) const {
@@ -170,14 +176,12 @@ LandmarkMap IekfSlam::Map() const {
 void IekfSlam::FullState(Eigen::VectorXd* x, Eigen::MatrixXd* p, std::vector<LandmarkId>* ids) const {
   *ids = ids_;
   std::sort(ids->begin(), ids->end());
-  std::vector<Eigen::Index> rows{0, 1, 2};
+  std::vector<int> rows{0, 1, 2};
   for (LandmarkId id : *ids) {
-    rows.push_back(Row(id));
-    rows.push_back(Row(id) + 1);
+    rows.push_back(static_cast<int>(Row(id)));
+    rows.push_back(static_cast<int>(Row(id)) + 1);
   }
-  x->resize(static_cast<Eigen::Index>(rows.size()));
-  for (std::size_t i = 0; i < rows.size(); ++i) (*x)(static_cast<Eigen::Index>(i)) = x_(rows[i]);
-  *p = ToStandard(rows);
+  Standard(rows, x, p);
 }
 
 }  // namespace mapmesh

@@ -57,8 +57,9 @@ class IekfSlam : public LandmarkFilter {
   Eigen::Index Row(LandmarkId id) const { return 3 + 2 * static_cast<Eigen::Index>(slot_.at(id)); }
   // dz/dy R^T of a sighting of the landmark at row `row`, and its predicted [range, bearing].
   Eigen::Matrix2d BodyJacobian(Eigen::Index row, Eigen::Vector2d* predicted) const;
-  // The map from e to the standard error on the given rows of x (robot rows 0-2 and landmark rows).
-  Eigen::MatrixXd ToStandard(const std::vector<Eigen::Index>& rows) const;
+  // The state and its standard-coordinate covariance on the given rows of x (robot rows 0-2 and
+  // landmark rows): the invariant covariance gathered (GatherState) and mapped by de/d(standard).
+  void Standard(const std::vector<int>& rows, Eigen::VectorXd* x, Eigen::MatrixXd* p) const;
 
   FilterNoise noise_;
   Eigen::VectorXd x_ = Eigen::VectorXd::Zero(3);
