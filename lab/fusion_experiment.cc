@@ -11,6 +11,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <thread>
+#include <tuple>
 
 #include "common/merge/global_map.h"
 #include "common/metrics/landmark_metrics.h"
@@ -60,6 +61,16 @@ std::vector<Eigen::Vector2d> InFrame(const std::vector<Eigen::Vector2d>& world, 
 
 }  // namespace
 
+namespace {
+
+// Landmark ia of map a and ib of map b are one true landmark (known signatures).
+bool IsTruePair(const LandmarkMap& a, const LandmarkMap& b, int ia, int ib) {
+  const int s = a.landmarks[ia].signature;
+  return s >= 0 && s == b.landmarks[ib].signature;
+}
+
+}  // namespace
+
 FusionTrialResult RunFusionTrial(const std::vector<SlamRunResult>& robots, const FusionTrialOptions& o,
                                  std::mt19937_64& rng) {
   const SlamRunResult &ra = Robot(robots, o.a), &rb = Robot(robots, o.b);
@@ -68,6 +79,8 @@ FusionTrialResult RunFusionTrial(const std::vector<SlamRunResult>& robots, const
   }
   FusionTrialResult r;
   r.seed = ra.seed;
+  r.robot_a = o.a;
+  r.robot_b = o.b;
   const std::vector<Eigen::Vector2d> truth_a = InFrame(ra.landmark_truth, *ra.origin_truth);
   const std::vector<Eigen::Vector2d> truth_b = InFrame(rb.landmark_truth, *rb.origin_truth);
   const Pose2 truth = ra.origin_truth->Inverse() * *rb.origin_truth;  // b's frame into a's
@@ -79,11 +92,34 @@ FusionTrialResult RunFusionTrial(const std::vector<SlamRunResult>& robots, const
     r.verdict = AlignmentVerdict::kAccepted;
     src.to_own = truth;
   } else {
-    const AlignmentResult al = AlignMaps(WithoutSignatures(ra.map), WithoutSignatures(rb.map), o.align, rng);
+    const LandmarkMap ua = WithoutSignatures(ra.map), ub = WithoutSignatures(rb.map);
+    // The candidates AlignMaps starts from (same draws: a copy of the generator), and those of
+    // the thesis's own similarity metric (eq. 51-53).
+    const auto true_ratio = [&](const AlignmentOptions& align) {
+      std::mt19937_64 copy = rng;
+      const std::vector<CandidatePair> cand = MatchTriangles(ua, ub, align, copy);
+      int good = 0;
+      for (const CandidatePair& c : cand) good += IsTruePair(ra.map, rb.map, c.a, c.b);
+      return cand.empty() ? 0.0 : static_cast<double>(good) / cand.size();
+    };
+    r.similarity_true_ratio = true_ratio(o.align);
+    AlignmentOptions thesis = o.align;
+    thesis.matcher = TriangleMatcher::kThesisSimilarity;
+    r.thesis_similarity_true_ratio = true_ratio(thesis);
+    const AlignmentResult al = AlignMaps(ua, ub, o.align, rng);
     r.verdict = al.verdict;
     const TransformError e = CompareTransforms(al.transform, truth, Centroid(rb.map));
     r.translation_error_m = e.translation_m;
     r.rotation_error_deg = RadToDeg(e.rotation_rad);
+    r.correct = al.accepted() && e.translation_m <= 1.0 && r.rotation_error_deg <= 2.0;
+    {
+      int shared = 0, found = 0;
+      std::set<int> sig_b;
+      for (const Landmark& l : rb.map.landmarks) sig_b.insert(l.signature);
+      for (const Landmark& l : ra.map.landmarks) shared += l.signature >= 0 && sig_b.count(l.signature);
+      for (const auto& [ia, ib] : al.inliers) found += IsTruePair(ra.map, rb.map, ia, ib);
+      r.ransac_true_recall = shared > 0 ? static_cast<double>(found) / shared : 0.0;
+    }
     if (!al.accepted()) return r;
     src.to_own = al.transform;
     src.to_own_cov = al.cov;
@@ -153,7 +189,9 @@ std::vector<FusionTrialResult> RunFusionSweep(const ScenarioMaker& make, const F
   for (double v : o.values) {
     for (int k = 0; k < o.seeds; ++k) jobs.push_back({v, o.first_seed + static_cast<std::uint64_t>(k)});
   }
-  std::vector<FusionTrialResult> out(jobs.size());
+  std::vector<std::pair<RobotId, RobotId>> pairs = o.pairs;
+  if (pairs.empty()) pairs.emplace_back(o.trial.a, o.trial.b);
+  std::vector<FusionTrialResult> out(jobs.size() * pairs.size());
   std::atomic<std::size_t> next{0};
   std::mutex mu;
   int done = 0;
@@ -163,9 +201,14 @@ std::vector<FusionTrialResult> RunFusionSweep(const ScenarioMaker& make, const F
       try {
         const Scenario sc = make(jobs[i].value, jobs[i].seed);
         const std::vector<SlamRunResult> robots = RunSlam(sc, o.slam);
-        std::mt19937_64 rng(jobs[i].seed * 7919 + 17);
-        out[i] = RunFusionTrial(robots, o.trial, rng);
-        out[i].value = jobs[i].value;
+        for (std::size_t p = 0; p < pairs.size(); ++p) {
+          std::mt19937_64 rng(jobs[i].seed * 7919 + 17);
+          FusionTrialOptions trial = o.trial;
+          std::tie(trial.a, trial.b) = pairs[p];
+          FusionTrialResult& r = out[i * pairs.size() + p];
+          r = RunFusionTrial(robots, trial, rng);
+          r.value = jobs[i].value;
+        }
       } catch (...) {
         const std::lock_guard<std::mutex> lock(mu);
         if (!failure) failure = std::current_exception();
@@ -216,10 +259,11 @@ struct Pool {
 
 std::vector<FusionSweepRow> SummariseFusionSweep(const std::vector<FusionTrialResult>& trials,
                                                  const std::vector<FusionMethod>& methods) {
-  std::map<double, std::vector<const FusionTrialResult*>> by_value;
-  for (const FusionTrialResult& t : trials) by_value[t.value].push_back(&t);
+  std::map<std::tuple<double, RobotId, RobotId>, std::vector<const FusionTrialResult*>> by_value;
+  for (const FusionTrialResult& t : trials) by_value[{t.value, t.robot_a, t.robot_b}].push_back(&t);
   std::vector<FusionSweepRow> out;
-  for (const auto& [value, runs] : by_value) {
+  for (const auto& [key, runs] : by_value) {
+    const double value = std::get<0>(key);
     std::vector<const FusionTrialResult*> fused;
     for (const auto* t : runs) {
       if (t->fused) fused.push_back(t);
@@ -229,6 +273,18 @@ std::vector<FusionSweepRow> SummariseFusionSweep(const std::vector<FusionTrialRe
     for (std::size_t k = 0; k < methods.size(); ++k) {
       FusionSweepRow row;
       row.value = value;
+      row.robot_a = std::get<1>(key);
+      row.robot_b = std::get<2>(key);
+      double sim_sum = 0.0, thesis_sum = 0.0, recall_sum = 0.0;
+      for (const auto* t : runs) {
+        sim_sum += t->similarity_true_ratio;
+        thesis_sum += t->thesis_similarity_true_ratio;
+        recall_sum += t->ransac_true_recall;
+        row.correct_runs += t->correct;
+      }
+      row.similarity_true_ratio = runs.empty() ? nan : sim_sum / runs.size();
+      row.ransac_true_recall = runs.empty() ? nan : recall_sum / runs.size();
+      row.thesis_similarity_true_ratio = runs.empty() ? nan : thesis_sum / runs.size();
       row.method = methods[k];
       row.runs = static_cast<int>(runs.size());
       row.fused_runs = static_cast<int>(fused.size());
@@ -269,14 +325,17 @@ std::string FusionSweepCsv(const std::string& parameter, const std::vector<Fusio
   std::ostringstream s;
   s << "parameter,value,method,runs,fused_runs,translation_error_m,rotation_error_deg,association_precision,"
        "association_recall,overlap_landmarks,nees_a,nees_b,consistent_a,consistent_b,det_a,det_b,nees_merged,"
-       "consistent_merged,det_merged,rmse_merged_m,nees_global,consistent_global\n";
+       "consistent_merged,det_merged,rmse_merged_m,nees_global,consistent_global,robot_a,robot_b,similarity_true_ratio,"
+       "ransac_true_recall,correct_runs,thesis_similarity_true_ratio\n";
   for (const FusionSweepRow& r : rows) {
     s << parameter << ',' << r.value << ',' << ToString(r.method) << ',' << r.runs << ',' << r.fused_runs << ','
       << Num(r.translation_error_m) << ',' << Num(r.rotation_error_deg) << ',' << Num(r.association_precision) << ','
       << Num(r.association_recall) << ',' << Num(r.overlap_landmarks) << ',' << Num(r.a.nees) << ',' << Num(r.b.nees)
       << ',' << Num(r.a.consistent_ratio) << ',' << Num(r.b.consistent_ratio) << ',' << Num(r.a.det) << ','
       << Num(r.b.det) << ',' << Num(r.merged.nees) << ',' << Num(r.merged.consistent_ratio) << ',' << Num(r.merged.det)
-      << ',' << Num(r.merged.rmse_m) << ',' << Num(r.global_nees) << ',' << Num(r.global_consistent_ratio) << '\n';
+      << ',' << Num(r.merged.rmse_m) << ',' << Num(r.global_nees) << ',' << Num(r.global_consistent_ratio) << ','
+      << r.robot_a << ',' << r.robot_b << ',' << Num(r.similarity_true_ratio) << ',' << Num(r.ransac_true_recall) << ','
+      << r.correct_runs << ',' << Num(r.thesis_similarity_true_ratio) << '\n';
   }
   return s.str();
 }

@@ -10,6 +10,7 @@
 #include <optional>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/merge/fusion.h"
@@ -46,8 +47,16 @@ struct MethodScore {
 struct FusionTrialResult {
   std::uint64_t seed = 0;
   double value = 0.0;  // the swept parameter
+  RobotId robot_a = 0, robot_b = 0;
   AlignmentVerdict verdict = AlignmentVerdict::kTooFewLandmarks;
-  bool fused = false;  // aligned (or oracle) and scored
+  // The thesis's alignment figures (Figs. 67, 71, 75, 77, 80), not with an oracle alignment:
+  double similarity_true_ratio = 0.0;         // "map similarity": share of the triangle-matching candidates that are
+                                              // true pairs (0 when there are none), with the options' matcher ...
+  double thesis_similarity_true_ratio = 0.0;  // ... and with the thesis's similarity metric (eq. 51-53)
+  double ransac_true_recall = 0.0;            // "RANSAC success": share of the true pairs (landmarks both maps hold)
+                                              // among the alignment's inliers
+  bool correct = false;                       // accepted, within 1 m at b's centroid and 2 deg of the truth
+  bool fused = false;                         // aligned (or oracle) and scored
   double translation_error_m = 0.0, rotation_error_deg = 0.0;
   AssociationScore association;  // of the overlap, against the truth
   OverlapScore a, b;             // each robot's own estimates of the overlap landmarks
@@ -67,21 +76,27 @@ struct FusionSweepOptions {
   std::uint64_t first_seed = 1;
   int threads = 0;  // 0: the machine's cores
   FusionTrialOptions trial;
+  // Robot pairs (a, b) scored in every run (b fused into a); empty: only trial.a and trial.b.
+  std::vector<std::pair<RobotId, RobotId>> pairs;
   SlamRunOptions slam;
   std::function<void(int done, int total)> progress;
 };
 
-// Every (value, seed) run, in order of value then seed.
+// Every (value, seed) run, in order of value then seed (then pair).
 std::vector<FusionTrialResult> RunFusionSweep(const ScenarioMaker& make, const FusionSweepOptions& options);
 
 // One row per (value, method), averaged over the runs that fused: run figures (alignment,
 // association) by run, landmark figures over the overlap landmarks of all runs.
 struct FusionSweepRow {
   double value = 0.0;
+  RobotId robot_a = 0, robot_b = 0;
   FusionMethod method = FusionMethod::kCiConstant;
   int runs = 0, fused_runs = 0;
   double translation_error_m = 0.0, rotation_error_deg = 0.0;
   double association_precision = 0.0, association_recall = 0.0;
+  double similarity_true_ratio = 0.0, ransac_true_recall = 0.0;  // means over all runs (oracle: 0)
+  double thesis_similarity_true_ratio = 0.0;
+  int correct_runs = 0;
   double overlap_landmarks = 0.0;  // per fused run
   OverlapScore a, b, merged;       // landmarks: the total over the runs
   double global_nees = 0.0, global_consistent_ratio = 0.0;

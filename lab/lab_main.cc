@@ -20,6 +20,7 @@
 #include "lab/slam_experiment.h"
 #include "lab/thesis_alignment.h"
 #include "lab/thesis_fusion.h"
+#include "lab/victoria_world.h"
 #include "sim_feeder/sources.h"
 
 namespace mapmesh {
@@ -38,6 +39,36 @@ class CsvOut {
  private:
   std::ofstream file_;
 };
+
+// The simulated Victoria Park: the whole run as one robot, then its map and path cut into a scenario.
+int RunVictoriaWorldCommand(const std::string& out, const std::string& datasets, const lab::VictoriaWorldOptions& o) {
+  if (o.robots > o.segments) {
+    std::fprintf(stderr, "mapmesh-lab: --robots %d is more than --segments %d\n", o.robots, o.segments);
+    return 2;
+  }
+  lab::SlamRunOptions so;
+  so.datasets_root = ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot());
+  const Scenario whole = LoadScenario(MAPMESH_SOURCE_DIR "/scenarios/victoria_4.yaml", {}, 1);
+  std::fprintf(stderr, "mapmesh-lab: the whole Victoria Park run as one robot (about 15 s)\n");
+  const std::vector<lab::SlamRunResult> run = lab::RunSlam(whole, so);
+  const lab::VictoriaWorld world = lab::DeriveVictoriaWorld(run.at(0), o);
+  std::filesystem::create_directories(out + "/data");
+  const std::string csv = "data/victoria_sim_landmarks.csv";
+  for (const auto& [path, text] : {std::pair{out + "/" + csv, lab::VictoriaLandmarksCsv(world)},
+                                   std::pair{out + "/victoria_sim.yaml", lab::VictoriaScenarioYaml(world, csv)}}) {
+    std::ofstream f(path);
+    if (!f || !(f << text)) throw std::runtime_error(path + ": cannot write");
+  }
+  std::fprintf(stderr, "mapmesh-lab: %zu landmarks; spans", world.landmarks.size());
+  for (std::size_t r = 0; r < world.kept.size(); ++r)
+    std::fprintf(stderr, " %d (%.0f m, %d landmarks)", world.kept[r] + 1, world.length_m[r], world.neighbourhood[r]);
+  std::fprintf(stderr, "; landmarks shared:");
+  for (std::size_t i = 0; i < world.kept.size(); ++i)
+    for (std::size_t j = i + 1; j < world.kept.size(); ++j)
+      std::fprintf(stderr, " %zu&%zu %d", i + 1, j + 1, world.shared[i][j]);
+  std::fprintf(stderr, "; written to %s/victoria_sim.yaml\n", out.c_str());
+  return 0;
+}
 
 int RunSlamCommand(const app::ProcessOptions& po, int seeds, std::uint64_t first_seed, bool hide,
                    const std::string& datasets, const std::string& csv_path, const std::string& trace_dir) {
@@ -422,17 +453,35 @@ int Run(int argc, char** argv) {
       "thesis-fusion",
       "the thesis's fusion experiments (Figs. 61-62, 64-65, 72-73, Table 7): CSVs for scripts/plots/fusion.py");
   thesis_fusion->add_option("--out", tf_dir, "directory for the CSVs");
-  thesis_fusion->add_option("--seeds", tf.seeds, "Monte Carlo runs per point")->check(CLI::PositiveNumber);
+  thesis_fusion
+      ->add_option("--seeds", tf.seeds,
+                   "Monte Carlo runs per point (default: each experiment's, the thesis's count where it gives one)")
+      ->check(CLI::PositiveNumber);
   thesis_fusion->add_option("--first-seed", tf.first_seed, "seed of the first run");
   thesis_fusion->add_option("--threads", tf.threads, "worker threads (default: the machine's cores)")
       ->check(CLI::NonNegativeNumber);
-  thesis_fusion->add_option("--only", tf.only, "run only these: bearing, velocity, range, victoria")
+  thesis_fusion
+      ->add_option("--only", tf.only,
+                   "run only these: bearing, velocity, range, victoria (the real replay), low_overlap, vp_bearing, "
+                   "vp_velocity, vp_range, vp_table7 (the simulated Victoria Park)")
       ->delimiter(',')
-      ->check(CLI::IsMember({"bearing", "velocity", "range", "victoria"}));
+      ->check(CLI::IsMember(lab::kThesisFusionExperiments));
   thesis_fusion->add_flag("--oracle-alignment", tf.oracle_alignment,
                           "use the true transforms instead of aligning the maps");
   thesis_fusion->add_option("--datasets", tf_datasets,
                             "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
+  std::string vw_out = MAPMESH_SOURCE_DIR "/scenarios", vw_datasets;
+  lab::VictoriaWorldOptions vw;
+  CLI::App* victoria_world = cli.add_subcommand(
+      "victoria-world",
+      "derive the simulated Victoria Park (thesis 4.2, 5.3-5.4) from the dataset: OUT/victoria_sim.yaml and "
+      "OUT/data/victoria_sim_landmarks.csv");
+  victoria_world->add_option("--out", vw_out, "directory for the scenario (default: the checkout's scenarios/)");
+  victoria_world->add_option("--datasets", vw_datasets,
+                             "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
+  victoria_world->add_option("--segments", vw.segments, "disjoint time spans of the run")->check(CLI::Range(2, 20));
+  victoria_world->add_option("--robots", vw.robots, "spans kept (by the landmarks they share)")
+      ->check(CLI::Range(2, 20));
   app::ProcessOptions bus_po;
   std::vector<std::string> bus_kills, bus_restarts;
   std::string bus_datasets;
@@ -470,6 +519,7 @@ int Run(int argc, char** argv) {
   if (auto code = app::ParseArgs(cli, "mapmesh-lab", argc, argv)) return *code;
   if (reference->parsed())
     return RunReferenceCommand(ref_po, ref_datasets, ref_loss, ref_loss_scale, ref_no_known, ref_out);
+  if (victoria_world->parsed()) return RunVictoriaWorldCommand(vw_out, vw_datasets, vw);
   if (bus->parsed()) return RunBusCommand(bus_po, bus_kills, bus_restarts, bus_datasets, bus_out);
   if (thesis_fusion->parsed()) {
     tf.scenarios_dir = MAPMESH_SOURCE_DIR "/scenarios";

@@ -8,7 +8,12 @@ For each sweep (bearing noise, velocity noise, sensor range): the consistent-lan
 the merged overlap landmarks by estimator, beside each robot's own map (Figs. 61, 64, 72), and
 the mean determinant of the merged covariances (Figs. 62, 65, 73). Maximum Likelihood's
 covariance is rank-deficient for two inputs, so it has no determinant to plot. The Victoria
-Park table (Table 7) becomes a bar chart of mean NEES per robot pair."""
+Park table (Table 7) becomes a bar chart of mean NEES per robot pair.
+
+The sweeps with the thesis's alignment figures (the 5 % overlap layout, Figs. 67-69, and the
+simulated Victoria Park, Figs. 75-81) get a third panel: map similarity and RANSAC success as
+the thesis counts them, and the share of runs aligned; their middle panel is the mean NEES of
+the merged overlap. Table 7 on the simulated Victoria Park (ground truth) is a bar chart too."""
 
 import math
 import sys
@@ -23,6 +28,17 @@ SWEEPS = [
     ("fig72_73_range", "robot 2 sensor range (m)", "Figs. 72-73: sensor range, low overlap"),
 ]
 
+
+# Sweeps that also carry the thesis's alignment figures: (CSV, x label, title).
+ALIGNED_SWEEPS = [
+    ("fig66_69_low_overlap", "robot 2 bearing sigma (deg)", "Figs. 67-69: bearing noise, 5 % overlap"),
+    ("fig75_76_vp_bearing", "robot 2 bearing sigma (deg)", "Figs. 75-76: Victoria Park (sim.), bearing noise"),
+    ("fig77_78_vp_velocity", "robot 2 velocity sigma (m/s)", "Figs. 77-78: Victoria Park (sim.), velocity noise"),
+    ("fig80_81_vp_range", "robot 2 sensor range (m)", "Figs. 80-81: Victoria Park (sim.), sensor range"),
+]
+
+# Table 7's pairs in the thesis's order (robot a, robot b).
+THESIS_PAIRS = [("2", "1"), ("2", "3"), ("2", "4"), ("3", "1"), ("3", "4"), ("4", "1")]
 
 # One colour per estimator in every panel.
 METHOD_STYLE = {m: {"color": f"C{k}"} for k, m in enumerate(["ml", "information", "ci", "ci_det", "ci_trace"])}
@@ -47,6 +63,63 @@ def sweep_figure(d, name, xlabel, title):
     axes[1].set_yscale("log")
     fig.tight_layout()
     fig.savefig(d / f"{name}.png", dpi=110)
+    plt.close(fig)
+
+
+def aligned_sweep_figure(d, name, xlabel, title):
+    data = rows(d / f"{name}.csv")
+    first = data[0]["method"] if data else None
+    one = [r for r in data if r["method"] == first]
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4))
+
+    def column(col):
+        return [(number(r["value"]), number(r[col])) for r in one]
+
+    align = {
+        "map similarity (thesis metric)": column("thesis_similarity_true_ratio"),
+        "map similarity (sorted sides)": column("similarity_true_ratio"),
+        "RANSAC success (true pairs found)": column("ransac_true_recall"),
+        "runs aligned": [(number(r["value"]), number(r["fused_runs"]) / number(r["runs"])) for r in one],
+    }
+    panel(axes[0], align, f"{title}: alignment", xlabel, "ratio")
+    axes[0].set_ylim(0, 1.05)
+    nees = curves(data, "method", "value", "nees_merged", lambda r: r["method"] != "ml")
+    if first:
+        nees["robot 1 map"] = sorted(curves(data, "method", "value", "nees_a")[first])
+        nees["robot 2 map"] = sorted(curves(data, "method", "value", "nees_b")[first])
+    dashed = dict(METHOD_STYLE)
+    dashed.update({"robot 1 map": {"linestyle": "--", "color": "black"},
+                   "robot 2 map": {"linestyle": ":", "color": "grey"}})
+    panel(axes[1], nees, f"{title}: NEES of the overlap", xlabel, "mean NEES (2 dof)", style=dashed)
+    series = curves(data, "method", "value", "consistent_merged")
+    panel(axes[2], series, f"{title}: consistent landmarks", xlabel, "ratio (NEES < 5.99)", style=METHOD_STYLE)
+    axes[2].set_ylim(0, 1.05)
+    fig.tight_layout()
+    fig.savefig(d / f"{name}.png", dpi=110)
+    plt.close(fig)
+
+
+def sim_table_figure(d):
+    data = rows(d / "table7_vp_sim.csv")
+    present = {(r["robot_a"], r["robot_b"]) for r in data}
+    pairs = [p for p in THESIS_PAIRS if p in present] + sorted(present - set(THESIS_PAIRS))
+    by = {(r["robot_a"], r["robot_b"], r["method"]): r for r in data}
+    bars = [("robot a", "ci", "nees_a"), ("robot b", "ci", "nees_b"),
+            ("merged, information", "information", "nees_merged"), ("merged, CI", "ci", "nees_merged"),
+            ("merged, CI det", "ci_det", "nees_merged")]
+    fig, ax = plt.subplots(figsize=(9, 4))
+    width = 0.8 / len(bars)
+    for k, (label, method, col) in enumerate(bars):
+        ys = [number(by[(a, b, method)][col]) if (a, b, method) in by else float("nan") for a, b in pairs]
+        ax.bar([i + k * width for i in range(len(pairs))], ys, width, label=label)
+    ax.set_xticks([i + 0.4 - width / 2 for i in range(len(pairs))])
+    ax.set_xticklabels([f"traj. {a} & {b}" for a, b in pairs])
+    ax.set_ylabel("mean NEES on the overlap (ground truth)")
+    ax.set_title("Table 7 on the simulated Victoria Park: single maps and merged map", fontsize=10)
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(d / "table7_vp_sim.png", dpi=110)
     plt.close(fig)
 
 
@@ -78,7 +151,7 @@ def table_figure(d):
 def main(argv):
     doc = __doc__
     d, code = None, None
-    for name, _, _ in SWEEPS + [("table7_victoria", None, None)]:
+    for name, _, _ in SWEEPS + ALIGNED_SWEEPS + [("table7_victoria", None, None), ("table7_vp_sim", None, None)]:
         if len(argv) == 2 and (Path(argv[1]) / f"{name}.csv").exists():
             d, code = directory_argument(argv, doc, "fusion.py", f"{name}.csv", "mapmesh-lab thesis-fusion --out")
             break
@@ -89,8 +162,13 @@ def main(argv):
     for name, xlabel, title in SWEEPS:
         if (d / f"{name}.csv").exists():
             sweep_figure(d, name, xlabel, title)
+    for name, xlabel, title in ALIGNED_SWEEPS:
+        if (d / f"{name}.csv").exists():
+            aligned_sweep_figure(d, name, xlabel, title)
     if (d / "table7_victoria.csv").exists():
         table_figure(d)
+    if (d / "table7_vp_sim.csv").exists():
+        sim_table_figure(d)
     print(f"fusion.py: wrote {len(list(d.glob('*.png')))} figures in {d}")
     return 0
 

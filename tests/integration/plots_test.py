@@ -49,8 +49,11 @@ class FusionPlotsTest(unittest.TestCase):
             subprocess.run([str(BIN / "mapmesh-lab"), "thesis-fusion", "--out", str(out), "--seeds", "1",
                             "--threads", "1"] + only, check=True, capture_output=True, timeout=240)
             csvs = sorted(p.name for p in out.glob("*.csv"))
-            self.assertEqual(csvs, ["fig61_62_bearing.csv", "fig64_65_velocity.csv", "fig72_73_range.csv"]
-                             + (["table7_victoria.csv"] if have_vp else []))
+            expected = ["fig61_62_bearing.csv", "fig64_65_velocity.csv", "fig72_73_range.csv"]
+            if have_vp:  # every experiment: the simulated Victoria Park, low overlap and the real replay
+                expected += ["fig66_69_low_overlap.csv", "fig75_76_vp_bearing.csv", "fig77_78_vp_velocity.csv",
+                             "fig80_81_vp_range.csv", "table7_victoria.csv", "table7_vp_sim.csv"]
+            self.assertEqual(csvs, sorted(expected))
             r = subprocess.run(["/usr/bin/python3", str(REPO / "scripts" / "plots" / "fusion.py"), str(out)],
                                capture_output=True, text=True, timeout=120)
             self.assertEqual(r.returncode, 0, r.stderr)
