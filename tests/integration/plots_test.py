@@ -74,5 +74,34 @@ class FusionPlotsTest(unittest.TestCase):
         self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
 
 
+class WorldPlotTest(unittest.TestCase):
+    SCRIPT = str(REPO / "scripts" / "plots" / "world.py")
+    ENV = {"MAPMESH_BIN": str(BIN), "PATH": "/usr/bin:/bin"}
+
+    def test_the_simulated_victoria_park_and_a_generated_world(self):
+        with tempfile.TemporaryDirectory(prefix="mapmesh_plots_") as tmp:
+            for scenario in ["victoria_sim.yaml", "thesis_low_overlap.yaml"]:
+                out = Path(tmp) / scenario.replace(".yaml", ".png")
+                r = subprocess.run(["/usr/bin/python3", self.SCRIPT, str(REPO / "scenarios" / scenario), str(out)],
+                                   capture_output=True, text=True, timeout=120, env=self.ENV)
+                self.assertEqual(r.returncode, 0, r.stderr)
+                data = out.read_bytes()
+                self.assertTrue(data.startswith(PNG_SIGNATURE), scenario)
+                self.assertGreater(len(data), 20_000, scenario)
+
+    def test_help_and_bad_input_are_one_line(self):
+        h = subprocess.run(["/usr/bin/python3", self.SCRIPT, "--help"], capture_output=True, text=True, timeout=60)
+        self.assertEqual(h.returncode, 0)
+        self.assertIn("scenario", h.stdout)
+        with tempfile.TemporaryDirectory(prefix="mapmesh_plots_") as tmp:
+            for args in (["/nonexistent.yaml", f"{tmp}/x.png"],
+                         [str(REPO / "scenarios" / "park4.yaml"), f"{tmp}/x.png", "--set", "bogus=1"]):
+                r = subprocess.run(["/usr/bin/python3", self.SCRIPT] + args, capture_output=True, text=True,
+                                   timeout=60, env=self.ENV)
+                self.assertNotEqual(r.returncode, 0, args)
+                self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+                self.assertFalse(Path(f"{tmp}/x.png").exists())
+
+
 if __name__ == "__main__":
     unittest.main()
