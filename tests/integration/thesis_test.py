@@ -69,6 +69,10 @@ class ThesisCountsTest(unittest.TestCase):
                     # M-estimator's (information fusion), and CI is consistent.
                     self.assertLess(float(ci["nees_merged"]), float(info["nees_merged"]), (name, v, a, b))
                     self.assertLess(float(ci["nees_merged"]), 3.0, (name, v, a, b))
+                    if name == "table7_vp_sim.csv":
+                        # Table 7's finding: the merged map's NEES is below both single maps'.
+                        self.assertLess(float(ci["nees_merged"]), min(float(ci["nees_a"]), float(ci["nees_b"])),
+                                        (a, b))
 
 
 if __name__ == "__main__":
