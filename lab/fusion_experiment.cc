@@ -23,13 +23,14 @@ namespace {
 // Running sums behind an OverlapScore.
 struct OverlapSum {
   int n = 0, consistent = 0;
-  double nees = 0.0, det = 0.0, se = 0.0;
+  double nees = 0.0, det = 0.0, area = 0.0, se = 0.0;
   void Add(const Eigen::Vector2d& est, const Eigen::Matrix2d& cov, const Eigen::Vector2d& truth) {
     const double e = Nees(est, cov, truth);
     ++n;
     nees += e;
     consistent += e < kChi2Dof2P95;
     det += cov.determinant();
+    area += EllipseArea(cov);
     se += (est - truth).squaredNorm();
   }
   OverlapScore Score() const {
@@ -39,6 +40,7 @@ struct OverlapSum {
     s.nees = nees / n;
     s.consistent_ratio = static_cast<double>(consistent) / n;
     s.det = det / n;
+    s.area_m2 = area / n;
     s.rmse_m = std::sqrt(se / n);
     return s;
   }
@@ -231,12 +233,13 @@ namespace {
 
 // Landmark-weighted pooling of overlap scores.
 struct Pool {
-  double n = 0.0, nees = 0.0, consistent = 0.0, det = 0.0, se = 0.0;
+  double n = 0.0, nees = 0.0, consistent = 0.0, det = 0.0, area = 0.0, se = 0.0;
   void Add(const OverlapScore& s) {
     n += s.landmarks;
     nees += s.nees * s.landmarks;
     consistent += s.consistent_ratio * s.landmarks;
     det += s.det * s.landmarks;
+    area += s.area_m2 * s.landmarks;
     se += s.rmse_m * s.rmse_m * s.landmarks;
   }
   OverlapScore Score() const {
@@ -244,12 +247,13 @@ struct Pool {
     s.landmarks = static_cast<int>(n);
     if (n <= 0) {
       const double nan = std::numeric_limits<double>::quiet_NaN();
-      s.nees = s.consistent_ratio = s.det = s.rmse_m = nan;
+      s.nees = s.consistent_ratio = s.det = s.area_m2 = s.rmse_m = nan;
       return s;
     }
     s.nees = nees / n;
     s.consistent_ratio = consistent / n;
     s.det = det / n;
+    s.area_m2 = area / n;
     s.rmse_m = std::sqrt(se / n);
     return s;
   }
@@ -324,16 +328,18 @@ std::vector<FusionSweepRow> SummariseFusionSweep(const std::vector<FusionTrialRe
 std::string FusionSweepCsv(const std::string& parameter, const std::vector<FusionSweepRow>& rows) {
   std::ostringstream s;
   s << "parameter,value,method,runs,fused_runs,translation_error_m,rotation_error_deg,association_precision,"
-       "association_recall,overlap_landmarks,nees_a,nees_b,consistent_a,consistent_b,det_a,det_b,nees_merged,"
-       "consistent_merged,det_merged,rmse_merged_m,nees_global,consistent_global,robot_a,robot_b,similarity_true_ratio,"
-       "ransac_true_recall,correct_runs,thesis_similarity_true_ratio\n";
+       "association_recall,overlap_landmarks,nees_a,nees_b,consistent_a,consistent_b,det_a,det_b,area_a_m2,"
+       "area_b_m2,nees_merged,consistent_merged,det_merged,area_merged_m2,rmse_merged_m,nees_global,"
+       "consistent_global,robot_a,robot_b,similarity_true_ratio,ransac_true_recall,correct_runs,"
+       "thesis_similarity_true_ratio\n";
   for (const FusionSweepRow& r : rows) {
     s << parameter << ',' << r.value << ',' << ToString(r.method) << ',' << r.runs << ',' << r.fused_runs << ','
       << Num(r.translation_error_m) << ',' << Num(r.rotation_error_deg) << ',' << Num(r.association_precision) << ','
       << Num(r.association_recall) << ',' << Num(r.overlap_landmarks) << ',' << Num(r.a.nees) << ',' << Num(r.b.nees)
       << ',' << Num(r.a.consistent_ratio) << ',' << Num(r.b.consistent_ratio) << ',' << Num(r.a.det) << ','
-      << Num(r.b.det) << ',' << Num(r.merged.nees) << ',' << Num(r.merged.consistent_ratio) << ',' << Num(r.merged.det)
-      << ',' << Num(r.merged.rmse_m) << ',' << Num(r.global_nees) << ',' << Num(r.global_consistent_ratio) << ','
+      << Num(r.b.det) << ',' << Num(r.a.area_m2) << ',' << Num(r.b.area_m2) << ',' << Num(r.merged.nees) << ','
+      << Num(r.merged.consistent_ratio) << ',' << Num(r.merged.det) << ',' << Num(r.merged.area_m2) << ','
+      << Num(r.merged.rmse_m) << ',' << Num(r.global_nees) << ',' << Num(r.global_consistent_ratio) << ','
       << r.robot_a << ',' << r.robot_b << ',' << Num(r.similarity_true_ratio) << ',' << Num(r.ransac_true_recall) << ','
       << r.correct_runs << ',' << Num(r.thesis_similarity_true_ratio) << '\n';
   }

@@ -24,8 +24,13 @@ struct FusionTrialOptions {
   RobotId a = 1, b = 2;           // b's map is fused into a's global map
   bool oracle_alignment = false;  // use the true transform (zero covariance) instead of aligning
   AlignmentOptions align;
-  std::vector<FusionMethod> methods{FusionMethod::kMaximumLikelihood, FusionMethod::kInformation,
-                                    FusionMethod::kCiConstant, FusionMethod::kCiDeterminant, FusionMethod::kCiTrace};
+  std::vector<FusionMethod> methods{FusionMethod::kMaximumLikelihood,
+                                    FusionMethod::kInformation,
+                                    FusionMethod::kCiConstant,
+                                    FusionMethod::kCiDeterminant,
+                                    FusionMethod::kCiTrace,
+                                    FusionMethod::kOgk,
+                                    FusionMethod::kCiOgk};
 };
 
 // Means over the overlap landmarks of one map.
@@ -34,6 +39,7 @@ struct OverlapScore {
   double nees = 0.0;              // mean NEES (infinite when a covariance is singular)
   double consistent_ratio = 0.0;  // NEES below 5.99
   double det = 0.0;               // mean determinant of the covariances (m^4)
+  double area_m2 = 0.0;           // mean covariance-ellipse area pi sqrt(det) (thesis eq. 97, 1 sigma)
   double rmse_m = 0.0;
 };
 

@@ -1,11 +1,14 @@
 #include "common/merge/fusion.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numbers>
 
 #include "common/map/landmark_map.h"
+#include "common/merge/robust_covariance.h"
 
 namespace mapmesh {
 namespace {
@@ -69,7 +72,64 @@ constexpr int kMaxSweeps = 100;
 
 Eigen::Matrix2d Symmetric(const Eigen::Matrix2d& m) { return 0.5 * (m + m.transpose()); }
 
+constexpr int kPatternRings = 16, kPatternAngles = 16;
+
+std::vector<Eigen::Vector2d> MakeOgkPattern() {
+  // Ring m holds the chi2_2 probability slice [m/M, (m+1)/M); its squared radius is the slice's
+  // mean of chi2_2, M * (G(t_b) - G(t_a)) with G(t) = int_0^t x dF = 2 - (t + 2) e^(-t/2).
+  const auto g = [](double t) { return 2.0 - (t + 2.0) * std::exp(-0.5 * t); };
+  const double golden = 0.5 * (std::sqrt(5.0) - 1.0);
+  std::vector<Eigen::Vector2d> out;
+  out.reserve(kPatternRings * kPatternAngles);
+  for (int m = 0; m < kPatternRings; ++m) {
+    const double ta = -2.0 * std::log1p(-static_cast<double>(m) / kPatternRings);
+    const double gb = m + 1 == kPatternRings ? 2.0 : g(-2.0 * std::log1p(-static_cast<double>(m + 1) / kPatternRings));
+    const double r = std::sqrt(kPatternRings * (gb - g(ta)));
+    const double phase = std::fmod(m * golden, 1.0);
+    for (int k = 0; k < kPatternAngles; ++k) {
+      const double a = 2.0 * std::numbers::pi * (k + phase) / kPatternAngles;
+      out.emplace_back(r * std::cos(a), r * std::sin(a));
+    }
+  }
+  return out;
+}
+
+// OGK's scatter of the pattern itself is c I (its 16-fold symmetry); c calibrates the fusion.
+double OgkPatternScale() {
+  static const double c = [] {
+    const std::optional<OgkEstimate> e = Ogk(OgkFusionPattern());
+    return e ? 0.5 * e->scatter.trace() : 1.0;
+  }();
+  return c;
+}
+
+// Symmetric square root of a valid covariance.
+Eigen::Matrix2d SqrtCov(const Eigen::Matrix2d& c) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(c);
+  return es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal() * es.eigenvectors().transpose();
+}
+
+// OGK fusion of valid inputs (fusion.h); nullopt only if OGK fails, which the quasi-samples of
+// invertible covariances do not let happen.
+std::optional<Gaussian2> FuseOgk(std::span<const Gaussian2> in) {
+  const std::vector<Eigen::Vector2d>& pattern = OgkFusionPattern();
+  std::vector<Eigen::Vector2d> points;
+  points.reserve(in.size() * pattern.size());
+  for (const Gaussian2& g : in) {
+    const Eigen::Matrix2d s = SqrtCov(g.cov);
+    for (const Eigen::Vector2d& q : pattern) points.push_back(g.mean + s * q);
+  }
+  const std::optional<OgkEstimate> e = Ogk(points);
+  if (!e) return std::nullopt;
+  return Gaussian2{e->location, Symmetric(e->scatter / OgkPatternScale())};
+}
+
 }  // namespace
+
+const std::vector<Eigen::Vector2d>& OgkFusionPattern() {
+  static const std::vector<Eigen::Vector2d> pattern = MakeOgkPattern();
+  return pattern;
+}
 
 FusionVerdict CheckEstimate(const Gaussian2& g) {
   if (!g.mean.allFinite()) return FusionVerdict::kNonFiniteMean;
@@ -97,6 +157,15 @@ FusionResult Fuse(std::span<const Gaussian2> in, FusionMethod method) {
   if (n == 1) {
     r.fused = in[0];
     r.weights = {1.0};
+    return r;
+  }
+  if (method == FusionMethod::kOgk || method == FusionMethod::kCiOgk) {
+    FusionResult ci = Fuse(in, FusionMethod::kCiConstant);
+    const std::optional<Gaussian2> ogk = FuseOgk(in);
+    // OGK cannot fail on valid inputs (see FuseOgk); CI stands in if it ever did.
+    if (!ogk) return ci;
+    if (method == FusionMethod::kCiOgk && ci.fused.cov.determinant() <= ogk->cov.determinant()) return ci;
+    r.fused = *ogk;
     return r;
   }
   if (method == FusionMethod::kMaximumLikelihood) {
@@ -161,6 +230,12 @@ Gaussian2 CiFuseWithWeight(const Gaussian2& a, const Gaussian2& b, double w) {
 
 std::optional<Gaussian2> FusePair(const Gaussian2& a, const Gaussian2& b, FusionMethod method, double* weight) {
   if (CheckEstimate(a) != FusionVerdict::kFused || CheckEstimate(b) != FusionVerdict::kFused) return std::nullopt;
+  if (method == FusionMethod::kOgk || method == FusionMethod::kCiOgk) {
+    const std::array<Gaussian2, 2> in{a, b};
+    const FusionResult r = Fuse(in, method);
+    if (weight && !r.weights.empty()) *weight = r.weights[0];
+    return r.fused;
+  }
   if (method == FusionMethod::kMaximumLikelihood) {
     const Eigen::Vector2d mu = 0.5 * (a.mean + b.mean), d = 0.5 * (a.mean - b.mean);
     return Gaussian2{mu, d * d.transpose()};

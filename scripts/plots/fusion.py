@@ -7,8 +7,10 @@ Needs Debian's python3-matplotlib (scripts/install-deps installs it).
 For each sweep (bearing noise, velocity noise, sensor range): the consistent-landmark ratio of
 the merged overlap landmarks by estimator, beside each robot's own map (Figs. 61, 64, 72), and
 the mean determinant of the merged covariances (Figs. 62, 65, 73). Maximum Likelihood's
-covariance is rank-deficient for two inputs, so it has no determinant to plot. The Victoria
-Park table (Table 7) becomes a bar chart of mean NEES per robot pair.
+covariance is rank-deficient for two inputs, so it has no determinant to plot. OGK and the CI-OGK
+hybrid are drawn beside the thesis's estimators when the CSV has them (the CSVs also carry the mean
+ellipse area pi sqrt(det), area_*_m2). The Victoria Park table (Table 7) becomes a bar chart of
+mean NEES per robot pair.
 
 The sweeps with the thesis's alignment figures (the 5 % overlap layout, Figs. 67-69, and the
 simulated Victoria Park, Figs. 75-81) get a third panel: map similarity and RANSAC success as
@@ -41,7 +43,8 @@ ALIGNED_SWEEPS = [
 THESIS_PAIRS = [("2", "1"), ("2", "3"), ("2", "4"), ("3", "1"), ("3", "4"), ("4", "1")]
 
 # One colour per estimator in every panel.
-METHOD_STYLE = {m: {"color": f"C{k}"} for k, m in enumerate(["ml", "information", "ci", "ci_det", "ci_trace"])}
+METHODS = ["ml", "information", "ci", "ci_det", "ci_trace", "ogk", "ci_ogk"]
+METHOD_STYLE = {m: {"color": f"C{k}"} for k, m in enumerate(METHODS)}
 
 
 def sweep_figure(d, name, xlabel, title):
@@ -130,7 +133,8 @@ def table_figure(d):
         return
     labels = [f"{r['robot_a']}&{r['robot_b']}" for r in data]
     bars = [("robot a", "nees_a"), ("robot b", "nees_b"), ("merged, information", "nees_merged_information"),
-            ("merged, CI", "nees_merged_ci"), ("merged, CI det", "nees_merged_ci_det")]
+            ("merged, CI", "nees_merged_ci"), ("merged, CI det", "nees_merged_ci_det"),
+            ("merged, OGK", "nees_merged_ogk"), ("merged, CI-OGK", "nees_merged_ci_ogk")]
     bars = [(n, c) for n, c in bars if c in data[0]]
     fig, ax = plt.subplots(figsize=(9, 4))
     width = 0.8 / len(bars)

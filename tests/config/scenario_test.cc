@@ -83,6 +83,16 @@ TEST_F(ScenarioTest, LivelinessLeaseGrowsWithTheSwarmUnlessGiven) {
             std::string::npos);
 }
 
+// agent.fusion takes every fusion method's name, the robust ones included.
+TEST_F(ScenarioTest, FusionTakesTheOgkMethods) {
+  const std::string path = Write("min.yaml", kMinimal);
+  EXPECT_EQ(LoadScenario(path).agent.exchange.global.method, FusionMethod::kCiConstant);
+  EXPECT_EQ(LoadScenario(path, {ParseOverride("agent.fusion=ogk")}).agent.exchange.global.method, FusionMethod::kOgk);
+  EXPECT_EQ(LoadScenario(path, {ParseOverride("agent.fusion=ci_ogk")}).agent.exchange.global.method,
+            FusionMethod::kCiOgk);
+  EXPECT_NE(ErrorOf(kMinimal, {ParseOverride("agent.fusion=ogk2")}).find("fusion"), std::string::npos);
+}
+
 TEST_F(ScenarioTest, UnknownKeyNamesFileLineAndKey) {
   const std::string text = std::string(kMinimal) + "      sensor:\n        max_range_m: 5\n        colour: red\n";
   const std::string err = ErrorOf(text);
