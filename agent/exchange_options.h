@@ -82,7 +82,7 @@ struct ExchangeOptions {
       // MaxVersionsPerS() times the scenario seconds since (and any version that
       // rate times now)
   int max_incarnations = 8;  // incarnations kept per robot; a newer one evicts one never aligned and frozen
-  AlignmentOptions align = ExchangeAlignment();
+  AlignmentOptions align = ExchangeAlignment();  // align.search: agent.align_search
   // A rendezvous fit is verified by the maps at it with this many inliers (not align.min_inliers):
   // a blind search over the whole map must beat every chance match there, a check at a transform
   // found independently only the few near it. In the park, robots that meet have mapped 3-5
@@ -110,6 +110,7 @@ struct ExchangeOptions {
   void Read(Reader& r) {
     global.Read(r);
     r.GetChoice("align_by", align_by, kAlignBy);
+    r.GetChoice("align_search", align.search, kTransformSearch);
     r.GetInRange("align_period_s", align_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
     r.GetZeroOrInRange("refine_period_s", refine_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
     r.GetInRange("drop_after_failures", drop_after_failures, 1, limits::kMaxDropAfterFailures);

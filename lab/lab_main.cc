@@ -17,6 +17,7 @@
 #include "lab/fusion_experiment.h"
 #include "lab/pairs_experiment.h"
 #include "lab/reference.h"
+#include "lab/search_experiment.h"
 #include "lab/slam_experiment.h"
 #include "lab/thesis_alignment.h"
 #include "lab/thesis_fusion.h"
@@ -123,17 +124,34 @@ int RunSlamCommand(const app::ProcessOptions& po, int seeds, std::uint64_t first
   return 0;
 }
 
-int RunPairsCommand(const app::ProcessOptions& po, const std::string& datasets, const std::string& csv_path) {
+int RunPairsCommand(const app::ProcessOptions& po, const std::string& datasets, const std::string& csv_path,
+                    const std::vector<std::string>& searches) {
   const std::optional<Scenario> sc = app::LoadScenarioOrReport("mapmesh-lab", po);
   if (!sc) return 2;
   lab::SlamRunOptions options;
   options.datasets_root = ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot());
   const auto robots = lab::RunSlam(*sc, options);
-  std::mt19937_64 rng(sc->seed);
   CsvOut out(csv_path);
   std::ostream& csv = out.stream();
   csv << lab::PairsCsvHeader() << '\n';
-  for (const auto& p : lab::AlignPairs(robots, *sc, AlignmentOptions{}, rng)) csv << lab::PairsCsvRow(p) << '\n';
+  // The same robots' maps for every search, each from the scenario's seed.
+  for (const std::string& name : searches) {
+    AlignmentOptions align;
+    align.search = *ParseChoice(kTransformSearch, name);
+    std::mt19937_64 rng(sc->seed);
+    for (const auto& p : lab::AlignPairs(robots, *sc, align, rng)) csv << lab::PairsCsvRow(p) << '\n';
+  }
+  return 0;
+}
+
+int RunSearchCommand(const lab::SearchComparisonOptions& options, const AlignmentOptions& align,
+                     const std::string& csv_path) {
+  const auto trials = lab::RunSearchComparison(options, align);
+  CsvOut out(csv_path);
+  std::ostream& csv = out.stream();
+  csv << lab::SearchCsvHeader() << '\n';
+  for (const auto& t : trials) csv << lab::SearchCsvRow(t) << '\n';
+  std::fprintf(stderr, "%s", lab::SearchSummary(trials).c_str());
   return 0;
 }
 
@@ -421,6 +439,33 @@ int Run(int argc, char** argv) {
   pairs->add_option("--datasets", pairs_datasets,
                     "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets)");
   pairs->add_option("--csv", pairs_csv, "write the CSV here (default: stdout)");
+  std::vector<std::string> pairs_searches{"ransac"};
+  pairs
+      ->add_option("--align-search", pairs_searches,
+                   "transform searches to align every pair with, each in turn on the same maps: ransac, arw, its")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"ransac", "arw", "its"}));
+  lab::SearchComparisonOptions search_so;
+  search_so.maps.landmarks = 200;
+  search_so.maps.density_per_m2 = 0.08;
+  search_so.maps.sigma_m = 0.1;
+  std::string search_csv, search_distance = "mahalanobis";
+  CLI::App* search = cli.add_subcommand(
+      "search",
+      "RANSAC vs adaptive random walk vs iterative translation search (thesis Tables 3-4) on the same synthetic "
+      "map pairs at several overlaps: success, errors, time");
+  search->add_option("--landmarks", search_so.maps.landmarks, "landmarks per map")->check(CLI::PositiveNumber);
+  search->add_option("--overlaps", search_so.overlaps, "overlaps (0: disjoint pairs)")
+      ->delimiter(',')
+      ->check(CLI::Range(0.0, 1.0));
+  search->add_option("--sigma", search_so.maps.sigma_m, "landmark noise (m)")->check(CLI::NonNegativeNumber);
+  search->add_option("--density", search_so.maps.density_per_m2, "landmarks per square metre")
+      ->check(CLI::PositiveNumber);
+  search->add_option("--trials", search_so.trials, "map pairs per overlap")->check(CLI::PositiveNumber);
+  search->add_option("--seed", search_so.seed, "seed of the first pair");
+  search->add_option("--distance", search_distance, "mahalanobis | euclidean")
+      ->check(CLI::IsMember({"mahalanobis", "euclidean"}));
+  search->add_option("--csv", search_csv, "write the CSV here (default: stdout)");
   lab::ThesisAlignmentOptions ta;
   std::string ta_dir = "lab-out/alignment";
   CLI::App* thesis_align = cli.add_subcommand(
@@ -537,7 +582,13 @@ int Run(int argc, char** argv) {
                  ta_dir.c_str(), ta_dir.c_str());
     return 0;
   }
-  if (pairs->parsed()) return RunPairsCommand(pairs_po, pairs_datasets, pairs_csv);
+  if (pairs->parsed()) return RunPairsCommand(pairs_po, pairs_datasets, pairs_csv, pairs_searches);
+  if (search->parsed()) {
+    AlignmentOptions search_align;
+    search_align.distance = search_distance == "euclidean" ? ConsensusDistance::kEuclidean
+                                                           : ConsensusDistance::kMahalanobis;
+    return RunSearchCommand(search_so, search_align, search_csv);
+  }
   if (al->parsed()) {
     align.matcher = matcher == "thesis" ? TriangleMatcher::kThesisSimilarity : TriangleMatcher::kSortedSides;
     align.distance = distance == "euclidean" ? ConsensusDistance::kEuclidean : ConsensusDistance::kMahalanobis;

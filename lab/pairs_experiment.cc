@@ -1,6 +1,7 @@
 #include "lab/pairs_experiment.h"
 
 #include <algorithm>
+#include <chrono>
 #include <sstream>
 
 #include "common/map/landmark_map.h"
@@ -52,7 +53,11 @@ std::vector<PairResult> AlignPairs(const std::vector<SlamRunResult>& robots, con
       if (!rb.map.empty()) centroid /= static_cast<double>(rb.map.size());
 
       // Map overlap, geometry only.
-      const AlignmentResult al = AlignMaps(WithoutSignatures(ra.map), WithoutSignatures(rb.map), options, rng);
+      const LandmarkMap ma = WithoutSignatures(ra.map), mb = WithoutSignatures(rb.map);
+      const auto t0 = std::chrono::steady_clock::now();
+      const AlignmentResult al = AlignMaps(ma, mb, options, rng);
+      p.map_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      p.search = options.search;
       p.verdict = al.verdict;
       p.inliers = static_cast<int>(al.inliers.size());
       p.best_support = al.best_support;
@@ -117,7 +122,8 @@ std::vector<PairResult> AlignPairs(const std::vector<SlamRunResult>& robots, con
 std::string PairsCsvHeader() {
   return "a,b,truth_known,map_verdict,map_inliers,best_support,runner_up_support,residual_chi2,residual_bound,covered,"
          "map_translation_error_m,map_rotation_error_deg,mutual_sightings,"
-         "rendezvous_median_translation_m,rendezvous_median_rotation_deg,rendezvous_within_tolerance";
+         "rendezvous_median_translation_m,rendezvous_median_rotation_deg,rendezvous_within_tolerance,align_search,"
+         "map_ms";
 }
 
 std::string PairsCsvRow(const PairResult& p) {
@@ -126,7 +132,7 @@ std::string PairsCsvRow(const PairResult& p) {
     << p.best_support << ',' << p.runner_up_support << ',' << p.residual_chi2 << ',' << p.residual_bound << ','
     << p.covered << ',' << p.map_translation_error_m << ',' << p.map_rotation_error_deg << ',' << p.mutual_sightings
     << ',' << p.rendezvous_median_translation_m << ',' << p.rendezvous_median_rotation_deg << ','
-    << p.rendezvous_within_tolerance;
+    << p.rendezvous_within_tolerance << ',' << NameOf(kTransformSearch, p.search) << ',' << p.map_ms;
   return s.str();
 }
 

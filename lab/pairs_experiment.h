@@ -21,6 +21,8 @@ struct PairResult {
   double residual_chi2 = 0.0, residual_bound = 0.0;
   int covered = 0;  // b's landmarks laid over a's mapped ground
   double map_translation_error_m = 0.0, map_rotation_error_deg = 0.0;
+  TransformSearch search = TransformSearch::kRansac;  // options.search
+  double map_ms = 0.0;                                // wall time of the map-overlap alignment
   // Rendezvous.
   int mutual_sightings = 0;                      // pairs of sightings less than 0.5 s apart
   double rendezvous_median_translation_m = 0.0;  // over the single-rendezvous estimates

@@ -125,9 +125,42 @@ double GatedD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, const 
   return d2 < gate ? d2 : std::numeric_limits<double>::infinity();
 }
 
+std::vector<std::pair<int, int>> GatedPairs(const LandmarkMap& a, const Usable& ua, const PointGrid2& grid,
+                                            const LandmarkMap& b, const Usable& ub, const Pose2& t,
+                                            const AlignmentOptions& o, double* cost) {
+  const double gate = Chi2Quantile(o.gate_probability, 2);
+  std::vector<std::tuple<double, int, int>> scored;
+  const double radius_scale = o.distance == ConsensusDistance::kEuclidean ? 0.0 : std::sqrt(gate);
+  const PoseMap2 tm(t);
+  for (std::size_t j = 0; j < ub.points.size(); ++j) {
+    const Eigen::Vector2d p = tm.Apply(ub.points[j]);
+    const double radius = o.distance == ConsensusDistance::kEuclidean
+                              ? o.euclidean_gate_m
+                              : radius_scale * std::sqrt(ua.max_sigma * ua.max_sigma + ub.sigma[j] * ub.sigma[j]);
+    grid.Visit(p, radius, [&](int i) {
+      const double d2 = GatedD2(a.landmarks[ua.index[i]], b.landmarks[ub.index[j]], tm, o, gate);
+      if (std::isfinite(d2)) scored.emplace_back(d2, ua.index[i], ub.index[j]);
+      return false;
+    });
+  }
+  std::vector<std::pair<int, int>> pairs = OneToOne(scored);
+  if (cost) {
+    // The cost of the pairs kept: OneToOne sorted nothing in scored, so look each one up.
+    std::sort(scored.begin(), scored.end());
+    *cost = 0.0;
+    std::size_t k = 0;
+    for (const auto& [d2, ia, ib] : scored) {
+      if (k < pairs.size() && pairs[k] == std::pair<int, int>(ia, ib)) {
+        *cost += d2;
+        ++k;
+      }
+    }
+  }
+  return pairs;
+}
+
 void Conclude(const LandmarkMap& a_in, const LandmarkMap& b_in, const LandmarkMap& a, const LandmarkMap& b, Pose2 t,
               std::vector<std::pair<int, int>> inliers, const AlignmentOptions& o, bool guided, AlignmentResult& r) {
-  const double gate = Chi2Quantile(o.gate_probability, 2);
   const LandmarkMap fit_a = ForAlignment(a_in, o.min_shape_sigma_m, /*every_landmark=*/true);
   const LandmarkMap fit_b = ForAlignment(b_in, o.min_shape_sigma_m, /*every_landmark=*/true);
   if (!inliers.empty()) Refine(fit_a, fit_b, inliers, &t);
@@ -136,21 +169,7 @@ void Conclude(const LandmarkMap& a_in, const LandmarkMap& b_in, const LandmarkMa
     if (!ua.points.empty() && !ub.points.empty()) {
       const PointGrid2 grid(ua.points);
       for (int round = 0; round < 2; ++round) {
-        std::vector<std::tuple<double, int, int>> scored;
-        const double radius_scale = o.distance == ConsensusDistance::kEuclidean ? 0.0 : std::sqrt(gate);
-        const PoseMap2 tm(t);
-        for (std::size_t j = 0; j < ub.points.size(); ++j) {
-          const Eigen::Vector2d p = tm.Apply(ub.points[j]);
-          const double radius = o.distance == ConsensusDistance::kEuclidean
-                                    ? o.euclidean_gate_m
-                                    : radius_scale * std::sqrt(ua.max_sigma * ua.max_sigma + ub.sigma[j] * ub.sigma[j]);
-          grid.Visit(p, radius, [&](int i) {
-            const double d2 = GatedD2(a.landmarks[ua.index[i]], b.landmarks[ub.index[j]], tm, o, gate);
-            if (std::isfinite(d2)) scored.emplace_back(d2, ua.index[i], ub.index[j]);
-            return false;
-          });
-        }
-        inliers = OneToOne(std::move(scored));
+        inliers = GatedPairs(a, ua, grid, b, ub, t, o);
         Refine(fit_a, fit_b, inliers, &t);
       }
     }

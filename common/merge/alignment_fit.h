@@ -12,6 +12,7 @@
 #include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
 #include "common/merge/map_alignment.h"
+#include "common/merge/point_grid.h"
 
 namespace mapmesh::alignment_detail {
 
@@ -48,6 +49,13 @@ double PairD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, Eigen::
 
 // Squared Mahalanobis (or Euclidean) distance of a pair under t, or infinity outside the gate.
 double GatedD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, const AlignmentOptions& o, double gate);
+
+// The one-to-one pairs of a's and b's usable landmarks (ua, ub; grid holds ua's points) that
+// lie within the consensus gate at t, closest first; cost (optional) gets the sum of their
+// squared distances. Guided matching, and the searches beside RANSAC (transform_search.h).
+std::vector<std::pair<int, int>> GatedPairs(const LandmarkMap& a, const Usable& ua, const PointGrid2& grid,
+                                            const LandmarkMap& b, const Usable& ub, const Pose2& t,
+                                            const AlignmentOptions& o, double* cost = nullptr);
 
 // From a transform and its first inliers: guided matching (optional), refinement, the
 // transform's covariance and the acceptance tests. a and b are the maps as alignment compares

@@ -8,6 +8,7 @@
 #include "common/geometry/rigid_fit.h"
 #include "common/merge/alignment_fit.h"
 #include "common/merge/global_map.h"
+#include "common/merge/transform_search.h"
 #include "common/metrics/chi2.h"
 
 namespace mapmesh {
@@ -200,6 +201,7 @@ AlignmentResult VerifyUncertainAlignment(const LandmarkMap& a, const LandmarkMap
 }
 
 AlignmentResult AlignMaps(const LandmarkMap& a, const LandmarkMap& b, const AlignmentOptions& o, std::mt19937_64& rng) {
+  if (o.search == TransformSearch::kIterativeTranslation) return TranslationSearchAlign(a, b, o);
   AlignmentResult stats;
   const std::vector<CandidatePair> cand = MatchTriangles(a, b, o, rng, &stats);
   if (stats.usable_a < 3 || stats.usable_b < 3) {
@@ -210,7 +212,8 @@ AlignmentResult AlignMaps(const LandmarkMap& a, const LandmarkMap& b, const Alig
     stats.verdict = AlignmentVerdict::kNoTriangles;
     return stats;
   }
-  AlignmentResult r = RansacAlign(a, b, cand, o, rng);
+  AlignmentResult r = o.search == TransformSearch::kAdaptiveRandomWalk ? RandomWalkAlign(a, b, cand, o, rng)
+                                                                       : RansacAlign(a, b, cand, o, rng);
   r.best_patch = stats.best_patch;
   r.patches = stats.patches;
   r.usable_a = stats.usable_a;

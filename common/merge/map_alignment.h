@@ -16,6 +16,7 @@
 
 #include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
+#include "common/merge/transform_search_options.h"
 
 namespace mapmesh {
 
@@ -67,6 +68,10 @@ struct AlignmentOptions {
   double min_shape_sigma_m = 0.1;  // maps that report their shape precision (LandmarkMap::shape_sigma_m)
                                    // are compared with it (and fitted with it, every landmark alike), but
                                    // never below this
+  TransformSearch search = TransformSearch::kRansac;  // how AlignMaps searches (transform_search.h)
+  OverlapHeuristicOptions overlap;                    // arw and its: the overlap heuristic Delta
+  RandomWalkOptions arw;
+  TranslationSearchOptions its;
 };
 
 // A proposed correspondence: landmark a of map A and landmark b of map B, with the number
@@ -132,7 +137,9 @@ AlignmentResult VerifyAlignment(const LandmarkMap& a, const LandmarkMap& b, cons
 AlignmentResult VerifyUncertainAlignment(const LandmarkMap& a, const LandmarkMap& b, const Pose2& guess,
                                          const Eigen::Matrix3d& guess_cov, const AlignmentOptions& options);
 
-// The whole pipeline: triangles, matching, RANSAC.
+// The whole pipeline: triangles, matching, RANSAC; or with options.search the adaptive random
+// walk from the triangle matches, or the iterative translation search (no triangles):
+// transform_search.h. Every search ends in the same refinement and acceptance tests.
 AlignmentResult AlignMaps(const LandmarkMap& a, const LandmarkMap& b, const AlignmentOptions& options,
                           std::mt19937_64& rng);
 

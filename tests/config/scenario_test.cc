@@ -93,6 +93,16 @@ TEST_F(ScenarioTest, FusionTakesTheOgkMethods) {
   EXPECT_NE(ErrorOf(kMinimal, {ParseOverride("agent.fusion=ogk2")}).find("fusion"), std::string::npos);
 }
 
+// agent.align_search picks the alignment's transform search; RANSAC unless given.
+TEST_F(ScenarioTest, AlignSearchIsReadIntoTheExchangesAlignment) {
+  EXPECT_EQ(ParseScenario(kMinimal, "s.yaml", {}, 0).agent.exchange.align.search, TransformSearch::kRansac);
+  EXPECT_EQ(ParseScenario(kMinimal, "s.yaml", {ParseOverride("agent.align_search=arw")}, 0).agent.exchange.align.search,
+            TransformSearch::kAdaptiveRandomWalk);
+  EXPECT_EQ(ParseScenario(kMinimal, "s.yaml", {ParseOverride("agent.align_search=its")}, 0).agent.exchange.align.search,
+            TransformSearch::kIterativeTranslation);
+  EXPECT_NE(ErrorOf(kMinimal, {ParseOverride("agent.align_search=icp")}).find("align_search"), std::string::npos);
+}
+
 TEST_F(ScenarioTest, UnknownKeyNamesFileLineAndKey) {
   const std::string text = std::string(kMinimal) + "      sensor:\n        max_range_m: 5\n        colour: red\n";
   const std::string err = ErrorOf(text);
