@@ -13,6 +13,7 @@
 // them all and nothing else.
 
 #include <benchmark/benchmark.h>
+#include <Eigen/LU>
 
 #include <algorithm>
 #include <cmath>
@@ -108,8 +109,8 @@ void BM_ThesisRansacHypothesis(benchmark::State& state) {
       c1 = &c.candidates[pick(rng)];
       c2 = &c.candidates[pick(rng)];
     } while (c1->a == c2->a || c1->b == c2->b);
-    benchmark::DoNotOptimize(FitRigid2D(c.b.landmarks[c1->b].mean, c.b.landmarks[c2->b].mean,
-                                        c.a.landmarks[c1->a].mean, c.a.landmarks[c2->a].mean));
+    benchmark::DoNotOptimize(FitRigid2D(c.b.landmarks[c1->b].mean, c.b.landmarks[c2->b].mean, c.a.landmarks[c1->a].mean,
+                                        c.a.landmarks[c2->a].mean));
   }
   state.counters["candidates"] = m;
 }

@@ -4,8 +4,10 @@ drawn beside the thesis's numbers, with the ratios printed.
 
 Usage: /usr/bin/python3 scripts/plots/cost.py [--bench PATH] [--repetitions N] [--json FILE] OUT
   Runs `nice -n 10 PATH --benchmark_filter=Thesis --benchmark_format=json
-  --benchmark_repetitions=N --benchmark_report_aggregates_only=true` (PATH: build/bin/mapmesh-bench,
-  N: 5), keeps its output as OUT/thesis_cost.json, and writes OUT/fig43_delaunay.png,
+  --benchmark_repetitions=N --benchmark_enable_random_interleaving=true
+  --benchmark_report_aggregates_only=true` (PATH: build/bin/mapmesh-bench, N: 5; the repetitions
+  of all the benchmarks interleaved in random order, so that load from others spreads over
+  all of them alike), keeps its output as OUT/thesis_cost.json, and writes OUT/fig43_delaunay.png,
   OUT/fig47_ransac_steps.png, OUT/fig54_fusion.png and OUT/table6_ci.png.
   With --json FILE it reads FILE (a mapmesh-bench JSON report) instead of running anything.
 Prints markdown tables of our figures beside the thesis's and the ratios. Times are CPU times,
@@ -275,7 +277,8 @@ def draw(med, out):
 
 def run_bench(bench, repetitions, path):
     cmd = ["nice", "-n", "10", str(bench), f"--benchmark_filter={FILTER}", "--benchmark_format=json",
-           f"--benchmark_repetitions={repetitions}", "--benchmark_report_aggregates_only=true"]
+           f"--benchmark_repetitions={repetitions}", "--benchmark_enable_random_interleaving=true",
+           "--benchmark_report_aggregates_only=true"]
     print("$ " + " ".join(cmd), file=sys.stderr)
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
