@@ -55,7 +55,7 @@ void BM_ThesisDelaunay(benchmark::State& state) {
   state.counters["landmarks"] = n;
   state.counters["triangles"] = static_cast<double>(triangles);
 }
-BENCHMARK(BM_ThesisDelaunay)->Arg(50)->Arg(100)->Arg(200)->Arg(500)->Arg(1000)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ThesisDelaunay)->Arg(50)->Arg(100)->Arg(200)->Arg(400)->Arg(500)->Arg(1000)->Unit(benchmark::kMicrosecond);
 
 // Fig. 47's input: m candidate pairs between map A (m random landmarks, sigma 0.1 m) and map B
 // (the same landmarks with their own noise, seen in another frame); half the candidates pair a

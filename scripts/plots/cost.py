@@ -99,18 +99,14 @@ def growth_exponent(points):
     return float(np.polyfit(x, y, 1)[0])
 
 
-def crossover(hyp, test):
-    """The candidate count where the consensus test starts to cost more than a hypothesis
-    (log-log interpolation), or None."""
-    h = dict(hyp)
-    pts = [(n, t, h[n]) for n, t in test if n in h]
-    for (n0, t0, h0), (n1, t1, h1) in zip(pts, pts[1:]):
-        d0, d1 = math.log(t0 / h0), math.log(t1 / h1)
-        if d0 <= 0 <= d1 and d1 != d0:
-            return math.exp(math.log(n0) + (math.log(n1) - math.log(n0)) * (-d0) / (d1 - d0))
-    if pts and pts[0][1] > pts[0][2]:
-        return float(pts[0][0])  # already above at the smallest count
-    return None
+def break_even(hyp, test):
+    """The candidate count at which one consensus test costs as much as one hypothesis: the
+    hypothesis's median time over the counts over the test's time per candidate at the largest
+    count (where the fixed cost of a test weighs least)."""
+    if not hyp or not test:
+        return None
+    n, t = test[-1]
+    return statistics.median(t for _, t in hyp) / (t / n)
 
 
 def ratios(med):
@@ -121,6 +117,7 @@ def ratios(med):
         r["delaunay_exponent"] = growth_exponent(dl)
         r["nlogn_exponent"] = growth_exponent([(n, n * math.log(n)) for n, _ in dl])
         r["delaunay_ns_per_nlogn"] = {n: t * 1e6 / (n * math.log2(n)) for n, t in dl}
+        r["delaunay_over_thesis"] = {n: t / THESIS["delaunay"][n] for n, t in dl if n in THESIS["delaunay"]}
     hyp = series(med, "BM_ThesisRansacHypothesis")
     if hyp:
         r["hypothesis_spread"] = max(t for _, t in hyp) / min(t for _, t in hyp)
@@ -128,7 +125,8 @@ def ratios(med):
             test = series(med, "BM_ThesisRansacConsensus", dist)
             if test:
                 r[f"consensus_exponent_{dist}"] = growth_exponent(test)
-                r[f"crossover_{dist}"] = crossover(hyp, test)
+                r[f"break_even_{dist}"] = break_even(hyp, test)
+                r[f"per_candidate_ms_{dist}"] = test[-1][1] / test[-1][0]
                 r[f"consensus_over_hypothesis_{dist}"] = {n: t / dict(hyp)[n] for n, t in test if n in dict(hyp)}
     fuse = {m: dict(series(med, "BM_ThesisFuse", m)) for m in FUSION_METHODS}
     for num, den in (("ml", "ci"), ("ml", "information"), ("information", "ci"), ("ci_det", "ci"),
@@ -162,6 +160,8 @@ def tables(med, r):
     if "delaunay_exponent" in r:
         lines += ["", f"growth exponent of our time over n: {r['delaunay_exponent']:.2f} "
                       f"(n log n over the same range: {r['nlogn_exponent']:.2f}; linear: 1)"]
+        for n, x in r["delaunay_over_thesis"].items():
+            lines.append(f"ours / thesis at {n} landmarks: {x:.3g}")
     hyp = dict(series(med, "BM_ThesisRansacHypothesis"))
     maha = dict(series(med, "BM_ThesisRansacConsensus", "mahalanobis"))
     eucl = dict(series(med, "BM_ThesisRansacConsensus", "euclidean"))
@@ -173,12 +173,10 @@ def tables(med, r):
         lines += ["", f"hypothesis max/min over the counts: {r['hypothesis_spread']:.2f} (thesis: flat at "
                       f"{fmt_ms(THESIS['hypothesis_ms'])})"]
         for dist in ("mahalanobis", "euclidean"):
-            if f"crossover_{dist}" in r:
-                c = r[f"crossover_{dist}"]
-                lines.append(f"consensus ({dist}) dearer than a hypothesis from {c:.3g} candidates on; growth "
-                             f"exponent {r[f'consensus_exponent_{dist}']:.2f} (thesis: from about "
-                             f"{THESIS['crossover_samples']} samples)" if c else
-                             f"consensus ({dist}) never dearer than a hypothesis here")
+            if f"break_even_{dist}" in r:
+                lines.append(f"consensus ({dist}): {fmt_ms(r[f'per_candidate_ms_{dist}'])} per candidate, growth "
+                             f"exponent {r[f'consensus_exponent_{dist}']:.2f}; as dear as a hypothesis at "
+                             f"{r[f'break_even_{dist}']:.3g} candidates (thesis: about {THESIS['crossover_samples']})")
     fuse = {m: dict(series(med, "BM_ThesisFuse", m)) for m in FUSION_METHODS}
     ns = sorted(set().union(*[set(v) for v in fuse.values()]))
     lines += ["", "### Fig. 54 and Table 6: fusing n landmarks' two estimates", "",

@@ -88,12 +88,12 @@ class CostPlotsTest(unittest.TestCase):
                          "run_type": "aggregate" if aggregate else "iteration", "aggregate_name": aggregate or "",
                          "cpu_time": t, "real_time": 1e9, "time_unit": unit})
 
-        for n in (50, 100, 200, 500, 1000):  # c n log n: the growth exponent of n log n
+        for n in (50, 100, 200, 400, 500, 1000):  # c n log n: the growth exponent of n log n
             add(f"BM_ThesisDelaunay/{n}", 0.01 * n * math.log(n), aggregate="median")
             add(f"BM_ThesisDelaunay/{n}", 1e6, aggregate="mean")  # not the median: ignored
         for m in (10, 20, 50, 100, 200, 500, 1000):
             add(f"BM_ThesisRansacHypothesis/{m}", 40, "ns")
-            add(f"BM_ThesisRansacConsensus/mahalanobis/{m}", m, "ns")  # crosses 40 ns at 40 candidates
+            add(f"BM_ThesisRansacConsensus/mahalanobis/{m}", m, "ns")  # 1 ns a candidate: 40 ns at 40
             add(f"BM_ThesisRansacConsensus/euclidean/{m}", 0.5 * m, "ns")  # ... at 80
         for method, k in (("ml", 1), ("information", 3), ("ci", 4), ("ci_det", 6), ("ci_det_search", 20)):
             for n in (2, 10, 100, 1000):
@@ -111,10 +111,15 @@ class CostPlotsTest(unittest.TestCase):
                                capture_output=True, text=True, timeout=120)
             self.assertEqual(r.returncode, 0, r.stderr)
             self.assertIn("growth exponent of our time over n: 1.19 (n log n over the same range: 1.19", r.stdout)
-            self.assertIn("| 1000 | 69.1 µs | 6.93 |", r.stdout)  # 0.01 * 1000 ln 1000 us; / (1000 log2 1000) ns
+            # 0.01 n ln n us, and per n log2 n in ns; at 400 the thesis's one value (40 us) beside ours
+            self.assertIn("| 1000 | 69.1 µs | 6.93 |", r.stdout)
+            self.assertIn("| 400 | 24 µs | 6.93 | 40 µs |", r.stdout)
+            self.assertIn("ours / thesis at 400 landmarks: 0.599", r.stdout)
             self.assertIn("hypothesis max/min over the counts: 1.00", r.stdout)
-            self.assertIn("consensus (mahalanobis) dearer than a hypothesis from 40 candidates on", r.stdout)
-            self.assertIn("consensus (euclidean) dearer than a hypothesis from 80 candidates on", r.stdout)
+            self.assertIn("consensus (mahalanobis): 1 ns per candidate, growth exponent 1.00; as dear as a hypothesis "
+                          "at 40 candidates", r.stdout)
+            self.assertIn("consensus (euclidean): 0.5 ns per candidate, growth exponent 1.00; as dear as a hypothesis "
+                          "at 80 candidates", r.stdout)
             self.assertIn("| 100 | 100 µs | 300 µs | 400 µs | 600 µs | 2 ms | 1 ms | 21.5 ms |", r.stdout)
             self.assertIn("| ml/ci | 0.25 | 0.25 | 0.25 | 0.25 | about 0.5 |", r.stdout)
             self.assertIn("| ci_det/ci | 1.5 | 1.5 | 1.5 | 1.5 | 239 / 239 / 21.5 (2/10/100) |", r.stdout)
