@@ -1,6 +1,8 @@
 """The lab's experiment CSVs through their plot scripts: every figure is written and is a PNG
 of non-trivial size. Plots run with Debian's /usr/bin/python3 (matplotlib, numpy)."""
 
+import json
+import math
 import subprocess
 import tempfile
 import unittest
@@ -101,6 +103,88 @@ class WorldPlotTest(unittest.TestCase):
                 self.assertNotEqual(r.returncode, 0, args)
                 self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
                 self.assertFalse(Path(f"{tmp}/x.png").exists())
+
+
+class CostPlotsTest(unittest.TestCase):
+    """scripts/plots/cost.py on a planted mapmesh-bench report (no benchmark is run): the medians,
+    the ratios and the figures follow from the planted times."""
+
+    SCRIPT = str(REPO / "scripts" / "plots" / "cost.py")
+
+    @staticmethod
+    def planted_report():
+        runs = []
+
+        def add(name, t, unit="us", aggregate=None):
+            runs.append({"name": name + (f"_{aggregate}" if aggregate else ""), "run_name": name,
+                         "run_type": "aggregate" if aggregate else "iteration", "aggregate_name": aggregate or "",
+                         "cpu_time": t, "real_time": 1e9, "time_unit": unit})
+
+        for n in (50, 100, 200, 400, 500, 1000):  # c n log n: the growth exponent of n log n
+            add(f"BM_ThesisDelaunay/{n}", 0.01 * n * math.log(n), aggregate="median")
+            add(f"BM_ThesisDelaunay/{n}", 1e6, aggregate="mean")  # not the median: ignored
+        for m in (10, 20, 50, 100, 200, 500, 1000):
+            add(f"BM_ThesisRansacHypothesis/{m}", 40, "ns")
+            add(f"BM_ThesisRansacConsensus/mahalanobis/{m}", m, "ns")  # 1 ns a candidate: 40 ns at 40
+            add(f"BM_ThesisRansacConsensus/euclidean/{m}", 0.5 * m, "ns")  # ... at 80
+        for method, k in (("ml", 1), ("information", 3), ("ci", 4), ("ci_det", 6), ("ci_det_search", 20)):
+            for n in (2, 10, 100, 1000):
+                for spread in (1.0, 50.0, 0.5):  # three repetitions without aggregates: the median is k n
+                    add(f"BM_ThesisFuse/{method}/{n}", spread * k * n / 1000.0, "ms")
+        add("BM_AlignMaps/1000/10", 5.0, "ms")  # not one of the thesis's: ignored
+        return {"context": {}, "benchmarks": runs}
+
+    def test_planted_report_gives_its_ratios_and_figures(self):
+        with tempfile.TemporaryDirectory(prefix="mapmesh_cost_") as tmp:
+            report = Path(tmp) / "report.json"
+            report.write_text(json.dumps(self.planted_report()))
+            out = Path(tmp) / "out"
+            r = subprocess.run(["/usr/bin/python3", self.SCRIPT, "--json", str(report), str(out)],
+                               capture_output=True, text=True, timeout=120)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertIn("growth exponent of our time over n: 1.19 (n log n over the same range: 1.19", r.stdout)
+            # 0.01 n ln n us, and per n log2 n in ns; at 400 the thesis's one value (40 us) beside ours
+            self.assertIn("| 1000 | 69.1 µs | 6.93 |", r.stdout)
+            self.assertIn("| 400 | 24 µs | 6.93 | 40 µs |", r.stdout)
+            self.assertIn("ours / thesis at 400 landmarks: 0.599", r.stdout)
+            self.assertIn("hypothesis max/min over the counts: 1.00", r.stdout)
+            self.assertIn("consensus (mahalanobis): 1 ns per candidate, growth exponent 1.00; as dear as a hypothesis "
+                          "at 40 candidates", r.stdout)
+            self.assertIn("consensus (euclidean): 0.5 ns per candidate, growth exponent 1.00; as dear as a hypothesis "
+                          "at 80 candidates", r.stdout)
+            self.assertIn("| 100 | 100 µs | 300 µs | 400 µs | 600 µs | 2 ms | 1 ms | 21.5 ms |", r.stdout)
+            self.assertIn("| ml/ci | 0.25 | 0.25 | 0.25 | 0.25 | about 0.5 |", r.stdout)
+            self.assertIn("| ci_det/ci | 1.5 | 1.5 | 1.5 | 1.5 | 239 / 239 / 21.5 (2/10/100) |", r.stdout)
+            self.assertIn("| ci_det_search/ci_det | 3.33 |", r.stdout)
+            self.assertNotIn("AlignMaps", r.stdout)
+            pngs = sorted(p.name for p in out.glob("*.png"))
+            self.assertEqual(pngs, ["fig43_delaunay.png", "fig47_ransac_steps.png", "fig54_fusion.png",
+                                    "table6_ci.png"])
+            for name in pngs:
+                data = (out / name).read_bytes()
+                self.assertTrue(data.startswith(PNG_SIGNATURE), name)
+                self.assertGreater(len(data), 10_000, name)
+
+    def test_bad_inputs_are_one_line(self):
+        h = subprocess.run(["/usr/bin/python3", self.SCRIPT, "--help"], capture_output=True, text=True, timeout=60)
+        self.assertEqual(h.returncode, 0)
+        self.assertIn("Usage", h.stdout)
+        with tempfile.TemporaryDirectory(prefix="mapmesh_cost_") as tmp:
+            garbled = Path(tmp) / "garbled.json"
+            garbled.write_text("{not json")
+            other = Path(tmp) / "other.json"
+            foreign = {"name": "BM_AlignMaps/60/50", "run_name": "BM_AlignMaps/60/50", "cpu_time": 1.0,
+                       "time_unit": "ms"}
+            other.write_text(json.dumps({"benchmarks": [foreign]}))
+            for args, says in ((["--json", str(garbled)], "not a readable JSON report"),
+                               (["--json", str(Path(tmp) / "missing.json")], "not a readable JSON report"),
+                               (["--json", str(other)], "no BM_Thesis benchmark"),
+                               (["--bench", str(Path(tmp) / "no-bench")], "no such benchmark executable")):
+                r = subprocess.run(["/usr/bin/python3", self.SCRIPT] + args + [str(Path(tmp) / "out")],
+                                   capture_output=True, text=True, timeout=60)
+                self.assertEqual(r.returncode, 1, args)
+                self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+                self.assertIn(says, r.stderr)
 
 
 if __name__ == "__main__":
