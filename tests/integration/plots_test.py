@@ -76,6 +76,27 @@ class FusionPlotsTest(unittest.TestCase):
         self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
 
 
+class SearchPlotsTest(unittest.TestCase):
+    def test_ransac_arw_and_its_figure(self):
+        with tempfile.TemporaryDirectory(prefix="mapmesh_plots_") as tmp:
+            csv_path = Path(tmp) / "search.csv"
+            subprocess.run([str(BIN / "mapmesh-lab"), "search", "--trials", "2", "--landmarks", "60",
+                            "--overlaps", "0,0.5", "--csv", str(csv_path)], check=True, capture_output=True,
+                           timeout=240)
+            lines = csv_path.read_text().splitlines()
+            self.assertEqual(len(lines), 1 + 2 * 2 * 3)  # header, then 2 overlaps x 2 pairs x 3 searches
+            script = str(REPO / "scripts" / "plots" / "search.py")
+            r = subprocess.run(["/usr/bin/python3", script, tmp], capture_output=True, text=True, timeout=120)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            data = (Path(tmp) / "search.png").read_bytes()
+            self.assertTrue(data.startswith(PNG_SIGNATURE))
+            self.assertGreater(len(data), 10_000)
+            bad = subprocess.run(["/usr/bin/python3", script, "/nonexistent/dir"], capture_output=True, text=True,
+                                 timeout=60)
+            self.assertNotEqual(bad.returncode, 0)
+            self.assertEqual(len(bad.stderr.strip().splitlines()), 1, bad.stderr)
+
+
 class WorldPlotTest(unittest.TestCase):
     SCRIPT = str(REPO / "scripts" / "plots" / "world.py")
     ENV = {"MAPMESH_BIN": str(BIN), "PATH": "/usr/bin:/bin"}
