@@ -339,8 +339,8 @@ std::string FusionSweepCsv(const std::string& parameter, const std::vector<Fusio
       << ',' << Num(r.a.consistent_ratio) << ',' << Num(r.b.consistent_ratio) << ',' << Num(r.a.det) << ','
       << Num(r.b.det) << ',' << Num(r.a.area_m2) << ',' << Num(r.b.area_m2) << ',' << Num(r.merged.nees) << ','
       << Num(r.merged.consistent_ratio) << ',' << Num(r.merged.det) << ',' << Num(r.merged.area_m2) << ','
-      << Num(r.merged.rmse_m) << ',' << Num(r.global_nees) << ',' << Num(r.global_consistent_ratio) << ','
-      << r.robot_a << ',' << r.robot_b << ',' << Num(r.similarity_true_ratio) << ',' << Num(r.ransac_true_recall) << ','
+      << Num(r.merged.rmse_m) << ',' << Num(r.global_nees) << ',' << Num(r.global_consistent_ratio) << ',' << r.robot_a
+      << ',' << r.robot_b << ',' << Num(r.similarity_true_ratio) << ',' << Num(r.ransac_true_recall) << ','
       << r.correct_runs << ',' << Num(r.thesis_similarity_true_ratio) << '\n';
   }
   return s.str();
