@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from plotlib import curves, directory_argument, panel, plt, rows  # noqa: E402
+from plotlib import curves, directory_argument, panel, plt, rows, save  # noqa: E402
 
 
 def main(argv):
@@ -22,16 +22,14 @@ def main(argv):
           "Fig. 46: true share of candidate pairs (sorted sides)", "overlap ratio", "share", "{} landmarks")
     panel(axes[1], curves(sim, "landmarks", "overlap", "correct_rate", lambda r: r["matcher"] == "sorted_sides"),
           "alignment within 0.2 m and 1 deg", "overlap ratio", "success rate", "{} landmarks")
-    fig.tight_layout()
-    fig.savefig(d / "fig46_similarity.png", dpi=110)
+    save(fig, d / "fig46_similarity.png")
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     for ax, name, title in [(axes[0], "fig48_noise.csv", "Fig. 48: RANSAC vs landmark noise"),
                             (axes[1], "fig50_transforms.csv", "Fig. 50: with random transforms")]:
         panel(ax, curves(rows(d / name), "landmarks", "sigma_m", "thesis_success"), title,
               "landmark sigma (m)", "true pairs among inliers", "{} landmarks")
-    fig.tight_layout()
-    fig.savefig(d / "fig48_50_noise.png", dpi=110)
+    save(fig, d / "fig48_50_noise.png")
 
     mr = rows(d / "fig49_51_match_ratio.csv")
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
@@ -39,16 +37,14 @@ def main(argv):
           "true-match ratio", "true pairs among inliers", "{} landmarks")
     panel(axes[1], curves(mr, "landmarks", "match_ratio", "median_ms"), "Fig. 51: RANSAC time", "true-match ratio",
           "median ms", "{} landmarks")
-    fig.tight_layout()
-    fig.savefig(d / "fig49_51_match_ratio.png", dpi=110)
+    save(fig, d / "fig49_51_match_ratio.png")
 
     dist = rows(d / "fig52_53_distance.csv")
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     panel(axes[0], curves(dist, "distance", "sigma_m", "thesis_success"), "Fig. 52: Euclidean vs Mahalanobis",
           "landmark sigma (m)", "true pairs among inliers")
     panel(axes[1], curves(dist, "distance", "sigma_m", "median_ms"), "Fig. 53: time", "landmark sigma (m)", "median ms")
-    fig.tight_layout()
-    fig.savefig(d / "fig52_53_distance.png", dpi=110)
+    save(fig, d / "fig52_53_distance.png")
     print(f"alignment.py: wrote {len(list(d.glob('*.png')))} figures in {d}")
     return 0
 

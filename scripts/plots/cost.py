@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from plotlib import plt  # noqa: E402
+from plotlib import plt, save  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 FILTER = "Thesis"
@@ -219,9 +219,7 @@ def draw(med, out):
             label="thesis text (MATLAB): 0.04 ms at 400")
     loglog(ax, "Fig. 43: Delaunay triangulation", "landmarks")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "fig43_delaunay.png", dpi=110)
-    plt.close(fig)
+    save(fig, out / "fig43_delaunay.png")
 
     fig, ax = plt.subplots(figsize=(6, 4))
     hyp = series(med, "BM_ThesisRansacHypothesis")
@@ -236,9 +234,7 @@ def draw(med, out):
             label="thesis: test reaches it near 100")
     loglog(ax, "Fig. 47: RANSAC's hypothesis and test steps", "candidate pairs (samples)")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "fig47_ransac_steps.png", dpi=110)
-    plt.close(fig)
+    save(fig, out / "fig47_ransac_steps.png")
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for m in ("ml", "information", "ci"):
@@ -249,9 +245,7 @@ def draw(med, out):
             color="C3", label="thesis text: about 10 ms at 1000, ML about half")
     loglog(ax, "Fig. 54: fusion cost", "landmarks")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "fig54_fusion.png", dpi=110)
-    plt.close(fig)
+    save(fig, out / "fig54_fusion.png")
 
     fig, ax = plt.subplots(figsize=(9.5, 4))
     counts = [2, 10, 100]
@@ -268,9 +262,7 @@ def draw(med, out):
     ax.set_title("Table 6: CI with a constant against the optimal weight", fontsize=10)
     ax.grid(alpha=0.3, axis="y", which="both")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.tight_layout()
-    fig.savefig(out / "table6_ci.png", dpi=110)
-    plt.close(fig)
+    save(fig, out / "table6_ci.png")
 
 
 def run_bench(bench, repetitions, path):

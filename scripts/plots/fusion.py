@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from plotlib import curves, directory_argument, number, panel, plt, rows  # noqa: E402
+from plotlib import curves, directory_argument, number, panel, plt, rows, save  # noqa: E402
 
 SWEEPS = [
     ("fig61_62_bearing", "robot 2 bearing sigma (deg)", "Figs. 61-62: bearing noise"),
@@ -47,26 +47,49 @@ METHODS = ["ml", "information", "ci", "ci_det", "ci_trace", "ogk", "ci_ogk"]
 METHOD_STYLE = {m: {"color": f"C{k}"} for k, m in enumerate(METHODS)}
 
 
+# The robots' own maps beside the estimators: dashed.
+DASHED = dict(METHOD_STYLE, **{"robot 1 map": {"linestyle": "--", "color": "black"},
+                               "robot 2 map": {"linestyle": ":", "color": "grey"}})
+
+
+def with_robot_maps(data, series, figure):
+    """series plus robot 1's and robot 2's own maps' `figure` (columns figure_a, figure_b), which
+    every method's rows repeat: taken from the first method's."""
+    first = data[0]["method"] if data else None
+    if first:
+        series["robot 1 map"] = curves(data, "method", "value", f"{figure}_a")[first]
+        series["robot 2 map"] = curves(data, "method", "value", f"{figure}_b")[first]
+    return series
+
+
+def bar_chart(path, groups, bars, xlabel, ylabel, title):
+    """Grouped bars: groups are the x tick labels, bars (label, values, one per group)."""
+    fig, ax = plt.subplots(figsize=(9, 4))
+    width = 0.8 / len(bars)
+    for k, (label, values) in enumerate(bars):
+        ax.bar([i + k * width for i in range(len(groups))], values, width, label=label)
+    ax.set_xticks([i + 0.4 - width / 2 for i in range(len(groups))])
+    ax.set_xticklabels(groups)
+    if xlabel:
+        ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=8)
+    save(fig, path)
+
+
 def sweep_figure(d, name, xlabel, title):
     data = rows(d / f"{name}.csv")
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    series = curves(data, "method", "value", "consistent_merged")
-    first = next(iter(series)) if series else None
-    if first:
-        series["robot 1 map"] = sorted(curves(data, "method", "value", "consistent_a")[first])
-        series["robot 2 map"] = sorted(curves(data, "method", "value", "consistent_b")[first])
-    dashed = dict(METHOD_STYLE)
-    dashed.update({"robot 1 map": {"linestyle": "--", "color": "black"},
-                   "robot 2 map": {"linestyle": ":", "color": "grey"}})
-    panel(axes[0], series, f"{title}: consistent landmarks (NEES < 5.99)", xlabel, "ratio", style=dashed)
+    series = with_robot_maps(data, curves(data, "method", "value", "consistent_merged"), "consistent")
+    panel(axes[0], series, f"{title}: consistent landmarks (NEES < 5.99)", xlabel, "ratio", style=DASHED)
     axes[0].set_ylim(0, 1.05)
     dets = curves(data, "method", "value", "det_merged", lambda r: r["method"] != "ml")
     dets = {k: [(x, y) for x, y in v if y > 0 and math.isfinite(y)] for k, v in dets.items()}
     panel(axes[1], dets, f"{title}: determinant", xlabel, "mean det of merged covariance (m^4)", style=METHOD_STYLE)
     axes[1].set_yscale("log")
-    fig.tight_layout()
-    fig.savefig(d / f"{name}.png", dpi=110)
-    plt.close(fig)
+    save(fig, d / f"{name}.png")
 
 
 def aligned_sweep_figure(d, name, xlabel, title):
@@ -86,20 +109,13 @@ def aligned_sweep_figure(d, name, xlabel, title):
     }
     panel(axes[0], align, f"{title}: alignment", xlabel, "ratio")
     axes[0].set_ylim(0, 1.05)
-    nees = curves(data, "method", "value", "nees_merged", lambda r: r["method"] != "ml")
-    if first:
-        nees["robot 1 map"] = sorted(curves(data, "method", "value", "nees_a")[first])
-        nees["robot 2 map"] = sorted(curves(data, "method", "value", "nees_b")[first])
-    dashed = dict(METHOD_STYLE)
-    dashed.update({"robot 1 map": {"linestyle": "--", "color": "black"},
-                   "robot 2 map": {"linestyle": ":", "color": "grey"}})
-    panel(axes[1], nees, f"{title}: NEES of the overlap", xlabel, "mean NEES (2 dof)", style=dashed)
+    nees = with_robot_maps(data, curves(data, "method", "value", "nees_merged", lambda r: r["method"] != "ml"),
+                           "nees")
+    panel(axes[1], nees, f"{title}: NEES of the overlap", xlabel, "mean NEES (2 dof)", style=DASHED)
     series = curves(data, "method", "value", "consistent_merged")
     panel(axes[2], series, f"{title}: consistent landmarks", xlabel, "ratio (NEES < 5.99)", style=METHOD_STYLE)
     axes[2].set_ylim(0, 1.05)
-    fig.tight_layout()
-    fig.savefig(d / f"{name}.png", dpi=110)
-    plt.close(fig)
+    save(fig, d / f"{name}.png")
 
 
 def sim_table_figure(d):
@@ -110,20 +126,11 @@ def sim_table_figure(d):
     bars = [("robot a", "ci", "nees_a"), ("robot b", "ci", "nees_b"),
             ("merged, information", "information", "nees_merged"), ("merged, CI", "ci", "nees_merged"),
             ("merged, CI det", "ci_det", "nees_merged")]
-    fig, ax = plt.subplots(figsize=(9, 4))
-    width = 0.8 / len(bars)
-    for k, (label, method, col) in enumerate(bars):
-        ys = [number(by[(a, b, method)][col]) if (a, b, method) in by else float("nan") for a, b in pairs]
-        ax.bar([i + k * width for i in range(len(pairs))], ys, width, label=label)
-    ax.set_xticks([i + 0.4 - width / 2 for i in range(len(pairs))])
-    ax.set_xticklabels([f"traj. {a} & {b}" for a, b in pairs])
-    ax.set_ylabel("mean NEES on the overlap (ground truth)")
-    ax.set_title("Table 7 on the simulated Victoria Park: single maps and merged map", fontsize=10)
-    ax.grid(alpha=0.3, axis="y")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(d / "table7_vp_sim.png", dpi=110)
-    plt.close(fig)
+    values = [(label, [number(by[(a, b, m)][col]) if (a, b, m) in by else float("nan") for a, b in pairs])
+              for label, m, col in bars]
+    bar_chart(d / "table7_vp_sim.png", [f"traj. {a} & {b}" for a, b in pairs], values, None,
+              "mean NEES on the overlap (ground truth)",
+              "Table 7 on the simulated Victoria Park: single maps and merged map")
 
 
 def table_figure(d):
@@ -136,20 +143,9 @@ def table_figure(d):
             ("merged, CI", "nees_merged_ci"), ("merged, CI det", "nees_merged_ci_det"),
             ("merged, OGK", "nees_merged_ogk"), ("merged, CI-OGK", "nees_merged_ci_ogk")]
     bars = [(n, c) for n, c in bars if c in data[0]]
-    fig, ax = plt.subplots(figsize=(9, 4))
-    width = 0.8 / len(bars)
-    for k, (name, col) in enumerate(bars):
-        ax.bar([i + k * width for i in range(len(data))], [number(r[col]) for r in data], width, label=name)
-    ax.set_xticks([i + 0.4 - width / 2 for i in range(len(data))])
-    ax.set_xticklabels(labels)
-    ax.set_xlabel("Victoria Park robot pair")
-    ax.set_ylabel("mean NEES on the overlap")
-    ax.set_title("Table 7: single maps and merged map (against the whole-run reference)", fontsize=10)
-    ax.grid(alpha=0.3, axis="y")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(d / "table7_victoria.png", dpi=110)
-    plt.close(fig)
+    bar_chart(d / "table7_victoria.png", labels, [(name, [number(r[col]) for r in data]) for name, col in bars],
+              "Victoria Park robot pair", "mean NEES on the overlap",
+              "Table 7: single maps and merged map (against the whole-run reference)")
 
 
 def main(argv):

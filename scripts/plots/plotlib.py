@@ -44,6 +44,13 @@ def panel(ax, series, title, xlabel, ylabel, label_fmt="{}", style=None):
     ax.legend(fontsize=8)
 
 
+def save(fig, path, dpi=110):
+    """Lays out a figure, writes it as PNG and frees it."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+
+
 def directory_argument(argv, doc, script, first_csv, how_to_make):
     """The DIR argument of a plot script, or an exit code (help, usage, missing input)."""
     if len(argv) == 2 and argv[1] in ("-h", "--help"):

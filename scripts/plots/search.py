@@ -11,7 +11,7 @@ from collections import defaultdict
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from plotlib import directory_argument, number, panel, plt, rows  # noqa: E402
+from plotlib import directory_argument, number, panel, plt, rows, save  # noqa: E402
 
 
 def main(argv):
@@ -32,8 +32,7 @@ def main(argv):
     panel(axes[1], wrong, "accepted but wrong", "overlap", "share of pairs")
     panel(axes[2], ms, "time per alignment", "overlap", "median ms")
     axes[2].set_yscale("log")
-    fig.tight_layout()
-    fig.savefig(d / "search.png", dpi=110)
+    save(fig, d / "search.png")
     print(f"search.py: wrote {d / 'search.png'}")
     return 0
 

@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from plotlib import plt  # noqa: E402
+from plotlib import plt, save  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -55,9 +55,7 @@ def draw(truth, out):
     ax.set_title(f"{truth.get('scenario', '')}: landmarks and true trajectories", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    save(fig, out)
 
 
 def main(argv):
