@@ -25,7 +25,6 @@
 #include "common/merge/fusion.h"
 #include "common/merge/map_alignment.h"
 #include "common/merge/spatial.h"
-#include "common/metrics/chi2.h"
 
 namespace mapmesh {
 namespace {
@@ -116,8 +115,8 @@ void BM_ThesisRansacHypothesis(benchmark::State& state) {
 }
 BENCHMARK(BM_ThesisRansacHypothesis)->Apply(CandidateCounts)->Unit(benchmark::kNanosecond);
 
-// One consensus test as RansacAlign's makes it: every candidate's gated distance under the
-// hypothesis (alignment_detail::GatedD2, Mahalanobis at the 99 % chi-square gate or Euclidean
+// One consensus test, RansacAlign's own (alignment_detail::ConsensusScorer): every candidate's
+// gated distance under the hypothesis (Mahalanobis at the 99 % chi-square gate or Euclidean
 // within 2 m), and the support counted once per landmark on each side. Hypotheses from 64
 // random samples, cycled (most are wrong, as in RANSAC).
 void ThesisRansacConsensus(benchmark::State& state, ConsensusDistance distance) {
@@ -125,7 +124,6 @@ void ThesisRansacConsensus(benchmark::State& state, ConsensusDistance distance) 
   const RansacCase c = MakeRansacCase(m, 47);
   AlignmentOptions o;
   o.distance = distance;
-  const double gate = Chi2Quantile(o.gate_probability, 2);
   std::mt19937_64 rng(2);
   std::uniform_int_distribution<std::size_t> pick(0, c.candidates.size() - 1);
   std::vector<PoseMap2> hypotheses;
@@ -136,30 +134,14 @@ void ThesisRansacConsensus(benchmark::State& state, ConsensusDistance distance) 
                               c.a.landmarks[c2.a].mean);
     if (t) hypotheses.emplace_back(*t);
   }
-  std::vector<int> stamp_a(static_cast<std::size_t>(m), -1), stamp_b(static_cast<std::size_t>(m), -1);
-  int evaluation = 0;
+  alignment_detail::ConsensusScorer scorer(c.a, c.b, c.candidates, o);
+  std::vector<char> in;
   std::size_t k = 0;
   double support_sum = 0.0;
   for (auto _ : state) {
-    const PoseMap2& t = hypotheses[k++ % hypotheses.size()];
-    ++evaluation;
-    int na = 0, nb = 0;
-    double cost = 0.0;
-    for (const CandidatePair& p : c.candidates) {
-      const double d2 = alignment_detail::GatedD2(c.a.landmarks[p.a], c.b.landmarks[p.b], t, o, gate);
-      if (!std::isfinite(d2)) continue;
-      if (stamp_a[p.a] != evaluation) {
-        stamp_a[p.a] = evaluation;
-        ++na;
-      }
-      if (stamp_b[p.b] != evaluation) {
-        stamp_b[p.b] = evaluation;
-        ++nb;
-      }
-      cost += d2;
-    }
-    benchmark::DoNotOptimize(cost);
-    support_sum += std::min(na, nb);
+    const alignment_detail::ConsensusScorer::Score s = scorer.Evaluate(hypotheses[k++ % hypotheses.size()], in);
+    benchmark::DoNotOptimize(s.cost);
+    support_sum += s.support;
   }
   state.counters["candidates"] = m;
   state.counters["mean_support"] = support_sum / static_cast<double>(state.iterations());

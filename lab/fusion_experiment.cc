@@ -150,6 +150,16 @@ FusionTrialResult RunFusionTrial(const std::vector<SlamRunResult>& robots, const
       if (!la || !lb || la->signature < 0) continue;
       predicted.emplace_back(la->signature, lb->signature);
       merged.Add(g.map.landmarks[i].mean, g.map.landmarks[i].cov, truth_a[la->signature]);
+      if (o.keep_estimates) {
+        const Eigen::Vector2d& t = truth_a[la->signature];
+        if (k == 0) {
+          const Landmark placed = TransformLandmark(*lb, src.to_own, src.to_own_cov);
+          r.estimates.push_back({"robot_a", la->signature, t, la->mean, la->cov});
+          r.estimates.push_back({"robot_b", la->signature, t, placed.mean, placed.cov});
+        }
+        r.estimates.push_back({std::string(ToString(o.methods[k])), la->signature, t, g.map.landmarks[i].mean,
+                               g.map.landmarks[i].cov});
+      }
       own_a.Add(la->mean, la->cov, truth_a[la->signature]);
       if (lb->signature >= 0) own_b.Add(lb->mean, lb->cov, truth_b[lb->signature]);
     }
@@ -181,6 +191,21 @@ std::string Num(double v) {
 }
 
 }  // namespace
+
+std::string OverlapEstimatesCsv(const std::vector<OverlapEstimate>& estimates) {
+  std::vector<const OverlapEstimate*> sorted;
+  for (const OverlapEstimate& e : estimates) sorted.push_back(&e);
+  std::stable_sort(sorted.begin(), sorted.end(),
+                   [](const OverlapEstimate* x, const OverlapEstimate* y) { return x->signature < y->signature; });
+  std::ostringstream s;
+  s << "source,signature,truth_x,truth_y,x,y,cxx,cxy,cyy\n";
+  for (const OverlapEstimate* e : sorted) {
+    s << e->source << ',' << e->signature << ',' << Num(e->truth.x()) << ',' << Num(e->truth.y()) << ','
+      << Num(e->mean.x()) << ',' << Num(e->mean.y()) << ',' << Num(e->cov(0, 0)) << ',' << Num(e->cov(0, 1)) << ','
+      << Num(e->cov(1, 1)) << '\n';
+  }
+  return s.str();
+}
 
 std::vector<FusionTrialResult> RunFusionSweep(const ScenarioMaker& make, const FusionSweepOptions& o) {
   struct Job {

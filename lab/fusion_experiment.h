@@ -31,6 +31,17 @@ struct FusionTrialOptions {
                                     FusionMethod::kCiTrace,
                                     FusionMethod::kOgk,
                                     FusionMethod::kCiOgk};
+  bool keep_estimates = false;  // keep every overlap landmark's estimates (FusionTrialResult::estimates)
+};
+
+// One estimate of an overlap landmark in robot a's frame (Fig. 58): robot a's own, robot b's
+// placed by the alignment (its covariance included), or an estimator's merged one.
+struct OverlapEstimate {
+  std::string source;  // "robot_a", "robot_b" or the estimator (ToString(FusionMethod))
+  int signature = -1;  // the landmark's true identity
+  Eigen::Vector2d truth = Eigen::Vector2d::Zero();
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
 };
 
 // Means over the overlap landmarks of one map.
@@ -67,11 +78,15 @@ struct FusionTrialResult {
   AssociationScore association;  // of the overlap, against the truth
   OverlapScore a, b;             // each robot's own estimates of the overlap landmarks
   std::vector<MethodScore> methods;
+  std::vector<OverlapEstimate> estimates;  // with keep_estimates, by landmark: robot a, robot b, each method
 };
 
 // Scores one run (needs the true frame origins and landmark truth, as simulations give).
 FusionTrialResult RunFusionTrial(const std::vector<SlamRunResult>& robots, const FusionTrialOptions& options,
                                  std::mt19937_64& rng);
+
+// CSV of a trial's estimates: source, signature, truth, mean and covariance (cxx, cxy, cyy).
+std::string OverlapEstimatesCsv(const std::vector<OverlapEstimate>& estimates);
 
 // A scenario for (swept value, seed).
 using ScenarioMaker = std::function<Scenario(double value, std::uint64_t seed)>;

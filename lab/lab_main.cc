@@ -469,7 +469,7 @@ int Run(int argc, char** argv) {
   lab::ThesisAlignmentOptions ta;
   std::string ta_dir = "lab-out/alignment";
   CLI::App* thesis_align = cli.add_subcommand(
-      "thesis-align", "the thesis's alignment experiments (Figs. 46, 48-53): CSVs for scripts/plots/alignment.py");
+      "thesis-align", "the thesis's alignment experiments (Figs. 45-46, 48-53): CSVs for scripts/plots/alignment.py");
   thesis_align->add_option("--out", ta_dir, "directory for the CSVs");
   thesis_align->add_option("--trials", ta.trials, "runs per point of each curve")->check(CLI::PositiveNumber);
   thesis_align->add_option("--seed", ta.seed, "first seed");
@@ -506,9 +506,10 @@ int Run(int argc, char** argv) {
   thesis_fusion->add_option("--threads", tf.threads, "worker threads (default: the machine's cores)")
       ->check(CLI::NonNegativeNumber);
   thesis_fusion
-      ->add_option("--only", tf.only,
-                   "run only these: bearing, velocity, range, victoria (the real replay), low_overlap, vp_bearing, "
-                   "vp_velocity, vp_range, vp_table7 (the simulated Victoria Park)")
+      ->add_option(
+          "--only", tf.only,
+          "run only these: bearing, velocity, range, victoria (the real replay), low_overlap, vp_bearing, "
+          "vp_velocity, vp_range, vp_table7 (the simulated Victoria Park), fig58 (one run's covariance ellipses)")
       ->delimiter(',')
       ->check(CLI::IsMember(lab::kThesisFusionExperiments));
   thesis_fusion->add_flag("--oracle-alignment", tf.oracle_alignment,

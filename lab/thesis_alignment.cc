@@ -98,6 +98,25 @@ void RunThesisAlignment(const std::string& dir, const ThesisAlignmentOptions& op
   std::uint64_t seed = opt.seed;
   const int kTrials = opt.trials;
 
+  {  // Fig. 45: how the overlap ratio is varied. One 200-landmark pair per ratio, B drawn in A's
+     // frame (the experiments put it in a random one); shared: the landmark is in both maps.
+    auto f = Open(dir + "/fig45_overlap.csv", "overlap,map,x,y,shared");
+    for (double ov : {1.0, 0.7, 0.4, 0.1}) {
+      std::mt19937_64 rng(seed);
+      const MapPair p = MakeMapPair(Maps(200, ov, 0.1, false), rng);
+      std::vector<char> shared_a(p.a.size(), 0), shared_b(p.b.size(), 0);
+      for (const auto& [a, b] : p.true_pairs) shared_a[a] = shared_b[b] = 1;
+      for (std::size_t i = 0; i < p.a.size(); ++i) {
+        const Eigen::Vector2d& x = p.a.landmarks[i].mean;
+        f << ov << ",A," << x.x() << ',' << x.y() << ',' << int{shared_a[i]} << '\n';
+      }
+      for (std::size_t i = 0; i < p.b.size(); ++i) {
+        const Eigen::Vector2d x = p.truth.Apply(p.b.landmarks[i].mean);
+        f << ov << ",B," << x.x() << ',' << x.y() << ',' << int{shared_b[i]} << '\n';
+      }
+    }
+  }
+
   {  // Fig. 46: triangle similarity success (share of candidate pairs that are true) vs overlap.
     auto f = Open(dir + "/fig46_similarity.csv",
                   "landmarks,overlap,matcher,candidate_precision,true_candidates,correct_rate,median_ms");

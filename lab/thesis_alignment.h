@@ -12,7 +12,7 @@ struct ThesisAlignmentOptions {
   std::uint64_t seed = 1;
 };
 
-// Writes fig46_similarity.csv, fig48_noise.csv, fig49_51_match_ratio.csv, fig50_transforms.csv
+// Writes fig45_overlap.csv (the layouts: one pair per overlap ratio), fig46_similarity.csv, fig48_noise.csv, fig49_51_match_ratio.csv, fig50_transforms.csv
 // and fig52_53_distance.csv into dir (created). Progress goes to stderr.
 void RunThesisAlignment(const std::string& dir, const ThesisAlignmentOptions& options);
 

@@ -106,6 +106,19 @@ void RunThesisFusion(const std::string& dir, const ThesisFusionOptions& o) {
     Sweep(dir, "table7_vp_sim", "victoria_sim.yaml", "", "none", {0.0}, 50, o, 4,
           {{2, 1}, {2, 3}, {2, 4}, {3, 1}, {3, 4}, {4, 1}});
   }
+  // Fig. 58: every estimate of the overlap landmarks in one run of the circle pair (the first
+  // seed), with its covariance, for the ellipse plot.
+  if (Wanted(o, "fig58")) {
+    const Scenario s = LoadScenario(o.scenarios_dir + "/thesis_circle_pair.yaml",
+                                    {ParseOverride("seed=" + std::to_string(o.first_seed))});
+    FusionTrialOptions trial;
+    trial.oracle_alignment = o.oracle_alignment;
+    trial.keep_estimates = true;
+    std::mt19937_64 rng(o.first_seed * 7919 + 17);  // as the sweeps' runs
+    const FusionTrialResult r = RunFusionTrial(RunSlam(s, SlamRunOptions{}), trial, rng);
+    Write(dir + "/fig58_ellipses.csv", OverlapEstimatesCsv(r.estimates));
+    Progress("fig58")(1, 1);
+  }
   if (Wanted(o, "victoria")) {
     const std::string file = o.scenarios_dir + "/victoria_4.yaml";
     SlamRunOptions so;

@@ -8,7 +8,9 @@
 // - fig66_69_low_overlap.csv: robot 2's bearing noise in Fig. 66's 5 %-overlap layout (Figs. 67-69);
 // - fig75_76_vp_bearing.csv, fig77_78_vp_velocity.csv, fig80_81_vp_range.csv: the same sweeps on the
 //   simulated Victoria Park (scenarios/victoria_sim.yaml: ground truth), trajectories 1 and 2;
-// - table7_vp_sim.csv: Table 7 on the simulated Victoria Park: every pair of its four trajectories.
+// - table7_vp_sim.csv: Table 7 on the simulated Victoria Park: every pair of its four trajectories;
+// - fig58_ellipses.csv: one circle-pair run's overlap landmarks, each robot's estimate and every
+//   estimator's merged one with its covariance (Fig. 58).
 // Alignment columns (similarity_true_ratio, ransac_true_recall) are the thesis's "map similarity"
 // and "RANSAC success" (Figs. 67, 71, 75, 77, 80).
 
@@ -30,8 +32,9 @@ struct ThesisFusionOptions {
   std::vector<std::string> only;  // experiment names to run (kThesisFusionExperiments); empty: all
 };
 
-inline const std::vector<std::string> kThesisFusionExperiments{
-    "bearing", "velocity", "range", "victoria", "low_overlap", "vp_bearing", "vp_velocity", "vp_range", "vp_table7"};
+inline const std::vector<std::string> kThesisFusionExperiments{"bearing",     "velocity",   "range",       "victoria",
+                                                               "low_overlap", "vp_bearing", "vp_velocity", "vp_range",
+                                                               "vp_table7",   "fig58"};
 
 void RunThesisFusion(const std::string& dir, const ThesisFusionOptions& options);
 

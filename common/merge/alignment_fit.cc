@@ -125,6 +125,41 @@ double GatedD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, const 
   return d2 < gate ? d2 : std::numeric_limits<double>::infinity();
 }
 
+ConsensusScorer::ConsensusScorer(const LandmarkMap& a, const LandmarkMap& b, const std::vector<CandidatePair>& cand,
+                                 const AlignmentOptions& o)
+    : a_(a),
+      b_(b),
+      cand_(cand),
+      o_(o),
+      gate_(Chi2Quantile(o.gate_probability, 2)),
+      stamp_a_(a.landmarks.size(), -1),
+      stamp_b_(b.landmarks.size(), -1) {}
+
+ConsensusScorer::Score ConsensusScorer::Evaluate(const PoseMap2& t, std::vector<char>& in) {
+  Score s;
+  int na = 0, nb = 0;
+  ++evaluation_;
+  in.resize(cand_.size());
+  for (std::size_t i = 0; i < cand_.size(); ++i) {
+    const CandidatePair& c = cand_[i];
+    const double d2 = GatedD2(a_.landmarks[c.a], b_.landmarks[c.b], t, o_, gate_);
+    in[i] = std::isfinite(d2);
+    if (!in[i]) continue;
+    ++s.pairs;
+    if (stamp_a_[c.a] != evaluation_) {
+      stamp_a_[c.a] = evaluation_;
+      ++na;
+    }
+    if (stamp_b_[c.b] != evaluation_) {
+      stamp_b_[c.b] = evaluation_;
+      ++nb;
+    }
+    s.cost += d2;
+  }
+  s.support = std::min(na, nb);
+  return s;
+}
+
 std::vector<std::pair<int, int>> GatedPairs(const LandmarkMap& a, const Usable& ua, const PointGrid2& grid,
                                             const LandmarkMap& b, const Usable& ub, const Pose2& t,
                                             const AlignmentOptions& o, double* cost) {

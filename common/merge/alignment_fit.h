@@ -50,6 +50,32 @@ double PairD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, Eigen::
 // Squared Mahalanobis (or Euclidean) distance of a pair under t, or infinity outside the gate.
 double GatedD2(const Landmark& la, const Landmark& lb, const PoseMap2& t, const AlignmentOptions& o, double gate);
 
+// RANSAC's consensus test over a fixed list of candidate pairs. A hypothesis's support is the
+// landmarks its gated candidates pair, each counted once on each side (where candidates are
+// dense, one landmark can sit in many compatible pairs); its cost, the sum of their distances.
+class ConsensusScorer {
+ public:
+  struct Score {
+    int support = 0;  // min(landmarks of a, landmarks of b) among the gated candidates
+    int pairs = 0;    // gated candidates
+    double cost = 0.0;
+  };
+  // a and b as alignment compares them (ForAlignment); all three are held by reference.
+  ConsensusScorer(const LandmarkMap& a, const LandmarkMap& b, const std::vector<CandidatePair>& cand,
+                  const AlignmentOptions& o);
+  // Scores t; in (resized to the candidates) marks those within the gate.
+  Score Evaluate(const PoseMap2& t, std::vector<char>& in);
+
+ private:
+  const LandmarkMap& a_;
+  const LandmarkMap& b_;
+  const std::vector<CandidatePair>& cand_;
+  const AlignmentOptions& o_;
+  double gate_;
+  std::vector<int> stamp_a_, stamp_b_;
+  int evaluation_ = 0;
+};
+
 // The one-to-one pairs of a's and b's usable landmarks (ua, ub; grid holds ua's points) that
 // lie within the consensus gate at t, closest first; cost (optional) gets the sum of their
 // squared distances. Guided matching, and the searches beside RANSAC (transform_search.h).

@@ -61,49 +61,29 @@ AlignmentResult RansacAlign(const LandmarkMap& a_in, const LandmarkMap& b_in, co
   auto inlier_d2 = [&](const CandidatePair& c, const PoseMap2& t) {
     return GatedD2(a.landmarks[c.a], b.landmarks[c.b], t, o, gate);
   };
-  // Support: the landmarks the hypothesis pairs, each counted once on each side (where
-  // candidates are dense, one landmark can sit in many compatible pairs). Each hypothesis
-  // also marks its inlier candidates, and counts those it shares with the best and the
-  // runner-up so far: two hypotheses that share most of their inliers are one alignment,
+  // Each hypothesis marks its inlier candidates, and counts those it shares with the best and
+  // the runner-up so far: two hypotheses that share most of their inliers are one alignment,
   // however far apart their parameters (a long map turns a small rotation difference into
   // metres); two that share few are different alignments, however close.
   struct Marked : Hypothesis {
     std::vector<char> in;
     int pairs = 0;
   };
-  std::vector<int> stamp_a(a.landmarks.size(), -1), stamp_b(b.landmarks.size(), -1);
+  alignment_detail::ConsensusScorer scorer(a, b, cand, o);
   std::vector<char> scratch(cand.size(), 0);
-  int evaluation = 0;
   Marked best, runner;
   best.in.assign(cand.size(), 0);
   runner.in.assign(cand.size(), 0);
   int shared_best = 0, shared_runner = 0;
   auto evaluate = [&](const Pose2& t) {
-    Hypothesis h{t, 0, 0.0};
-    const PoseMap2 tm(t);
-    int na = 0, nb = 0, pairs = 0;
+    const alignment_detail::ConsensusScorer::Score s = scorer.Evaluate(PoseMap2(t), scratch);
     shared_best = shared_runner = 0;
-    ++evaluation;
     for (std::size_t i = 0; i < cand.size(); ++i) {
-      const CandidatePair& c = cand[i];
-      const double d2 = inlier_d2(c, tm);
-      scratch[i] = std::isfinite(d2);
       if (!scratch[i]) continue;
-      ++pairs;
       shared_best += best.in[i];
       shared_runner += runner.in[i];
-      if (stamp_a[c.a] != evaluation) {
-        stamp_a[c.a] = evaluation;
-        ++na;
-      }
-      if (stamp_b[c.b] != evaluation) {
-        stamp_b[c.b] = evaluation;
-        ++nb;
-      }
-      h.cost += d2;
     }
-    h.support = std::min(na, nb);
-    return std::pair<Hypothesis, int>(h, pairs);
+    return std::pair<Hypothesis, int>(Hypothesis{t, s.support, s.cost}, s.pairs);
   };
   auto same = [&](int shared, int pairs_x, int pairs_y) {
     return shared >= o.same_alignment_overlap * std::min(pairs_x, pairs_y);

@@ -2,7 +2,10 @@
 """Plots the thesis alignment experiments written by `mapmesh-lab thesis-align --out DIR`.
 
 Usage: /usr/bin/python3 scripts/plots/alignment.py DIR      (writes DIR/*.png)
-Needs Debian's python3-matplotlib (scripts/install-deps installs it)."""
+Needs Debian's python3-matplotlib (scripts/install-deps installs it).
+
+Fig. 45 (how the overlap ratio is varied) is drawn from fig45_overlap.csv: one 200-landmark pair
+per ratio, map B in A's frame, the landmarks both maps hold filled."""
 
 import sys
 from pathlib import Path
@@ -11,11 +14,38 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from plotlib import curves, directory_argument, panel, plt, rows, save  # noqa: E402
 
 
+def overlap_figure(d):
+    data = rows(d / "fig45_overlap.csv")
+    ratios = sorted({float(r["overlap"]) for r in data}, reverse=True)
+    fig, axes = plt.subplots(1, len(ratios), figsize=(3.2 * len(ratios), 3.6), sharex=True, sharey=True)
+    for ax, ov in zip(axes, ratios):
+        at = [r for r in data if float(r["overlap"]) == ov]
+        for name, colour, marker in [("A", "black", "o"), ("B", "red", "s")]:
+            for shared in ("1", "0"):
+                pts = [(float(r["x"]), float(r["y"])) for r in at if r["map"] == name and r["shared"] == shared]
+                if pts:
+                    xs, ys = zip(*pts)
+                    ax.scatter(xs, ys, s=10, marker=marker, edgecolors=colour,
+                               facecolors=colour if shared == "1" else "none", linewidths=0.7,
+                               label=f"map {name}" + (", in both" if shared == "1" else ""))
+        both = sum(1 for r in at if r["map"] == "A" and r["shared"] == "1")
+        na = sum(1 for r in at if r["map"] == "A")
+        ax.set_title(f"overlap {ov:g}: {both} of {na} shared", fontsize=9)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+    axes[0].set_ylabel("y (m)")
+    axes[-1].legend(fontsize=7, loc="lower right")
+    fig.suptitle("Fig. 45: the overlap ratio (map B's square slides along A's diagonal)")
+    save(fig, d / "fig45_overlap.png")
+
+
 def main(argv):
     d, code = directory_argument(argv, __doc__, "alignment.py", "fig46_similarity.csv",
                                  "mapmesh-lab thesis-align --out")
     if d is None:
         return code
+    if (d / "fig45_overlap.csv").exists():
+        overlap_figure(d)
     sim = rows(d / "fig46_similarity.csv")
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     panel(axes[0], curves(sim, "landmarks", "overlap", "candidate_precision", lambda r: r["matcher"] == "sorted_sides"),

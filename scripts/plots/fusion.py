@@ -15,11 +15,19 @@ mean NEES per robot pair.
 The sweeps with the thesis's alignment figures (the 5 % overlap layout, Figs. 67-69, and the
 simulated Victoria Park, Figs. 75-81) get a third panel: map similarity and RANSAC success as
 the thesis counts them, and the share of runs aligned; their middle panel is the mean NEES of
-the merged overlap. Table 7 on the simulated Victoria Park (ground truth) is a bar chart too."""
+the merged overlap. Table 7 on the simulated Victoria Park (ground truth) is a bar chart too.
+
+Fig. 58 (fig58_ellipses.csv, one circle-pair run): six overlap landmarks, each with its 2.448-sigma
+(95 %) ellipses: robot 1's and robot 2's own estimates (robot 2's placed by the alignment) and the
+merged ones of ML, information fusion (the thesis's M-estimator counterpart), CI and OGK; the
+truth is a cross. ML's covariance of two inputs is rank-deficient: its ellipse is a segment."""
 
 import math
 import sys
 from pathlib import Path
+
+import numpy as np
+from matplotlib.patches import Ellipse
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from plotlib import curves, directory_argument, number, panel, plt, rows, save  # noqa: E402
@@ -148,10 +156,59 @@ def table_figure(d):
               "Table 7: single maps and merged map (against the whole-run reference)")
 
 
+# Fig. 58's sources in the thesis's colours (robots black and red; ML, M-estimator, CI blue,
+# green, cyan), OGK beside them.
+ELLIPSES = [("robot_a", "robot 1", "black", "-"), ("robot_b", "robot 2 (aligned)", "red", "-"),
+            ("ml", "ML", "blue", "-"), ("information", "information (M-estimator)", "green", "-"),
+            ("ci", "CI", "c", "-"), ("ogk", "OGK", "C1", "--")]
+
+
+def ellipse_figure(d):
+    data = rows(d / "fig58_ellipses.csv")
+    by = {(r["signature"], r["source"]): r for r in data}
+    landmarks = sorted({r["signature"] for r in data}, key=int)
+    landmarks = [s for s in landmarks if all((s, src) in by for src, _, _, _ in ELLIPSES)]
+    if not landmarks:
+        return
+    chosen = [landmarks[round(k * (len(landmarks) - 1) / 5)] for k in range(6)] if len(landmarks) >= 6 else landmarks
+    fig, axes = plt.subplots(2, 3, figsize=(11, 7))
+    k95 = math.sqrt(-2.0 * math.log(0.05))  # 2.448: the 95 % contour of a 2-D Gaussian
+    for ax, sig in zip(axes.flat, dict.fromkeys(chosen)):
+        truth = by[(sig, "robot_a")]
+        tx, ty = number(truth["truth_x"]), number(truth["truth_y"])
+        reach = 0.0
+        for src, label, colour, style in ELLIPSES:
+            r = by[(sig, src)]
+            cov = np.array([[number(r["cxx"]), number(r["cxy"])], [number(r["cxy"]), number(r["cyy"])]])
+            vals, vecs = np.linalg.eigh(cov)
+            vals = np.clip(vals, 0.0, None)
+            angle = math.degrees(math.atan2(vecs[1, 1], vecs[0, 1]))
+            x, y = number(r["x"]) - tx, number(r["y"]) - ty
+            ax.add_patch(Ellipse((x, y), 2 * k95 * math.sqrt(vals[1]), 2 * k95 * math.sqrt(vals[0]), angle=angle,
+                                 fill=False, edgecolor=colour, linestyle=style, linewidth=1.2, label=label))
+            ax.plot(x, y, ".", color=colour, ms=4)
+            reach = max(reach, abs(x) + k95 * math.sqrt(vals[1]), abs(y) + k95 * math.sqrt(vals[1]))
+        ax.plot(0, 0, "x", color="grey", ms=8, label="truth")
+        lim = 1.1 * reach if reach > 0 else 1.0
+        ax.set_xlim(-lim, lim)
+        ax.set_ylim(-lim, lim)
+        ax.set_aspect("equal")
+        ax.set_title(f"landmark {sig}", fontsize=9)
+        ax.set_xlabel("x - truth (m)")
+        ax.set_ylabel("y - truth (m)")
+        ax.grid(alpha=0.3)
+    for ax in list(axes.flat)[len(dict.fromkeys(chosen)):]:
+        ax.axis("off")
+    axes.flat[0].legend(fontsize=7, loc="upper left")
+    fig.suptitle("Fig. 58: covariance ellipses (95 %) of the robots' estimates and the merged ones, one run")
+    save(fig, d / "fig58_ellipses.png")
+
+
 def main(argv):
     doc = __doc__
     d, code = None, None
-    for name, _, _ in SWEEPS + ALIGNED_SWEEPS + [("table7_victoria", None, None), ("table7_vp_sim", None, None)]:
+    for name, _, _ in SWEEPS + ALIGNED_SWEEPS + [("table7_victoria", None, None), ("table7_vp_sim", None, None),
+                                                 ("fig58_ellipses", None, None)]:
         if len(argv) == 2 and (Path(argv[1]) / f"{name}.csv").exists():
             d, code = directory_argument(argv, doc, "fusion.py", f"{name}.csv", "mapmesh-lab thesis-fusion --out")
             break
@@ -169,6 +226,8 @@ def main(argv):
         table_figure(d)
     if (d / "table7_vp_sim.csv").exists():
         sim_table_figure(d)
+    if (d / "fig58_ellipses.csv").exists():
+        ellipse_figure(d)
     print(f"fusion.py: wrote {len(list(d.glob('*.png')))} figures in {d}")
     return 0
 

@@ -23,7 +23,7 @@ class AlignmentPlotsTest(unittest.TestCase):
                                capture_output=True, text=True, timeout=120)
             self.assertEqual(r.returncode, 0, r.stderr)
             pngs = sorted(out.glob("*.png"))
-            self.assertEqual([p.name for p in pngs], ["fig46_similarity.png", "fig48_50_noise.png",
+            self.assertEqual([p.name for p in pngs], ["fig45_overlap.png", "fig46_similarity.png", "fig48_50_noise.png",
                                                       "fig49_51_match_ratio.png", "fig52_53_distance.png"])
             for p in pngs:
                 data = p.read_bytes()
@@ -47,11 +47,11 @@ class FusionPlotsTest(unittest.TestCase):
             out = Path(tmp) / "fusion"
             # Table 7 replays Victoria Park: without the datasets only the simulated figures are drawn.
             have_vp = (DATASETS / "victoria_park").is_dir()
-            only = [] if have_vp else ["--only", "bearing", "velocity", "range"]
+            only = [] if have_vp else ["--only", "bearing", "velocity", "range", "fig58"]
             subprocess.run([str(BIN / "mapmesh-lab"), "thesis-fusion", "--out", str(out), "--seeds", "1",
                             "--threads", "1"] + only, check=True, capture_output=True, timeout=240)
             csvs = sorted(p.name for p in out.glob("*.csv"))
-            expected = ["fig61_62_bearing.csv", "fig64_65_velocity.csv", "fig72_73_range.csv"]
+            expected = ["fig58_ellipses.csv", "fig61_62_bearing.csv", "fig64_65_velocity.csv", "fig72_73_range.csv"]
             if have_vp:  # every experiment: the simulated Victoria Park, low overlap and the real replay
                 expected += ["fig66_69_low_overlap.csv", "fig75_76_vp_bearing.csv", "fig77_78_vp_velocity.csv",
                              "fig80_81_vp_range.csv", "table7_victoria.csv", "table7_vp_sim.csv"]

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "common/geometry/rigid_fit.h"
+#include "common/merge/alignment_fit.h"
 #include "common/metrics/trajectory_metrics.h"
 #include "lab/synthetic_maps.h"
 
@@ -43,6 +44,43 @@ TEST_P(PlantedTransformTest, IsRecoveredFromNoisyOverlappingMaps) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, PlantedTransformTest, ::testing::Range(1, 11));
+
+// The consensus test RansacAlign and the cost bench share: at the planted transform every true
+// pair is in the gate and counted once per landmark however many candidates repeat it; at a
+// transform a metre off, hardly any.
+TEST(ConsensusScorer, CountsEachLandmarkOnceAndMarksTheGatedCandidates) {
+  std::mt19937_64 rng(5);
+  const lab::MapPair p = lab::MakeMapPair(Pair(200, 0.4, 0.02), rng);
+  ASSERT_GE(p.true_pairs.size(), 20u);
+  std::vector<CandidatePair> cand;
+  for (const auto& [ia, ib] : p.true_pairs) cand.push_back({ia, ib});
+  const std::size_t n_true = cand.size();
+  // Each of the first ten true pairs twice more (dense candidates), and far-off outliers.
+  for (std::size_t i = 0; i < 10; ++i) cand.push_back(cand[i]), cand.push_back(cand[i]);
+  std::uniform_int_distribution<int> ia(0, static_cast<int>(p.a.landmarks.size()) - 1),
+      ib(0, static_cast<int>(p.b.landmarks.size()) - 1);
+  for (int k = 0; k < 50; ++k) {
+    const CandidatePair c{ia(rng), ib(rng)};
+    const Eigen::Vector2d d = p.a.landmarks[c.a].mean - PoseMap2(p.truth).Apply(p.b.landmarks[c.b].mean);
+    if (d.norm() > 3.0) cand.push_back(c);
+  }
+  AlignmentOptions o;
+  alignment_detail::ConsensusScorer scorer(p.a, p.b, cand, o);
+  std::vector<char> in;
+  const auto s = scorer.Evaluate(PoseMap2(p.truth), in);
+  ASSERT_EQ(in.size(), cand.size());
+  int true_in = 0;
+  for (std::size_t i = 0; i < n_true; ++i) true_in += in[i];
+  EXPECT_GE(true_in, 0.95 * n_true);
+  for (std::size_t i = n_true + 20; i < cand.size(); ++i) EXPECT_FALSE(in[i]) << i;
+  EXPECT_EQ(s.support, true_in);  // the repeats add pairs, not support
+  EXPECT_GE(s.pairs, true_in + 18);
+  EXPECT_GT(s.cost, 0.0);
+  Pose2 off = p.truth;
+  off.x += 1.0;
+  const auto w = scorer.Evaluate(PoseMap2(off), in);  // the stamps are reset per evaluation
+  EXPECT_LT(w.support, 0.2 * s.support);
+}
 
 class DisjointMapsTest : public ::testing::TestWithParam<int> {};
 
