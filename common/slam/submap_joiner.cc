@@ -293,8 +293,30 @@ JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state
 void SubmapJoiner::Add(const SubmapEstimate& submap) {
   Factor f = MakeFactor(submap, submaps_);
   Initialise(f, &state_);
+  if (options_.relinearise_m > 0.0) history_.push_back(f);
   factors_.push_back(std::move(f));
   ++submaps_;
+  last_ = Optimise(factors_, &state_);
+  if (options_.relinearise_m > 0.0 && !prior_.vars.empty() &&
+      submaps_ >= last_relinearised_ + static_cast<std::size_t>(options_.window) &&
+      PriorDrift() > options_.relinearise_m) {
+    Relinearise();
+    return;
+  }
+  while (factors_.size() > static_cast<std::size_t>(options_.window)) Marginalise();
+}
+
+double SubmapJoiner::PriorDrift() const {
+  const Eigen::VectorXd d = PriorOffset(state_);
+  return d.size() == 0 ? 0.0 : d.cwiseAbs().maxCoeff();
+}
+
+void SubmapJoiner::Relinearise() {
+  ++relinearisations_;
+  last_relinearised_ = submaps_;
+  for (const auto& [k, pose] : left_frames_) state_.poses[k] = pose;
+  prior_ = Prior{};
+  factors_.assign(history_.begin(), history_.end());
   last_ = Optimise(factors_, &state_);
   while (factors_.size() > static_cast<std::size_t>(options_.window)) Marginalise();
 }
@@ -367,6 +389,7 @@ void SubmapJoiner::Marginalise() {
     const Eigen::LDLT<Eigen::Matrix3d> ee(hee);
     hrr -= hre * ee.solve(hre.transpose());
     br -= hre * ee.solve(b.segment<3>(elim));
+    if (options_.relinearise_m > 0.0) left_frames_[a] = state_.poses.at(a);
     state_.poses.erase(a);
   }
   prior_.vars = std::move(kept_vars);

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <set>
+
 #include <Eigen/Cholesky>
 #include <random>
 #include <stdexcept>
@@ -228,6 +230,74 @@ TEST(SubmapJoiner, RelinearisesWhatAnEkfCannot) {
   EXPECT_GE(m.iterations, 3);
   for (std::size_t i = 0; i < 5; ++i) EXPECT_LT((m.means[i] - w.landmarks[m.keys[i]]).norm(), 1e-3);
   EXPECT_LT(std::abs(WrapAngle(m.end.theta - w.frames[2].theta)), 1e-3);
+}
+
+// The submap without the landmarks `drop` says nothing about (a Gaussian's marginal: its rows
+// and columns left out).
+SubmapEstimate Without(const SubmapEstimate& s, const std::set<std::uint32_t>& drop) {
+  std::vector<Eigen::Index> rows{0, 1, 2};
+  SubmapEstimate out;
+  for (std::size_t j = 0; j < s.keys.size(); ++j) {
+    if (drop.count(s.keys[j])) continue;
+    out.keys.push_back(s.keys[j]);
+    rows.push_back(3 + 2 * static_cast<Eigen::Index>(j));
+    rows.push_back(4 + 2 * static_cast<Eigen::Index>(j));
+  }
+  out.x = s.x(rows);
+  out.p = s.p(rows, rows);
+  return out;
+}
+
+// Submap 3 ends after a blind turn: its end heading 0.5 rad off, with a variance that allows
+// it. Submaps 4-6 map new ground only, so nothing corrects that heading before they leave a
+// window of 2: the prior holds their landmarks linearised 0.5 rad wrong about X_4. From
+// submap 7 on, old and new landmarks are seen together and the heading is found. With
+// relinearise_m the joiner notices the estimate leaving the prior's linearisation point and
+// ends at the full solve's answer; without it the map keeps a visible error.
+TEST(SubmapJoiner, RelinearisesAPriorLinearisedAtAPoorEstimate) {
+  std::mt19937_64 rng(11);
+  const World w = MakeWorld(rng, 40, 30, 2.0);
+  std::vector<SubmapEstimate> submaps;
+  for (int k = 0; k < 30; ++k) submaps.push_back(Measure(w, k, 7.0, 0.02, rng));
+  submaps[3].x(2) += 0.5;
+  submaps[3].p(2, 2) += 0.25;
+  std::set<std::uint32_t> old;
+  for (int k = 0; k < 4; ++k) old.insert(submaps[k].keys.begin(), submaps[k].keys.end());
+  for (int k = 4; k < 7; ++k) submaps[k] = Without(submaps[k], old);
+  SubmapJoiner full({.window = 1000}), stale({.window = 2}), fluid({.window = 2, .relinearise_m = 0.1});
+  for (const SubmapEstimate& s : submaps) {
+    full.Add(s);
+    stale.Add(s);
+    fluid.Add(s);
+    EXPECT_LE(fluid.window_frames(), 3u);
+  }
+  const JoinedMap &a = stale.last(), &b = fluid.last(), &c = full.last();
+  ASSERT_EQ(a.keys, c.keys);
+  ASSERT_EQ(b.keys, c.keys);
+  double stale_gap = 0.0, fluid_gap = 0.0;
+  for (std::size_t i = 0; i < c.keys.size(); ++i) {
+    stale_gap = std::max(stale_gap, (a.means[i] - c.means[i]).norm());
+    fluid_gap = std::max(fluid_gap, (b.means[i] - c.means[i]).norm());
+  }
+  EXPECT_GT(stale_gap, 0.1);   // the planted failure exists ...
+  EXPECT_LT(fluid_gap, 0.01);  // ... and relinearising removes it
+  EXPECT_GE(fluid.relinearisations(), 1);
+  EXPECT_EQ(stale.relinearisations(), 0);
+}
+
+// On a run whose estimates never leave their linearisation point, nothing is relinearised and
+// the result is the plain windowed join's.
+TEST(SubmapJoiner, RelinearisingIsIdleWhenThePriorHolds) {
+  std::mt19937_64 rng(7);
+  const World w = MakeWorld(rng, 40, 60, 2.0);
+  SubmapJoiner plain({.window = 5}), fluid({.window = 5, .relinearise_m = 0.1});
+  for (int k = 0; k < 60; ++k) {
+    const SubmapEstimate s = Measure(w, k, 7.0, 0.02, rng);
+    plain.Add(s);
+    fluid.Add(s);
+  }
+  EXPECT_EQ(fluid.relinearisations(), 0);
+  EXPECT_EQ(fluid.last().means, plain.last().means);
 }
 
 TEST(SubmapJoiner, RefusesMalformedSubmaps) {
