@@ -301,7 +301,6 @@ void SubmapJoiner::Add(const SubmapEstimate& submap) {
       submaps_ >= last_relinearised_ + static_cast<std::size_t>(options_.window) &&
       PriorDrift() > options_.relinearise_m) {
     Relinearise();
-    return;
   }
   while (factors_.size() > static_cast<std::size_t>(options_.window)) Marginalise();
 }
@@ -318,7 +317,6 @@ void SubmapJoiner::Relinearise() {
   prior_ = Prior{};
   factors_.assign(history_.begin(), history_.end());
   last_ = Optimise(factors_, &state_);
-  while (factors_.size() > static_cast<std::size_t>(options_.window)) Marginalise();
 }
 
 JoinedMap SubmapJoiner::Solve(const SubmapEstimate* open) const {

@@ -147,7 +147,7 @@ class SubmapJoiner {
   // The largest move (m or rad) of a prior variable from the prior's linearisation point.
   double PriorDrift() const;
   // Every submap relinearised: one solve over all of them from the current estimate (frames
-  // that left the window from where they left), then the old ones marginalised again.
+  // that left the window from where they left), with no prior; Add then marginalises again.
   void Relinearise();
 
   JoinerOptions options_;

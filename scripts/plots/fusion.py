@@ -26,11 +26,9 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
-from matplotlib.patches import Ellipse
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from plotlib import curves, directory_argument, number, panel, plt, rows, save  # noqa: E402
+from plotlib import SIGMA_95, curves, directory_argument, ellipse95, number, panel, plt, rows, save  # noqa: E402
 
 SWEEPS = [
     ("fig61_62_bearing", "robot 2 bearing sigma (deg)", "Figs. 61-62: bearing noise"),
@@ -172,22 +170,19 @@ def ellipse_figure(d):
         return
     chosen = [landmarks[round(k * (len(landmarks) - 1) / 5)] for k in range(6)] if len(landmarks) >= 6 else landmarks
     fig, axes = plt.subplots(2, 3, figsize=(11, 7))
-    k95 = math.sqrt(-2.0 * math.log(0.05))  # 2.448: the 95 % contour of a 2-D Gaussian
     for ax, sig in zip(axes.flat, dict.fromkeys(chosen)):
         truth = by[(sig, "robot_a")]
         tx, ty = number(truth["truth_x"]), number(truth["truth_y"])
         reach = 0.0
         for src, label, colour, style in ELLIPSES:
             r = by[(sig, src)]
-            cov = np.array([[number(r["cxx"]), number(r["cxy"])], [number(r["cxy"]), number(r["cyy"])]])
-            vals, vecs = np.linalg.eigh(cov)
-            vals = np.clip(vals, 0.0, None)
-            angle = math.degrees(math.atan2(vecs[1, 1], vecs[0, 1]))
+            cov = [[number(r["cxx"]), number(r["cxy"])], [number(r["cxy"]), number(r["cyy"])]]
             x, y = number(r["x"]) - tx, number(r["y"]) - ty
-            ax.add_patch(Ellipse((x, y), 2 * k95 * math.sqrt(vals[1]), 2 * k95 * math.sqrt(vals[0]), angle=angle,
-                                 fill=False, edgecolor=colour, linestyle=style, linewidth=1.2, label=label))
+            ax.add_patch(ellipse95((x, y), cov, fill=False, edgecolor=colour, linestyle=style, linewidth=1.2,
+                                   label=label))
             ax.plot(x, y, ".", color=colour, ms=4)
-            reach = max(reach, abs(x) + k95 * math.sqrt(vals[1]), abs(y) + k95 * math.sqrt(vals[1]))
+            # The ellipse reaches SIGMA_95 standard deviations along each axis.
+            reach = max(reach, abs(x) + SIGMA_95 * math.sqrt(cov[0][0]), abs(y) + SIGMA_95 * math.sqrt(cov[1][1]))
         ax.plot(0, 0, "x", color="grey", ms=8, label="truth")
         lim = 1.1 * reach if reach > 0 else 1.0
         ax.set_xlim(-lim, lim)

@@ -2,6 +2,7 @@
 command-line handling every plot script has (DIR argument, --help, one-line errors)."""
 
 import csv
+import math
 import sys
 from collections import defaultdict
 from pathlib import Path
@@ -10,6 +11,11 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402,F401  (re-exported for the scripts)
+import numpy as np  # noqa: E402
+from matplotlib.patches import Ellipse  # noqa: E402
+
+# Half-axes of the 95 % ellipse of a 2-D Gaussian, in standard deviations: sqrt(chi2_2(0.95)).
+SIGMA_95 = 2.448
 
 
 def rows(path):
@@ -42,6 +48,16 @@ def panel(ax, series, title, xlabel, ylabel, label_fmt="{}", style=None):
     ax.set_ylabel(ylabel)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+
+
+def ellipse95(centre, cov, **style):
+    """The 95 % ellipse (a matplotlib Ellipse) of a 2-D Gaussian at centre with the 2x2
+    covariance cov; a rank-deficient covariance gives a segment."""
+    values, vectors = np.linalg.eigh(np.asarray(cov, dtype=float))
+    values = np.clip(values, 0.0, None)
+    major = vectors[:, 1]
+    return Ellipse(centre, width=2 * SIGMA_95 * math.sqrt(values[1]), height=2 * SIGMA_95 * math.sqrt(values[0]),
+                   angle=math.degrees(math.atan2(major[1], major[0])), **style)
 
 
 def save(fig, path, dpi=110):

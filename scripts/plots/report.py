@@ -45,7 +45,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
-from plotlib import directory_argument, plt  # noqa: E402
+from plotlib import directory_argument, ellipse95, plt  # noqa: E402
 from mapmesh.columns import HTML_COLUMNS, lookup  # noqa: E402
 from mapmesh.rundir import (GLOBAL_MAP, HISTORY, LOCAL_MAP, REPORT, STATS, SUMMARY, TIMELINE,  # noqa: E402
                             TRAJECTORY, TRUTH, RunDir, alignment_changes, pose_at, radio_links, radio_spans,
@@ -54,11 +54,8 @@ from mapmesh.rundir import (GLOBAL_MAP, HISTORY, LOCAL_MAP, REPORT, STATS, SUMMA
 import numpy as np  # noqa: E402
 from matplotlib.collections import PatchCollection  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import Ellipse  # noqa: E402
 
 DPI = 100
-# Half-axes of the 95 % ellipse of a 2-D Gaussian, in standard deviations: sqrt(chi2_2(0.95)).
-SIGMA_95 = 2.448
 # Expected NEES of a consistent 2-D estimate (its degrees of freedom), and the band a map's mean
 # NEES is counted consistent in (flagged in the summary outside it).
 NEES_EXPECTED = 2.0
@@ -135,13 +132,7 @@ def ellipse_patches(xy, covs, theta):
     for (x, y), cov in zip(xy, covs):
         if cov is None or len(cov) != 3 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in cov):
             continue
-        m = rot @ np.array([[cov[0], cov[1]], [cov[1], cov[2]]]) @ rot.T
-        values, vectors = np.linalg.eigh(m)
-        values = np.clip(values, 0.0, None)
-        major = vectors[:, 1]
-        patches.append(Ellipse((x, y), width=2 * SIGMA_95 * math.sqrt(values[1]),
-                               height=2 * SIGMA_95 * math.sqrt(values[0]),
-                               angle=math.degrees(math.atan2(major[1], major[0]))))
+        patches.append(ellipse95((x, y), rot @ np.array([[cov[0], cov[1]], [cov[1], cov[2]]]) @ rot.T))
     return patches
 
 
