@@ -46,6 +46,7 @@ struct AgentOptions {
     dead_reckoning.Read(r);
     sync.Read(r);
     exchange.Read(r);
+    exchange.chain_join = slam.submaps.join;
     rendezvous.Read(r);
     peer_limits.Read(r);
     r.GetInRange("status_period_s", status_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);

@@ -8,6 +8,7 @@
 #include "common/config/scenario_limits.h"
 #include "common/merge/global_map.h"
 #include "common/merge/map_alignment.h"
+#include "common/slam/submap_joiner.h"
 #include "common/types/choice.h"
 
 namespace mapmesh {
@@ -90,7 +91,11 @@ struct ExchangeOptions {
   int rendezvous_min_inliers = 3;
   double rendezvous_gate_probability = 0.999;  // the maps' transform must lie within this gate of the fit
   GlobalMapOptions global;
-  SubmapRelayOptions submaps;   // closed submaps held and relayed (issue J1); zero periods resolved by Submaps()
+  SubmapRelayOptions submaps;  // closed submaps held and relayed (issue J1); zero periods resolved by Submaps()
+  // The joining back-end rebuilds the map of a robot it holds submaps of but aligned no map of
+  // (its submaps were relayed) with the agent's own joiner options (agent.join_window,
+  // agent.join_relinearise_m): AgentOptions::Read copies them here.
+  JoinerOptions chain_join{.relinearise_m = 0.1};
   ExchangeAblations test_only;  // all on outside unit tests
 
   // silent_after_s resolved.

@@ -1,6 +1,13 @@
 #include "agent/fusion_backend.h"
 
 #include <algorithm>
+#include <optional>
+#include <random>
+#include <set>
+
+#include "agent/relay_policy.h"
+#include "common/merge/chain_map.h"
+#include "common/merge/map_alignment.h"
 
 #include "common/merge/map_joining.h"
 #include "common/merge/submap_network.h"
@@ -34,17 +41,25 @@ class CloneFusion : public FusionBackend {
 // a relayed global map mixes information of unknown origin.
 class JoiningFusion : public FusionBackend {
  public:
-  JoiningFusion(RobotId self, std::uint32_t incarnation, const GlobalMapOptions& options)
-      : self_(self), incarnation_(incarnation), association_(options) {
+  JoiningFusion(RobotId self, std::uint32_t incarnation, const ExchangeOptions& options, std::uint64_t seed)
+      : self_(self),
+        incarnation_(incarnation),
+        association_(options.global),
+        options_(options),
+        relay_(options),
+        seed_(seed) {
     association_.method = FusionMethod::kCiConstant;
   }
   Built Build(const LandmarkMap& own_local, const std::vector<MapSource>&, const std::vector<MapSource>& direct,
               const SubmapInputs& submaps) override {
-    const GlobalMap associated = BuildGlobalMap(own_local, self_, direct, association_, incarnation_, &memo_);
     Built b;
     if (submaps.book != nullptr && (submaps.own_open || submaps.book->ChainLength(self_, incarnation_) > 0)) {
-      b.global = JoinChains(associated, direct, submaps);
+      std::vector<MapSource> inputs = direct;
+      PlaceRelayedChains(own_local, *submaps.book, submaps.now, &inputs);
+      const GlobalMap associated = BuildGlobalMap(own_local, self_, inputs, association_, incarnation_, &memo_);
+      b.global = JoinChains(associated, inputs, submaps);
     } else {
+      const GlobalMap associated = BuildGlobalMap(own_local, self_, direct, association_, incarnation_, &memo_);
       b.global = JoinMaps(own_local, self_, incarnation_, direct, associated);
     }
     b.published = b.global;
@@ -54,13 +69,15 @@ class JoiningFusion : public FusionBackend {
 
  private:
   // The submap chains joined (submap_network.h): the own chain (closed submaps, then the open
-  // one) in the own frame, and each aligned peer's (closed, then its latest open one) from its
-  // alignment, the association from the CI build's groups. Each landmark a chain holds gets the
+  // one) in the own frame, and each source's (an aligned peer's closed submaps, then its latest
+  // open one; a placed relayed chain's closed ones) from where the source lies, the association
+  // from the CI build's groups. Each landmark a chain holds gets the
   // joint estimate; one no chain holds keeps the CI build's.
-  GlobalMap JoinChains(const GlobalMap& associated, const std::vector<MapSource>& direct, const SubmapInputs& submaps) {
+  GlobalMap JoinChains(const GlobalMap& associated, const std::vector<MapSource>& sources,
+                       const SubmapInputs& submaps) {
     const SubmapBook& book = *submaps.book;
     auto chain = [&](RobotId robot, std::uint32_t incarnation, const Pose2& origin) {
-      ChainInput c{robot, incarnation, {}, origin};
+      ChainInput c{robot, incarnation, {}, origin, {}};
       const std::uint32_t n = book.ChainLength(robot, incarnation);
       for (std::uint32_t i = 0; i < n; ++i) c.submaps.push_back(book.Find({robot, incarnation, i}));
       return c;
@@ -69,7 +86,7 @@ class JoiningFusion : public FusionBackend {
     if (submaps.own_open && submaps.own_open->id.index == chains[0].submaps.size()) {
       chains[0].submaps.push_back(submaps.own_open);  // it continues the chain (none is missing before it)
     }
-    for (const MapSource& s : direct) {
+    for (const MapSource& s : sources) {
       ChainInput c = chain(s.robot, s.incarnation, s.to_own);
       if (submaps.peers_open != nullptr) {
         const auto open = submaps.peers_open->find({s.robot, s.incarnation});
@@ -117,11 +134,88 @@ class JoiningFusion : public FusionBackend {
     return out;
   }
 
+  // A chain held only through relays: its map rebuilt from its submaps, and where it lies.
+  struct Relayed {
+    explicit Relayed(const JoinerOptions& o) : map(o) {}
+    ChainMap map;
+    std::optional<AlignmentResult> candidate;              // an alignment waiting for a later one to agree
+    std::optional<Pose2> to_own;                           // placed: where the chain's first frame lies ...
+    Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();  // ... and how well the alignment knew it
+    std::size_t tried_size = 0, tried_target = 0;          // both maps' sizes at the last alignment ...
+    std::optional<double> tried_at;                        // ... and when it was
+    std::uint64_t attempts = 0;
+  };
+
+  // Appends to `inputs` (the one-hop maps) a source for every placed chain the agent holds only
+  // through relays, in (robot, incarnation) order. A chain is placed by aligning its rebuilt
+  // map against the global map of the own map and the sources before it, once a later
+  // alignment agrees with the first (relay tolerances at the chain map's centroid); a
+  // disagreeing one replaces the candidate. As for peers, an alignment is tried again after
+  // align_period_s, or when either map has grown by retry_growth. Once placed, the chain lies
+  // where the last solve put its first frame.
+  void PlaceRelayedChains(const LandmarkMap& own_local, const SubmapBook& book, double now,
+                          std::vector<MapSource>* inputs) {
+    std::set<std::pair<RobotId, std::uint32_t>> heard = {{self_, incarnation_}};
+    for (const MapSource& s : *inputs) heard.insert({s.robot, s.incarnation});
+    report_.relayed_chains = report_.relayed_placed = 0;
+    std::optional<LandmarkMap> target;  // built when an alignment is due, from the inputs so far
+    for (const SubmapChain& c : book.Chains()) {
+      if (c.count == 0 || heard.count({c.robot, c.incarnation}) != 0) continue;
+      ++report_.relayed_chains;
+      Relayed& r = relayed_.try_emplace({c.robot, c.incarnation}, options_.chain_join).first->second;
+      std::vector<const WireSubmap*> chain;
+      for (std::uint32_t i = 0; i < c.count; ++i) chain.push_back(book.Find({c.robot, c.incarnation, i}));
+      r.map.Extend(chain);
+      const LandmarkMap& theirs = r.map.map();
+      if (!r.to_own && theirs.size() >= 3) {
+        if (!target) target = BuildGlobalMap(own_local, self_, *inputs, association_, incarnation_).map;
+        const auto grown = [&](std::size_t size, std::size_t then) {
+          return then == 0 || static_cast<double>(size) >= (1.0 + options_.retry_growth) * static_cast<double>(then);
+        };
+        if (!r.tried_at || now >= *r.tried_at + options_.align_period_s || grown(theirs.size(), r.tried_size) ||
+            grown(target->size(), r.tried_target)) {
+          r.tried_at = now;
+          Align(c, r, *target);
+          target.reset();
+        }
+      }
+      if (!r.to_own) continue;
+      ++report_.relayed_placed;
+      const auto last = last_frames_.find({c.robot, c.incarnation});
+      const Pose2 at = last != last_frames_.end() && !last->second.empty() ? last->second.front() : *r.to_own;
+      inputs->push_back(MapSource{c.robot, c.incarnation, theirs, at, r.to_own_cov});
+      target.reset();
+    }
+  }
+
+  void Align(const SubmapChain& c, Relayed& r, const LandmarkMap& target) {
+    const LandmarkMap& theirs = r.map.map();
+    r.tried_size = theirs.size();
+    r.tried_target = target.size();
+    std::mt19937_64 rng(seed_ ^ (std::uint64_t{c.robot} * 0x9e3779b97f4a7c15ULL) ^
+                        (std::uint64_t{c.incarnation} * 0xbf58476d1ce4e5b9ULL) ^
+                        (++r.attempts * 0x94d049bb133111ebULL));
+    ++report_.relayed_alignments;
+    const AlignmentResult a = AlignMaps(target, theirs, options_.align, rng);
+    if (!a.accepted()) return;
+    if (r.candidate && relay_.Agree(r.candidate->transform, a.transform, Centroid(theirs))) {
+      r.to_own = a.transform;
+      r.to_own_cov = a.cov;
+      return;
+    }
+    if (r.candidate) ++report_.relayed_disagreements;
+    r.candidate = a;
+  }
+
   RobotId self_;
   std::uint32_t incarnation_;
   GlobalMapOptions association_;
+  ExchangeOptions options_;
+  RelayPolicy relay_;
+  std::uint64_t seed_;
   AssociationMemo memo_;
   JoiningReport report_;
+  std::map<std::pair<RobotId, std::uint32_t>, Relayed> relayed_;
   // The last solve's frames per chain: where the next one starts.
   std::map<std::pair<RobotId, std::uint32_t>, std::vector<Pose2>> last_frames_;
 };
@@ -129,9 +223,11 @@ class JoiningFusion : public FusionBackend {
 }  // namespace
 
 std::unique_ptr<FusionBackend> MakeFusionBackend(RobotId self, std::uint32_t incarnation,
-                                                 const GlobalMapOptions& options) {
-  if (options.method == FusionMethod::kJoining) return std::make_unique<JoiningFusion>(self, incarnation, options);
-  return std::make_unique<CloneFusion>(self, incarnation, options);
+                                                 const ExchangeOptions& options, std::uint64_t seed) {
+  if (options.global.method == FusionMethod::kJoining) {
+    return std::make_unique<JoiningFusion>(self, incarnation, options, seed);
+  }
+  return std::make_unique<CloneFusion>(self, incarnation, options.global);
 }
 
 }  // namespace mapmesh

@@ -4,13 +4,17 @@
 // global map (the thesis's method and the default), or least-squares joining: of the own and
 // the aligned peers' submap chains where the agent holds them (agent.slam cekf_submaps; the
 // landmarks only the peers' open submaps hold are placed as the CI build places them), else of
-// the one-hop maps. A back-end reads what it is given and changes only its own association
-// memory.
+// the one-hop maps. Joining also places the chains of robots whose submaps reached the agent
+// only through relays: each such chain's map is rebuilt from its submaps (ChainMap) and aligned
+// against the own and one-hop maps, and used once a later alignment agrees (two hops and more).
+// A back-end reads what it is given and changes only its own memory (association, relayed
+// chains' maps and placements).
 
 #include <map>
 #include <memory>
 #include <vector>
 
+#include "agent/exchange_options.h"
 #include "agent/peer_state.h"
 #include "common/map/submap_book.h"
 #include "common/merge/global_map.h"
@@ -26,6 +30,7 @@ struct SubmapInputs {
   // Each peer incarnation's latest open submap (its index: the count of its closed ones); null
   // for none.
   const std::map<PeerKey, WireSubmap>* peers_open = nullptr;
+  double now = 0.0;  // scenario time of the build (the exchange sets it): when alignments are due
 };
 
 // What the joining back-end's last solve on submap chains did (all zero before one).
@@ -39,6 +44,14 @@ struct JoiningReport {
   bool solved = false;
   int ties = 0;          // pairings of landmarks across chains offered by the association ...
   int ties_dropped = 0;  // ... and not used (contradicted by the submaps, or redundant)
+  // Chains held only through relays (no map of their robot aligned): held at the last build,
+  // placed (an alignment confirmed by a later one) and among them offered to the join; and the
+  // alignments of their rebuilt maps tried so far, and refused as disagreeing with the one
+  // before.
+  int relayed_chains = 0;
+  int relayed_placed = 0;
+  int relayed_alignments = 0;
+  int relayed_disagreements = 0;
 };
 
 class FusionBackend {
@@ -55,8 +68,10 @@ class FusionBackend {
                       const std::vector<MapSource>& direct, const SubmapInputs& submaps = {}) = 0;
 };
 
-// The back-end options.method names, for robot `self` in its incarnation.
+// The back-end options.global.method names, for robot `self` in its incarnation; joining
+// aligns relayed chains with options.align, options.chain_join and the relay tolerances, its
+// random draws seeded from `seed` (the agent's: scenario, robot, incarnation) and the chain.
 std::unique_ptr<FusionBackend> MakeFusionBackend(RobotId self, std::uint32_t incarnation,
-                                                 const GlobalMapOptions& options);
+                                                 const ExchangeOptions& options, std::uint64_t seed);
 
 }  // namespace mapmesh

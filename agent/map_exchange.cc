@@ -13,7 +13,7 @@ MapExchange::MapExchange(RobotId self, std::uint32_t incarnation, const Exchange
       incarnation_(incarnation),
       options_(options),
       rng_(seed),
-      fusion_(MakeFusionBackend(self, incarnation, options.global)),
+      fusion_(MakeFusionBackend(self, incarnation, options, seed ^ 0x6a09e667f3bcc909ULL)),
       rendezvous_gate_(Chi2Quantile(options.rendezvous_gate_probability, 3)) {}
 
 void MapExchange::Drop(PeerState& p, double now) {
@@ -357,7 +357,9 @@ void MapExchange::Build(const LandmarkMap& own_local) {
     }
     sources.push_back(*p.source);
   }
-  FusionBackend::Built built = fusion_->Build(own_local, sources, direct, submap_inputs_);
+  SubmapInputs inputs = submap_inputs_;
+  inputs.now = now_;
+  FusionBackend::Built built = fusion_->Build(own_local, sources, direct, inputs);
   global_ = std::move(built.global);
   published_ = std::move(built.published);
   joining_ = built.joining;

@@ -2,7 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
 #include <random>
+#include <set>
+
+#include "common/merge/chain_map.h"
+#include "tests/testing/submap_world.h"
 
 namespace mapmesh {
 namespace {
@@ -49,9 +54,9 @@ class FusionBackendTest : public ::testing::Test {
 };
 
 TEST_F(FusionBackendTest, CovarianceIntersectionNeverCountsASharedLandmarkTwice) {
-  GlobalMapOptions o;
-  o.method = FusionMethod::kCiConstant;
-  const auto ci = MakeFusionBackend(1, 1, o);
+  ExchangeOptions o;
+  o.global.method = FusionMethod::kCiConstant;
+  const auto ci = MakeFusionBackend(1, 1, o, 1);
   const FusionBackend::Built b = ci->Build(own, {Source(2, two, frame2)}, {Source(2, two, frame2)});
   EXPECT_EQ(b.global.map.size(), 9u);  // the union: 0-8
   // Two equal covariances fused with equal weights: the covariance of either, not half of it.
@@ -85,15 +90,15 @@ WireSubmap ExactSubmap(RobotId robot, std::uint32_t index, int first, int last, 
 // estimate of the chains (here exact measurements: the truth, whatever the noisy maps say), and
 // a landmark no chain holds (robot 2's last, mapped after its submap) from the CI build.
 TEST_F(FusionBackendTest, JoiningOnSubmapChainsTakesTheChainsEstimates) {
-  GlobalMapOptions o;
-  o.method = FusionMethod::kJoining;
+  ExchangeOptions o;
+  o.global.method = FusionMethod::kJoining;
   SubmapBook book;
   const WireSubmap theirs = ExactSubmap(2, 0, 3, 8, frame2);  // landmarks 3-7 (their ids 0-4), not 8
   book.Add(theirs, EncodeSubmap(theirs));
   const WireSubmap ours = ExactSubmap(1, 0, 0, 6, Pose2{});
   SubmapInputs inputs{&book, &ours, nullptr};
-  const FusionBackend::Built b = MakeFusionBackend(1, 1, o)->Build(own, {Source(2, two, frame2)},
-                                                                   {Source(2, two, frame2)}, inputs);
+  const FusionBackend::Built b = MakeFusionBackend(1, 1, o, 1)
+                                     ->Build(own, {Source(2, two, frame2)}, {Source(2, two, frame2)}, inputs);
   GlobalMapOptions ci;
   ci.method = FusionMethod::kCiConstant;
   const std::vector<MapSource> sources = {Source(2, two, frame2)};
@@ -117,16 +122,16 @@ TEST_F(FusionBackendTest, JoiningOnSubmapChainsTakesTheChainsEstimates) {
   }
   EXPECT_EQ(exact, 8);
   // Without submaps the same back-end joins the maps (noisy: not the truth).
-  const FusionBackend::Built maps = MakeFusionBackend(1, 1, o)->Build(own, {Source(2, two, frame2)},
-                                                                      {Source(2, two, frame2)});
+  const FusionBackend::Built maps = MakeFusionBackend(1, 1, o, 1)
+                                        ->Build(own, {Source(2, two, frame2)}, {Source(2, two, frame2)});
   EXPECT_FALSE(maps.joining.solved);
   EXPECT_GT((Fused(maps.global, 4).mean - Eigen::Vector2d(12.0, 4.0)).norm(), 1e-3);
 }
 
 TEST_F(FusionBackendTest, JoiningCountsEachRobotsInformationOnce) {
-  GlobalMapOptions o;
-  o.method = FusionMethod::kJoining;
-  const auto joining = MakeFusionBackend(1, 1, o);
+  ExchangeOptions o;
+  o.global.method = FusionMethod::kJoining;
+  const auto joining = MakeFusionBackend(1, 1, o, 1);
   const FusionBackend::Built b = joining->Build(own, {Source(2, two, frame2)}, {Source(2, two, frame2)});
   EXPECT_EQ(b.global.map.size(), 9u);
   // Two independent equal measurements of a landmark: about half the covariance of either.
@@ -138,9 +143,9 @@ TEST_F(FusionBackendTest, JoiningCountsEachRobotsInformationOnce) {
 }
 
 TEST_F(FusionBackendTest, ThePublishedMapHoldsTheOneHopMapsOnly) {
-  GlobalMapOptions o;
-  o.method = FusionMethod::kCiConstant;
-  const auto ci = MakeFusionBackend(1, 1, o);
+  ExchangeOptions o;
+  o.global.method = FusionMethod::kCiConstant;
+  const auto ci = MakeFusionBackend(1, 1, o, 1);
   // Robot 2's relay brings robot 3's landmarks 9 (7 and 8 robot 2 saw itself): the global map has
   // them, the published one (one hop: nothing relayed goes out again) does not.
   LandmarkMap relay = two;
@@ -151,11 +156,111 @@ TEST_F(FusionBackendTest, ThePublishedMapHoldsTheOneHopMapsOnly) {
   EXPECT_EQ(b.global.map.size(), 10u);
   EXPECT_EQ(b.published.map.size(), 9u);
   // Joining uses the one-hop maps alone, in both.
-  o.method = FusionMethod::kJoining;
-  const FusionBackend::Built j = MakeFusionBackend(1, 1, o)->Build(own, {Source(2, relay, frame2)},
-                                                                   {Source(2, two, frame2)});
+  o.global.method = FusionMethod::kJoining;
+  const FusionBackend::Built j = MakeFusionBackend(1, 1, o, 1)
+                                     ->Build(own, {Source(2, relay, frame2)}, {Source(2, two, frame2)});
   EXPECT_EQ(j.global.map.size(), 9u);
   EXPECT_EQ(j.published.map.size(), 9u);
+}
+
+// J1, two hops: robot 3 never reached us, but its submaps did (relayed by robot 2). The joining
+// back-end rebuilds robot 3's map from its chain, aligns it against ours and robot 2's, and
+// joins it once a later alignment (after the chain grew) agrees with the first: then robot 3's
+// landmarks are in our global map where they are, and every chain is joined.
+TEST(FusionBackendRelayed, AChainHeldOnlyThroughRelaysIsPlacedOnceConfirmedAndJoined) {
+  testing::World w(20, 2.0);
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> jitter(-0.6, 0.6);
+  for (Eigen::Vector2d& l : w.landmarks) l += Eigen::Vector2d(jitter(rng), jitter(rng));
+  const Pose2 start1{1.0, 5.0, 0.0}, start2{13.0, 5.0, -0.2}, start3{25.0, 6.0, 0.1};
+  const testing::TrueChain t1 = testing::Drive(w, start1, 4, 3.0);
+  const testing::TrueChain t2 = testing::Drive(w, start2, 4, 3.0);
+  const testing::TrueChain t3 = testing::Drive(w, start3, 4, 3.0);
+  const std::vector<WireSubmap> s1 = testing::MeasureAll(w, t1, 1, rng);
+  const std::vector<WireSubmap> s2 = testing::MeasureAll(w, t2, 2, rng);
+  const std::vector<WireSubmap> s3 = testing::MeasureAll(w, t3, 3, rng);
+  auto rebuilt = [](const std::vector<WireSubmap>& s) {
+    std::vector<const WireSubmap*> p;
+    for (const WireSubmap& x : s) p.push_back(&x);
+    ChainMap c;
+    c.Extend(p);
+    return c.map();
+  };
+  const LandmarkMap own = rebuilt(s1);
+  const std::vector<MapSource> direct = {
+      {2, 1, rebuilt(s2), start1.Inverse() * start2, 1e-6 * Eigen::Matrix3d::Identity()}};
+  ExchangeOptions o;
+  o.global.method = FusionMethod::kJoining;
+
+  // Robot 3's first `first` submaps at 0 s, then its first `then` at then_s.
+  auto run = [&](std::size_t first, std::size_t then, double then_s) {
+    SubmapBook book;
+    for (const auto* s : {&s1, &s2}) {
+      for (const WireSubmap& x : *s) book.Add(x, EncodeSubmap(x));
+    }
+    for (std::size_t k = 0; k < first; ++k) book.Add(s3[k], EncodeSubmap(s3[k]));
+    const auto backend = MakeFusionBackend(1, 1, o, 42);
+    const FusionBackend::Built b = backend->Build(own, direct, direct, {&book, nullptr, nullptr, 0.0});
+    EXPECT_EQ(b.joining.relayed_chains, 1);
+    EXPECT_EQ(b.joining.relayed_alignments, 1);
+    EXPECT_EQ(b.joining.relayed_placed, 0);  // one alignment is not enough
+    for (std::size_t k = first; k < then; ++k) book.Add(s3[k], EncodeSubmap(s3[k]));
+    return backend->Build(own, direct, direct, {&book, nullptr, nullptr, then_s});
+  };
+  auto holds_robot3 = [](const FusionBackend::Built& b) {
+    for (const auto& origins : b.global.origins) {
+      for (const LandmarkOrigin& g : origins) {
+        if (g.robot == 3) return true;
+      }
+    }
+    return false;
+  };
+
+  // Nothing grew and the align period has not passed: no second alignment yet.
+  const FusionBackend::Built early = run(2, 2, 1.0);
+  EXPECT_EQ(early.joining.relayed_alignments, 1);
+  EXPECT_FALSE(holds_robot3(early));
+  // The same maps an align period later: a second draw agrees.
+  const FusionBackend::Built later = run(2, 2, o.align_period_s);
+  EXPECT_EQ(later.joining.relayed_alignments, 2);
+  EXPECT_EQ(later.joining.relayed_placed, 1);
+  EXPECT_TRUE(holds_robot3(later));
+  // Robot 3's chain grew: aligned again at once, and it agrees.
+  const FusionBackend::Built b = run(2, 4, 1.0);
+  EXPECT_EQ(b.joining.relayed_alignments, 2);
+  EXPECT_EQ(b.joining.relayed_disagreements, 0);
+  EXPECT_EQ(b.joining.relayed_placed, 1);
+  EXPECT_EQ(b.joining.chains, 3);
+  EXPECT_EQ(b.joining.chains_joined, 3);
+  EXPECT_TRUE(b.joining.solved);
+  // Every landmark some robot saw, once, where it is (in our frame).
+  std::set<int> seen;
+  for (const auto* t : {&t1, &t2, &t3}) {
+    for (const auto& v : t->seen) seen.insert(v.begin(), v.end());
+  }
+  EXPECT_EQ(b.global.map.size(), seen.size());
+  int robot3 = 0;
+  double nees = 0.0;
+  for (std::size_t g = 0; g < b.global.map.size(); ++g) {
+    const LandmarkOrigin& first = b.global.origins[g].front();
+    const Eigen::Vector2d truth = start1.TransformTo(w.landmarks[first.id]);  // keys are the world's indices
+    const Landmark& l = b.global.map.landmarks[g];
+    const double e = (l.mean - truth).dot(l.cov.ldlt().solve(l.mean - truth));
+    EXPECT_LT(e, 18.4) << "robot " << first.robot << " key " << first.id;  // chi-square 2 dof, 99.99 %
+    nees += e;
+    for (const LandmarkOrigin& x : b.global.origins[g]) robot3 += x.robot == 3 ? 1 : 0;
+  }
+  EXPECT_GT(robot3, 20);
+  const double mean_nees = nees / static_cast<double>(b.global.map.size());
+  EXPECT_GT(mean_nees, 0.5);  // one run (2.04 seen): its landmarks share a few frames' errors
+  EXPECT_LT(mean_nees, 4.0);
+  // The same inputs give the same map, to the bit (lockstep runs are identical).
+  const FusionBackend::Built again = run(2, 4, 1.0);
+  ASSERT_EQ(again.global.map.size(), b.global.map.size());
+  for (std::size_t g = 0; g < b.global.map.size(); ++g) {
+    EXPECT_EQ(again.global.map.landmarks[g].mean, b.global.map.landmarks[g].mean);
+    EXPECT_EQ(again.global.map.landmarks[g].cov, b.global.map.landmarks[g].cov);
+  }
 }
 
 }  // namespace

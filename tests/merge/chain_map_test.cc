@@ -1,0 +1,122 @@
+#include "common/merge/chain_map.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <limits>
+#include <random>
+#include <set>
+#include <vector>
+
+#include "tests/testing/submap_world.h"
+
+namespace mapmesh {
+namespace {
+
+using testing::Drive;
+using testing::MeasureAll;
+using testing::TrueChain;
+using testing::World;
+
+std::vector<const WireSubmap*> Pointers(const std::vector<WireSubmap>& submaps) {
+  std::vector<const WireSubmap*> out;
+  for (const WireSubmap& s : submaps) out.push_back(&s);
+  return out;
+}
+
+// Without noise the rebuilt map is the world, in the chain's first frame, every landmark once by
+// its key.
+TEST(ChainMap, ANoiseFreeChainGivesTheWorldInItsFirstFrame) {
+  const World w(8, 2.0);
+  std::mt19937_64 rng(1);
+  const TrueChain t = Drive(w, Pose2{1.0, 1.0, 0.1}, 5, 3.0);
+  std::vector<WireSubmap> subs = MeasureAll(w, t, 4, rng);
+  for (std::size_t k = 0; k < subs.size(); ++k) {
+    std::vector<Eigen::Vector2d> points;
+    for (int i : t.seen[k]) points.push_back(w.landmarks[static_cast<std::size_t>(i)]);
+    subs[k].x = PredictSubmap(t.frames[k], t.frames[k + 1], points);
+  }
+  ChainMap chain;
+  EXPECT_TRUE(chain.map().empty());
+  EXPECT_EQ(chain.Extend(Pointers(subs)), 5u);
+  EXPECT_EQ(chain.joined(), 5u);
+  std::set<std::uint32_t> expected;
+  for (const auto& seen : t.seen) expected.insert(seen.begin(), seen.end());
+  ASSERT_EQ(chain.map().size(), expected.size());
+  for (const Landmark& l : chain.map().landmarks) {
+    EXPECT_TRUE(expected.count(l.id));
+    EXPECT_EQ(l.signature, -1);
+    EXPECT_TRUE(IsValidCovariance(l.cov));
+    EXPECT_LT((l.mean - t.frames[0].TransformTo(w.landmarks[l.id])).norm(), 1e-6);
+  }
+  EXPECT_GT(chain.map().shape_sigma_m, 0.0);
+}
+
+// Submaps joined as they arrive give the map joined at once; a chain with nothing new joins
+// nothing.
+TEST(ChainMap, ExtendingSubmapBySubmapIsJoiningThemAtOnce) {
+  const World w(10, 2.0);
+  std::mt19937_64 rng(2);
+  const TrueChain t = Drive(w, Pose2{0.5, 2.0, -0.2}, 6, 3.0);
+  const std::vector<WireSubmap> subs = MeasureAll(w, t, 2, rng);
+  const std::vector<const WireSubmap*> all = Pointers(subs);
+  JoinerOptions o;
+  o.window = 2;  // the older submaps are marginalised
+  ChainMap at_once(o), one_by_one(o);
+  EXPECT_EQ(at_once.Extend(all), 6u);
+  for (std::size_t n = 1; n <= all.size(); ++n) {
+    EXPECT_EQ(one_by_one.Extend(std::span(all).first(n)), 1u);
+    EXPECT_EQ(one_by_one.Extend(std::span(all).first(n)), 0u);
+  }
+  ASSERT_EQ(at_once.map().size(), one_by_one.map().size());
+  for (std::size_t i = 0; i < at_once.map().size(); ++i) {
+    EXPECT_EQ(at_once.map().landmarks[i].id, one_by_one.map().landmarks[i].id);
+    EXPECT_EQ(at_once.map().landmarks[i].mean, one_by_one.map().landmarks[i].mean);
+    EXPECT_EQ(at_once.map().landmarks[i].cov, one_by_one.map().landmarks[i].cov);
+  }
+}
+
+// The rebuilt map is consistent: over seeded chains its landmarks' NEES against the truth (in
+// the first frame) averages 2, the dimension.
+TEST(ChainMap, TheRebuiltMapIsConsistent) {
+  const World w(10, 2.0);
+  double sum = 0.0;
+  int n = 0;
+  for (int seed = 0; seed < 40; ++seed) {
+    std::mt19937_64 rng(100 + seed);
+    const TrueChain t = Drive(w, Pose2{1.0, 1.5, 0.05}, 5, 3.0);
+    const std::vector<WireSubmap> subs = MeasureAll(w, t, 3, rng);
+    ChainMap chain;
+    chain.Extend(Pointers(subs));
+    for (const Landmark& l : chain.map().landmarks) {
+      const Eigen::Vector2d e = l.mean - t.frames[0].TransformTo(w.landmarks[l.id]);
+      sum += e.dot(l.cov.ldlt().solve(e));
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 1000);
+  EXPECT_GT(sum / n, 1.7);
+  EXPECT_LT(sum / n, 2.3);
+}
+
+// A submap the joiner refuses ends the chain there: what came before stays, nothing after joins.
+TEST(ChainMap, AMalformedSubmapEndsTheChain) {
+  const World w(8, 2.0);
+  std::mt19937_64 rng(4);
+  const TrueChain t = Drive(w, Pose2{1.0, 1.0, 0.1}, 4, 3.0);
+  std::vector<WireSubmap> subs = MeasureAll(w, t, 1, rng);
+  const std::vector<const WireSubmap*> good = Pointers(subs);
+  ChainMap two;
+  two.Extend(std::span(good).first(2));
+  subs[2].x(0) = std::numeric_limits<double>::quiet_NaN();
+  ChainMap chain;
+  EXPECT_EQ(chain.Extend(Pointers(subs)), 2u);
+  EXPECT_TRUE(chain.broken());
+  EXPECT_EQ(chain.joined(), 2u);
+  EXPECT_EQ(chain.map().size(), two.map().size());
+  EXPECT_EQ(chain.Extend(Pointers(subs)), 0u);
+  EXPECT_FALSE(two.broken());
+}
+
+}  // namespace
+}  // namespace mapmesh
