@@ -107,7 +107,7 @@ class JoiningFusion : public FusionBackend {
       const auto it = last_frames_.find({c.robot, c.incarnation});
       if (it != last_frames_.end()) c.start_frames = it->second;
     }
-    const NetworkResult r = JoinSubmapNetwork(chains, groups);
+    const NetworkResult r = JoinSubmapNetwork(chains, groups, {}, &information_);
     if (r.solved) {
       last_frames_.clear();
       for (std::size_t i = 0; i < chains.size(); ++i) {
@@ -150,9 +150,10 @@ class JoiningFusion : public FusionBackend {
   // through relays, in (robot, incarnation) order. A chain is placed by aligning its rebuilt
   // map against the global map of the own map and the sources before it, once a later
   // alignment agrees with the first (relay tolerances at the chain map's centroid); a
-  // disagreeing one replaces the candidate. As for peers, an alignment is tried again after
-  // align_period_s, or when either map has grown by retry_growth. Once placed, the chain lies
-  // where the last solve put its first frame.
+  // disagreeing one replaces the candidate. An alignment is tried again when either map has
+  // grown by retry_growth, or align_period_s after an accepted one (the same maps, another
+  // draw): a failed one on the same maps would fail again. Once placed, the chain lies where
+  // the last solve put its first frame.
   void PlaceRelayedChains(const LandmarkMap& own_local, const SubmapBook& book, double now,
                           std::vector<MapSource>* inputs) {
     std::set<std::pair<RobotId, std::uint32_t>> heard = {{self_, incarnation_}};
@@ -172,8 +173,8 @@ class JoiningFusion : public FusionBackend {
         const auto grown = [&](std::size_t size, std::size_t then) {
           return then == 0 || static_cast<double>(size) >= (1.0 + options_.retry_growth) * static_cast<double>(then);
         };
-        if (!r.tried_at || now >= *r.tried_at + options_.align_period_s || grown(theirs.size(), r.tried_size) ||
-            grown(target->size(), r.tried_target)) {
+        const bool confirm = r.candidate && now >= *r.tried_at + options_.align_period_s;
+        if (!r.tried_at || confirm || grown(theirs.size(), r.tried_size) || grown(target->size(), r.tried_target)) {
           r.tried_at = now;
           Align(c, r, *target);
           target.reset();
@@ -216,6 +217,7 @@ class JoiningFusion : public FusionBackend {
   AssociationMemo memo_;
   JoiningReport report_;
   std::map<std::pair<RobotId, std::uint32_t>, Relayed> relayed_;
+  SubmapInformation information_;  // the submaps' information matrices, from one solve to the next
   // The last solve's frames per chain: where the next one starts.
   std::map<std::pair<RobotId, std::uint32_t>, std::vector<Pose2>> last_frames_;
 };

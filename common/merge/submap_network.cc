@@ -11,13 +11,13 @@
 namespace mapmesh {
 namespace {
 
-// One submap as a factor: its measurement, the whitening L^-1 (p = L L^T), its chain and place
-// in it, and the landmark slot of each of its landmarks.
+// One submap as a factor: its measurement and information p^-1 (the submap's, not copied),
+// its chain and place in it, and the landmark slot of each of its landmarks.
 struct Factor {
   int chain = 0;
   int index = 0;  // k: it joins frames k and k + 1 of its chain
   Eigen::VectorXd z;
-  Eigen::MatrixXd sqrt_info;
+  const Eigen::MatrixXd* info = nullptr;
   std::vector<int> slots;
 };
 
@@ -42,14 +42,20 @@ class Network : public LeastSquaresProblem {
 
   double Linearise(BlockNormalEquations& eq) override {
     double cost = 0.0;
+    Eigen::MatrixXd j, h;
+    Eigen::VectorXd g;
     for (std::size_t i = 0; i < factors.size(); ++i) {
-      Eigen::MatrixXd j;
-      const Eigen::VectorXd r = Residual(factors[i], &j);
-      cost += 0.5 * r.squaredNorm();
       const Factor& f = factors[i];
-      // Columns of the fixed origin (the first chain's frame 0) are dropped.
+      const Eigen::VectorXd e = Error(f, &j);
+      cost += 0.5 * e.dot(*f.info * e);
+      SubmapNormalEquations(j, *f.info, e, &h, &g);
+      // Rows and columns of the fixed origin (the first chain's frame 0) are dropped.
       const bool fixed = frame_var[static_cast<std::size_t>(f.chain)][static_cast<std::size_t>(f.index)] < 0;
-      eq.Add(factor_handles[i], fixed ? Eigen::MatrixXd(j.rightCols(j.cols() - 3)) : j, r);
+      if (fixed) {
+        eq.AddInformation(factor_handles[i], h.bottomRightCorner(h.rows() - 3, h.cols() - 3), g.tail(g.size() - 3));
+      } else {
+        eq.AddInformation(factor_handles[i], h, g);
+      }
     }
     Eigen::Matrix<double, 2, 4> jt;
     jt << Eigen::Matrix2d::Identity() / tie_sigma, -Eigen::Matrix2d::Identity() / tie_sigma;
@@ -63,7 +69,10 @@ class Network : public LeastSquaresProblem {
   }
   double Cost() const override {
     double cost = 0.0;
-    for (const Factor& f : factors) cost += 0.5 * Residual(f, nullptr).squaredNorm();
+    for (const Factor& f : factors) {
+      const Eigen::VectorXd e = Error(f, nullptr);
+      cost += 0.5 * e.dot(*f.info * e);
+    }
     for (const Tie& t : ties) cost += 0.5 * kernel.Rho(TieResidual(t).squaredNorm());
     return cost;
   }
@@ -94,8 +103,8 @@ class Network : public LeastSquaresProblem {
   Eigen::Vector2d TieResidual(const Tie& t) const { return (slots.at(t.a) - slots.at(t.b)) / tie_sigma; }
 
  private:
-  // Whitened residual S (h - z) and, if asked, its Jacobian S dh/dx over [X_k, X_k+1, L...].
-  Eigen::VectorXd Residual(const Factor& f, Eigen::MatrixXd* j) const {
+  // The error h - z and, if asked, its Jacobian dh/dx over [X_k, X_k+1, L...].
+  Eigen::VectorXd Error(const Factor& f, Eigen::MatrixXd* j) const {
     std::vector<Eigen::Vector2d> points;
     points.reserve(f.slots.size());
     for (int g : f.slots) points.push_back(slots.at(g));
@@ -103,9 +112,9 @@ class Network : public LeastSquaresProblem {
     const auto k = static_cast<std::size_t>(f.index);
     Eigen::VectorXd e = PredictSubmap(chain[k], chain[k + 1], points, j) - f.z;
     e(2) = WrapAngle(e(2));
-    if (j) *j = f.sqrt_info.triangularView<Eigen::Lower>() * (*j);
-    return f.sqrt_info.triangularView<Eigen::Lower>() * e;
+    return e;
   }
+
 
   std::vector<int> offsets_;
   std::vector<std::vector<Pose2>> saved_frames_;
@@ -143,7 +152,7 @@ struct Solved {
 Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>& order,
              const std::map<LandmarkRef, int>& slot_of, const std::vector<Tie>& ties, double tie_sigma,
              const RobustKernel& kernel, const std::vector<std::vector<Pose2>>* start_frames,
-             const std::map<int, Eigen::Vector2d>* start_slots, int max_iterations,
+             const std::map<int, Eigen::Vector2d>* start_slots, int max_iterations, SubmapInformation& information,
              std::unique_ptr<BlockNormalEquations>* eq_out) {
   Solved s;
   Network& net = s.net;
@@ -165,8 +174,7 @@ Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>&
       f.index = static_cast<int>(k);
       f.z = w.x;
       f.z(2) = WrapAngle(f.z(2));
-      const auto n = w.l.rows();
-      f.sqrt_info = w.l.triangularView<Eigen::Lower>().solve(Eigen::MatrixXd::Identity(n, n));
+      f.info = &information.Of(w);
       for (std::uint32_t key : w.keys) f.slots.push_back(slot_of.at({c.robot, c.incarnation, key}));
       for (std::size_t j = 0; j < f.slots.size(); ++j) {
         if (!net.slots.count(f.slots[j])) {
@@ -219,8 +227,32 @@ Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>&
 
 }  // namespace
 
+const Eigen::MatrixXd& SubmapInformation::Of(const WireSubmap& s) {
+  Entry& e = entries_[s.id];
+  e.used = true;
+  if (e.l.rows() != s.l.rows() || e.l != s.l) {
+    const auto n = s.l.rows();
+    const Eigen::MatrixXd inv = s.l.triangularView<Eigen::Lower>().solve(Eigen::MatrixXd::Identity(n, n));
+    e.info.noalias() = inv.transpose() * inv;
+    e.l = s.l;
+    ++computed_;
+  }
+  return e.info;
+}
+
+void SubmapInformation::Sweep() {
+  for (auto it = entries_.begin(); it != entries_.end();) {
+    if (!it->second.used) {
+      it = entries_.erase(it);
+    } else {
+      it->second.used = false;
+      ++it;
+    }
+  }
+}
+
 NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::map<LandmarkRef, int>& groups,
-                                const NetworkOptions& options) {
+                                const NetworkOptions& options, SubmapInformation* information) {
   NetworkResult out;
   out.joined.assign(chains.size(), false);
   out.frames.assign(chains.size(), {});
@@ -299,8 +331,10 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
   const std::vector<std::size_t> first_order = enter(ties);
   std::unique_ptr<BlockNormalEquations> eq;
   RobustKernel cauchy{RobustLoss::kCauchy, options.tie_cauchy};
+  SubmapInformation own_information;
+  SubmapInformation& info = information != nullptr ? *information : own_information;
   const Solved first = Solve(chains, first_order, slot_of, ties, options.tie_sigma_m, cauchy, nullptr, nullptr,
-                             options.max_iterations, &eq);
+                             options.max_iterations, info, &eq);
   // The pairings kept; their unions are the landmarks. A union that one submap would reach twice
   // keeps the pairings made first (closest first) and drops the rest.
   std::vector<std::pair<double, Tie>> kept;
@@ -367,7 +401,8 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     frames.push_back(first.net.frames[static_cast<std::size_t>(at)]);
   }
   const Solved second = Solve(chains, order, landmark_of, {}, 1.0, RobustKernel{}, &frames, &start,
-                              options.max_iterations, &eq);
+                              options.max_iterations, info, &eq);
+  info.Sweep();
   out.iterations = first.report.iterations + second.report.iterations;
   out.converged = second.report.converged;
   out.cost = second.report.final_cost;

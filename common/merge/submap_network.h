@@ -101,11 +101,33 @@ struct NetworkResult {
   }
 };
 
+// The submaps' information matrices (their covariance's inverse, O(n^3) each), kept from one
+// join to the next. A closed submap's is computed once; an open submap changes under one
+// identity, so an entry whose covariance factor differs from the submap's is computed afresh.
+// Entries that a join does not use are dropped at its end.
+class SubmapInformation {
+ public:
+  const Eigen::MatrixXd& Of(const WireSubmap& s);
+  // Drops the entries not asked for since the last call.
+  void Sweep();
+  std::size_t size() const { return entries_.size(); }
+  int computed() const { return computed_; }  // information matrices computed so far
+
+ private:
+  struct Entry {
+    Eigen::MatrixXd l, info;
+    bool used = true;
+  };
+  std::map<SubmapId, Entry> entries_;
+  int computed_ = 0;
+};
+
 // Joins the chains (the first is the joined frame's: its origin is fixed, and it always enters
 // unless malformed). `groups` names the landmark group of each associated reference (ids from
 // 0); a reference it does not name is a landmark of its own. A group that one submap would
 // reach twice is split there.
+// With `information`, the submaps' information matrices come from it (and stay in it).
 NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::map<LandmarkRef, int>& groups,
-                                const NetworkOptions& options = {});
+                                const NetworkOptions& options = {}, SubmapInformation* information = nullptr);
 
 }  // namespace mapmesh

@@ -104,6 +104,32 @@ Eigen::VectorXd PredictSubmap(const Pose2& origin, const Pose2& end, const std::
   return h;
 }
 
+void SubmapNormalEquations(const Eigen::MatrixXd& j, const Eigen::MatrixXd& info, const Eigen::VectorXd& e,
+                           Eigen::MatrixXd* h, Eigen::VectorXd* g) {
+  const Eigen::Index n = j.rows(), cols = j.cols(), nl = (n - 3) / 2;
+  // m = info J, column block by column block: the frames' columns from the end-pose rows (both
+  // frames) and the landmark rows (X_k only); each landmark's two columns from its own rows.
+  Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n, cols);
+  m.leftCols<6>().noalias() = info.leftCols<3>() * j.topLeftCorner<3, 6>();
+  m.leftCols<3>().noalias() += info.rightCols(n - 3) * j.bottomLeftCorner(n - 3, 3);
+  for (Eigen::Index i = 0; i < nl; ++i) {
+    m.middleCols<2>(6 + 2 * i).noalias() = info.middleCols<2>(3 + 2 * i) * j.block<2, 2>(3 + 2 * i, 6 + 2 * i);
+  }
+  // h = J^T m, row block by row block the same way; g likewise from v = info e.
+  const Eigen::VectorXd v = info * e;
+  h->setZero(cols, cols);
+  g->setZero(cols);
+  h->topRows<6>().noalias() = j.topLeftCorner<3, 6>().transpose() * m.topRows<3>();
+  h->topRows<3>().noalias() += j.bottomLeftCorner(n - 3, 3).transpose() * m.bottomRows(n - 3);
+  g->head<6>().noalias() = j.topLeftCorner<3, 6>().transpose() * v.head<3>();
+  g->head<3>().noalias() += j.bottomLeftCorner(n - 3, 3).transpose() * v.tail(n - 3);
+  for (Eigen::Index i = 0; i < nl; ++i) {
+    const Eigen::Matrix2d jl = j.block<2, 2>(3 + 2 * i, 6 + 2 * i);
+    h->middleRows<2>(6 + 2 * i).noalias() = jl.transpose() * m.middleRows<2>(3 + 2 * i);
+    g->segment<2>(6 + 2 * i).noalias() = jl.transpose() * v.segment<2>(3 + 2 * i);
+  }
+}
+
 SubmapJoiner::Linearised SubmapJoiner::Linearise(const Factor& f, const State& state) {
   const bool moving_origin = f.frame > 0;
   std::vector<Eigen::Vector2d> points;

@@ -46,6 +46,14 @@ struct SubmapEstimate {
 Eigen::VectorXd PredictSubmap(const Pose2& origin, const Pose2& end, const std::vector<Eigen::Vector2d>& landmarks,
                               Eigen::MatrixXd* jacobian = nullptr);
 
+// The normal equations of one submap factor: h = J^T info J and g = J^T info e, for J the
+// Jacobian PredictSubmap gives (over [X_k, X_k+1, L_1, ...]), info the submap's information
+// matrix (its covariance's inverse) and e its residual. J is sparse: the end-pose rows depend
+// on the two frames only, and the rows of landmark i on X_k and L_i only (one 2 x 2 block).
+// So this costs O(n^2) for n rows, where the dense product costs O(n^3).
+void SubmapNormalEquations(const Eigen::MatrixXd& j, const Eigen::MatrixXd& info, const Eigen::VectorXd& e,
+                           Eigen::MatrixXd* h, Eigen::VectorXd* g);
+
 struct JoinerOptions {
   int window = 8;           // agent.join_window: submaps relinearised; older ones are marginalised
   int max_iterations = 20;  // Gauss-Newton iterations per solve

@@ -77,14 +77,42 @@ void BlockNormalEquations::Finalize() {
       values_.resize(values_.size() + static_cast<std::size_t>(size(v) * size(v)), 0.0);
     }
   }
+  // The variables' layout: an approximate minimum degree order of the block pattern (Amestoy,
+  // Davis & Duff), a few times fewer nodes and tens of times fewer edges than the scalar pattern
+  // the factorisation would otherwise order at every Finalize.
+  if (variables() > 1) {
+    std::vector<Eigen::Triplet<double>> entries;
+    entries.reserve(2 * blocks_.size());
+    for (const Block& blk : blocks_) {
+      entries.emplace_back(blk.a, blk.b, 1.0);
+      if (blk.a != blk.b) entries.emplace_back(blk.b, blk.a, 1.0);
+    }
+    Eigen::SparseMatrix<double> pattern(variables(), variables());
+    pattern.setFromTriplets(entries.begin(), entries.end());
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> order;  // order(k): the k-th variable
+    Eigen::AMDOrdering<int>()(pattern, order);
+    int at = 0;
+    for (int k = 0; k < variables(); ++k) {
+      const int v = order.indices()(k);
+      offsets_[static_cast<std::size_t>(v)] = at;
+      at += size(v);
+    }
+  }
   // The upper triangle's entries, column by column.
+  // A block's entry (ra, cb) is H's (offset(a) + ra, offset(b) + cb) and, H being symmetric,
+  // the transposed one: of the two, the one on or above the diagonal (a diagonal block's entries
+  // below it are left out, their transposes being in the block).
+  auto upper = [&](const Block& blk, int ra, int cb) -> std::pair<int, int> {
+    const int row = offset(blk.a) + ra, col = offset(blk.b) + cb;
+    if (blk.a == blk.b) return row <= col ? std::pair{row, col} : std::pair{-1, -1};
+    return row <= col ? std::pair{row, col} : std::pair{col, row};
+  };
   std::vector<std::vector<int>> rows(static_cast<std::size_t>(dim_));
   for (const Block& blk : blocks_) {
     for (int cb = 0; cb < size(blk.b); ++cb) {
-      const int col = offset(blk.b) + cb;
       for (int ra = 0; ra < size(blk.a); ++ra) {
-        const int row = offset(blk.a) + ra;
-        if (row <= col) rows[static_cast<std::size_t>(col)].push_back(row);
+        const auto [row, col] = upper(blk, ra, cb);
+        if (row >= 0) rows[static_cast<std::size_t>(col)].push_back(row);
       }
     }
   }
@@ -112,8 +140,8 @@ void BlockNormalEquations::Finalize() {
     const int sa = size(blk.a);
     for (int cb = 0; cb < size(blk.b); ++cb) {
       for (int ra = 0; ra < sa; ++ra) {
-        const int row = offset(blk.a) + ra, col = offset(blk.b) + cb;
-        if (row <= col) positions_[static_cast<std::size_t>(blk.offset + cb * sa + ra)] = position(row, col);
+        const auto [row, col] = upper(blk, ra, cb);
+        if (row >= 0) positions_[static_cast<std::size_t>(blk.offset + cb * sa + ra)] = position(row, col);
       }
     }
   }
@@ -189,12 +217,11 @@ std::vector<Eigen::MatrixXd> BlockNormalEquations::Marginals(const std::vector<i
   if (vars.empty()) return out;
   if (!factor_is_undamped_ && !Factorise(0.0)) return out;
   out.reserve(vars.size());
-  // With P H P^T = L L^T, H^-1 = P^T L^-T L^-1 P, so the block of variables i and j is
-  // (L^-1 P E_i)^T (L^-1 P E_j): a forward substitution alone, which skips the zeros above each
+  // With H = L L^T (H already in its fill-reducing layout), H^-1 = L^-T L^-1, so the block of
+  // variables i and j is (L^-1 E_i)^T (L^-1 E_j): a forward substitution alone, which skips the zeros above each
   // unit column (most of them, the fill of a column being what the elimination reaches from it).
   // A batch of variables at a time, to bound the dense right-hand side.
   constexpr std::size_t kBatchColumns = 64;
-  const auto& to_factor = llt_.permutationP().indices();              // row i of H is row to_factor(i) of the factor
   Eigen::MatrixXd y(dim_, static_cast<Eigen::Index>(kBatchColumns));  // reused: no allocation per batch
   std::size_t first = 0;
   while (first < vars.size()) {
@@ -209,7 +236,7 @@ std::vector<Eigen::MatrixXd> BlockNormalEquations::Marginals(const std::vector<i
     batch.setZero();
     int col = 0;
     for (std::size_t k = first; k < last; ++k) {
-      for (int i = 0; i < size(vars[k]); ++i) batch(to_factor(offset(vars[k]) + i), col + i) = 1.0;
+      for (int i = 0; i < size(vars[k]); ++i) batch(offset(vars[k]) + i, col + i) = 1.0;
       col += size(vars[k]);
     }
     llt_.matrixL().solveInPlace(batch);
@@ -230,12 +257,11 @@ Eigen::MatrixXd BlockNormalEquations::JointMarginal(const std::vector<int>& vars
   if (!factor_is_undamped_ && !Factorise(0.0)) return {};
   int cols = 0;
   for (int v : vars) cols += size(v);
-  // As Marginals: Y = L^-1 P E, and the covariance of the chosen variables is Y^T Y.
-  const auto& to_factor = llt_.permutationP().indices();
+  // As Marginals: Y = L^-1 E, and the covariance of the chosen variables is Y^T Y.
   Eigen::MatrixXd y = Eigen::MatrixXd::Zero(dim_, cols);
   int col = 0;
   for (int v : vars) {
-    for (int i = 0; i < size(v); ++i) y(to_factor(offset(v) + i), col + i) = 1.0;
+    for (int i = 0; i < size(v); ++i) y(offset(v) + i, col + i) = 1.0;
     col += size(v);
   }
   llt_.matrixL().solveInPlace(y);

@@ -1,13 +1,15 @@
 #pragma once
 // Sparse nonlinear least squares over small blocks of variables: whitened factors' normal
 // equations accumulated block by block into a sparsity pattern fixed once, a sparse Cholesky
-// factorisation (Eigen's SimplicialLLT, AMD ordering, analysed once), Levenberg-Marquardt
+// factorisation (Eigen's SimplicialLLT; the variables laid out in an AMD order of the block
+// pattern, analysed once), Levenberg-Marquardt
 // steps, robust losses by iterative reweighting, and marginal covariance blocks of chosen
 // variables (columns of the inverse information matrix).
 //
 // Pure: Eigen only, no clocks, threads or random numbers.
 
 #include <Eigen/Core>
+#include <Eigen/OrderingMethods>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <cstdint>
@@ -44,6 +46,8 @@ class BlockNormalEquations {
   int variables() const { return static_cast<int>(sizes_.size()); }
   int dim() const { return dim_; }
   int size(int var) const { return sizes_[static_cast<std::size_t>(var)]; }
+  // Where a variable starts in H, g and a step: set by Finalize (a fill-reducing order, not the
+  // variables' order).
   int offset(int var) const { return offsets_[static_cast<std::size_t>(var)]; }
 
   // Declares that a factor couples these variables (distinct); returns a handle for Add.
@@ -108,7 +112,9 @@ class BlockNormalEquations {
   std::vector<int> diagonal_;   // per row of H: the index of its diagonal entry in h_'s values
   Eigen::VectorXd g_;
   Eigen::SparseMatrix<double> h_;  // upper triangle
-  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Upper> llt_;
+  // The variables are laid out in a fill-reducing order found once (Finalize), so the
+  // factorisation keeps that order: no ordering of its own, no permuted copy of H.
+  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Upper, Eigen::NaturalOrdering<int>> llt_;
   bool finalized_ = false;
   bool factor_is_undamped_ = false;  // llt_ holds H itself (lambda 0), as last accumulated
 };

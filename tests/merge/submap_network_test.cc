@@ -14,6 +14,7 @@ namespace mapmesh {
 namespace {
 
 using testing::Drive;
+using testing::Measure;
 using testing::MeasureAll;
 using testing::TrueChain;
 using testing::World;
@@ -206,6 +207,45 @@ TEST(SubmapNetwork, AGroupOneSubmapWouldReachTwiceIsSplit) {
   }
   EXPECT_EQ(holding_k0, 1);
   EXPECT_EQ(holding_k1, 1);
+}
+
+// The information matrices kept from one join to the next give the same join, to the bit; a
+// submap's is computed once while its covariance stays, afresh when it changes (an open submap
+// under one identity), and dropped once a join no longer uses it.
+TEST(SubmapNetwork, KeptInformationGivesTheSameJoin) {
+  const World w(10, 2.0);
+  std::mt19937_64 rng(5);
+  const TrueChain ta = Drive(w, Pose2{1.0, 1.0, 0.1}, 4, 3.0), tb = Drive(w, Pose2{2.0, 6.0, -0.1}, 3, 3.0);
+  std::vector<WireSubmap> sa = MeasureAll(w, ta, 1, rng), sb = MeasureAll(w, tb, 2, rng);
+  const std::vector<ChainInput> chains = {Chain(1, sa, Pose2{}), Chain(2, sb, Pose2{1.0, 5.0, -0.2})};
+  const std::map<LandmarkRef, int> groups = ByTruth({{1, &ta}, {2, &tb}});
+  SubmapInformation kept;
+  const NetworkResult fresh = JoinSubmapNetwork(chains, groups);
+  const NetworkResult first = JoinSubmapNetwork(chains, groups, {}, &kept);
+  EXPECT_EQ(kept.computed(), 7);
+  const NetworkResult again = JoinSubmapNetwork(chains, groups, {}, &kept);
+  EXPECT_EQ(kept.computed(), 7);  // nothing changed: nothing computed
+  for (const NetworkResult* r : {&first, &again}) {
+    ASSERT_TRUE(r->solved);
+    ASSERT_EQ(r->landmarks.size(), fresh.landmarks.size());
+    for (std::size_t i = 0; i < fresh.landmarks.size(); ++i) {
+      EXPECT_EQ(r->landmarks[i].mean, fresh.landmarks[i].mean);
+      EXPECT_EQ(r->landmarks[i].cov, fresh.landmarks[i].cov);
+    }
+  }
+  // Robot 2's last submap changes under its identity (as an open one does): computed afresh, and
+  // the join is the one of the changed submap.
+  sb.back() = Measure(w, tb, 2, 2, rng);
+  const NetworkResult changed = JoinSubmapNetwork(chains, groups, {}, &kept);
+  EXPECT_EQ(kept.computed(), 8);
+  const NetworkResult changed_fresh = JoinSubmapNetwork(chains, groups);
+  ASSERT_EQ(changed.landmarks.size(), changed_fresh.landmarks.size());
+  for (std::size_t i = 0; i < changed.landmarks.size(); ++i) {
+    EXPECT_EQ(changed.landmarks[i].mean, changed_fresh.landmarks[i].mean);
+  }
+  // Robot 1 alone: robot 2's entries go.
+  JoinSubmapNetwork(std::span<const ChainInput>(chains).first(1), groups, {}, &kept);
+  EXPECT_EQ(kept.size(), 4u);
 }
 
 }  // namespace

@@ -45,6 +45,33 @@ TEST(PredictSubmap, IsTheEndPoseAndLandmarksInTheOriginFrame) {
   EXPECT_LT((h.segment<2>(3) - origin.Inverse().Apply(l)).norm(), 1e-12);
 }
 
+// The structured normal equations are the dense ones, J^T info J and J^T info e, at random
+// states, information matrices and residuals.
+TEST(SubmapNormalEquations, AreTheDenseProducts) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-5.0, 5.0), a(-3.0, 3.0);
+  for (int trial = 0; trial < 30; ++trial) {
+    const int nl = trial % 7;
+    const int n = 3 + 2 * nl;
+    std::vector<Eigen::Vector2d> l;
+    for (int k = 0; k < nl; ++k) l.emplace_back(u(rng), u(rng));
+    Eigen::MatrixXd j;
+    PredictSubmap({u(rng), u(rng), a(rng)}, {u(rng), u(rng), a(rng)}, l, &j);
+    Eigen::MatrixXd r(n, n);
+    for (int i = 0; i < n * n; ++i) r(i) = u(rng);
+    const Eigen::MatrixXd info = r * r.transpose() + Eigen::MatrixXd::Identity(n, n);
+    Eigen::VectorXd e(n);
+    for (int i = 0; i < n; ++i) e(i) = u(rng);
+    Eigen::MatrixXd h;
+    Eigen::VectorXd g;
+    SubmapNormalEquations(j, info, e, &h, &g);
+    const Eigen::MatrixXd h_dense = j.transpose() * info * j;
+    const Eigen::VectorXd g_dense = j.transpose() * info * e;
+    EXPECT_LT((h - h_dense).cwiseAbs().maxCoeff(), 1e-9 * (1.0 + h_dense.cwiseAbs().maxCoeff())) << "trial " << trial;
+    EXPECT_LT((g - g_dense).cwiseAbs().maxCoeff(), 1e-9 * (1.0 + g_dense.cwiseAbs().maxCoeff())) << "trial " << trial;
+  }
+}
+
 // A world and a chain of submap frames through it, and submaps measured from the truth with a
 // correlated covariance (what an EKF's joint covariance looks like).
 struct World {
