@@ -115,7 +115,6 @@ class Network : public LeastSquaresProblem {
     return e;
   }
 
-
   std::vector<int> offsets_;
   std::vector<std::vector<Pose2>> saved_frames_;
   std::map<int, Eigen::Vector2d> saved_slots_;
