@@ -1,0 +1,106 @@
+// Joining submap chains (JoinSubmapNetwork, the joining back-end): the cost of one submap
+// factor's normal equations from its Jacobian's structure against the dense products, and of a
+// whole join of the shared problem (bench/joiner_problem.h: 50 submaps of 30 landmarks, here
+// split into two robots' chains that share their landmarks) with the submaps' information
+// matrices kept from the last join (as the agent does) against computed afresh.
+
+#include <benchmark/benchmark.h>
+
+#include <Eigen/LU>
+
+#include "bench/joiner_problem.h"
+#include "common/merge/submap_network.h"
+#include "common/slam/submap_joiner.h"
+#include "common/slam/submap_slam.h"
+
+namespace mapmesh {
+namespace {
+
+// Submap 10 of the shared problem linearised at its measurement.
+struct OneFactor {
+  Eigen::MatrixXd j, info;
+  Eigen::VectorXd e;
+  OneFactor() {
+    const SubmapEstimate s = bench::MakeJoinerSubmaps()[10];
+    std::vector<Eigen::Vector2d> points;
+    for (std::size_t i = 0; i < s.keys.size(); ++i)
+      points.push_back(s.x.segment<2>(3 + 2 * static_cast<Eigen::Index>(i)));
+    e = PredictSubmap(Pose2{}, Pose2{s.x(0), s.x(1), s.x(2)}, points, &j) - s.x;
+    e(2) += 0.01;
+    info = s.p.inverse();
+  }
+};
+
+void BM_SubmapNormalEquations(benchmark::State& state) {
+  const OneFactor f;
+  Eigen::MatrixXd h;
+  Eigen::VectorXd g;
+  for (auto _ : state) {
+    SubmapNormalEquations(f.j, f.info, f.e, &h, &g);
+    benchmark::DoNotOptimize(h.data());
+  }
+}
+BENCHMARK(BM_SubmapNormalEquations)->Unit(benchmark::kMicrosecond);
+
+// The baseline: J^T info J and J^T info e as dense products.
+void BM_SubmapNormalEquationsDense(benchmark::State& state) {
+  const OneFactor f;
+  Eigen::MatrixXd h;
+  Eigen::VectorXd g;
+  for (auto _ : state) {
+    const Eigen::MatrixXd m = f.info * f.j;
+    h.noalias() = f.j.transpose() * m;
+    g.noalias() = m.transpose() * f.e;
+    benchmark::DoNotOptimize(h.data());
+  }
+}
+BENCHMARK(BM_SubmapNormalEquationsDense)->Unit(benchmark::kMicrosecond);
+
+// The shared problem as two robots' chains: submaps 0-24 robot 1's, 25-49 robot 2's (its frame
+// where submap 25 starts, its start 0.2 m and 0.02 rad off), the landmarks paired by key.
+struct TwoChains {
+  std::vector<WireSubmap> one, two;
+  std::map<LandmarkRef, int> groups;
+  TwoChains() {
+    const std::vector<SubmapEstimate> s = bench::MakeJoinerSubmaps();
+    for (std::size_t k = 0; k < s.size(); ++k) {
+      const bool first = k < s.size() / 2;
+      const RobotId robot = first ? 1 : 2;
+      const auto index = static_cast<std::uint32_t>(first ? k : k - s.size() / 2);
+      (first ? one : two).push_back(*ToWire(s[k], {robot, 1, index}, 0.0, 1.0));
+      for (std::uint32_t key : s[k].keys) groups[{robot, 1, key}] = static_cast<int>(key);
+    }
+  }
+  std::vector<ChainInput> Chains() const {
+    Pose2 start;
+    for (const WireSubmap& w : one) start = start * Pose2{w.x(0), w.x(1), w.x(2)};
+    ChainInput a{1, 1, {}, Pose2{}, {}}, b{2, 1, {}, start * Pose2{0.2, -0.2, 0.02}, {}};
+    for (const WireSubmap& w : one) a.submaps.push_back(&w);
+    for (const WireSubmap& w : two) b.submaps.push_back(&w);
+    return {a, b};
+  }
+};
+
+void JoinTwoChains(benchmark::State& state, bool keep_information) {
+  const TwoChains p;
+  const std::vector<ChainInput> chains = p.Chains();
+  SubmapInformation kept;
+  JoinSubmapNetwork(chains, p.groups, {}, &kept);
+  NetworkResult r;
+  for (auto _ : state) {
+    r = keep_information ? JoinSubmapNetwork(chains, p.groups, {}, &kept) : JoinSubmapNetwork(chains, p.groups);
+    benchmark::DoNotOptimize(r.landmarks.data());
+  }
+  state.counters["landmarks"] = static_cast<double>(r.landmarks.size());
+  state.counters["iterations"] = r.iterations;
+}
+
+void BM_JoinSubmapNetworkKeptInformation(benchmark::State& state) { JoinTwoChains(state, true); }
+BENCHMARK(BM_JoinSubmapNetworkKeptInformation)->Unit(benchmark::kMillisecond);
+
+// The baseline: every join computes every submap's information matrix afresh.
+void BM_JoinSubmapNetwork(benchmark::State& state) { JoinTwoChains(state, false); }
+BENCHMARK(BM_JoinSubmapNetwork)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace mapmesh
