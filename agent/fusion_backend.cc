@@ -8,7 +8,6 @@
 #include "agent/relay_policy.h"
 #include "common/merge/chain_map.h"
 #include "common/merge/map_alignment.h"
-
 #include "common/merge/map_joining.h"
 #include "common/merge/submap_network.h"
 
@@ -159,7 +158,7 @@ class JoiningFusion : public FusionBackend {
     std::set<std::pair<RobotId, std::uint32_t>> heard = {{self_, incarnation_}};
     for (const MapSource& s : *inputs) heard.insert({s.robot, s.incarnation});
     report_.relayed_chains = report_.relayed_placed = 0;
-    std::optional<LandmarkMap> target;  // built when an alignment is due, from the inputs so far
+    std::optional<LandmarkMap> target;  // the own and placed maps, built when an unplaced chain needs it
     for (const SubmapChain& c : book.Chains()) {
       if (c.count == 0 || heard.count({c.robot, c.incarnation}) != 0) continue;
       ++report_.relayed_chains;
@@ -177,7 +176,6 @@ class JoiningFusion : public FusionBackend {
         if (!r.tried_at || confirm || grown(theirs.size(), r.tried_size) || grown(target->size(), r.tried_target)) {
           r.tried_at = now;
           Align(c, r, *target);
-          target.reset();
         }
       }
       if (!r.to_own) continue;

@@ -2,7 +2,7 @@
 
 #include <stdexcept>
 
-#include "common/slam/local_slam.h"
+#include "common/slam/submap_slam.h"
 
 namespace mapmesh {
 
@@ -18,18 +18,7 @@ std::size_t ChainMap::Extend(std::span<const WireSubmap* const> chain) {
     }
     ++added;
   }
-  if (added == 0) return 0;
-  const JoinedMap& j = joiner_.last();
-  map_ = LandmarkMap{};
-  map_.landmarks.reserve(j.keys.size());
-  for (std::size_t i = 0; i < j.keys.size(); ++i) {
-    Landmark l;
-    l.id = j.keys[i];
-    l.mean = j.means[i];
-    l.cov = j.Cov(i);
-    map_.landmarks.push_back(l);
-  }
-  map_.shape_sigma_m = ShapeSigma(map_, [&](std::size_t a, std::size_t b) { return j.CrossCov(a, b); });
+  if (added > 0) map_ = JoinedLandmarkMap(joiner_.last(), false);
   return added;
 }
 

@@ -273,17 +273,7 @@ LandmarkMap SubmapSlam::Map() const {
   } else {
     joined = JoinedMap{};
   }
-  map_ = LandmarkMap{};
-  map_.landmarks.reserve(joined.keys.size());
-  for (std::size_t i = 0; i < joined.keys.size(); ++i) {
-    Landmark l;
-    l.id = joined.keys[i];
-    l.signature = known_association_ ? static_cast<std::int32_t>(l.id) : -1;
-    l.mean = joined.means[i];
-    l.cov = joined.Cov(i);
-    map_.landmarks.push_back(l);
-  }
-  map_.shape_sigma_m = ShapeSigma(map_, [&](std::size_t i, std::size_t j) { return joined.CrossCov(i, j); });
+  map_ = JoinedLandmarkMap(joined, known_association_);
   fresh_ = true;
   return map_;
 }
@@ -318,6 +308,21 @@ const MapperStats& SubmapSlam::stats() const {
   AddStats(&stats_, current_->stats());
   stats_.diverged = diverged_;
   return stats_;
+}
+
+LandmarkMap JoinedLandmarkMap(const JoinedMap& joined, bool signatures) {
+  LandmarkMap map;
+  map.landmarks.reserve(joined.keys.size());
+  for (std::size_t i = 0; i < joined.keys.size(); ++i) {
+    Landmark l;
+    l.id = joined.keys[i];
+    l.signature = signatures ? static_cast<std::int32_t>(l.id) : -1;
+    l.mean = joined.means[i];
+    l.cov = joined.Cov(i);
+    map.landmarks.push_back(l);
+  }
+  map.shape_sigma_m = ShapeSigma(map, [&](std::size_t i, std::size_t j) { return joined.CrossCov(i, j); });
+  return map;
 }
 
 std::optional<WireSubmap> ToWire(const SubmapEstimate& estimate, const SubmapId& id, double opened_s, double closed_s) {

@@ -27,6 +27,11 @@ namespace mapmesh {
 // definite.
 std::optional<WireSubmap> ToWire(const SubmapEstimate& estimate, const SubmapId& id, double opened_s, double closed_s);
 
+// A joined estimate as a landmark map: ids are the keys, marginal covariances, the shape
+// precision from the cross-covariances; signatures are the keys with known association, else
+// unknown.
+LandmarkMap JoinedLandmarkMap(const JoinedMap& joined, bool signatures);
+
 class SubmapSlam : public LocalMapper {
  public:
   SubmapSlam(const FilterNoise& noise, const LocalSlamOptions& options);
