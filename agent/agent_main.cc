@@ -274,6 +274,7 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"held_bytes", node.submaps().book().bytes()},
               {"chains", chains},
               {"received_new", sc.received_new},
+              {"restored", sc.restored},
               {"duplicates", sc.duplicates},
               {"conflicts", sc.conflicts},
               {"full", sc.full},
@@ -296,7 +297,8 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"relayed_chains", node.exchange().joining().relayed_chains},
               {"relayed_placed", node.exchange().joining().relayed_placed},
               {"relayed_alignments", node.exchange().joining().relayed_alignments},
-              {"relayed_disagreements", node.exchange().joining().relayed_disagreements}}},
+              {"relayed_disagreements", node.exchange().joining().relayed_disagreements},
+              {"superseded_chains", node.exchange().joining().superseded_chains}}},
             {"impersonations_refused", {{"maps", ByRobot(refusals.maps)}, {"sightings", ByRobot(refusals.sightings)}}},
             {"not_from_feeder", {{"links", refusals.links.refused()}, {"ticks", refusals.ticks.refused()}}},
             {"outputs",
@@ -390,6 +392,7 @@ int Run(int argc, char** argv) {
     io::CheckpointLimits limits;
     limits.max_abs_coordinate_m = scenario.agent.peer_limits.world_radius_m;
     limits.max_stamp_s = AgentRunFor(scenario, self).end_s + scenario.agent.max_stamp_jump_s;
+    limits.submap_limits = scenario.agent.peer_limits;
     io::CheckpointLoad loaded_checkpoint = io::LoadCheckpoint(checkpoint_path, self, incarnation, limits);
     if (loaded_checkpoint.missing) {
       spdlog::warn("--resume: no checkpoint at {}; starting afresh", checkpoint_path);
@@ -424,9 +427,10 @@ int Run(int argc, char** argv) {
   AgentNode node(scenario.agent, run, self, incarnation, output);
   if (checkpoint) {
     node.Resume(*checkpoint);
-    spdlog::info("resumed incarnation {} (t={:.1f}s, {} local and {} global landmarks, {} earlier incarnations)",
-                 checkpoint->incarnation, checkpoint->processed_until, checkpoint->local.size(),
-                 checkpoint->global.size(), checkpoint->earlier.size());
+    spdlog::info(
+        "resumed incarnation {} (t={:.1f}s, {} local and {} global landmarks, {} earlier incarnations, {} submaps)",
+        checkpoint->incarnation, checkpoint->processed_until, checkpoint->local.size(), checkpoint->global.size(),
+        checkpoint->earlier.size(), checkpoint->submaps.size());
     checkpoint.reset();
   }
   const double checkpoint_period = scenario.agent.checkpoint_period_s;
@@ -535,15 +539,20 @@ int Run(int argc, char** argv) {
       tick_waiting_since = now;
     }
   };
-  bool warned_left_out = false;
+  bool warned_left_out = false, warned_submaps_left_out = false;
   const auto save_checkpoint = [&] {
-    std::size_t left_out = 0;
-    io::WriteJsonAtomic(checkpoint_path, io::CheckpointToJson(node.Checkpoint(&left_out)));
+    std::size_t left_out = 0, submaps_left_out = 0;
+    io::WriteJsonAtomic(checkpoint_path, io::CheckpointToJson(node.Checkpoint(&left_out, &submaps_left_out)));
     if (left_out > 0 && !warned_left_out) {
       spdlog::warn(
           "checkpoint: {} oldest earlier incarnations never re-merged are left out (a checkpoint holds {} at most)",
           left_out, io::CheckpointLimits{}.max_earlier);
       warned_left_out = true;
+    }
+    if (submaps_left_out > 0 && !warned_submaps_left_out) {
+      spdlog::warn("checkpoint: {} of the peers' submaps held are left out (a checkpoint holds {} at most)",
+                   submaps_left_out, io::CheckpointLimits{}.max_submaps);
+      warned_submaps_left_out = true;
     }
   };
   while (!shutdown.requested()) {

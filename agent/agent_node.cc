@@ -524,9 +524,19 @@ void AgentNode::Resume(const AgentCheckpoint& c) {
   };
   add(c);
   for (const IncarnationSnapshot& e : c.earlier) add(e);
+  for (const std::vector<std::uint8_t>& bytes : c.submaps) {
+    const SubmapDecodeResult d = DecodeSubmap(bytes);
+    MAPMESH_CHECK(d.ok() && !(d.submap.id.robot == self_ && d.submap.id.incarnation == incarnation_),
+                  "a checkpoint not validated by io::LoadCheckpoint");
+    if (!InRun(d.submap.id.robot)) {
+      ++stats_.submaps_refused[static_cast<int>(SubmapRefusal::kUnknownRobot)];
+      continue;
+    }
+    submaps_.Restore(d.submap, bytes);
+  }
 }
 
-AgentCheckpoint AgentNode::Checkpoint(std::size_t* left_out) const {
+AgentCheckpoint AgentNode::Checkpoint(std::size_t* left_out, std::size_t* submaps_left_out) const {
   AgentCheckpoint c;
   c.robot = self_;
   c.incarnation = incarnation_;
@@ -549,6 +559,16 @@ AgentCheckpoint AgentNode::Checkpoint(std::size_t* left_out) const {
   const std::size_t extra = c.earlier.size() > cap ? c.earlier.size() - cap : 0;
   c.earlier.erase(c.earlier.begin(), c.earlier.begin() + static_cast<std::ptrdiff_t>(extra));
   if (left_out != nullptr) *left_out = extra;
+  // The closed submaps held, the own robot's first (its chains are what only it may lack after
+  // a restart), as many as the loader accepts.
+  std::vector<SubmapId> ids = submaps_.book().Ids();
+  std::stable_partition(ids.begin(), ids.end(), [this](const SubmapId& id) { return id.robot == self_; });
+  const std::size_t submap_cap = io::CheckpointLimits{}.max_submaps;
+  if (submaps_left_out != nullptr) *submaps_left_out = ids.size() > submap_cap ? ids.size() - submap_cap : 0;
+  if (ids.size() > submap_cap) ids.resize(submap_cap);
+  std::sort(ids.begin(), ids.end());
+  c.submaps.reserve(ids.size());
+  for (const SubmapId& id : ids) c.submaps.push_back(*submaps_.book().Bytes(id));
   return c;
 }
 

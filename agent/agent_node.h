@@ -161,14 +161,18 @@ class AgentNode : private SensorSync::Sink {
   // Lockstep: a tick crossed a checkpoint period (agent.checkpoint_period_s) since the last
   // time this returned true.
   bool TakeCheckpointDue();
-  // Re-merges what earlier incarnations of this agent knew (from its checkpoint). The
-  // checkpoint must be this robot's, from other incarnations than this one: io::LoadCheckpoint
-  // refuses any other, so a violation is a programming error (checked).
+  // Re-merges what earlier incarnations of this agent knew (from its checkpoint), and holds the
+  // closed submaps it held again (robots not in this run's are refused and counted). The
+  // checkpoint must be this robot's, from other incarnations than this one, with valid
+  // submaps: io::LoadCheckpoint refuses any other, so a violation is a programming error
+  // (checked).
   void Resume(const AgentCheckpoint& checkpoint);
   // What to save: this incarnation's maps and the earlier ones not yet re-merged, at most
   // io::CheckpointLimits::max_earlier of them (the newest), so that the file always loads; how
-  // many older ones were left out goes to *left_out.
-  AgentCheckpoint Checkpoint(std::size_t* left_out = nullptr) const;
+  // many older ones were left out goes to *left_out. And the closed submaps held, at most
+  // io::CheckpointLimits::max_submaps (the own robot's first, then by identity); how many were
+  // left out goes to *submaps_left_out.
+  AgentCheckpoint Checkpoint(std::size_t* left_out = nullptr, std::size_t* submaps_left_out = nullptr) const;
 
   RobotId id() const { return self_; }
   AgentStatus Status() const;

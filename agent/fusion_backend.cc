@@ -53,6 +53,13 @@ class JoiningFusion : public FusionBackend {
               const SubmapInputs& submaps) override {
     Built b;
     if (submaps.book != nullptr && (submaps.own_open || submaps.book->ChainLength(self_, incarnation_) > 0)) {
+      // A chain whose measurements a later incarnation of its robot maps again is left out.
+      std::vector<const WireSubmap*> open = {submaps.own_open};
+      if (submaps.peers_open != nullptr) {
+        for (const auto& [key, s] : *submaps.peers_open) open.push_back(&s);
+      }
+      superseded_ = submaps.book->Superseded(open);
+      report_.superseded_chains = static_cast<int>(superseded_.size());
       std::vector<MapSource> inputs = direct;
       PlaceRelayedChains(own_local, *submaps.book, submaps.now, &inputs);
       const GlobalMap associated = BuildGlobalMap(own_local, self_, inputs, association_, incarnation_, &memo_);
@@ -86,6 +93,7 @@ class JoiningFusion : public FusionBackend {
       chains[0].submaps.push_back(submaps.own_open);  // it continues the chain (none is missing before it)
     }
     for (const MapSource& s : sources) {
+      if (superseded_.contains({s.robot, s.incarnation})) continue;
       ChainInput c = chain(s.robot, s.incarnation, s.to_own);
       if (submaps.peers_open != nullptr) {
         const auto open = submaps.peers_open->find({s.robot, s.incarnation});
@@ -160,7 +168,10 @@ class JoiningFusion : public FusionBackend {
     report_.relayed_chains = report_.relayed_placed = 0;
     std::optional<LandmarkMap> target;  // the own and placed maps, built when an unplaced chain needs it
     for (const SubmapChain& c : book.Chains()) {
-      if (c.count == 0 || heard.count({c.robot, c.incarnation}) != 0) continue;
+      if (c.count == 0 || heard.count({c.robot, c.incarnation}) != 0 ||
+          superseded_.contains({c.robot, c.incarnation})) {
+        continue;
+      }
       ++report_.relayed_chains;
       Relayed& r = relayed_.try_emplace({c.robot, c.incarnation}, options_.chain_join).first->second;
       std::vector<const WireSubmap*> chain;
@@ -215,6 +226,7 @@ class JoiningFusion : public FusionBackend {
   AssociationMemo memo_;
   JoiningReport report_;
   std::map<std::pair<RobotId, std::uint32_t>, Relayed> relayed_;
+  std::set<std::pair<RobotId, std::uint32_t>> superseded_;  // at the last build (SubmapBook::Superseded)
   SubmapInformation information_;  // the submaps' information matrices, from one solve to the next
   // The last solve's frames per chain: where the next one starts.
   std::map<std::pair<RobotId, std::uint32_t>, std::vector<Pose2>> last_frames_;

@@ -7,6 +7,8 @@
 // the one-hop maps. Joining also places the chains of robots whose submaps reached the agent
 // only through relays: each such chain's map is rebuilt from its submaps (ChainMap) and aligned
 // against the own and one-hop maps, and used once a later alignment agrees (two hops and more).
+// A chain whose time a later incarnation of its robot maps again (a lockstep restart replays the
+// robot's stream) is left out, so that no measurement is joined twice.
 // A back-end reads what it is given and changes only its own memory (association, relayed
 // chains' maps and placements).
 
@@ -52,6 +54,9 @@ struct JoiningReport {
   int relayed_placed = 0;
   int relayed_alignments = 0;
   int relayed_disagreements = 0;
+  // Chains left out at the last build: a later incarnation of their robot maps their time again
+  // (SubmapBook::Superseded).
+  int superseded_chains = 0;
 };
 
 class FusionBackend {

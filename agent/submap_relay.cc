@@ -34,6 +34,15 @@ SubmapRelay::Offer SubmapRelay::Add(const WireSubmap& submap, std::span<const st
   return Offer::kConflict;
 }
 
+SubmapRelay::Offer SubmapRelay::Restore(const WireSubmap& submap, std::span<const std::uint8_t> bytes) {
+  switch (book_.Add(submap, bytes)) {
+    case SubmapBook::Offer::kNew: ++counters_.restored; return Offer::kNew;
+    case SubmapBook::Offer::kDuplicate: ++counters_.duplicates; return Offer::kDuplicate;
+    case SubmapBook::Offer::kConflict: ++counters_.conflicts; return Offer::kConflict;
+  }
+  return Offer::kConflict;
+}
+
 void SubmapRelay::OnAdvert(const PeerKey& from, std::span<const SubmapChain> held, double now) {
   Advertised& a = adverts_[from];
   a.count.clear();

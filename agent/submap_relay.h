@@ -46,6 +46,9 @@ class SubmapRelay {
   Offer AddOwn(const WireSubmap& submap, std::span<const std::uint8_t> bytes);
   // A decoded, validated submap received from a peer (or relayed by one) at scenario time now.
   Offer Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now);
+  // A submap the agent held before a restart (its checkpoint): it enters as held (max_held
+  // does not apply: the checkpoint held it), due to any peer that lacks it as an own one is.
+  Offer Restore(const WireSubmap& submap, std::span<const std::uint8_t> bytes);
   // A peer's advertisement, received at scenario time now; replaces its earlier one. Chains
   // beyond max_chains are ignored.
   void OnAdvert(const PeerKey& from, std::span<const SubmapChain> held, double now);
@@ -62,6 +65,7 @@ class SubmapRelay {
   struct Counters {
     std::uint32_t own = 0;           // own closed submaps entered
     std::uint32_t received_new = 0;  // peers' submaps entered
+    std::uint32_t restored = 0;      // submaps entered from the checkpoint (Restore)
     std::uint32_t duplicates = 0;    // ... held already
     std::uint32_t conflicts = 0;     // ... a different submap under a held identity (refused)
     std::uint32_t full = 0;          // ... refused, max_held reached

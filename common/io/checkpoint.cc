@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/io/base64.h"
 #include "common/io/run_files.h"
 
 namespace mapmesh::io {
@@ -96,7 +97,7 @@ class Validator {
       out->earlier.push_back(std::move(s));
       if (!PushEarlier(*p.entry, p.where, out->earlier.size(), &stack)) return false;
     }
-    return true;
+    return Submaps(doc, &out->submaps);
   }
 
   bool Fail(std::string what) {
@@ -154,6 +155,47 @@ class Validator {
     if (!Stamp(j, "origin_stamp", where, &s->origin_stamp)) return false;
     if (!Stamp(j, "processed_until", where, &s->processed_until)) return false;
     return Map(j, "local", where, &s->local) && Map(j, "global", where, &s->global);
+  }
+
+  // The top level's "submaps" (optional): base64 strings, each a valid submap.
+  bool Submaps(const json& doc, std::vector<std::vector<std::uint8_t>>* out) {
+    const auto it = doc.find("submaps");
+    if (it == doc.end()) return true;
+    if (!it->is_array()) return Fail("submaps is " + TypeOf(*it) + ", expected an array");
+    if (it->size() > limits_.max_submaps) {
+      return Fail("submaps holds " + std::to_string(it->size()) + " submaps, more than the limit of " +
+                  std::to_string(limits_.max_submaps));
+    }
+    std::map<SubmapId, std::size_t> seen;
+    out->reserve(it->size());
+    for (std::size_t i = 0; i < it->size(); ++i) {
+      const json& e = (*it)[i];
+      const std::string at = "submaps[" + std::to_string(i) + "]";
+      if (!e.is_string()) return Fail(at + " is " + TypeOf(e) + ", expected a base64 string");
+      std::optional<std::vector<std::uint8_t>> bytes = Base64Decode(e.get_ref<const std::string&>());
+      if (!bytes) return Fail(at + " is not base64 (padded, the standard alphabet, no whitespace)");
+      const SubmapDecodeResult d = DecodeSubmap(*bytes);
+      if (!d.ok()) return Fail(at + " is not a submap: " + std::string(ToString(d.error)));
+      const SubmapId& id = d.submap.id;
+      const std::string name = std::to_string(id.robot) + "." + std::to_string(id.incarnation) + "." +
+                               std::to_string(id.index);
+      if (id.robot == robot_ && id.incarnation == incarnation_) {
+        return Fail(at + " (" + name + ") is of the resuming process's own incarnation");
+      }
+      if (const MapLimitViolation v = CheckSubmapLimits(d.submap, limits_.submap_limits);
+          v != MapLimitViolation::kNone) {
+        return Fail(at + " (" + name + ") is beyond the limits: " + std::string(ToString(v)));
+      }
+      if (d.submap.closed_s > limits_.max_stamp_s) {
+        return Fail(at + " (" + name + ") closes at " + Num(d.submap.closed_s) + " s, after the end of the run (" +
+                    Num(limits_.max_stamp_s) + " s)");
+      }
+      const auto [first, fresh] = seen.emplace(id, i);
+      if (!fresh)
+        return Fail(at + " repeats the identity " + name + " of submaps[" + std::to_string(first->second) + "]");
+      out->push_back(std::move(*bytes));
+    }
+    return true;
   }
 
   // The member `key` of object j, or nullptr after failing with "missing".
@@ -318,6 +360,9 @@ nlohmann::json CheckpointToJson(const AgentCheckpoint& c) {
   for (const IncarnationSnapshot& e : c.earlier) earlier.push_back(snapshot(e));
   nlohmann::json j = snapshot(c);
   j["earlier"] = std::move(earlier);
+  nlohmann::json submaps = nlohmann::json::array();
+  for (const std::vector<std::uint8_t>& b : c.submaps) submaps.push_back(Base64Encode(b));
+  j["submaps"] = std::move(submaps);
   return j;
 }
 

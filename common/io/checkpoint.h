@@ -5,9 +5,11 @@
 // or recurses on any file.
 //
 // Format: {"robot", "incarnation", "origin_stamp", "processed_until", "local": MAP,
-// "global": MAP, "earlier": [{the same keys but "earlier"}...]} with MAP as in run_files.h.
-// Older files nest earlier[] inside earlier entries; the loader flattens them in document
-// order (an entry, then what it nests).
+// "global": MAP, "earlier": [{the same keys but "earlier" and "submaps"}...], "submaps":
+// [SUBMAP...]} with MAP as in run_files.h and SUBMAP a closed submap's bytes as they travel
+// (submap_codec.h) in base64. Older files nest earlier[] inside earlier entries; the loader
+// flattens them in document order (an entry, then what it nests). Files without "submaps"
+// (written before issue J1) hold none.
 
 #include <cstdint>
 #include <limits>
@@ -19,6 +21,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "common/map/landmark_map.h"
+#include "common/map/map_limits.h"
 #include "common/types/messages.h"
 
 namespace mapmesh {
@@ -37,6 +40,10 @@ struct IncarnationSnapshot {
 struct AgentCheckpoint : IncarnationSnapshot {
   // Earlier incarnations that had not been re-merged yet when this one was saved (flat).
   std::vector<IncarnationSnapshot> earlier;
+  // The closed submaps the agent held (issue J1), each as it travels: its own of every
+  // incarnation and its peers'. They are facts: a restarted agent holds its earlier chains and
+  // relays and joins them as before, whether or not a peer kept them.
+  std::vector<std::vector<std::uint8_t>> submaps;
 };
 
 namespace io {
@@ -44,10 +51,12 @@ namespace io {
 // Bounds on what a checkpoint file may hold; anything beyond is refused before or while
 // parsing.
 struct CheckpointLimits {
-  std::uint64_t max_file_bytes = 256ull << 20;                   // bytes; checked before the file is read
-  std::size_t max_earlier = 64;                                  // earlier incarnations in all, nested or not
-  std::size_t max_landmarks = 100000;                            // per map (as the wire codec's limit)
-  double max_abs_coordinate_m = 1e5;                             // m, world bound on every landmark coordinate
+  std::uint64_t max_file_bytes = 256ull << 20;  // bytes; checked before the file is read
+  std::size_t max_earlier = 64;                 // earlier incarnations in all, nested or not
+  std::size_t max_landmarks = 100000;           // per map (as the wire codec's limit)
+  std::size_t max_submaps = 20000;              // closed submaps held (agent.max_submaps_held's default)
+  MapLimits submap_limits;                      // each submap's, as a peer's (agent.peer_limits)
+  double max_abs_coordinate_m = 1e5;            // m, world bound on every landmark coordinate
   double max_stamp_s = std::numeric_limits<double>::infinity();  // s, no stamp after this (the run's end)
   // Deepest JSON nesting accepted: a checkpoint whose earlier[] entries nest max_earlier deep
   // reaches 2 * max_earlier + 5 levels; deeper text is refused before it is parsed.
@@ -70,7 +79,9 @@ nlohmann::json CheckpointToJson(const AgentCheckpoint& checkpoint);
 // is `incarnation` (the resuming process's); stamps are finite, >= 0 and within
 // limits.max_stamp_s; every landmark has a
 // unique id in its map, a finite mean within limits.max_abs_coordinate_m and a finite,
-// symmetric PSD covariance; and the limits hold. Never throws, never aborts; work and stack
+// symmetric PSD covariance; every submap decodes (submap_codec.h: finite, positive definite),
+// keeps limits.submap_limits, closes within limits.max_stamp_s, repeats no identity and is not
+// the resuming incarnation's; and the limits hold. Never throws, never aborts; work and stack
 // are bounded by the text's size, not its nesting.
 CheckpointLoad ParseCheckpoint(std::string_view text, std::string_view name, RobotId robot, std::uint32_t incarnation,
                                const CheckpointLimits& limits = {});

@@ -56,4 +56,30 @@ std::vector<SubmapChain> SubmapBook::Chains() const {
   return out;
 }
 
+std::set<std::pair<RobotId, std::uint32_t>> SubmapBook::Superseded(std::span<const WireSubmap* const> open) const {
+  using Chain = std::pair<RobotId, std::uint32_t>;
+  std::map<Chain, std::pair<double, double>> span;  // (robot, incarnation) -> [from, to], in order
+  const auto cover = [&span](const WireSubmap& s) {
+    const auto [it, fresh] = span.try_emplace({s.id.robot, s.id.incarnation}, s.opened_s, s.closed_s);
+    if (!fresh) {
+      it->second.first = std::min(it->second.first, s.opened_s);
+      it->second.second = std::max(it->second.second, s.closed_s);
+    }
+  };
+  for (const auto& [id, e] : held_) cover(e.submap);
+  for (const WireSubmap* s : open) {
+    if (s != nullptr) cover(*s);
+  }
+  std::set<Chain> out;
+  for (auto a = span.begin(); a != span.end(); ++a) {
+    for (auto b = std::next(a); b != span.end() && b->first.first == a->first.first; ++b) {
+      if (b->second.first < a->second.second && a->second.first < b->second.second) {
+        out.insert(a->first);
+        break;
+      }
+    }
+  }
+  return out;
+}
+
 }  // namespace mapmesh

@@ -8,7 +8,9 @@
 
 #include <cstdint>
 #include <map>
+#include <set>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "common/map/submap_codec.h"
@@ -38,6 +40,13 @@ class SubmapBook {
   // Every robot incarnation of which a submap is held, with its ChainLength (0 when index 0 is
   // missing), in (robot, incarnation) order.
   std::vector<SubmapChain> Chains() const;
+  // The robot incarnations whose submaps share measurements with a later incarnation's of the
+  // same robot: their time span (earliest opened_s to latest closed_s of the submaps held, and
+  // of `open`'s of that incarnation) overlaps a later one's. An incarnation that replays its
+  // robot's stream from the start (lockstep) maps the same scans again and supersedes the
+  // earlier; one that takes the stream where it is does not. Joining both would count those
+  // measurements twice.
+  std::set<std::pair<RobotId, std::uint32_t>> Superseded(std::span<const WireSubmap* const> open = {}) const;
 
  private:
   struct Entry {

@@ -292,6 +292,41 @@ TEST(AgentNodeCheckpoint, HoldsAtMostTheLoadersLimitOfEarlierIncarnationsTheNewe
   EXPECT_EQ(left_out, 0u);
 }
 
+// A restarted agent holds again the closed submaps its checkpoint held (its earlier chain and
+// its peers'), and saves them in its own checkpoint; a robot not in this run's is refused and
+// counted.
+TEST(AgentNodeCheckpoint, HoldsTheSubmapsOfItsCheckpointAgainAndSavesThem) {
+  const Scenario sc = TwoRobots();
+  const auto submap = [](RobotId robot, std::uint32_t incarnation, std::uint32_t index) {
+    WireSubmap s;
+    s.id = {robot, incarnation, index};
+    s.opened_s = 10.0 * index;
+    s.closed_s = 10.0 * index + 9.0;
+    s.keys = {3, 4};
+    s.x = Eigen::VectorXd::Constant(7, 1.0);
+    EXPECT_TRUE(s.SetCovariance(Eigen::MatrixXd::Identity(7, 7) * 0.01));
+    return EncodeSubmap(s);
+  };
+  AgentCheckpoint saved;
+  saved.robot = 1;
+  saved.incarnation = 1;
+  saved.submaps = {submap(1, 1, 0), submap(1, 1, 1), submap(2, 1, 0), submap(9, 1, 0)};
+  Capture out;
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 2, out);
+  node.Resume(saved);
+  EXPECT_EQ(node.submaps().book().size(), 3u);
+  EXPECT_EQ(node.submaps().book().ChainLength(1, 1), 2u);
+  EXPECT_EQ(node.submaps().counters().restored, 3u);
+  EXPECT_EQ(node.stats().submaps_refused[static_cast<int>(SubmapRefusal::kUnknownRobot)], 1u);
+  std::size_t left_out = 99;
+  const AgentCheckpoint c = node.Checkpoint(nullptr, &left_out);
+  EXPECT_EQ(left_out, 0u);
+  EXPECT_EQ(c.submaps, (std::vector<std::vector<std::uint8_t>>{submap(1, 1, 0), submap(1, 1, 1), submap(2, 1, 0)}));
+  const io::CheckpointLoad load = io::ParseCheckpoint(io::CheckpointToJson(c).dump(), "c.json", 1, 3);
+  ASSERT_TRUE(load.ok()) << load.error;
+  EXPECT_EQ(load.checkpoint->submaps, c.submaps);
+}
+
 // Each bound an agent keeps on peers' maps is its own counted reason, and a refused map
 // changes nothing: the peer table stays empty, and a genuine map is still taken after.
 TEST(AgentNodeLimits, RefusesPeerMapsBeyondItsLimitsAndCountsWhy) {

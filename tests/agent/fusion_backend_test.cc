@@ -128,6 +128,53 @@ TEST_F(FusionBackendTest, JoiningOnSubmapChainsTakesTheChainsEstimates) {
   EXPECT_GT((Fused(maps.global, 4).mean - Eigen::Vector2d(12.0, 4.0)).norm(), 1e-3);
 }
 
+// A restarted robot whose new incarnation maps the time of its earlier one again (a lockstep
+// restart replays its stream) has its earlier chain left out: the same measurements twice would
+// be joined as independent. An incarnation that begins after the earlier one ended adds to it.
+TEST_F(FusionBackendTest, JoiningLeavesOutAChainALaterIncarnationMapsAgain) {
+  ExchangeOptions o;
+  o.global.method = FusionMethod::kJoining;
+  const auto submap = [&](std::uint32_t incarnation, double from) {
+    WireSubmap s = ExactSubmap(2, 0, 3, 8, frame2);
+    s.id.incarnation = incarnation;
+    s.opened_s = from;
+    s.closed_s = from + 10.0;
+    return s;
+  };
+  const WireSubmap ours = ExactSubmap(1, 0, 0, 6, Pose2{});
+  const auto build = [&](double second_from, bool first_held = true) {
+    SubmapBook book;
+    if (first_held) book.Add(submap(1, 0.0), EncodeSubmap(submap(1, 0.0)));
+    book.Add(submap(2, second_from), EncodeSubmap(submap(2, second_from)));
+    const std::vector<MapSource> sources = {MapSource{2, 1, two, frame2, 1e-8 * Eigen::Matrix3d::Identity()},
+                                            MapSource{2, 2, two, frame2, 1e-8 * Eigen::Matrix3d::Identity()}};
+    return MakeFusionBackend(1, 1, o, 1)->Build(own, sources, sources, SubmapInputs{&book, &ours, nullptr});
+  };
+  const FusionBackend::Built replayed = build(0.0);
+  EXPECT_TRUE(replayed.joining.solved);
+  EXPECT_EQ(replayed.joining.superseded_chains, 1);
+  EXPECT_EQ(replayed.joining.chains, 2);  // own and 2.2
+  EXPECT_EQ(replayed.joining.submaps, 2);
+  // Landmark 7, which only robot 2 maps: as if 2.1's chain were not held; counted twice its
+  // variance would be about half.
+  const auto variance_of_7 = [](const GlobalMap& g) {
+    for (std::size_t i = 0; i < g.origins.size(); ++i) {
+      for (const LandmarkOrigin& e : g.origins[i]) {
+        if (e.robot == 2 && e.id == 4) return g.map.landmarks[i].cov(0, 0);
+      }
+    }
+    ADD_FAILURE() << "no global landmark of robot 2's landmark 4";
+    return 0.0;
+  };
+  const double once = variance_of_7(replayed.global);
+  EXPECT_EQ(once, variance_of_7(build(0.0, /*first_held=*/false).global));
+  const FusionBackend::Built later = build(20.0);
+  EXPECT_EQ(later.joining.superseded_chains, 0);
+  EXPECT_EQ(later.joining.chains, 3);
+  EXPECT_EQ(later.joining.submaps, 3);
+  EXPECT_LT(variance_of_7(later.global), 0.75 * once);
+}
+
 TEST_F(FusionBackendTest, JoiningCountsEachRobotsInformationOnce) {
   ExchangeOptions o;
   o.global.method = FusionMethod::kJoining;

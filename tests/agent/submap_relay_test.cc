@@ -42,6 +42,26 @@ std::vector<SubmapId> Ids(const std::vector<const std::vector<std::uint8_t>*>& s
   return out;
 }
 
+// A restarted agent's submaps from its checkpoint are held again, beyond max_held, counted as
+// restored, and go to a peer that lacks them as own ones do (none was heard from a peer).
+TEST(SubmapRelay, RestoredSubmapsAreHeldAndGoToAPeerThatLacksThem) {
+  SubmapRelayOptions o = Options();
+  o.max_held = 1;
+  SubmapRelay r(o);
+  const std::vector<WireSubmap> kept = {Submap(1, 1, 0), Submap(1, 1, 1), Submap(4, 2, 0)};
+  for (const WireSubmap& s : kept) EXPECT_EQ(r.Restore(s, EncodeSubmap(s)), SubmapRelay::Offer::kNew);
+  EXPECT_EQ(r.Restore(kept[0], EncodeSubmap(kept[0])), SubmapRelay::Offer::kDuplicate);
+  const WireSubmap other = Submap(1, 1, 1, 2, 5.0);
+  EXPECT_EQ(r.Restore(other, EncodeSubmap(other)), SubmapRelay::Offer::kConflict);
+  EXPECT_EQ(r.book().size(), 3u);
+  EXPECT_EQ(r.counters().restored, 3u);
+  EXPECT_EQ(r.counters().received_new, 0u);
+  EXPECT_EQ(r.counters().conflicts, 1u);
+  const std::vector<SubmapChain> has_robot_4 = {{4, 2, 1}};
+  r.OnAdvert({2, 1}, has_robot_4, 10.0);
+  EXPECT_EQ(Ids(r.Due({2}, 10.5)), (std::vector<SubmapId>{{1, 1, 0}, {1, 1, 1}}));
+}
+
 // Nothing goes out until a peer in range says what it lacks: a peer out of range, or whose
 // advertisement is older than advert_max_age_s, is not listening.
 TEST(SubmapRelay, SendsOnlyWhatAPeerInRangeLacks) {

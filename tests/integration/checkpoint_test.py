@@ -238,7 +238,8 @@ class ResumeGoodCheckpointTest(unittest.TestCase):
             out.mkdir()
             (out / "checkpoint.json").write_text(json.dumps(good_checkpoint()))
             log = self.start_and_stop(out)
-            self.assertIn("resumed incarnation 2 (t=9.5s, 6 local and 8 global landmarks, 1 earlier incarnations)", log)
+            self.assertIn("resumed incarnation 2 (t=9.5s, 6 local and 8 global landmarks, 1 earlier incarnations, "
+                          "0 submaps)", log)
             # The new checkpoint carries both earlier incarnations on (nothing was re-merged).
             written = json.loads((out / "checkpoint.json").read_text())
             self.assertEqual(written["incarnation"], INCARNATION)

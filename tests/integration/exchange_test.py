@@ -2,9 +2,11 @@
 on private domains: alignment and union, multi-hop relay, kills, restarts and liveliness.
 Every run has a hard timeout."""
 
+import base64
 import csv
 import json
 import math
+import struct
 import subprocess
 import unittest
 
@@ -132,6 +134,31 @@ class ExchangeTest(SwarmCase):
         self.assertGreaterEqual(len(origins(final, 3)), 30)
         self.assertLessEqual(joined[1]["gap_to_central"], 1.5)
         self.assertGreaterEqual(joined[1]["global"]["coverage"], 0.85)
+
+    def test_joining_a_restarted_agent_keeps_its_earlier_chain_and_joins_it_once(self):
+        # park4 with every robot out of range of the others (1 m): agent 3's first incarnation
+        # closes a submap no peer ever hears. Killed at 60 s and restarted at 80 s, it holds
+        # that chain again from its checkpoint (before, it was lost). In lockstep the restart
+        # replays robot 3's stream from the start, so the new chain maps the same scans again:
+        # the earlier one is left out of the join rather than counted twice.
+        agents = self.run_ok(SCENARIOS / "park4.yaml", "--set", "radio.range_m=1", "--set", "duration_s=150",
+                             "--set", "agent.slam=cekf_submaps", "--set", "agent.fusion=joining",
+                             "--kill", "3@60", "--restart", "3@80")
+        self.assertEqual((agents[3]["restarts"], agents[3]["alive_at_end"]), (1, True))
+        stats = json.loads((self.out / "agent_3" / "stats.json").read_text())
+        submaps = stats["submaps"]
+        chains = {(c["robot"], c["incarnation"]): c["count"] for c in submaps["chains"]}
+        self.assertGreaterEqual(chains.get((3, 1), 0), 1, chains)
+        self.assertGreaterEqual(chains.get((3, 2), 0), 1, chains)
+        self.assertEqual((submaps["restored"], submaps["received_new"]), (chains[(3, 1)], 0), submaps)
+        j = stats["joining"]
+        self.assertEqual((j["superseded_chains"], j["chains"], j["chains_joined"]), (1, 1, 1), j)
+        # The second incarnation's checkpoint holds both chains, each submap as it travels
+        # (header: "MS", version, flags, robot, incarnation, index).
+        saved = json.loads((self.out / "agent_3" / "checkpoint.json").read_text())
+        ids = sorted(struct.unpack_from("<2sBBIII", base64.b64decode(b, validate=True))[3:] for b in saved["submaps"])
+        expected = sorted((3, inc, i) for (_, inc), n in chains.items() for i in range(n))
+        self.assertEqual(ids, expected)
 
     def test_eight_agents_four_killed_keep_what_the_dead_sent(self):
         kills = {2: 40.0, 4: 75.0, 5: 110.0, 7: 150.0}

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <limits>
 
+#include "common/io/base64.h"
 #include "common/io/run_files.h"
 
 namespace mapmesh::io {
@@ -39,10 +40,23 @@ IncarnationSnapshot Snapshot(std::uint32_t incarnation, int landmarks) {
   return s;
 }
 
+// A closed submap of two landmarks, as it travels (submap_codec.h).
+std::vector<std::uint8_t> SubmapBytes(RobotId robot, std::uint32_t incarnation, std::uint32_t index, double x = 1.0) {
+  WireSubmap s;
+  s.id = {robot, incarnation, index};
+  s.opened_s = 10.0 * index;
+  s.closed_s = 10.0 * index + 9.0;
+  s.keys = {3, 4};
+  s.x = Eigen::VectorXd::Constant(7, x);
+  EXPECT_TRUE(s.SetCovariance(Eigen::MatrixXd::Identity(7, 7) * 0.01));
+  return EncodeSubmap(s);
+}
+
 AgentCheckpoint Checkpoint() {
   AgentCheckpoint c;
   static_cast<IncarnationSnapshot&>(c) = Snapshot(4, 3);
   c.earlier = {Snapshot(2, 2), Snapshot(1, 1)};
+  c.submaps = {SubmapBytes(kRobot, 2, 0), SubmapBytes(kRobot, 4, 0), SubmapBytes(kRobot, 4, 1), SubmapBytes(5, 1, 0)};
   return c;
 }
 
@@ -92,15 +106,16 @@ TEST(Checkpoint, RoundTripsWithEarlierIncarnations) {
   ASSERT_EQ(r.checkpoint->earlier.size(), 2u);
   ExpectSame(r.checkpoint->earlier[0], c.earlier[0]);
   ExpectSame(r.checkpoint->earlier[1], c.earlier[1]);
+  EXPECT_EQ(r.checkpoint->submaps, c.submaps);  // byte for byte
 }
 
 TEST(Checkpoint, NestedEarlierIsFlattenedInDocumentOrderAndWrittenFlat) {
   // An older writer's file: 4 { earlier: [2 { earlier: [1] }, 3] }.
-  json one = CheckpointToJson(AgentCheckpoint{Snapshot(1, 1), {}});
-  json two = CheckpointToJson(AgentCheckpoint{Snapshot(2, 2), {}});
+  json one = CheckpointToJson(AgentCheckpoint{Snapshot(1, 1), {}, {}});
+  json two = CheckpointToJson(AgentCheckpoint{Snapshot(2, 2), {}, {}});
   two["earlier"] = json::array({one});
-  json three = CheckpointToJson(AgentCheckpoint{Snapshot(3, 0), {}});
-  json four = CheckpointToJson(AgentCheckpoint{Snapshot(4, 3), {}});
+  json three = CheckpointToJson(AgentCheckpoint{Snapshot(3, 0), {}, {}});
+  json four = CheckpointToJson(AgentCheckpoint{Snapshot(4, 3), {}, {}});
   four["earlier"] = json::array({two, three});
   const CheckpointLoad r = Parse(four.dump());
   ASSERT_TRUE(r.ok()) << r.error;
@@ -122,12 +137,14 @@ TEST(Checkpoint, NestedEarlierIsFlattenedInDocumentOrderAndWrittenFlat) {
 TEST(Checkpoint, EarlierAndOptionalKeysMayBeAbsent) {
   json doc = CheckpointToJson(Checkpoint());
   doc.erase("earlier");
+  doc.erase("submaps");  // a file written before issue J1
   doc["local"].erase("shape_sigma_m");
   doc["local"]["landmarks"][0].erase("signature");
   doc["unknown_key_from_a_newer_writer"] = 1;
   const CheckpointLoad r = Parse(doc.dump());
   ASSERT_TRUE(r.ok()) << r.error;
   EXPECT_TRUE(r.checkpoint->earlier.empty());
+  EXPECT_TRUE(r.checkpoint->submaps.empty());
   EXPECT_EQ(r.checkpoint->local.shape_sigma_m, 0.0);
   EXPECT_EQ(r.checkpoint->local.landmarks[0].signature, -1);
 }
@@ -141,10 +158,10 @@ TEST(Checkpoint, WrongRobotAtTheTopAndInAnyEarlierEntry) {
   c.earlier[2].robot = 5;
   EXPECT_EQ(Refusal(CheckpointToJson(c)), Reason("earlier[2].robot is 5, expected 3"));
   // Nested: the path names where it is in the file.
-  json inner = CheckpointToJson(AgentCheckpoint{Snapshot(1, 1), {}});
+  json inner = CheckpointToJson(AgentCheckpoint{Snapshot(1, 1), {}, {}});
   inner["robot"] = 4294967299ull;  // 3 + 2^32: must not wrap to 3
-  json doc = CheckpointToJson(AgentCheckpoint{Snapshot(4, 1), {}});
-  doc["earlier"] = json::array({CheckpointToJson(AgentCheckpoint{Snapshot(2, 1), {}})});
+  json doc = CheckpointToJson(AgentCheckpoint{Snapshot(4, 1), {}, {}});
+  doc["earlier"] = json::array({CheckpointToJson(AgentCheckpoint{Snapshot(2, 1), {}, {}})});
   doc["earlier"][0]["earlier"] = json::array({inner});
   EXPECT_EQ(Refusal(doc), Reason("earlier[0].earlier[0].robot is 4294967299, expected 3"));
 }
@@ -262,7 +279,7 @@ TEST(Checkpoint, EarlierNestedOneHundredThousandDeepIsRefused) {
 
 // Just past the limit, nested or flat: refused by counting, with the place named.
 TEST(Checkpoint, MoreThanTheLimitOfEarlierIncarnationsIsRefused) {
-  const auto entry = [](std::uint32_t inc) { return CheckpointToJson(AgentCheckpoint{Snapshot(inc, 0), {}}); };
+  const auto entry = [](std::uint32_t inc) { return CheckpointToJson(AgentCheckpoint{Snapshot(inc, 0), {}, {}}); };
   json doc = entry(1000);
   json* at = &doc;
   std::string path;
@@ -292,6 +309,44 @@ TEST(Checkpoint, MoreLandmarksThanTheLimitAreRefused) {
   c.earlier.clear();
   EXPECT_TRUE(Parse(CheckpointToJson(c).dump(), limits).ok());
   EXPECT_EQ(CheckpointLimits{}.max_landmarks, 100000u);
+}
+
+// The submaps are input like a peer's: each must decode, keep the submap limits and close
+// within the run, and none may repeat an identity or be the resuming incarnation's.
+TEST(Checkpoint, SubmapsAreValidatedLikeAPeersAndNamedByIdentity) {
+  json doc = CheckpointToJson(Checkpoint());
+  doc["submaps"] = 5;
+  EXPECT_EQ(Refusal(doc), Reason("submaps is 5, expected an array"));
+  doc["submaps"] = json::array({Base64Encode(SubmapBytes(5, 1, 0)), 7});
+  EXPECT_EQ(Refusal(doc), Reason("submaps[1] is 7, expected a base64 string"));
+  doc["submaps"][1] = "Zm9v\n";
+  EXPECT_EQ(Refusal(doc), Reason("submaps[1] is not base64 (padded, the standard alphabet, no whitespace)"));
+  std::vector<std::uint8_t> truncated = SubmapBytes(5, 1, 1);
+  truncated.resize(truncated.size() - 4);
+  doc["submaps"][1] = Base64Encode(truncated);
+  EXPECT_EQ(Refusal(doc), Reason("submaps[1] is not a submap: truncated"));
+  doc["submaps"][1] = Base64Encode(SubmapBytes(kRobot, kNow, 0));
+  EXPECT_EQ(Refusal(doc), Reason("submaps[1] (3.9.0) is of the resuming process's own incarnation"));
+  doc["submaps"][1] = Base64Encode(SubmapBytes(5, 1, 0, 2.0));  // another submap, the same identity
+  EXPECT_EQ(Refusal(doc), Reason("submaps[1] repeats the identity 5.1.0 of submaps[0]"));
+  doc["submaps"][1] = Base64Encode(SubmapBytes(5, 1, 1, 60.0));
+  CheckpointLimits limits;
+  limits.submap_limits.world_radius_m = 50.0;
+  EXPECT_EQ(Refusal(doc, limits), Reason("submaps[1] (5.1.1) is beyond the limits: out_of_world"));
+  limits = {};
+  limits.max_stamp_s = 45.0;  // the snapshots' stamps are within it, submap 5.1.5 closes at 59 s
+  doc["submaps"][1] = Base64Encode(SubmapBytes(5, 1, 5));
+  EXPECT_EQ(Refusal(doc, limits), Reason("submaps[1] (5.1.5) closes at 59 s, after the end of the run (45 s)"));
+  doc["submaps"][1] = Base64Encode(SubmapBytes(5, 1, 1, 60.0));
+  limits = {};
+  limits.max_submaps = 1;
+  EXPECT_EQ(Refusal(doc, limits), Reason("submaps holds 2 submaps, more than the limit of 1"));
+  limits.max_submaps = 2;
+  const CheckpointLoad r = Parse(doc.dump(), limits);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.checkpoint->submaps,
+            (std::vector<std::vector<std::uint8_t>>{SubmapBytes(5, 1, 0), SubmapBytes(5, 1, 1, 60.0)}));
+  EXPECT_EQ(CheckpointLimits{}.max_submaps, 20000u);
 }
 
 TEST(Checkpoint, MalformedJsonIsOneLine) {

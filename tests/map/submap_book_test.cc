@@ -68,5 +68,34 @@ TEST(SubmapBook, ChainLengthStopsAtTheFirstGap) {
   EXPECT_EQ(book.Chains(), (std::vector<SubmapChain>{{4, 2, 4}, {4, 3, 1}, {6, 1, 0}, {UINT32_MAX, UINT32_MAX, 0}}));
 }
 
+// A later incarnation that maps the same time again (a lockstep restart replays the robot's
+// stream from the start) supersedes the earlier; one that begins after the earlier's last
+// submap does not, nor does another robot's chain at the same time. Open submaps count.
+TEST(SubmapBook, AnIncarnationWhoseTimeALaterOneMapsAgainIsSuperseded) {
+  SubmapBook book;
+  const auto add = [&](RobotId robot, std::uint32_t incarnation, std::uint32_t index, double from, double to) {
+    WireSubmap s = Submap(robot, incarnation, index);
+    s.opened_s = from;
+    s.closed_s = to;
+    book.Add(s, EncodeSubmap(s));
+  };
+  add(3, 1, 0, 0.5, 30.0);
+  add(3, 1, 1, 30.0, 58.0);
+  add(5, 1, 0, 0.5, 40.0);  // another robot, the same time
+  EXPECT_TRUE(book.Superseded().empty());
+  add(3, 2, 0, 80.0, 95.0);  // a restart that takes the stream where it is
+  EXPECT_TRUE(book.Superseded().empty());
+  WireSubmap replay = Submap(3, 3, 0);  // a third incarnation replaying from the start, still open
+  replay.opened_s = 0.5;
+  replay.closed_s = 12.0;
+  const WireSubmap* open[] = {&replay, nullptr};
+  using Chains = std::set<std::pair<RobotId, std::uint32_t>>;
+  EXPECT_EQ(book.Superseded(open), (Chains{{3, 1}}));  // 3.2 begins after 12 s
+  replay.closed_s = 85.0;
+  EXPECT_EQ(book.Superseded(open), (Chains{{3, 1}, {3, 2}}));
+  add(5, 4, 0, 39.0, 41.0);
+  EXPECT_EQ(book.Superseded(open), (Chains{{3, 1}, {3, 2}, {5, 1}}));
+}
+
 }  // namespace
 }  // namespace mapmesh
