@@ -1,7 +1,7 @@
 // libFuzzer target for the checkpoint loader (common/io/checkpoint.h): ParseCheckpoint on
 // arbitrary text, under the default limits and under small ones. It must not throw (nothing is
 // caught here), a refusal is one line naming the file, and an accepted checkpoint satisfies
-// the documented validation and round-trips through CheckpointToJson.
+// the documented validation (its submaps' too) and round-trips through CheckpointToJson.
 
 #include <cmath>
 #include <cstdint>
@@ -14,6 +14,8 @@
 
 #include "common/io/checkpoint.h"
 #include "common/map/landmark_map.h"
+#include "common/map/map_limits.h"
+#include "common/map/submap_codec.h"
 #include "fuzz/fuzz_check.h"
 
 namespace mapmesh {
@@ -40,7 +42,7 @@ bool SameSnapshot(const IncarnationSnapshot& a, const IncarnationSnapshot& b) {
 }
 
 bool SameCheckpoint(const AgentCheckpoint& a, const AgentCheckpoint& b) {
-  if (!SameSnapshot(a, b) || a.earlier.size() != b.earlier.size()) return false;
+  if (!SameSnapshot(a, b) || a.earlier.size() != b.earlier.size() || a.submaps != b.submaps) return false;
   for (std::size_t i = 0; i < a.earlier.size(); ++i) {
     if (!SameSnapshot(a.earlier[i], b.earlier[i])) return false;
   }
@@ -73,6 +75,22 @@ void CheckSnapshot(const IncarnationSnapshot& s, const io::CheckpointLimits& lim
   CheckMap(s.global, limits);
 }
 
+// The documented validation of the submaps: within the limit, each decodes and keeps the submap
+// limits, closes by the run's end, is not the resuming incarnation's, and no identity repeats.
+void CheckSubmaps(const std::vector<std::vector<std::uint8_t>>& submaps, const io::CheckpointLimits& limits) {
+  MAPMESH_FUZZ_CHECK(submaps.size() <= limits.max_submaps);
+  std::set<SubmapId> ids;
+  for (const std::vector<std::uint8_t>& bytes : submaps) {
+    const SubmapDecodeResult d = DecodeSubmap(bytes);
+    MAPMESH_FUZZ_CHECK(d.ok());
+    MAPMESH_FUZZ_CHECK(EncodeSubmap(d.submap) == bytes);
+    MAPMESH_FUZZ_CHECK(CheckSubmapLimits(d.submap, limits.submap_limits) == MapLimitViolation::kNone);
+    MAPMESH_FUZZ_CHECK(d.submap.closed_s <= limits.max_stamp_s);
+    MAPMESH_FUZZ_CHECK(!(d.submap.id.robot == kRobot && d.submap.id.incarnation == kIncarnation));
+    MAPMESH_FUZZ_CHECK(ids.insert(d.submap.id).second);
+  }
+}
+
 void FuzzOne(std::string_view text, const io::CheckpointLimits& limits) {
   const io::CheckpointLoad load = io::ParseCheckpoint(text, kName, kRobot, kIncarnation, limits);
   MAPMESH_FUZZ_CHECK(!load.missing);
@@ -89,6 +107,7 @@ void FuzzOne(std::string_view text, const io::CheckpointLimits& limits) {
   CheckSnapshot(c, limits, &incarnations);
   MAPMESH_FUZZ_CHECK(c.earlier.size() <= limits.max_earlier);
   for (const IncarnationSnapshot& e : c.earlier) CheckSnapshot(e, limits, &incarnations);
+  CheckSubmaps(c.submaps, limits);
 
   // What a checkpoint writes, it reads back unchanged.
   const std::string written = io::CheckpointToJson(c).dump();
@@ -108,6 +127,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   small.max_earlier = 2;
   small.max_landmarks = 4;
   small.max_abs_coordinate_m = 100.0;
+  small.max_submaps = 2;
+  small.submap_limits.world_radius_m = 100.0;
   mapmesh::FuzzOne(text, small);
   return 0;
 }

@@ -315,6 +315,19 @@ void CheckpointSeeds(const fs::path& dir, const fs::path& source_dir) {
     many.earlier.push_back(s);
   }
   add("too-many-earlier", io::CheckpointToJson(many).dump());
+  // With submaps (issue J1): its own earlier chain and a peer's, each a small exact submap.
+  AgentCheckpoint held = c;
+  for (const SubmapId id : {SubmapId{kRobot, 5, 0}, SubmapId{kRobot, 5, 1}, SubmapId{2, 1, 0}}) {
+    WireSubmap s;
+    s.id = id;
+    s.opened_s = 10.0 * id.index;
+    s.closed_s = s.opened_s + 9.5;
+    s.keys = {4, 9};
+    s.x = Eigen::VectorXd::LinSpaced(7, -3.0, 3.0);
+    s.SetCovariance(0.01 * Eigen::MatrixXd::Identity(7, 7));
+    held.submaps.push_back(EncodeSubmap(s));
+  }
+  add("submaps", io::CheckpointToJson(held).dump());
 
   // Bad cases, one per reason.
   const auto variant = [&](const std::string& what, auto change) {
