@@ -70,7 +70,9 @@ struct ExchangeOptions {
   double silent_after_s = 0.0;          // a peer that sent no map for this long (scenario s) is silent; 0: 3
                                         // map periods
   int max_alignments_per_update = 4;    // agent.max_alignments_per_update: full alignments (first, retried and fresh
-                                        // ones) per Update, round robin
+                                        // ones) per Update, round robin ...
+  int peers_per_alignment = 16;         // agent.peers_per_alignment: ... or one per this many peers known, if more
+                                        // (0: never more), so that every peer's turn comes as often at any size
   int max_rendezvous_per_update = 64;   // agent.max_rendezvous_per_update: rendezvous fits weighed against the maps
                                         // per Update, round robin with the alignments
   int max_relay_checks_per_update = 4;  // agent.max_relay_checks_per_update: relays (peers' newer global maps) judged
@@ -123,6 +125,7 @@ struct ExchangeOptions {
     r.GetInRange("map_publish_period_s", map_publish_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
     r.GetZeroOrInRange("silent_after_s", silent_after_s, limits::kMinPeriodS, limits::kMaxPeriodS);
     r.GetInRange("max_alignments_per_update", max_alignments_per_update, 1, limits::kMaxAlignmentsPerUpdate);
+    r.GetInRange("peers_per_alignment", peers_per_alignment, 0, limits::kMaxAlignmentsPerUpdate);
     r.GetInRange("max_rendezvous_per_update", max_rendezvous_per_update, 1, limits::kMaxAlignmentsPerUpdate);
     r.GetInRange("max_relay_checks_per_update", max_relay_checks_per_update, 1, limits::kMaxAlignmentsPerUpdate);
     r.GetInRange("max_relay_comparisons_per_update", max_relay_comparisons_per_update, 1,

@@ -58,6 +58,14 @@ std::set<PeerKey> RelayTurns(const std::vector<PeerFacts>& facts, const Exchange
 
 }  // namespace
 
+int AlignmentBudget(const std::vector<PeerFacts>& facts, const ExchangeOptions& o) {
+  if (o.peers_per_alignment <= 0) return o.max_alignments_per_update;
+  const int peers = static_cast<int>(std::count_if(facts.begin(), facts.end(),
+                                                   [](const PeerFacts& f) { return f.has_map && !f.exact; }));
+  const int scaled = (peers + o.peers_per_alignment - 1) / o.peers_per_alignment;
+  return std::min(limits::kMaxAlignmentsPerUpdate, std::max(o.max_alignments_per_update, scaled));
+}
+
 const char* ToString(TurnKind kind) {
   switch (kind) {
     case TurnKind::kRendezvous: return "rendezvous";
@@ -79,7 +87,7 @@ PeerSchedule PlanTurns(const std::vector<PeerFacts>& facts, std::size_t own_size
                                      [](const PeerFacts& f, const PeerKey& k) { return f.key < k; });
   for (auto it = turn; it != facts.end(); ++it) order.push_back(&*it);
   for (auto it = facts.begin(); it != turn; ++it) order.push_back(&*it);
-  int budget = o.max_alignments_per_update;
+  int budget = AlignmentBudget(facts, o);
   int rendezvous_budget = o.max_rendezvous_per_update;
   auto starve = [&](const PeerKey& key) {
     if (!s.next_turn) s.next_turn = key;

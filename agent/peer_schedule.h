@@ -17,8 +17,9 @@
 //   aligned afresh as ours grows.
 // - Rendezvous turns are budgeted too (max_rendezvous_per_update): a peer left without its turn
 //   keeps its fit waiting, and the next update starts with it.
-// - Full alignments (align and realign turns) are budgeted: max_alignments_per_update, round
-//   robin from the first peer left without one it was due. Relays (newer global maps) are
+// - Full alignments (align and realign turns) are budgeted: max_alignments_per_update, or one
+//   per peers_per_alignment peers with a map when that is more (AlignmentBudget), round robin
+//   from the first peer left without one it was due. Relays (newer global maps) are
 //   judged at most max_relay_checks_per_update, and fewer when judging them would compare more
 //   than max_relay_comparisons_per_update maps: never judged first, then those that grew most,
 //   then those judged longest ago.
@@ -78,6 +79,10 @@ struct PeerSchedule {
   std::set<PeerKey> relay_turns;     // peers whose global map is judged in this update
   std::optional<PeerKey> next_turn;  // the first peer left without a full alignment it was due
 };
+
+// Full alignments per update: max_alignments_per_update, or one per peers_per_alignment peer
+// incarnations with a map (but earlier incarnations of our own in our frame) when that is more.
+int AlignmentBudget(const std::vector<PeerFacts>& facts, const ExchangeOptions& o);
 
 // The turns of one update at scenario time `now`, our local map holding own_size landmarks;
 // `facts` in key order; round robin from first_turn.

@@ -61,6 +61,34 @@ TEST(PeerSchedule, FreshPeersAreAlignedWithinTheBudgetAndTheNextUpdateStartsWher
   EXPECT_EQ(next[1].key, (PeerKey{4, 1}));
 }
 
+// The full alignments per update grow with the peers, one per peers_per_alignment, so that each
+// peer's turn comes as often in a swarm of 128 as of 64; never below max_alignments_per_update.
+TEST(PeerSchedule, TheAlignmentBudgetGrowsWithThePeers) {
+  ExchangeOptions o = Options();  // at least 2
+  o.peers_per_alignment = 16;
+  const auto aligns = [&](int peers, const ExchangeOptions& with) {
+    std::vector<PeerFacts> facts;
+    for (int r = 1; r <= peers; ++r) facts.push_back(Fresh(static_cast<RobotId>(r)));
+    EXPECT_EQ(AlignmentBudget(facts, with), static_cast<int>(Turns(facts, 0.0, 30, with).size()));
+    return AlignmentBudget(facts, with);
+  };
+  EXPECT_EQ(aligns(5, o), 2);
+  EXPECT_EQ(aligns(32, o), 2);
+  EXPECT_EQ(aligns(33, o), 3);
+  EXPECT_EQ(aligns(64, o), 4);
+  EXPECT_EQ(aligns(127, o), 8);
+  o.peers_per_alignment = 0;  // never more
+  EXPECT_EQ(aligns(127, o), 2);
+  // Peers without a map, and our own earlier incarnations in our frame, are not counted.
+  o.peers_per_alignment = 16;
+  std::vector<PeerFacts> facts;
+  for (int r = 1; r <= 40; ++r) facts.push_back(Fresh(static_cast<RobotId>(r)));
+  EXPECT_EQ(AlignmentBudget(facts, o), 3);
+  for (int r = 0; r < 8; ++r) facts[static_cast<std::size_t>(r)].has_map = false;
+  facts[8].aligned = facts[8].exact = true;
+  EXPECT_EQ(AlignmentBudget(facts, o), 2);
+}
+
 TEST(PeerSchedule, AnAttemptWaitsForTheAlignPeriodAndForAChange) {
   PeerFacts f = Fresh(1);
   f.last_attempt = 10.0;
