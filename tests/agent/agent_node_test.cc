@@ -9,6 +9,7 @@
 
 #include "common/config/scenario.h"
 #include "common/io/checkpoint.h"
+#include "tests/testing/small_submap.h"
 
 namespace mapmesh {
 namespace {
@@ -298,14 +299,7 @@ TEST(AgentNodeCheckpoint, HoldsAtMostTheLoadersLimitOfEarlierIncarnationsTheNewe
 TEST(AgentNodeCheckpoint, HoldsTheSubmapsOfItsCheckpointAgainAndSavesThem) {
   const Scenario sc = TwoRobots();
   const auto submap = [](RobotId robot, std::uint32_t incarnation, std::uint32_t index) {
-    WireSubmap s;
-    s.id = {robot, incarnation, index};
-    s.opened_s = 10.0 * index;
-    s.closed_s = 10.0 * index + 9.0;
-    s.keys = {3, 4};
-    s.x = Eigen::VectorXd::Constant(7, 1.0);
-    EXPECT_TRUE(s.SetCovariance(Eigen::MatrixXd::Identity(7, 7) * 0.01));
-    return EncodeSubmap(s);
+    return EncodeSubmap(testing::SmallSubmap(robot, incarnation, index));
   };
   AgentCheckpoint saved;
   saved.robot = 1;

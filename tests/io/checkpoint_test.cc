@@ -10,6 +10,7 @@
 
 #include "common/io/base64.h"
 #include "common/io/run_files.h"
+#include "tests/testing/small_submap.h"
 
 namespace mapmesh::io {
 namespace {
@@ -42,14 +43,7 @@ IncarnationSnapshot Snapshot(std::uint32_t incarnation, int landmarks) {
 
 // A closed submap of two landmarks, as it travels (submap_codec.h).
 std::vector<std::uint8_t> SubmapBytes(RobotId robot, std::uint32_t incarnation, std::uint32_t index, double x = 1.0) {
-  WireSubmap s;
-  s.id = {robot, incarnation, index};
-  s.opened_s = 10.0 * index;
-  s.closed_s = 10.0 * index + 9.0;
-  s.keys = {3, 4};
-  s.x = Eigen::VectorXd::Constant(7, x);
-  EXPECT_TRUE(s.SetCovariance(Eigen::MatrixXd::Identity(7, 7) * 0.01));
-  return EncodeSubmap(s);
+  return EncodeSubmap(mapmesh::testing::SmallSubmap(robot, incarnation, index, x));
 }
 
 AgentCheckpoint Checkpoint() {

@@ -4,18 +4,13 @@
 
 #include <algorithm>
 
+#include "tests/testing/small_submap.h"
+
 namespace mapmesh {
 namespace {
 
 WireSubmap Submap(RobotId robot, std::uint32_t incarnation, std::uint32_t index, double x = 1.0) {
-  WireSubmap s;
-  s.id = {robot, incarnation, index};
-  s.opened_s = 10.0 * index;
-  s.closed_s = 10.0 * index + 9.0;
-  s.keys = {3, 4};
-  s.x = Eigen::VectorXd::Constant(7, x);
-  EXPECT_TRUE(s.SetCovariance(Eigen::MatrixXd::Identity(7, 7) * 0.01));
-  return s;
+  return testing::SmallSubmap(robot, incarnation, index, x);
 }
 
 // A submap enters once however often it arrives; a different one under a held identity is
