@@ -294,6 +294,8 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"solved", node.exchange().joining().solved},
               {"ties", node.exchange().joining().ties},
               {"ties_dropped", node.exchange().joining().ties_dropped},
+              {"first_passes", node.exchange().joining().first_passes},
+              {"rechecks", node.exchange().joining().rechecks},
               {"relayed_chains", node.exchange().joining().relayed_chains},
               {"relayed_placed", node.exchange().joining().relayed_placed},
               {"relayed_alignments", node.exchange().joining().relayed_alignments},

@@ -5,6 +5,7 @@
 #include <random>
 #include <set>
 
+#include "agent/peer_schedule.h"
 #include "agent/relay_policy.h"
 #include "common/merge/chain_map.h"
 #include "common/merge/map_alignment.h"
@@ -83,25 +84,32 @@ class JoiningFusion : public FusionBackend {
                        const SubmapInputs& submaps) {
     const SubmapBook& book = *submaps.book;
     auto chain = [&](RobotId robot, std::uint32_t incarnation, const Pose2& origin) {
-      ChainInput c{robot, incarnation, {}, origin, {}};
+      ChainInput c{robot, incarnation, {}, origin, {}, {}};
       const std::uint32_t n = book.ChainLength(robot, incarnation);
       for (std::uint32_t i = 0; i < n; ++i) c.submaps.push_back(book.Find({robot, incarnation, i}));
       return c;
     };
     std::vector<ChainInput> chains = {chain(self_, incarnation_, Pose2{})};
+    std::vector<bool> ends_open = {false};  // per chain: whether its last submap is an open one
     if (submaps.own_open && submaps.own_open->id.index == chains[0].submaps.size()) {
       chains[0].submaps.push_back(submaps.own_open);  // it continues the chain (none is missing before it)
+      ends_open[0] = true;
     }
     for (const MapSource& s : sources) {
       if (superseded_.contains({s.robot, s.incarnation})) continue;
       ChainInput c = chain(s.robot, s.incarnation, s.to_own);
+      bool open_last = false;
       if (submaps.peers_open != nullptr) {
         const auto open = submaps.peers_open->find({s.robot, s.incarnation});
         if (open != submaps.peers_open->end() && open->second.id.index == c.submaps.size()) {
           c.submaps.push_back(&open->second);
+          open_last = true;
         }
       }
-      if (!c.submaps.empty()) chains.push_back(std::move(c));
+      if (!c.submaps.empty()) {
+        chains.push_back(std::move(c));
+        ends_open.push_back(open_last);
+      }
     }
     std::map<LandmarkRef, int> groups;
     for (std::size_t g = 0; g < associated.origins.size(); ++g) {
@@ -113,12 +121,22 @@ class JoiningFusion : public FusionBackend {
     for (ChainInput& c : chains) {
       const auto it = last_frames_.find({c.robot, c.incarnation});
       if (it != last_frames_.end()) c.start_frames = it->second;
+      const auto l = last_landmarks_.find({c.robot, c.incarnation});
+      if (l != last_landmarks_.end()) c.start_landmarks = l->second;
     }
     const NetworkResult r = JoinSubmapNetwork(chains, groups, {}, &information_);
     if (r.solved) {
       last_frames_.clear();
       for (std::size_t i = 0; i < chains.size(); ++i) {
-        if (r.joined[i]) last_frames_[{chains[i].robot, chains[i].incarnation}] = r.frames[i];
+        if (!r.joined[i]) continue;
+        std::vector<Pose2>& frames = last_frames_[{chains[i].robot, chains[i].incarnation}] = r.frames[i];
+        // An open submap ends where its robot was: by the next solve it has moved on, and its end
+        // is composed along the open submap then.
+        if (ends_open[i]) frames.pop_back();
+      }
+      last_landmarks_.clear();
+      for (const NetworkLandmark& l : r.landmarks) {
+        for (const LandmarkRef& ref : l.refs) last_landmarks_[{ref.robot, ref.incarnation}][ref.key] = l.mean;
       }
     }
     report_.chains = static_cast<int>(chains.size());
@@ -129,6 +147,8 @@ class JoiningFusion : public FusionBackend {
     report_.solved = r.solved;
     report_.ties = r.ties;
     report_.ties_dropped = r.ties_dropped;
+    report_.first_passes += r.first_pass ? 1 : 0;
+    report_.rechecks += r.rechecked ? 1 : 0;
     ++report_.solves;
     if (!r.solved) return associated;
     GlobalMap out = associated;
@@ -148,8 +168,7 @@ class JoiningFusion : public FusionBackend {
     std::optional<AlignmentResult> candidate;              // an alignment waiting for a later one to agree
     std::optional<Pose2> to_own;                           // placed: where the chain's first frame lies ...
     Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();  // ... and how well the alignment knew it
-    std::size_t tried_size = 0, tried_target = 0;          // both maps' sizes at the last alignment ...
-    std::optional<double> tried_at;                        // ... and when it was
+    RelayedAlignmentFacts tried;                           // its alignments so far (peer_schedule.h)
     std::uint64_t attempts = 0;
   };
 
@@ -159,8 +178,8 @@ class JoiningFusion : public FusionBackend {
   // alignment agrees with the first (relay tolerances at the chain map's centroid); a
   // disagreeing one replaces the candidate. An alignment is tried again when either map has
   // grown by retry_growth, or align_period_s after an accepted one (the same maps, another
-  // draw): a failed one on the same maps would fail again. Once placed, the chain lies where
-  // the last solve put its first frame.
+  // draw): a failed one on the same maps would fail again. Both double after a failed one
+  // (RelayedAlignmentDue). Once placed, the chain lies where the last solve put its first frame.
   void PlaceRelayedChains(const LandmarkMap& own_local, const SubmapBook& book, double now,
                           std::vector<MapSource>* inputs) {
     std::set<std::pair<RobotId, std::uint32_t>> heard = {{self_, incarnation_}};
@@ -180,12 +199,8 @@ class JoiningFusion : public FusionBackend {
       const LandmarkMap& theirs = r.map.map();
       if (!r.to_own && theirs.size() >= 3) {
         if (!target) target = BuildGlobalMap(own_local, self_, *inputs, association_, incarnation_).map;
-        const auto grown = [&](std::size_t size, std::size_t then) {
-          return then == 0 || static_cast<double>(size) >= (1.0 + options_.retry_growth) * static_cast<double>(then);
-        };
-        const bool confirm = r.candidate && now >= *r.tried_at + options_.align_period_s;
-        if (!r.tried_at || confirm || grown(theirs.size(), r.tried_size) || grown(target->size(), r.tried_target)) {
-          r.tried_at = now;
+        if (RelayedAlignmentDue(r.tried, theirs.size(), target->size(), now, options_)) {
+          r.tried.tried_at = now;
           Align(c, r, *target);
         }
       }
@@ -200,14 +215,18 @@ class JoiningFusion : public FusionBackend {
 
   void Align(const SubmapChain& c, Relayed& r, const LandmarkMap& target) {
     const LandmarkMap& theirs = r.map.map();
-    r.tried_size = theirs.size();
-    r.tried_target = target.size();
+    r.tried.tried_size = theirs.size();
+    r.tried.tried_target = target.size();
     std::mt19937_64 rng(seed_ ^ (std::uint64_t{c.robot} * 0x9e3779b97f4a7c15ULL) ^
                         (std::uint64_t{c.incarnation} * 0xbf58476d1ce4e5b9ULL) ^
                         (++r.attempts * 0x94d049bb133111ebULL));
     ++report_.relayed_alignments;
     const AlignmentResult a = AlignMaps(target, theirs, options_.align, rng);
-    if (!a.accepted()) return;
+    if (!a.accepted()) {
+      ++r.tried.failures;
+      return;
+    }
+    r.tried.failures = 0;
     if (r.candidate && relay_.Agree(r.candidate->transform, a.transform, Centroid(theirs))) {
       r.to_own = a.transform;
       r.to_own_cov = a.cov;
@@ -215,6 +234,7 @@ class JoiningFusion : public FusionBackend {
     }
     if (r.candidate) ++report_.relayed_disagreements;
     r.candidate = a;
+    r.tried.candidate = true;
   }
 
   RobotId self_;
@@ -228,8 +248,9 @@ class JoiningFusion : public FusionBackend {
   std::map<std::pair<RobotId, std::uint32_t>, Relayed> relayed_;
   std::set<std::pair<RobotId, std::uint32_t>> superseded_;  // at the last build (SubmapBook::Superseded)
   SubmapInformation information_;  // the submaps' information matrices, from one solve to the next
-  // The last solve's frames per chain: where the next one starts.
+  // The last solve's frames and landmarks (by key) per chain: where the next one starts.
   std::map<std::pair<RobotId, std::uint32_t>, std::vector<Pose2>> last_frames_;
+  std::map<std::pair<RobotId, std::uint32_t>, std::map<std::uint32_t, Eigen::Vector2d>> last_landmarks_;
 };
 
 }  // namespace

@@ -46,6 +46,11 @@ struct JoiningReport {
   bool solved = false;
   int ties = 0;          // pairings of landmarks across chains offered by the association ...
   int ties_dropped = 0;  // ... and not used (contradicted by the submaps, or redundant)
+  // Solves so far that ran the first pass (the rest judged the pairings on the last solve's
+  // frames: submap_network.h), and among them those run again with it because the pairings
+  // judged on the frames left a submap's residual too large.
+  int first_passes = 0;
+  int rechecks = 0;
   // Chains held only through relays (no map of their robot aligned): held at the last build,
   // placed (an alignment confirmed by a later one) and among them offered to the join; and the
   // alignments of their rebuilt maps tried so far, and refused as disagreeing with the one

@@ -136,4 +136,15 @@ PeerSchedule PlanTurns(const std::vector<PeerFacts>& facts, std::size_t own_size
   return s;
 }
 
+bool RelayedAlignmentDue(const RelayedAlignmentFacts& f, std::size_t size, std::size_t target, double now,
+                         const ExchangeOptions& o) {
+  if (!f.tried_at) return true;
+  const double backoff = f.failures > 0 ? 2.0 : 1.0;
+  const auto grown = [&](std::size_t n, std::size_t then) {
+    return then == 0 || static_cast<double>(n) >= (1.0 + backoff * o.retry_growth) * static_cast<double>(then);
+  };
+  const bool confirm = f.candidate && now >= *f.tried_at + backoff * o.align_period_s;
+  return confirm || grown(size, f.tried_size) || grown(target, f.tried_target);
+}
+
 }  // namespace mapmesh

@@ -2,7 +2,9 @@
 // factor's normal equations from its Jacobian's structure against the dense products, and of a
 // whole join of the shared problem (bench/joiner_problem.h: 50 submaps of 30 landmarks, here
 // split into two robots' chains that share their landmarks) with the submaps' information
-// matrices kept from the last join (as the agent does) against computed afresh.
+// matrices kept from the last join (as the agent does) against computed afresh; and a join
+// started from the last one's frames and landmarks with its pairings judged on those frames
+// (as the agent does since J1's sixth session) against the same start with the first pass.
 
 #include <benchmark/benchmark.h>
 
@@ -74,7 +76,7 @@ struct TwoChains {
   std::vector<ChainInput> Chains() const {
     Pose2 start;
     for (const WireSubmap& w : one) start = start * Pose2{w.x(0), w.x(1), w.x(2)};
-    ChainInput a{1, 1, {}, Pose2{}, {}}, b{2, 1, {}, start * Pose2{0.2, -0.2, 0.02}, {}};
+    ChainInput a{1, 1, {}, Pose2{}, {}, {}}, b{2, 1, {}, start * Pose2{0.2, -0.2, 0.02}, {}, {}};
     for (const WireSubmap& w : one) a.submaps.push_back(&w);
     for (const WireSubmap& w : two) b.submaps.push_back(&w);
     return {a, b};
@@ -94,6 +96,36 @@ void JoinTwoChains(benchmark::State& state, bool keep_information) {
   state.counters["landmarks"] = static_cast<double>(r.landmarks.size());
   state.counters["iterations"] = r.iterations;
 }
+
+// A join from the last one's frames and landmarks (the same chains: the agent's change little
+// from one period to the next), its pairings judged on the frames or by the first pass.
+void JoinFromTheLastJoin(benchmark::State& state, bool judge_on_start_frames) {
+  const TwoChains p;
+  std::vector<ChainInput> chains = p.Chains();
+  SubmapInformation kept;
+  const NetworkResult last = JoinSubmapNetwork(chains, p.groups, {}, &kept);
+  for (std::size_t c = 0; c < chains.size(); ++c) chains[c].start_frames = last.frames[c];
+  for (const NetworkLandmark& l : last.landmarks) {
+    for (const LandmarkRef& ref : l.refs) chains[ref.robot - 1].start_landmarks[ref.key] = l.mean;
+  }
+  NetworkOptions o;
+  o.judge_on_start_frames = judge_on_start_frames;
+  NetworkResult r;
+  for (auto _ : state) {
+    r = JoinSubmapNetwork(chains, p.groups, o, &kept);
+    benchmark::DoNotOptimize(r.landmarks.data());
+  }
+  state.counters["landmarks"] = static_cast<double>(r.landmarks.size());
+  state.counters["iterations"] = r.iterations;
+  state.counters["first_pass"] = r.first_pass;
+}
+
+void BM_JoinSubmapNetworkOnTheLastFrames(benchmark::State& state) { JoinFromTheLastJoin(state, true); }
+BENCHMARK(BM_JoinSubmapNetworkOnTheLastFrames)->Unit(benchmark::kMillisecond);
+
+// The baseline: the same start, the first pass at every join.
+void BM_JoinSubmapNetworkFirstPassEveryJoin(benchmark::State& state) { JoinFromTheLastJoin(state, false); }
+BENCHMARK(BM_JoinSubmapNetworkFirstPassEveryJoin)->Unit(benchmark::kMillisecond);
 
 void BM_JoinSubmapNetworkKeptInformation(benchmark::State& state) { JoinTwoChains(state, true); }
 BENCHMARK(BM_JoinSubmapNetworkKeptInformation)->Unit(benchmark::kMillisecond);

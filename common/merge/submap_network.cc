@@ -1,6 +1,7 @@
 #include "common/merge/submap_network.h"
 
 #include <algorithm>
+#include <cmath>
 #include <memory>
 #include <set>
 #include <tuple>
@@ -39,6 +40,19 @@ class Network : public LeastSquaresProblem {
   std::map<int, Eigen::Vector2d> slots;     // landmark positions by slot
   std::map<int, int> slot_var;
   std::vector<int> factor_handles, tie_handles;
+  std::vector<int> sizes;  // the variables' sizes: frames (but the fixed origin), then slots
+
+  // The largest excess of a submap's chi-square over its mean at the current state, in its
+  // standard deviations: max over factors of (e^T P^-1 e - m) / sqrt(2 m), m = the size of e.
+  double WorstExcess() const {
+    double worst = 0.0;
+    for (const Factor& f : factors) {
+      const Eigen::VectorXd e = Error(f, nullptr);
+      const auto m = static_cast<double>(e.size());
+      worst = std::max(worst, (e.dot(*f.info * e) - m) / std::sqrt(2.0 * m));
+    }
+    return worst;
+  }
 
   double Linearise(BlockNormalEquations& eq) override {
     double cost = 0.0;
@@ -140,24 +154,16 @@ class Unions {
   std::map<int, int> parent_;
 };
 
-// One solve: the chains of `order` with each reference in the slot slot_of names, the ties
-// given, started from `frames` and `slots` where given (else composed along the chains from the
-// chains' origins). On return, the network holds the solution and eq its normal equations.
-struct Solved {
+// The network of the chains of `order`, each reference in the slot slot_of names, with the
+// ties given whose slots it holds, placed (not solved): frames and slots from `frames` and
+// `slots` where given (else each chain's start_frames, else composed along the chain from its
+// origin; each slot where the first submap to hold it places it).
+Network Place(std::span<const ChainInput> chains, const std::vector<std::size_t>& order,
+              const std::map<LandmarkRef, int>& slot_of, const std::vector<Tie>& ties,
+              const std::vector<std::vector<Pose2>>* start_frames, const std::map<int, Eigen::Vector2d>* start_slots,
+              SubmapInformation& information) {
   Network net;
-  LevenbergMarquardtReport report;
-};
-
-Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>& order,
-             const std::map<LandmarkRef, int>& slot_of, const std::vector<Tie>& ties, double tie_sigma,
-             const RobustKernel& kernel, const std::vector<std::vector<Pose2>>* start_frames,
-             const std::map<int, Eigen::Vector2d>* start_slots, int max_iterations, SubmapInformation& information,
-             std::unique_ptr<BlockNormalEquations>* eq_out) {
-  Solved s;
-  Network& net = s.net;
-  net.tie_sigma = tie_sigma;
-  net.kernel = kernel;
-  std::vector<int> sizes;
+  std::vector<int>& sizes = net.sizes;
   for (std::size_t i = 0; i < order.size(); ++i) {
     const ChainInput& c = chains[order[i]];
     // From the given frames (the first pass's, or a previous solve's where the chain has them),
@@ -201,7 +207,27 @@ Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>&
   for (const Tie& t : ties) {
     if (net.slots.count(t.a) && net.slots.count(t.b)) net.ties.push_back(t);
   }
-  *eq_out = std::make_unique<BlockNormalEquations>(std::move(sizes));
+  return net;
+}
+
+// One solve: the network Place gives, with the ties under `kernel` at tie_sigma. On return,
+// the network holds the solution and eq its normal equations.
+struct Solved {
+  Network net;
+  LevenbergMarquardtReport report;
+};
+
+Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>& order,
+             const std::map<LandmarkRef, int>& slot_of, const std::vector<Tie>& ties, double tie_sigma,
+             const RobustKernel& kernel, const std::vector<std::vector<Pose2>>* start_frames,
+             const std::map<int, Eigen::Vector2d>* start_slots, int max_iterations, SubmapInformation& information,
+             std::unique_ptr<BlockNormalEquations>* eq_out) {
+  Solved s;
+  s.net = Place(chains, order, slot_of, ties, start_frames, start_slots, information);
+  Network& net = s.net;
+  net.tie_sigma = tie_sigma;
+  net.kernel = kernel;
+  *eq_out = std::make_unique<BlockNormalEquations>(net.sizes);
   BlockNormalEquations& eq = **eq_out;
   for (const Factor& f : net.factors) {
     std::vector<int> vars;
@@ -297,14 +323,15 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
   }
   out.ties = static_cast<int>(ties.size());
 
+  std::map<std::pair<RobotId, std::uint32_t>, std::size_t> chain_index;  // (robot, incarnation) -> its chain
+  for (std::size_t c = 0; c < chains.size(); ++c) chain_index[{chains[c].robot, chains[c].incarnation}] = c;
+
   // The chains that enter: the first, then each tied to those in by enough landmarks, until
   // none more is.
   auto enter = [&](const std::vector<Tie>& usable) {
     std::vector<std::size_t> order = {0};
     std::vector<bool> in(chains.size(), false);
     in[0] = true;
-    std::map<std::pair<RobotId, std::uint32_t>, std::size_t> chain_of;
-    for (std::size_t c = 0; c < chains.size(); ++c) chain_of[{chains[c].robot, chains[c].incarnation}] = c;
     for (bool more = true; more;) {
       more = false;
       for (std::size_t c = 1; c < chains.size(); ++c) {
@@ -313,7 +340,8 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
         for (const Tie& t : usable) {
           const LandmarkRef& a = refs[static_cast<std::size_t>(t.a)];
           const LandmarkRef& b = refs[static_cast<std::size_t>(t.b)];
-          const std::size_t ca = chain_of.at({a.robot, a.incarnation}), cb = chain_of.at({b.robot, b.incarnation});
+          const std::size_t ca = chain_index.at({a.robot, a.incarnation}),
+                            cb = chain_index.at({b.robot, b.incarnation});
           if (ca == c && in[cb]) shared.insert(t.a);
           if (cb == c && in[ca]) shared.insert(t.b);
         }
@@ -326,81 +354,118 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     return order;
   };
 
-  // First pass: every reference its own landmark, the pairings soft ties under Cauchy's kernel.
   const std::vector<std::size_t> first_order = enter(ties);
-  std::unique_ptr<BlockNormalEquations> eq;
-  RobustKernel cauchy{RobustLoss::kCauchy, options.tie_cauchy};
   SubmapInformation own_information;
   SubmapInformation& info = information != nullptr ? *information : own_information;
-  const Solved first = Solve(chains, first_order, slot_of, ties, options.tie_sigma_m, cauchy, nullptr, nullptr,
-                             options.max_iterations, info, &eq);
-  // The pairings kept; their unions are the landmarks. A union that one submap would reach twice
-  // keeps the pairings made first (closest first) and drops the rest.
-  std::vector<std::pair<double, Tie>> kept;
-  for (const Tie& t : first.net.ties) {
-    const double d = (first.net.slots.at(t.a) - first.net.slots.at(t.b)).norm();
-    if (d <= options.keep_tie_m) kept.push_back({d, t});
-  }
-  std::sort(kept.begin(), kept.end(), [](const auto& x, const auto& y) {
-    return std::tie(x.first, x.second.a, x.second.b) < std::tie(y.first, y.second.a, y.second.b);
-  });
-  // The slots each submap holds, to refuse a union that would name one landmark twice in one.
-  std::vector<std::vector<int>> submap_slots;
+  // Whether the pairings may be judged on the start frames: every chain to enter has them.
+  const bool on_start_frames = options.judge_on_start_frames &&
+                               std::all_of(first_order.begin(), first_order.end(),
+                                           [&](std::size_t c) { return !chains[c].start_frames.empty(); });
+
+  // The submaps that hold each slot, to refuse a union that would name one landmark twice in one.
   std::map<int, std::vector<int>> submaps_of_slot;
+  int submap_count = 0;
   for (const ChainInput& c : chains) {
     for (const WireSubmap* s : c.submaps) {
-      std::vector<int> slots;
-      for (std::uint32_t key : s->keys) slots.push_back(slot_of.at({c.robot, c.incarnation, key}));
-      for (int slot : slots) submaps_of_slot[slot].push_back(static_cast<int>(submap_slots.size()));
-      submap_slots.push_back(std::move(slots));
+      for (std::uint32_t key : s->keys)
+        submaps_of_slot[slot_of.at({c.robot, c.incarnation, key})].push_back(submap_count);
+      ++submap_count;
     }
   }
-  Unions unions;
-  std::map<int, std::set<int>> submaps_of_root;  // per union root: the submaps its slots are in
-  auto submaps_of = [&](int root) -> std::set<int>& {
-    auto [it, fresh] = submaps_of_root.try_emplace(root);
-    if (fresh) {
-      const auto s = submaps_of_slot.find(root);
-      if (s != submaps_of_slot.end()) it->second.insert(s->second.begin(), s->second.end());
-    }
-    return it->second;
-  };
-  std::vector<Tie> used;
-  for (const auto& [d, t] : kept) {
-    const int ra = unions.Find(t.a), rb = unions.Find(t.b);
-    if (ra == rb) continue;
-    std::set<int>& sa = submaps_of(ra);
-    std::set<int>& sb = submaps_of(rb);
-    const bool overlap = std::any_of(sa.begin(), sa.end(), [&](int s) { return sb.count(s) > 0; });
-    if (overlap) continue;
-    std::set<int> merged = sa;
-    merged.insert(sb.begin(), sb.end());
-    unions.Join(ra, rb);
-    submaps_of_root[unions.Find(ra)] = std::move(merged);
-    used.push_back(t);
-  }
-  out.ties_dropped = out.ties - static_cast<int>(used.size());
 
-  // Second pass: the exact join, each union one landmark, from the first pass's solution.
-  const std::vector<std::size_t> order = enter(used);  // those of the first pass, or fewer
+  std::unique_ptr<BlockNormalEquations> eq;
+  Solved first, second;
+  std::vector<std::size_t> order;
   std::map<LandmarkRef, int> landmark_of;
-  for (const auto& [ref, slot] : slot_of) landmark_of[ref] = unions.Find(slot);
-  std::map<int, Eigen::Vector2d> start;
-  std::map<int, int> count;
-  for (const auto& [slot, l] : first.net.slots) {
-    const int root = unions.Find(slot);
-    start[root] = start.count(root) ? Eigen::Vector2d(start[root] + l) : l;
-    ++count[root];
+  Unions unions;
+  for (bool rechecking = false;; rechecking = true) {
+    // The pairings judged: by the first pass (every reference its own landmark, the pairings
+    // soft ties under Cauchy's kernel), or on the start frames. `at` is the network they were
+    // judged on: where the exact join starts.
+    const bool first_pass = !on_start_frames || rechecking;
+    if (first_pass) {
+      first = Solve(chains, first_order, slot_of, ties, options.tie_sigma_m,
+                    RobustKernel{RobustLoss::kCauchy, options.tie_cauchy}, nullptr, nullptr, options.max_iterations,
+                    info, &eq);
+    } else {
+      first = Solved{Place(chains, first_order, slot_of, ties, nullptr, nullptr, info), {}};
+    }
+    const Network& at = first.net;
+    // The pairings kept; their unions are the landmarks. A union that one submap would reach
+    // twice keeps the pairings made first (closest first) and drops the rest.
+    std::vector<std::pair<double, Tie>> kept;
+    for (const Tie& t : at.ties) {
+      const double d = (at.slots.at(t.a) - at.slots.at(t.b)).norm();
+      if (d <= options.keep_tie_m) kept.push_back({d, t});
+    }
+    std::sort(kept.begin(), kept.end(), [](const auto& x, const auto& y) {
+      return std::tie(x.first, x.second.a, x.second.b) < std::tie(y.first, y.second.a, y.second.b);
+    });
+    unions = Unions{};
+    std::map<int, std::set<int>> submaps_of_root;  // per union root: the submaps its slots are in
+    auto submaps_of = [&](int root) -> std::set<int>& {
+      auto [it, fresh] = submaps_of_root.try_emplace(root);
+      if (fresh) {
+        const auto s = submaps_of_slot.find(root);
+        if (s != submaps_of_slot.end()) it->second.insert(s->second.begin(), s->second.end());
+      }
+      return it->second;
+    };
+    std::vector<Tie> used;
+    for (const auto& [d, t] : kept) {
+      const int ra = unions.Find(t.a), rb = unions.Find(t.b);
+      if (ra == rb) continue;
+      std::set<int>& sa = submaps_of(ra);
+      std::set<int>& sb = submaps_of(rb);
+      const bool overlap = std::any_of(sa.begin(), sa.end(), [&](int s) { return sb.count(s) > 0; });
+      if (overlap) continue;
+      std::set<int> merged = sa;
+      merged.insert(sb.begin(), sb.end());
+      unions.Join(ra, rb);
+      submaps_of_root[unions.Find(ra)] = std::move(merged);
+      used.push_back(t);
+    }
+    out.ties_dropped = out.ties - static_cast<int>(used.size());
+
+    // Second pass: the exact join, each union one landmark, from where the pairings were judged.
+    order = enter(used);  // those of the first pass, or fewer
+    landmark_of.clear();
+    for (const auto& [ref, slot] : slot_of) landmark_of[ref] = unions.Find(slot);
+    std::map<int, Eigen::Vector2d> start;
+    std::map<int, int> count;
+    for (const auto& [slot, l] : at.slots) {
+      const int root = unions.Find(slot);
+      start[root] = start.count(root) ? Eigen::Vector2d(start[root] + l) : l;
+      ++count[root];
+    }
+    for (auto& [root, l] : start) l /= count[root];
+    if (!first_pass) {  // where a previous solve put the landmarks, where the chains say
+      std::map<int, Eigen::Vector2d> previous;
+      std::map<int, int> previous_count;
+      for (const auto& [slot, l] : at.slots) {
+        const LandmarkRef& ref = refs[static_cast<std::size_t>(slot)];
+        const auto& given = chains[chain_index.at({ref.robot, ref.incarnation})].start_landmarks;
+        const auto it = given.find(ref.key);
+        if (it == given.end()) continue;
+        const int root = unions.Find(slot);
+        previous[root] = previous.count(root) ? Eigen::Vector2d(previous[root] + it->second) : it->second;
+        ++previous_count[root];
+      }
+      for (const auto& [root, l] : previous) start[root] = l / previous_count[root];
+    }
+    // The judged network's frames, for the chains that enter again (by their place in its order).
+    std::vector<std::vector<Pose2>> frames;
+    for (std::size_t c : order) {
+      const auto i = std::find(first_order.begin(), first_order.end(), c) - first_order.begin();
+      frames.push_back(at.frames[static_cast<std::size_t>(i)]);
+    }
+    second = Solve(chains, order, landmark_of, {}, 1.0, RobustKernel{}, &frames, &start, options.max_iterations, info,
+                   &eq);
+    out.first_pass = first_pass;
+    out.rechecked = rechecking;
+    // A join judged on the start frames stands unless a submap's residual says a pairing is wrong.
+    if (first_pass || second.net.WorstExcess() <= options.recheck_sigmas) break;
   }
-  for (auto& [root, l] : start) l /= count[root];
-  // The first pass's frames, for the chains that enter again (by their place in its order).
-  std::vector<std::vector<Pose2>> frames;
-  for (std::size_t c : order) {
-    const auto at = std::find(first_order.begin(), first_order.end(), c) - first_order.begin();
-    frames.push_back(first.net.frames[static_cast<std::size_t>(at)]);
-  }
-  const Solved second = Solve(chains, order, landmark_of, {}, 1.0, RobustKernel{}, &frames, &start,
-                              options.max_iterations, info, &eq);
   info.Sweep();
   out.iterations = first.report.iterations + second.report.iterations;
   out.converged = second.report.converged;

@@ -329,5 +329,36 @@ TEST(PeerSchedule, PropertiesOverSeededRandomTables) {
   }
 }
 
+// A relayed chain (the joining back-end's) is aligned when never tried, when either map grew by
+// retry_growth, or align_period_s after an accepted alignment waiting to be confirmed; after a
+// failed try both are doubled (once: two failures wait as long as one).
+TEST(PeerSchedule, ARelayedChainIsTriedAgainLaterAfterAFailedTry) {
+  ExchangeOptions o;  // retry_growth 0.2, align_period_s 5
+  RelayedAlignmentFacts f;
+  EXPECT_TRUE(RelayedAlignmentDue(f, 10, 100, 0.0, o));  // never tried
+  f.tried_at = 10.0;
+  f.tried_size = 50;
+  f.tried_target = 100;
+  // Tried and not accepted but once before (failures 0: the last one was accepted or none failed).
+  EXPECT_FALSE(RelayedAlignmentDue(f, 59, 119, 100.0, o));
+  EXPECT_TRUE(RelayedAlignmentDue(f, 60, 100, 11.0, o));
+  EXPECT_TRUE(RelayedAlignmentDue(f, 50, 120, 11.0, o));
+  for (int failures : {1, 2, 7}) {
+    f.failures = failures;
+    EXPECT_FALSE(RelayedAlignmentDue(f, 69, 139, 100.0, o)) << failures;
+    EXPECT_TRUE(RelayedAlignmentDue(f, 70, 100, 11.0, o)) << failures;
+    EXPECT_TRUE(RelayedAlignmentDue(f, 50, 140, 11.0, o)) << failures;
+  }
+  // An accepted alignment waiting for a second: the same maps an align period later, or two
+  // after a failed confirmation.
+  f.candidate = true;
+  f.failures = 0;
+  EXPECT_FALSE(RelayedAlignmentDue(f, 50, 100, 14.9, o));
+  EXPECT_TRUE(RelayedAlignmentDue(f, 50, 100, 15.0, o));
+  f.failures = 1;
+  EXPECT_FALSE(RelayedAlignmentDue(f, 50, 100, 19.9, o));
+  EXPECT_TRUE(RelayedAlignmentDue(f, 50, 100, 20.0, o));
+}
+
 }  // namespace
 }  // namespace mapmesh

@@ -116,6 +116,11 @@ class ExchangeTest(SwarmCase):
             # The own chain, each aligned peer's, and those placed from relayed submaps alone.
             self.assertEqual(j["chains"], len(a["peers_aligned"]) + 1 + j["relayed_placed"], j)
             self.assertGreater(j["solves"], 10, j)
+            # The first pass ran when a chain entered, not at every solve; no solve judged on
+            # the last solve's frames was refused by its residuals.
+            self.assertGreaterEqual(j["first_passes"], 1, j)
+            self.assertLessEqual(j["first_passes"], j["solves"] // 4, j)
+            self.assertEqual(j["rechecks"], 0, j)
 
     def test_joining_holds_a_robot_two_hops_away(self):
         # line3 (seed 1): robot 1 never hears robot 3, but holds its submaps (relayed by robot

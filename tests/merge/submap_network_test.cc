@@ -21,7 +21,7 @@ using testing::World;
 
 // The chain input of a robot's submaps (incarnation 1), started at `origin`.
 ChainInput Chain(RobotId robot, const std::vector<WireSubmap>& submaps, const Pose2& origin) {
-  ChainInput c{robot, 1, {}, origin, {}};
+  ChainInput c{robot, 1, {}, origin, {}, {}};
   for (const WireSubmap& s : submaps) c.submaps.push_back(&s);
   return c;
 }
@@ -108,51 +108,137 @@ TEST(SubmapNetwork, TwoRobotsAreJoinedConsistently) {
 // Wrong pairings (each of robot 2's landmarks paired with a neighbour of the true one, 2 m away,
 // as a gate in a row of trees would) are dropped by the first pass, and the chain is placed and
 // joined exactly as with the right association less those four pairings.
-TEST(SubmapNetwork, WrongPairingsAreDroppedNotJoined) {
-  const World w(10, 2.0);
-  const TrueChain a = Drive(w, Pose2{0.0, 4.0, 0.0}, 4, 3.5);
-  const TrueChain b = Drive(w, Pose2{18.0, 9.0, M_PI}, 4, 3.5);
-  const std::map<LandmarkRef, int> right = ByTruth({{1, &a}, {2, &b}});
-  std::set<int> in_a, in_b;
-  for (const auto& seen : a.seen) in_a.insert(seen.begin(), seen.end());
-  for (const auto& seen : b.seen) in_b.insert(seen.begin(), seen.end());
-  std::map<LandmarkRef, int> wrong = right;
-  int planted = 0;
-  std::set<int> swapped;
-  for (int i : in_b) {
-    // Robot 2's landmark i and its neighbour 2 m away swapped, both seen by robot 1 too.
-    if (planted == 4 || !in_a.count(i) || !in_a.count(i + 1) || (i + 1) % 10 == 0) continue;
-    if (!in_b.count(i + 1) || swapped.count(i) || swapped.count(i + 1)) continue;
-    std::swap(wrong[{2, 1, static_cast<std::uint32_t>(i)}], wrong[{2, 1, static_cast<std::uint32_t>(i + 1)}]);
-    swapped.insert({i, i + 1});
-    planted += 2;
+// Two robots driving a row of trees 2 m apart from its two ends, the second chain placed
+// 0.5 m and 1 degree off; the right association, and a wrong one: four of robot 2's landmarks,
+// each swapped with its neighbour 2 m away (as a gate in a row of trees would pair them), all
+// seen by robot 1 too.
+struct SwappedRow {
+  World w{10, 2.0};
+  TrueChain a = Drive(w, Pose2{0.0, 4.0, 0.0}, 4, 3.5);
+  TrueChain b = Drive(w, Pose2{18.0, 9.0, M_PI}, 4, 3.5);
+  std::vector<WireSubmap> sa, sb;
+  std::vector<ChainInput> chains;
+  std::map<LandmarkRef, int> right, wrong;
+  std::map<LandmarkRef, int> right_less;  // the right one without the swapped landmarks' pairings
+  std::set<int> in_a, swapped;
+
+  SwappedRow() {
+    right = ByTruth({{1, &a}, {2, &b}});
+    std::set<int> in_b;
+    for (const auto& seen : a.seen) in_a.insert(seen.begin(), seen.end());
+    for (const auto& seen : b.seen) in_b.insert(seen.begin(), seen.end());
+    wrong = right;
+    for (int i : in_b) {
+      if (swapped.size() == 4 || !in_a.count(i) || !in_a.count(i + 1) || (i + 1) % 10 == 0) continue;
+      if (!in_b.count(i + 1) || swapped.count(i) || swapped.count(i + 1)) continue;
+      std::swap(wrong[{2, 1, static_cast<std::uint32_t>(i)}], wrong[{2, 1, static_cast<std::uint32_t>(i + 1)}]);
+      swapped.insert({i, i + 1});
+    }
+    right_less = right;
+    for (int i : swapped) right_less.erase({2, 1, static_cast<std::uint32_t>(i)});
+    std::mt19937_64 rng(5);
+    sa = MeasureAll(w, a, 1, rng);
+    sb = MeasureAll(w, b, 2, rng);
+    const Pose2 b_origin = a.frames[0].Inverse() * b.frames[0];
+    chains = {Chain(1, sa, Pose2{}), Chain(2, sb, b_origin * Pose2{0.4, -0.3, 0.02})};
   }
-  ASSERT_EQ(planted, 4);
-  std::mt19937_64 rng(5);
-  const std::vector<WireSubmap> sa = MeasureAll(w, a, 1, rng), sb = MeasureAll(w, b, 2, rng);
-  const Pose2 b_origin = a.frames[0].Inverse() * b.frames[0];
-  const std::vector<ChainInput> chains = {Chain(1, sa, Pose2{}), Chain(2, sb, b_origin * Pose2{0.4, -0.3, 0.02})};
-  // The right association without the swapped landmarks' pairings: what the join should keep.
-  std::map<LandmarkRef, int> right_less = right;
-  for (int i : swapped) right_less.erase({2, 1, static_cast<std::uint32_t>(i)});
-  const NetworkResult good = JoinSubmapNetwork(chains, right_less);
-  const NetworkResult r = JoinSubmapNetwork(chains, wrong);
+  // Every landmark robot 1 saw that no swap reaches is where `expected` puts it, to `tolerance`;
+  // returns how many were compared.
+  int ExpectUnswappedAsIn(const NetworkResult& expected, const NetworkResult& r, double tolerance) const {
+    int compared = 0;
+    for (int g : in_a) {
+      if (swapped.count(g)) continue;
+      EXPECT_NE(expected.OfGroup(g), nullptr);
+      EXPECT_NE(r.OfGroup(g), nullptr);
+      if (expected.OfGroup(g) == nullptr || r.OfGroup(g) == nullptr) continue;
+      EXPECT_LT((expected.OfGroup(g)->mean - r.OfGroup(g)->mean).norm(), tolerance) << g;
+      ++compared;
+    }
+    return compared;
+  }
+};
+
+// Wrong pairings are dropped by the first pass, and the chain is placed and joined exactly as
+// with the right association less those four pairings.
+TEST(SubmapNetwork, WrongPairingsAreDroppedNotJoined) {
+  const SwappedRow row;
+  ASSERT_EQ(row.swapped.size(), 4u);
+  const NetworkResult good = JoinSubmapNetwork(row.chains, row.right_less);
+  const NetworkResult r = JoinSubmapNetwork(row.chains, row.wrong);
   ASSERT_TRUE(good.solved);
   ASSERT_TRUE(r.solved);
+  EXPECT_TRUE(r.first_pass);  // no start frames: the first pass judges
   EXPECT_EQ(good.ties_dropped, 0);
   EXPECT_EQ(r.ties_dropped, 4);  // the planted ones (the true pairings they displaced were never offered)
   const Pose2 d = good.origins[1].Inverse() * r.origins[1];
   EXPECT_LT(std::hypot(d.x, d.y), 1e-6);
   // The landmarks the planted pairings do not reach are where the right join puts them.
-  int compared = 0;
-  for (int g : in_a) {
-    if (swapped.count(g)) continue;
-    ASSERT_NE(good.OfGroup(g), nullptr);
-    ASSERT_NE(r.OfGroup(g), nullptr);
-    EXPECT_LT((good.OfGroup(g)->mean - r.OfGroup(g)->mean).norm(), 1e-6);
-    ++compared;
+  EXPECT_GT(row.ExpectUnswappedAsIn(good, r, 1e-6), 10);
+}
+
+// The chains started from a previous join's frames and landmarks: the pairings are judged on
+// the frames, without the first pass, and the join is the first pass's to 10 micrometres (the
+// two solves start from different states and each stops at a millionth of the cost:
+// micrometres from the optimum). The wrong pairings lie 2 m apart on those frames and are dropped as the first pass
+// drops them. Without the option, or when one chain lacks frames, the first pass runs.
+TEST(SubmapNetwork, PairingsAreJudgedOnAPreviousJoinsFrames) {
+  SwappedRow row;
+  const NetworkResult before = JoinSubmapNetwork(row.chains, row.right);
+  ASSERT_TRUE(before.solved);
+  ASSERT_TRUE(before.joined[1]);
+  const std::vector<ChainInput> unplaced = row.chains;
+  for (std::size_t c = 0; c < row.chains.size(); ++c) row.chains[c].start_frames = before.frames[c];
+  for (const NetworkLandmark& l : before.landmarks) {
+    for (const LandmarkRef& ref : l.refs) row.chains[ref.robot - 1].start_landmarks[ref.key] = l.mean;
   }
-  EXPECT_GT(compared, 10);
+  for (const auto* groups : {&row.right, &row.wrong}) {
+    const NetworkResult first = JoinSubmapNetwork(unplaced, *groups);
+    const NetworkResult r = JoinSubmapNetwork(row.chains, *groups);
+    ASSERT_TRUE(first.solved);
+    ASSERT_TRUE(r.solved);
+    EXPECT_TRUE(first.first_pass);
+    EXPECT_FALSE(r.first_pass);
+    EXPECT_FALSE(r.rechecked);
+    EXPECT_EQ(r.ties_dropped, first.ties_dropped);
+    EXPECT_EQ(r.ties_dropped, groups == &row.wrong ? 4 : 0);
+    EXPECT_GT(row.ExpectUnswappedAsIn(first, r, 1e-5), 10);
+    for (std::size_t i = 0; i < r.landmarks.size(); ++i) {
+      EXPECT_LT((r.landmarks[i].cov - first.landmarks[i].cov).norm(), 1e-9 + 1e-6 * first.landmarks[i].cov.norm());
+    }
+  }
+  NetworkOptions every;
+  every.judge_on_start_frames = false;
+  EXPECT_TRUE(JoinSubmapNetwork(row.chains, row.wrong, every).first_pass);
+  std::vector<ChainInput> one_unplaced = row.chains;
+  one_unplaced[1].start_frames.clear();
+  EXPECT_TRUE(JoinSubmapNetwork(one_unplaced, row.wrong).first_pass);
+}
+
+// A join judged on the start frames whose residuals exceed the check is run again with the
+// first pass: the same join, to the bit, as one that runs the first pass from the start.
+TEST(SubmapNetwork, AJoinItsResidualsRefuseRunsTheFirstPass) {
+  SwappedRow row;
+  const NetworkResult before = JoinSubmapNetwork(row.chains, row.right);
+  ASSERT_TRUE(before.solved);
+  for (std::size_t c = 0; c < row.chains.size(); ++c) row.chains[c].start_frames = before.frames[c];
+  NetworkOptions refuse;
+  refuse.recheck_sigmas = -1e9;  // every residual is too large
+  NetworkOptions first_pass;
+  first_pass.judge_on_start_frames = false;
+  const NetworkResult r = JoinSubmapNetwork(row.chains, row.wrong, refuse);
+  const NetworkResult expected = JoinSubmapNetwork(row.chains, row.wrong, first_pass);
+  ASSERT_TRUE(r.solved);
+  EXPECT_TRUE(r.first_pass);
+  EXPECT_TRUE(r.rechecked);
+  EXPECT_FALSE(expected.rechecked);
+  ASSERT_EQ(r.landmarks.size(), expected.landmarks.size());
+  for (std::size_t i = 0; i < r.landmarks.size(); ++i) {
+    EXPECT_EQ(r.landmarks[i].mean, expected.landmarks[i].mean);
+    EXPECT_EQ(r.landmarks[i].cov, expected.landmarks[i].cov);
+  }
+  EXPECT_EQ(r.ties_dropped, expected.ties_dropped);
+  // With the default check these consistent submaps pass.
+  EXPECT_FALSE(JoinSubmapNetwork(row.chains, row.wrong).rechecked);
 }
 
 // A chain that shares too few landmarks with those in is left out (and its landmarks with it);
@@ -194,7 +280,7 @@ TEST(SubmapNetwork, AGroupOneSubmapWouldReachTwiceIsSplit) {
   std::map<LandmarkRef, int> groups = ByTruth({{1, &a}});
   const std::uint32_t k0 = sa[0].keys[0], k1 = sa[0].keys[1];
   groups[{1, 1, k1}] = groups[{1, 1, k0}];
-  ChainInput c{1, 1, {&sa[0], &sa[1]}, Pose2{}, {}};
+  ChainInput c{1, 1, {&sa[0], &sa[1]}, Pose2{}, {}, {}};
   const NetworkResult r = JoinSubmapNetwork(std::span<const ChainInput>(&c, 1), groups);
   ASSERT_TRUE(r.solved);
   int holding_k0 = 0, holding_k1 = 0;
