@@ -137,21 +137,22 @@ class Network : public LeastSquaresProblem {
 // Union-find over slots.
 class Unions {
  public:
+  explicit Unions(std::size_t n = 0) : parent_(n, -1) {}
   int Find(int a) {
-    auto it = parent_.find(a);
-    if (it == parent_.end()) return a;
-    const int root = Find(it->second);
-    parent_[a] = root;
+    const int p = parent_[static_cast<std::size_t>(a)];
+    if (p < 0) return a;
+    const int root = Find(p);
+    parent_[static_cast<std::size_t>(a)] = root;
     return root;
   }
   void Join(int a, int b) {
     a = Find(a);
     b = Find(b);
-    if (a != b) parent_[std::max(a, b)] = std::min(a, b);
+    if (a != b) parent_[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
   }
 
  private:
-  std::map<int, int> parent_;
+  std::vector<int> parent_;  // per slot: its parent, -1 for a root
 };
 
 // The network of the chains of `order`, each reference in the slot slot_of names, with the
@@ -325,6 +326,9 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
 
   std::map<std::pair<RobotId, std::uint32_t>, std::size_t> chain_index;  // (robot, incarnation) -> its chain
   for (std::size_t c = 0; c < chains.size(); ++c) chain_index[{chains[c].robot, chains[c].incarnation}] = c;
+  std::vector<std::size_t> chain_of_slot;  // per slot: the chain its reference names
+  chain_of_slot.reserve(refs.size());
+  for (const LandmarkRef& ref : refs) chain_of_slot.push_back(chain_index.at({ref.robot, ref.incarnation}));
 
   // The chains that enter: the first, then each tied to those in by enough landmarks, until
   // none more is.
@@ -338,10 +342,8 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
         if (in[c] || !wellformed[c]) continue;
         std::set<int> shared;  // this chain's slots tied to a chain in
         for (const Tie& t : usable) {
-          const LandmarkRef& a = refs[static_cast<std::size_t>(t.a)];
-          const LandmarkRef& b = refs[static_cast<std::size_t>(t.b)];
-          const std::size_t ca = chain_index.at({a.robot, a.incarnation}),
-                            cb = chain_index.at({b.robot, b.incarnation});
+          const std::size_t ca = chain_of_slot[static_cast<std::size_t>(t.a)];
+          const std::size_t cb = chain_of_slot[static_cast<std::size_t>(t.b)];
           if (ca == c && in[cb]) shared.insert(t.a);
           if (cb == c && in[ca]) shared.insert(t.b);
         }
@@ -401,7 +403,7 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     std::sort(kept.begin(), kept.end(), [](const auto& x, const auto& y) {
       return std::tie(x.first, x.second.a, x.second.b) < std::tie(y.first, y.second.a, y.second.b);
     });
-    unions = Unions{};
+    unions = Unions(refs.size());
     std::map<int, std::set<int>> submaps_of_root;  // per union root: the submaps its slots are in
     auto submaps_of = [&](int root) -> std::set<int>& {
       auto [it, fresh] = submaps_of_root.try_emplace(root);
@@ -419,10 +421,12 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
       std::set<int>& sb = submaps_of(rb);
       const bool overlap = std::any_of(sa.begin(), sa.end(), [&](int s) { return sb.count(s) > 0; });
       if (overlap) continue;
-      std::set<int> merged = sa;
-      merged.insert(sb.begin(), sb.end());
       unions.Join(ra, rb);
-      submaps_of_root[unions.Find(ra)] = std::move(merged);
+      const int root = unions.Find(ra);  // the smaller of the two: its set takes the other's
+      std::set<int>& into = root == ra ? sa : sb;
+      std::set<int>& from = root == ra ? sb : sa;
+      into.insert(from.begin(), from.end());
+      submaps_of_root.erase(root == ra ? rb : ra);
       used.push_back(t);
     }
     out.ties_dropped = out.ties - static_cast<int>(used.size());
