@@ -199,6 +199,7 @@ class JoiningFusion : public FusionBackend {
       const LandmarkMap& theirs = r.map.map();
       if (!r.to_own && theirs.size() >= 3) {
         if (!target) target = BuildGlobalMap(own_local, self_, *inputs, association_, incarnation_).map;
+        r.tried.candidate = r.candidate.has_value();
         if (RelayedAlignmentDue(r.tried, theirs.size(), target->size(), now, options_)) {
           r.tried.tried_at = now;
           Align(c, r, *target);
@@ -234,7 +235,6 @@ class JoiningFusion : public FusionBackend {
     }
     if (r.candidate) ++report_.relayed_disagreements;
     r.candidate = a;
-    r.tried.candidate = true;
   }
 
   RobotId self_;

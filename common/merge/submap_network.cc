@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <set>
 #include <tuple>
 
@@ -156,9 +157,9 @@ class Unions {
 };
 
 // The network of the chains of `order`, each reference in the slot slot_of names, with the
-// ties given whose slots it holds, placed (not solved): frames and slots from `frames` and
-// `slots` where given (else each chain's start_frames, else composed along the chain from its
-// origin; each slot where the first submap to hold it places it).
+// ties given whose slots it holds, placed (not solved): frames and slots from start_frames
+// and start_slots where given (else each chain's own start_frames, else composed along the
+// chain from its origin; each slot where the first submap to hold it places it).
 Network Place(std::span<const ChainInput> chains, const std::vector<std::size_t>& order,
               const std::map<LandmarkRef, int>& slot_of, const std::vector<Tie>& ties,
               const std::vector<std::vector<Pose2>>* start_frames, const std::map<int, Eigen::Vector2d>* start_slots,
@@ -435,27 +436,34 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     order = enter(used);  // those of the first pass, or fewer
     landmark_of.clear();
     for (const auto& [ref, slot] : slot_of) landmark_of[ref] = unions.Find(slot);
-    std::map<int, Eigen::Vector2d> start;
-    std::map<int, int> count;
-    for (const auto& [slot, l] : at.slots) {
-      const int root = unions.Find(slot);
-      start[root] = start.count(root) ? Eigen::Vector2d(start[root] + l) : l;
-      ++count[root];
-    }
-    for (auto& [root, l] : start) l /= count[root];
-    if (!first_pass) {  // where a previous solve put the landmarks, where the chains say
-      std::map<int, Eigen::Vector2d> previous;
-      std::map<int, int> previous_count;
+    // Each union's start: the mean of its slots' positions where `position` gives one.
+    const auto mean_by_union = [&](const auto& position) {
+      std::map<int, std::pair<Eigen::Vector2d, int>> sums;
       for (const auto& [slot, l] : at.slots) {
-        const LandmarkRef& ref = refs[static_cast<std::size_t>(slot)];
-        const auto& given = chains[chain_index.at({ref.robot, ref.incarnation})].start_landmarks;
-        const auto it = given.find(ref.key);
-        if (it == given.end()) continue;
-        const int root = unions.Find(slot);
-        previous[root] = previous.count(root) ? Eigen::Vector2d(previous[root] + it->second) : it->second;
-        ++previous_count[root];
+        const std::optional<Eigen::Vector2d> p = position(slot, l);
+        if (!p) continue;
+        auto [it, fresh] = sums.try_emplace(unions.Find(slot), *p, 1);
+        if (!fresh) {
+          it->second.first += *p;
+          ++it->second.second;
+        }
       }
-      for (const auto& [root, l] : previous) start[root] = l / previous_count[root];
+      std::map<int, Eigen::Vector2d> means;
+      for (const auto& [root, sum] : sums) means[root] = sum.first / sum.second;
+      return means;
+    };
+    std::map<int, Eigen::Vector2d> start = mean_by_union([](int, const Eigen::Vector2d& l) {
+      return std::optional<Eigen::Vector2d>(l);
+    });
+    if (!first_pass) {  // where a previous solve put the landmarks, where the chains say
+      const auto previous = mean_by_union([&](int slot, const Eigen::Vector2d&) -> std::optional<Eigen::Vector2d> {
+        const LandmarkRef& ref = refs[static_cast<std::size_t>(slot)];
+        const auto& given = chains[chain_of_slot[static_cast<std::size_t>(slot)]].start_landmarks;
+        const auto it = given.find(ref.key);
+        if (it == given.end()) return std::nullopt;
+        return it->second;
+      });
+      for (const auto& [root, l] : previous) start[root] = l;
     }
     // The judged network's frames, for the chains that enter again (by their place in its order).
     std::vector<std::vector<Pose2>> frames;
