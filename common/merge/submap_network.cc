@@ -38,8 +38,13 @@ class Network : public LeastSquaresProblem {
   RobustKernel kernel;
   std::vector<std::vector<Pose2>> frames;   // per chain taken, its frames 0 .. K
   std::vector<std::vector<int>> frame_var;  // ... their variables (-1: fixed)
-  std::map<int, Eigen::Vector2d> slots;     // landmark positions by slot
-  std::map<int, int> slot_var;
+  // Per slot (of every reference's): its landmark position, and its variable (-1: a slot the
+  // network does not hold); the slots it holds, ascending.
+  std::vector<Eigen::Vector2d> slots;
+  std::vector<int> slot_var;
+  std::vector<int> held;
+  bool Holds(int slot) const { return slot_var[static_cast<std::size_t>(slot)] >= 0; }
+  const Eigen::Vector2d& At(int slot) const { return slots[static_cast<std::size_t>(slot)]; }
   std::vector<int> factor_handles, tie_handles;
   std::vector<int> sizes;  // the variables' sizes: frames (but the fixed origin), then slots
 
@@ -101,7 +106,10 @@ class Network : public LeastSquaresProblem {
         p = {p.x + dx(o), p.y + dx(o + 1), WrapAngle(p.theta + dx(o + 2))};
       }
     }
-    for (auto& [slot, l] : slots) l += dx.segment<2>(offsets_[static_cast<std::size_t>(slot_var.at(slot))]);
+    for (int slot : held) {
+      slots[static_cast<std::size_t>(slot)] += dx.segment<2>(
+          offsets_[static_cast<std::size_t>(slot_var[static_cast<std::size_t>(slot)])]);
+    }
   }
   void Save() override {
     saved_frames_ = frames;
@@ -115,14 +123,14 @@ class Network : public LeastSquaresProblem {
     offsets_.resize(static_cast<std::size_t>(eq.variables()));
     for (int v = 0; v < eq.variables(); ++v) offsets_[static_cast<std::size_t>(v)] = eq.offset(v);
   }
-  Eigen::Vector2d TieResidual(const Tie& t) const { return (slots.at(t.a) - slots.at(t.b)) / tie_sigma; }
+  Eigen::Vector2d TieResidual(const Tie& t) const { return (At(t.a) - At(t.b)) / tie_sigma; }
 
  private:
   // The error h - z and, if asked, its Jacobian dh/dx over [X_k, X_k+1, L...].
   Eigen::VectorXd Error(const Factor& f, Eigen::MatrixXd* j) const {
     std::vector<Eigen::Vector2d> points;
     points.reserve(f.slots.size());
-    for (int g : f.slots) points.push_back(slots.at(g));
+    for (int g : f.slots) points.push_back(At(g));
     const std::vector<Pose2>& chain = frames[static_cast<std::size_t>(f.chain)];
     const auto k = static_cast<std::size_t>(f.index);
     Eigen::VectorXd e = PredictSubmap(chain[k], chain[k + 1], points, j) - f.z;
@@ -132,7 +140,7 @@ class Network : public LeastSquaresProblem {
 
   std::vector<int> offsets_;
   std::vector<std::vector<Pose2>> saved_frames_;
-  std::map<int, Eigen::Vector2d> saved_slots_;
+  std::vector<Eigen::Vector2d> saved_slots_;
 };
 
 // Union-find over slots.
@@ -161,11 +169,13 @@ class Unions {
 // and start_slots where given (else each chain's own start_frames, else composed along the
 // chain from its origin; each slot where the first submap to hold it places it).
 Network Place(std::span<const ChainInput> chains, const std::vector<std::size_t>& order,
-              const std::map<LandmarkRef, int>& slot_of, const std::vector<Tie>& ties,
+              const std::map<LandmarkRef, int>& slot_of, std::size_t slot_count, const std::vector<Tie>& ties,
               const std::vector<std::vector<Pose2>>* start_frames, const std::map<int, Eigen::Vector2d>* start_slots,
               SubmapInformation& information) {
   Network net;
   std::vector<int>& sizes = net.sizes;
+  net.slots.assign(slot_count, Eigen::Vector2d::Zero());
+  net.slot_var.assign(slot_count, -1);
   for (std::size_t i = 0; i < order.size(); ++i) {
     const ChainInput& c = chains[order[i]];
     // From the given frames (the first pass's, or a previous solve's where the chain has them),
@@ -184,8 +194,10 @@ Network Place(std::span<const ChainInput> chains, const std::vector<std::size_t>
       f.info = &information.Of(w);
       for (std::uint32_t key : w.keys) f.slots.push_back(slot_of.at({c.robot, c.incarnation, key}));
       for (std::size_t j = 0; j < f.slots.size(); ++j) {
-        if (!net.slots.count(f.slots[j])) {
-          net.slots[f.slots[j]] = frames.back().Apply(w.x.segment<2>(3 + 2 * static_cast<Eigen::Index>(j)));
+        const auto slot = static_cast<std::size_t>(f.slots[j]);
+        if (net.slot_var[slot] < 0) {
+          net.slot_var[slot] = 0;  // held (its variable is numbered below)
+          net.slots[slot] = frames.back().Apply(w.x.segment<2>(3 + 2 * static_cast<Eigen::Index>(j)));
         }
       }
       frames.push_back(k + 1 < given.size() ? given[k + 1] : frames.back() * Pose2{w.x(0), w.x(1), w.x(2)});
@@ -196,18 +208,19 @@ Network Place(std::span<const ChainInput> chains, const std::vector<std::size_t>
     net.frames.push_back(std::move(frames));
     net.frame_var.push_back(std::move(vars));
   }
-  if (start_slots) {
-    for (auto& [slot, l] : net.slots) {
-      const auto it = start_slots->find(slot);
-      if (it != start_slots->end()) l = it->second;
-    }
-  }
-  for (const auto& [slot, l] : net.slots) {
+  for (std::size_t slot = 0; slot < slot_count; ++slot) {
+    if (net.slot_var[slot] < 0) continue;
+    net.held.push_back(static_cast<int>(slot));
     net.slot_var[slot] = static_cast<int>(sizes.size());
     sizes.push_back(2);
   }
+  if (start_slots) {
+    for (const auto& [slot, l] : *start_slots) {
+      if (net.Holds(slot)) net.slots[static_cast<std::size_t>(slot)] = l;
+    }
+  }
   for (const Tie& t : ties) {
-    if (net.slots.count(t.a) && net.slots.count(t.b)) net.ties.push_back(t);
+    if (net.Holds(t.a) && net.Holds(t.b)) net.ties.push_back(t);
   }
   return net;
 }
@@ -220,12 +233,12 @@ struct Solved {
 };
 
 Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>& order,
-             const std::map<LandmarkRef, int>& slot_of, const std::vector<Tie>& ties, double tie_sigma,
-             const RobustKernel& kernel, const std::vector<std::vector<Pose2>>* start_frames,
+             const std::map<LandmarkRef, int>& slot_of, std::size_t slot_count, const std::vector<Tie>& ties,
+             double tie_sigma, const RobustKernel& kernel, const std::vector<std::vector<Pose2>>* start_frames,
              const std::map<int, Eigen::Vector2d>* start_slots, int max_iterations, SubmapInformation& information,
              std::unique_ptr<BlockNormalEquations>* eq_out) {
   Solved s;
-  s.net = Place(chains, order, slot_of, ties, start_frames, start_slots, information);
+  s.net = Place(chains, order, slot_of, slot_count, ties, start_frames, start_slots, information);
   Network& net = s.net;
   net.tie_sigma = tie_sigma;
   net.kernel = kernel;
@@ -237,10 +250,13 @@ Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>&
     const auto k = static_cast<std::size_t>(f.index);
     if (net.frame_var[c][k] >= 0) vars.push_back(net.frame_var[c][k]);
     vars.push_back(net.frame_var[c][k + 1]);
-    for (int g : f.slots) vars.push_back(net.slot_var.at(g));
+    for (int g : f.slots) vars.push_back(net.slot_var[static_cast<std::size_t>(g)]);
     net.factor_handles.push_back(eq.Couple(vars));
   }
-  for (const Tie& t : net.ties) net.tie_handles.push_back(eq.Couple({net.slot_var.at(t.a), net.slot_var.at(t.b)}));
+  for (const Tie& t : net.ties) {
+    net.tie_handles.push_back(
+        eq.Couple({net.slot_var[static_cast<std::size_t>(t.a)], net.slot_var[static_cast<std::size_t>(t.b)]}));
+  }
   eq.Finalize();
   net.SetOffsets(eq);
   LevenbergMarquardtOptions lm;
@@ -248,6 +264,9 @@ Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>&
   // Micrometres and a millionth of the cost are far below what a map can tell apart.
   lm.step_tolerance = 1e-6;
   lm.function_tolerance = 1e-6;
+  // Every join but a first one starts from the last join's state: once a step is accepted,
+  // the Gauss-Newton step tells when it is there.
+  lm.undamped_below = lm.initial_lambda;
   s.report = MinimiseLevenbergMarquardt(net, eq, lm);
   return s;
 }
@@ -366,12 +385,13 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
                                            [&](std::size_t c) { return !chains[c].start_frames.empty(); });
 
   // The submaps that hold each slot, to refuse a union that would name one landmark twice in one.
-  std::map<int, std::vector<int>> submaps_of_slot;
+  std::vector<std::vector<int>> submaps_of_slot(refs.size());
   int submap_count = 0;
   for (const ChainInput& c : chains) {
     for (const WireSubmap* s : c.submaps) {
-      for (std::uint32_t key : s->keys)
-        submaps_of_slot[slot_of.at({c.robot, c.incarnation, key})].push_back(submap_count);
+      for (std::uint32_t key : s->keys) {
+        submaps_of_slot[static_cast<std::size_t>(slot_of.at({c.robot, c.incarnation, key}))].push_back(submap_count);
+      }
       ++submap_count;
     }
   }
@@ -387,18 +407,18 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     // judged on: where the exact join starts.
     const bool first_pass = !on_start_frames || rechecking;
     if (first_pass) {
-      first = Solve(chains, first_order, slot_of, ties, options.tie_sigma_m,
+      first = Solve(chains, first_order, slot_of, refs.size(), ties, options.tie_sigma_m,
                     RobustKernel{RobustLoss::kCauchy, options.tie_cauchy}, nullptr, nullptr, options.max_iterations,
                     info, &eq);
     } else {
-      first = Solved{Place(chains, first_order, slot_of, ties, nullptr, nullptr, info), {}};
+      first = Solved{Place(chains, first_order, slot_of, refs.size(), ties, nullptr, nullptr, info), {}};
     }
     const Network& at = first.net;
     // The pairings kept; their unions are the landmarks. A union that one submap would reach
     // twice keeps the pairings made first (closest first) and drops the rest.
     std::vector<std::pair<double, Tie>> kept;
     for (const Tie& t : at.ties) {
-      const double d = (at.slots.at(t.a) - at.slots.at(t.b)).norm();
+      const double d = (at.At(t.a) - at.At(t.b)).norm();
       if (d <= options.keep_tie_m) kept.push_back({d, t});
     }
     std::sort(kept.begin(), kept.end(), [](const auto& x, const auto& y) {
@@ -409,8 +429,8 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     auto submaps_of = [&](int root) -> std::set<int>& {
       auto [it, fresh] = submaps_of_root.try_emplace(root);
       if (fresh) {
-        const auto s = submaps_of_slot.find(root);
-        if (s != submaps_of_slot.end()) it->second.insert(s->second.begin(), s->second.end());
+        const std::vector<int>& s = submaps_of_slot[static_cast<std::size_t>(root)];
+        it->second.insert(s.begin(), s.end());
       }
       return it->second;
     };
@@ -439,8 +459,8 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     // Each union's start: the mean of its slots' positions where `position` gives one.
     const auto mean_by_union = [&](const auto& position) {
       std::map<int, std::pair<Eigen::Vector2d, int>> sums;
-      for (const auto& [slot, l] : at.slots) {
-        const std::optional<Eigen::Vector2d> p = position(slot, l);
+      for (int slot : at.held) {
+        const std::optional<Eigen::Vector2d> p = position(slot, at.At(slot));
         if (!p) continue;
         auto [it, fresh] = sums.try_emplace(unions.Find(slot), *p, 1);
         if (!fresh) {
@@ -471,8 +491,8 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
       const auto i = std::find(first_order.begin(), first_order.end(), c) - first_order.begin();
       frames.push_back(at.frames[static_cast<std::size_t>(i)]);
     }
-    second = Solve(chains, order, landmark_of, {}, 1.0, RobustKernel{}, &frames, &start, options.max_iterations, info,
-                   &eq);
+    second = Solve(chains, order, landmark_of, refs.size(), {}, 1.0, RobustKernel{}, &frames, &start,
+                   options.max_iterations, info, &eq);
     out.first_pass = first_pass;
     out.rechecked = rechecking;
     // A join judged on the start frames stands unless a submap's residual says a pairing is wrong.
@@ -484,8 +504,8 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
   out.cost = second.report.final_cost;
 
   std::vector<int> wanted, wanted_slots;
-  for (const auto& [slot, v] : second.net.slot_var) {
-    wanted.push_back(v);
+  for (int slot : second.net.held) {
+    wanted.push_back(second.net.slot_var[static_cast<std::size_t>(slot)]);
     wanted_slots.push_back(slot);
   }
   const std::vector<Eigen::MatrixXd> marginals = eq->Marginals(wanted);
@@ -494,7 +514,7 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
   std::map<int, int> index_of;  // landmark slot -> place in out.landmarks
   for (std::size_t i = 0; i < wanted_slots.size(); ++i) {
     NetworkLandmark l;
-    l.mean = second.net.slots.at(wanted_slots[i]);
+    l.mean = second.net.At(wanted_slots[i]);
     l.cov = marginals[i];
     index_of[wanted_slots[i]] = static_cast<int>(out.landmarks.size());
     out.landmarks.push_back(std::move(l));

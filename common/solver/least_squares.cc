@@ -98,55 +98,84 @@ void BlockNormalEquations::Finalize() {
       at += size(v);
     }
   }
-  // The upper triangle's entries, column by column.
-  // A block's entry (ra, cb) is H's (offset(a) + ra, offset(b) + cb) and, H being symmetric,
-  // the transposed one: of the two, the one on or above the diagonal (a diagonal block's entries
-  // below it are left out, their transposes being in the block).
-  auto upper = [&](const Block& blk, int ra, int cb) -> std::pair<int, int> {
-    const int row = offset(blk.a) + ra, col = offset(blk.b) + cb;
-    if (blk.a == blk.b) return row <= col ? std::pair{row, col} : std::pair{-1, -1};
-    return row <= col ? std::pair{row, col} : std::pair{col, row};
-  };
-  std::vector<std::vector<int>> rows(static_cast<std::size_t>(dim_));
-  for (const Block& blk : blocks_) {
-    for (int cb = 0; cb < size(blk.b); ++cb) {
-      for (int ra = 0; ra < size(blk.a); ++ra) {
-        const auto [row, col] = upper(blk, ra, cb);
-        if (row >= 0) rows[static_cast<std::size_t>(col)].push_back(row);
-      }
+  // H's upper triangle, built column by column in its compressed form. A block lies in the
+  // columns of whichever of its two variables comes later in the layout (a diagonal block: the
+  // variable's own columns, on and above the diagonal), so each variable's column block holds
+  // its blocks' rows in the order of their row variables' offsets: sorting a variable's blocks
+  // sorts every one of its columns, and each entry's place is known as it is written.
+  std::vector<int> first_block(static_cast<std::size_t>(variables()) + 1, 0);  // per column variable
+  auto column_var = [&](const Block& blk) { return offset(blk.a) <= offset(blk.b) ? blk.b : blk.a; };
+  auto row_var = [&](const Block& blk) { return offset(blk.a) <= offset(blk.b) ? blk.a : blk.b; };
+  for (const Block& blk : blocks_) ++first_block[static_cast<std::size_t>(column_var(blk)) + 1];
+  for (int v = 0; v < variables(); ++v) {
+    first_block[static_cast<std::size_t>(v) + 1] += first_block[static_cast<std::size_t>(v)];
+  }
+  std::vector<int> by_column(blocks_.size());  // block indices, grouped by column variable
+  {
+    std::vector<int> next(first_block.begin(), first_block.end() - 1);
+    for (std::size_t i = 0; i < blocks_.size(); ++i) {
+      by_column[static_cast<std::size_t>(next[static_cast<std::size_t>(column_var(blocks_[i]))]++)] = static_cast<int>(
+          i);
     }
   }
-  Eigen::VectorXi per_column(dim_);
-  for (int c = 0; c < dim_; ++c) {
-    std::sort(rows[static_cast<std::size_t>(c)].begin(), rows[static_cast<std::size_t>(c)].end());
-    per_column(c) = static_cast<int>(rows[static_cast<std::size_t>(c)].size());
+  Eigen::Index nonzeros = 0;
+  for (int v = 0; v < variables(); ++v) {
+    const auto begin = by_column.begin() + first_block[static_cast<std::size_t>(v)];
+    const auto end = by_column.begin() + first_block[static_cast<std::size_t>(v) + 1];
+    std::sort(begin, end, [&](int x, int y) {
+      return offset(row_var(blocks_[static_cast<std::size_t>(x)])) <
+             offset(row_var(blocks_[static_cast<std::size_t>(y)]));
+    });
+    int rows = 0;  // per column of v, but its diagonal block's part
+    for (auto it = begin; it != end; ++it) {
+      const Block& blk = blocks_[static_cast<std::size_t>(*it)];
+      if (blk.a != blk.b) rows += size(row_var(blk));
+    }
+    const int s = size(v);
+    nonzeros += static_cast<Eigen::Index>(s) * rows + s * (s + 1) / 2;
   }
-  h_.resize(dim_, dim_);
-  h_.reserve(per_column);
-  for (int c = 0; c < dim_; ++c) {
-    for (int r : rows[static_cast<std::size_t>(c)]) h_.insert(r, c) = 0.0;
-  }
-  h_.makeCompressed();
-  // Where each block entry lands among h_'s values.
-  auto position = [&](int row, int col) {
-    const int* begin = h_.innerIndexPtr() + h_.outerIndexPtr()[col];
-    const int* end = h_.innerIndexPtr() + h_.outerIndexPtr()[col + 1];
-    const int* it = std::lower_bound(begin, end, row);
-    MAPMESH_CHECK(it != end && *it == row);
-    return static_cast<int>(it - h_.innerIndexPtr());
-  };
+  h_ = Eigen::SparseMatrix<double>(dim_, dim_);
+  h_.resizeNonZeros(nonzeros);
+  int* outer = h_.outerIndexPtr();
+  int* inner = h_.innerIndexPtr();
+  std::fill(h_.valuePtr(), h_.valuePtr() + nonzeros, 0.0);
   positions_.assign(values_.size(), -1);
-  for (const Block& blk : blocks_) {
-    const int sa = size(blk.a);
-    for (int cb = 0; cb < size(blk.b); ++cb) {
-      for (int ra = 0; ra < sa; ++ra) {
-        const auto [row, col] = upper(blk, ra, cb);
-        if (row >= 0) positions_[static_cast<std::size_t>(blk.offset + cb * sa + ra)] = position(row, col);
+  diagonal_.resize(static_cast<std::size_t>(dim_));
+  // The variables by offset, to walk the columns in order.
+  std::vector<int> by_offset(static_cast<std::size_t>(variables()));
+  for (int v = 0; v < variables(); ++v) by_offset[static_cast<std::size_t>(v)] = v;
+  std::sort(by_offset.begin(), by_offset.end(), [&](int x, int y) { return offset(x) < offset(y); });
+  int at = 0;
+  for (int v : by_offset) {
+    const int s = size(v);
+    for (int cb = 0; cb < s; ++cb) {
+      const int col = offset(v) + cb;
+      outer[col] = at;
+      for (int k = first_block[static_cast<std::size_t>(v)]; k < first_block[static_cast<std::size_t>(v) + 1]; ++k) {
+        const Block& blk = blocks_[static_cast<std::size_t>(by_column[static_cast<std::size_t>(k)])];
+        const int sa = size(blk.a);
+        if (blk.a == blk.b) {  // rows 0 .. cb of the variable's own block (value (ra, cb))
+          for (int ra = 0; ra <= cb; ++ra) {
+            inner[at] = offset(v) + ra;
+            positions_[static_cast<std::size_t>(blk.offset + cb * sa + ra)] = at++;
+          }
+          diagonal_[static_cast<std::size_t>(col)] = at - 1;
+        } else if (blk.b == v) {  // rows of a, value (ra, cb)
+          for (int ra = 0; ra < sa; ++ra) {
+            inner[at] = offset(blk.a) + ra;
+            positions_[static_cast<std::size_t>(blk.offset + cb * sa + ra)] = at++;
+          }
+        } else {  // rows of b (the block's columns), value (cb, rb): the transposed entry
+          for (int rb = 0; rb < size(blk.b); ++rb) {
+            inner[at] = offset(blk.b) + rb;
+            positions_[static_cast<std::size_t>(blk.offset + rb * sa + cb)] = at++;
+          }
+        }
       }
     }
   }
-  diagonal_.resize(static_cast<std::size_t>(dim_));
-  for (int i = 0; i < dim_; ++i) diagonal_[static_cast<std::size_t>(i)] = position(i, i);
+  outer[dim_] = at;
+  MAPMESH_CHECK(at == nonzeros && h_.isCompressed());
   if (dim_ > 0) llt_.analyzePattern(h_);
   finalized_ = true;
 }
@@ -287,13 +316,23 @@ LevenbergMarquardtReport MinimiseLevenbergMarquardt(LeastSquaresProblem& problem
   report.stop = "iterations";
   Eigen::VectorXd dx;
   while (true) {
-    if (!eq.Solve(lambda, &dx)) {
+    // Damping below undamped_below is none: the Gauss-Newton step, whose size tells whether
+    // the current state is already the minimum.
+    const bool undamped = lambda < options.undamped_below;
+    if (!eq.Solve(undamped ? 0.0 : lambda, &dx)) {
       if (lambda > 1e10) {
         report.stop = "not positive definite";
         break;
       }
       lambda = std::max(1e-6, lambda * 10.0);
       continue;
+    }
+    if (undamped && dx.cwiseAbs().maxCoeff() < options.step_tolerance) {
+      // Within step_tolerance of the minimum of the model at the current state: stop there,
+      // with its normal equations factorised undamped (Marginals needs no other).
+      report.converged = true;
+      report.stop = "step";
+      break;
     }
     problem.Save();
     problem.Step(dx);

@@ -141,6 +141,13 @@ struct LevenbergMarquardtOptions {
   double function_tolerance = 1e-10;  // converged when a step lowers the cost by less than this share of it
   double step_tolerance = 1e-9;       // ... or moves no variable by more than this (m or rad)
   double initial_lambda = 1e-6;       // damping of the first step (share of diag(H))
+  // Damping below this (it falls by 3 at each accepted step) is taken as none: the step is
+  // Gauss-Newton's, and one smaller than step_tolerance ends the run before it is taken, at a
+  // state linearised and factorised already (no further linearisation, and Marginals reuses
+  // the factor). Off by default: for problems that start near their minimum (a join warm
+  // started from the last one); on a batch from odometry (MRCLAM 7's central optimum)
+  // undamped steps are refused often enough that the run no longer converges.
+  double undamped_below = 0.0;
 };
 
 struct LevenbergMarquardtReport {

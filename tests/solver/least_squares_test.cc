@@ -267,5 +267,56 @@ TEST(LevenbergMarquardt, FindsTheOptimumAndARobustLossResistsOutliers) {
   EXPECT_GE(robust_better, 18);
 }
 
+// Started near its minimum with undamped_below on, the run ends where the Gauss-Newton step
+// falls below step_tolerance, before taking it: within that tolerance of the minimum the
+// default run finds, with eq holding the normal equations at the state returned, factorised
+// undamped, so that the marginals are those of that state's H without another factorisation.
+TEST(LevenbergMarquardt, AnUndampedRunStopsBeforeItsLastStepWithTheFactorAtTheStateItReturns) {
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::uniform_real_distribution<double> u(-10, 10);
+  const Eigen::Vector2d truth(1.5, -2.0);
+  int stopped_before_a_step = 0;
+  for (int trial = 0; trial < 20; ++trial) {
+    std::vector<Eigen::Vector2d> anchors;
+    std::vector<double> ranges;
+    for (int i = 0; i < 12; ++i) {
+      anchors.emplace_back(u(rng), u(rng));
+      ranges.push_back((truth - anchors.back()).norm() + noise(rng));
+    }
+    const Eigen::Vector2d start = truth + Eigen::Vector2d(0.05, -0.03);
+    BlockNormalEquations default_eq({2}), undamped_eq({2});
+    default_eq.Couple({0});
+    undamped_eq.Couple({0});
+    default_eq.Finalize();
+    undamped_eq.Finalize();
+    LevenbergMarquardtOptions lm;
+    lm.step_tolerance = 1e-6;
+    Trilateration by_default(anchors, ranges, 0.01, {}, start);
+    const LevenbergMarquardtReport dr = MinimiseLevenbergMarquardt(by_default, default_eq, lm);
+    lm.undamped_below = lm.initial_lambda;
+    Trilateration undamped(anchors, ranges, 0.01, {}, start);
+    const LevenbergMarquardtReport ur = MinimiseLevenbergMarquardt(undamped, undamped_eq, lm);
+    ASSERT_TRUE(dr.converged) << dr.stop;
+    ASSERT_TRUE(ur.converged) << ur.stop;
+    EXPECT_LT((undamped.x() - by_default.x()).cwiseAbs().maxCoeff(), lm.step_tolerance) << "trial " << trial;
+    // The default run takes that last step, then linearises once more at its end.
+    if (ur.stop == "step" && ur.steps_accepted < dr.steps_accepted && ur.iterations <= dr.iterations) {
+      ++stopped_before_a_step;
+    }
+    // H at the state returned, by hand: sum over the ranges of J^T J.
+    Eigen::Matrix2d h = Eigen::Matrix2d::Zero();
+    for (const Eigen::Vector2d& a : anchors) {
+      const Eigen::Vector2d d = undamped.x() - a;
+      const Eigen::RowVector2d j = d.transpose() / (d.norm() * 0.01);
+      h += j.transpose() * j;
+    }
+    const std::vector<Eigen::MatrixXd> marginal = undamped_eq.Marginals({0});
+    ASSERT_EQ(marginal.size(), 1u);
+    EXPECT_LT((marginal[0] - h.inverse()).cwiseAbs().maxCoeff(), 1e-12 * h.inverse().cwiseAbs().maxCoeff() + 1e-18);
+  }
+  EXPECT_GE(stopped_before_a_step, 15);
+}
+
 }  // namespace
 }  // namespace mapmesh
