@@ -231,21 +231,28 @@ class Trilateration : public LeastSquaresProblem {
   Eigen::Vector2d x_, saved_;
 };
 
+// 12 anchors at random in a 20 m square and their ranges to `truth` with 1 cm noise, the first
+// `outliers` of them 3 m long.
+void RandomRanges(const Eigen::Vector2d& truth, int outliers, std::mt19937_64& rng,
+                  std::vector<Eigen::Vector2d>* anchors, std::vector<double>* ranges) {
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::uniform_real_distribution<double> u(-10, 10);
+  for (int i = 0; i < 12; ++i) {
+    anchors->emplace_back(u(rng), u(rng));
+    ranges->push_back((truth - anchors->back()).norm() + noise(rng) + (i < outliers ? 3.0 : 0.0));
+  }
+}
+
 // Levenberg-Marquardt from far away finds the point; with gross outliers, plain least squares
 // is pulled off and the Cauchy loss, started there, is not; at the optimum the gradient vanishes.
 TEST(LevenbergMarquardt, FindsTheOptimumAndARobustLossResistsOutliers) {
   std::mt19937_64 rng(5);
-  std::normal_distribution<double> noise(0.0, 0.01);
-  std::uniform_real_distribution<double> u(-10, 10);
   const Eigen::Vector2d truth(1.5, -2.0);
   int robust_better = 0;
   for (int trial = 0; trial < 20; ++trial) {
     std::vector<Eigen::Vector2d> anchors;
     std::vector<double> ranges;
-    for (int i = 0; i < 12; ++i) {
-      anchors.emplace_back(u(rng), u(rng));
-      ranges.push_back((truth - anchors.back()).norm() + noise(rng) + (i < 2 ? 3.0 : 0.0));  // two outliers
-    }
+    RandomRanges(truth, 2, rng, &anchors, &ranges);
     BlockNormalEquations plain_eq({2}), robust_eq({2});
     plain_eq.Couple({0});
     robust_eq.Couple({0});
@@ -273,17 +280,12 @@ TEST(LevenbergMarquardt, FindsTheOptimumAndARobustLossResistsOutliers) {
 // undamped, so that the marginals are those of that state's H without another factorisation.
 TEST(LevenbergMarquardt, AnUndampedRunStopsBeforeItsLastStepWithTheFactorAtTheStateItReturns) {
   std::mt19937_64 rng(11);
-  std::normal_distribution<double> noise(0.0, 0.01);
-  std::uniform_real_distribution<double> u(-10, 10);
   const Eigen::Vector2d truth(1.5, -2.0);
   int stopped_before_a_step = 0;
   for (int trial = 0; trial < 20; ++trial) {
     std::vector<Eigen::Vector2d> anchors;
     std::vector<double> ranges;
-    for (int i = 0; i < 12; ++i) {
-      anchors.emplace_back(u(rng), u(rng));
-      ranges.push_back((truth - anchors.back()).norm() + noise(rng));
-    }
+    RandomRanges(truth, 0, rng, &anchors, &ranges);
     const Eigen::Vector2d start = truth + Eigen::Vector2d(0.05, -0.03);
     BlockNormalEquations default_eq({2}), undamped_eq({2});
     default_eq.Couple({0});
