@@ -79,7 +79,9 @@ void BlockNormalEquations::Finalize() {
   }
   // The variables' layout: an approximate minimum degree order of the block pattern (Amestoy,
   // Davis & Duff), a few times fewer nodes and tens of times fewer edges than the scalar pattern
-  // the factorisation would otherwise order at every Finalize.
+  // the factorisation would otherwise order at every Finalize. layout[k]: the k-th variable.
+  std::vector<int> layout(static_cast<std::size_t>(variables()));
+  for (int v = 0; v < variables(); ++v) layout[static_cast<std::size_t>(v)] = v;
   if (variables() > 1) {
     std::vector<Eigen::Triplet<double>> entries;
     entries.reserve(2 * blocks_.size());
@@ -93,7 +95,7 @@ void BlockNormalEquations::Finalize() {
     Eigen::AMDOrdering<int>()(pattern, order);
     int at = 0;
     for (int k = 0; k < variables(); ++k) {
-      const int v = order.indices()(k);
+      const int v = layout[static_cast<std::size_t>(k)] = order.indices()(k);
       offsets_[static_cast<std::size_t>(v)] = at;
       at += size(v);
     }
@@ -141,12 +143,8 @@ void BlockNormalEquations::Finalize() {
   std::fill(h_.valuePtr(), h_.valuePtr() + nonzeros, 0.0);
   positions_.assign(values_.size(), -1);
   diagonal_.resize(static_cast<std::size_t>(dim_));
-  // The variables by offset, to walk the columns in order.
-  std::vector<int> by_offset(static_cast<std::size_t>(variables()));
-  for (int v = 0; v < variables(); ++v) by_offset[static_cast<std::size_t>(v)] = v;
-  std::sort(by_offset.begin(), by_offset.end(), [&](int x, int y) { return offset(x) < offset(y); });
   int at = 0;
-  for (int v : by_offset) {
+  for (int v : layout) {  // the columns in order
     const int s = size(v);
     for (int cb = 0; cb < s; ++cb) {
       const int col = offset(v) + cb;
