@@ -300,6 +300,8 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"relayed_placed", node.exchange().joining().relayed_placed},
               {"relayed_alignments", node.exchange().joining().relayed_alignments},
               {"relayed_disagreements", node.exchange().joining().relayed_disagreements},
+              {"relayed_by_placement", node.exchange().joining().relayed_by_placement},
+              {"placements_refused", node.exchange().joining().placements_refused},
               {"superseded_chains", node.exchange().joining().superseded_chains}}},
             {"impersonations_refused", {{"maps", ByRobot(refusals.maps)}, {"sightings", ByRobot(refusals.sightings)}}},
             {"not_from_feeder", {{"links", refusals.links.refused()}, {"ticks", refusals.ticks.refused()}}},

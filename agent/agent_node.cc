@@ -18,6 +18,7 @@ constexpr std::size_t kMapMessageFixedBytes = 4 + 1 + 4 + 4 + 8 + 8 + 4;  // key
                                                                           // payload length
 // A Sighting on the wire: ids, kind, stamp, pose, covariance, measurement and sigmas.
 constexpr std::size_t kSightingWireBytes = 4 + 4 + 1 + 4 + 4 + 8 + 3 * 8 + 6 * 8 + 4 * 8;
+constexpr std::size_t kChainPlacementWireBytes = 4 + 4 + 3 * 8;
 
 }  // namespace
 
@@ -44,6 +45,8 @@ std::size_t WireBytes(const MapMessage& msg) {
     bytes += 12 + 12 * msg.submaps_held.size() + msg.open_submap.size();
     for (const auto& b : msg.submaps) bytes += 4 + b.size();
   }
+  // The placements' length, and robot, incarnation and pose for each.
+  if (!msg.placements.empty()) bytes += 4 + kChainPlacementWireBytes * msg.placements.size();
   return bytes;
 }
 
@@ -68,6 +71,7 @@ std::string_view ToString(SubmapRefusal r) {
     case SubmapRefusal::kOutOfWorld: return "out_of_world";
     case SubmapRefusal::kCovarianceTooLarge: return "covariance_too_large";
     case SubmapRefusal::kNotThePublishers: return "not_the_publishers";
+    case SubmapRefusal::kImplausiblePlacements: return "implausible_placements";
   }
   return "unknown";
 }
@@ -217,7 +221,10 @@ void AgentNode::PublishMaps(std::uint32_t tick, std::vector<Sighting> riders) {
   TakeOwnSubmaps();
   if (joining_) {
     own_open_ = mapper_->CurrentSubmap({self_, incarnation_, static_cast<std::uint32_t>(own_submaps_taken_)});
-    exchange_.SetSubmapInputs({&submaps_.book(), own_open_ ? &*own_open_ : nullptr, &peers_open_});
+    exchange_.SetSubmapInputs({.book = &submaps_.book(),
+                               .own_open = own_open_ ? &*own_open_ : nullptr,
+                               .peers_open = &peers_open_,
+                               .peers_placements = &peers_placements_});
   }
   exchange_.Update(local, sync_.processed_until());
   Publish(MapKind::kLocal, local, ++local_version_, tick, riders);
@@ -277,6 +284,7 @@ bool AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t vers
     for (const std::vector<std::uint8_t>* b : submaps_.Due(in_range, sync_.processed_until()))
       msg.submaps.push_back(*b);
     if (own_open_) msg.open_submap = EncodeSubmap(*own_open_);
+    if (joining_) msg.placements = exchange_.placements();
   }
   ++stats_.maps_sent;
   stats_.bytes_sent += WireBytes(msg);
@@ -407,6 +415,16 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
       }
     }
   }
+  if (joining_ && !msg.placements.empty()) {
+    const PeerKey key{msg.robot_id, msg.incarnation};
+    const auto held = placements_version_.find(key);
+    if (!PlausiblePlacements(msg)) {
+      refuse(SubmapRefusal::kImplausiblePlacements);
+    } else if (held == placements_version_.end() || msg.version > held->second) {
+      placements_version_[key] = msg.version;
+      peers_placements_[key] = msg.placements;
+    }
+  }
   for (std::size_t i = 0; i < msg.submaps.size(); ++i) {
     if (i >= kMaxSubmapsPerMap) {
       refuse(SubmapRefusal::kTooManyOnOneMap);
@@ -419,6 +437,23 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
     }
     if (admissible(d.submap)) submaps_.Add(d.submap, msg.submaps[i], now);
   }
+}
+
+bool AgentNode::PlausiblePlacements(const MapMessage& msg) const {
+  if (msg.placements.size() > robot_ids_.size() * static_cast<std::size_t>(options_.exchange.max_incarnations)) {
+    return false;
+  }
+  for (std::size_t i = 0; i < msg.placements.size(); ++i) {
+    const ChainPlacement& c = msg.placements[i];
+    const bool ordered = i == 0 || std::tie(msg.placements[i - 1].robot, msg.placements[i - 1].incarnation) <
+                                       std::tie(c.robot, c.incarnation);
+    const bool within = std::abs(c.x) <= kMapCodecMaxCoordinateM && std::abs(c.y) <= kMapCodecMaxCoordinateM &&
+                        std::isfinite(c.theta);
+    if (!ordered || !within || !InRun(c.robot) || (c.robot == msg.robot_id && c.incarnation == msg.incarnation)) {
+      return false;
+    }
+  }
+  return true;
 }
 
 bool AgentNode::InRun(RobotId robot) const {

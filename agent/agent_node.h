@@ -84,8 +84,12 @@ enum class SubmapRefusal {
   kOutOfWorld,
   kCovarianceTooLarge,
   kNotThePublishers,  // an open submap that is not the publisher's own incarnation's
+  // A local map's chain placements (fusion joining), all of them: one of a robot not of this
+  // run or of the publisher's own chain, not finite or beyond a map's bound, or more of them
+  // than the robots' chains the publisher could hold.
+  kImplausiblePlacements,
 };
-inline constexpr int kSubmapRefusalCount = 7;
+inline constexpr int kSubmapRefusalCount = 8;
 std::string_view ToString(SubmapRefusal r);
 // A local map carries at most this many submaps (the first are taken, the rest refused).
 inline constexpr std::size_t kMaxSubmapsPerMap = 1024;
@@ -191,6 +195,8 @@ class AgentNode : private SensorSync::Sink {
   const MapExchange& exchange() const { return exchange_; }
   // The closed submaps held (own and peers') and what was sent of them (issue J1).
   const SubmapRelay& submaps() const { return submaps_; }
+  // Fusion joining: each peer incarnation's chain placements, from its latest local map.
+  const std::map<PeerKey, std::vector<ChainPlacement>>& peers_placements() const { return peers_placements_; }
   const RendezvousStats& rendezvous_stats() const { return rendezvous_.stats(); }
   const GlobalMap& global() const { return exchange_.global(); }
   std::uint32_t incarnation() const { return incarnation_; }
@@ -223,6 +229,8 @@ class AgentNode : private SensorSync::Sink {
   bool Delivered(const ExchangeTick& tick) const;
   // Whether the robot is one of this run's.
   bool InRun(RobotId robot) const;
+  // Whether a local map's chain placements may be taken (SubmapRefusal::kImplausiblePlacements).
+  bool PlausiblePlacements(const MapMessage& msg) const;
   // The scenario time as far as this agent can tell: its own progress, or the link table's
   // when that is ahead (before the first odometry of a restarted agent).
   double Clock() const;
@@ -250,6 +258,10 @@ class AgentNode : private SensorSync::Sink {
   bool joining_ = false;                      // agent.fusion joining: the back-end joins submap chains
   std::optional<WireSubmap> own_open_;        // joining: the open submap at the last publication
   std::map<PeerKey, WireSubmap> peers_open_;  // joining: each peer incarnation's latest open submap
+  // joining: each peer incarnation's chain placements from its latest local map (a later version
+  // replaces them), and that map's version
+  std::map<PeerKey, std::vector<ChainPlacement>> peers_placements_;
+  std::map<PeerKey, std::uint32_t> placements_version_;
   // Publishes sightings and answers (when the run aligns by rendezvous); in lockstep holds them
   // for the next tick.
   void PublishSightings(const std::vector<Sighting>& out);

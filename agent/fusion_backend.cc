@@ -4,6 +4,7 @@
 #include <optional>
 #include <random>
 #include <set>
+#include <span>
 
 #include "agent/peer_schedule.h"
 #include "agent/relay_policy.h"
@@ -62,9 +63,14 @@ class JoiningFusion : public FusionBackend {
       superseded_ = submaps.book->Superseded(open);
       report_.superseded_chains = static_cast<int>(superseded_.size());
       std::vector<MapSource> inputs = direct;
-      PlaceRelayedChains(own_local, *submaps.book, submaps.now, &inputs);
+      PlaceRelayedChains(own_local, submaps, &inputs);
       const GlobalMap associated = BuildGlobalMap(own_local, self_, inputs, association_, incarnation_, &memo_);
       b.global = JoinChains(associated, inputs, submaps);
+      // Where the chains lie as the last solve put them (each chain's first frame), for the peers.
+      for (const auto& [chain, frames] : last_frames_) {
+        if (chain == std::pair{self_, incarnation_} || frames.empty()) continue;
+        b.placements.push_back({chain.first, chain.second, frames.front().x, frames.front().y, frames.front().theta});
+      }
     } else {
       const GlobalMap associated = BuildGlobalMap(own_local, self_, direct, association_, incarnation_, &memo_);
       b.global = JoinMaps(own_local, self_, incarnation_, direct, associated);
@@ -170,20 +176,31 @@ class JoiningFusion : public FusionBackend {
     Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();  // ... and how well the alignment knew it
     RelayedAlignmentFacts tried;                           // its alignments so far (peer_schedule.h)
     std::uint64_t attempts = 0;
+    std::set<PeerKey> offered_by;  // the peers whose placements of it were verified at the last try
+  };
+
+  // An aligned peer's placement of a chain, composed with where we put the peer.
+  struct Offer {
+    PeerKey by;
+    Pose2 to_own;
   };
 
   // Appends to `inputs` (the one-hop maps) a source for every placed chain the agent holds only
-  // through relays, in (robot, incarnation) order. A chain is placed by aligning its rebuilt
-  // map against the global map of the own map and the sources before it, once a later
+  // through relays, in (robot, incarnation) order. A chain is placed where an aligned peer's
+  // last join put it (composed with where ours put that peer), once the maps verify it there
+  // (VerifyAlignment against the global map of the own map and the sources before it), trying
+  // the peers in order; else by aligning its rebuilt map against that global map, once a later
   // alignment agrees with the first (relay tolerances at the chain map's centroid); a
   // disagreeing one replaces the candidate. An alignment is tried again when either map has
   // grown by retry_growth, or align_period_s after an accepted one (the same maps, another
   // draw): a failed one on the same maps would fail again. Both double after a failed one
-  // (RelayedAlignmentDue). Once placed, the chain lies where the last solve put its first frame.
-  void PlaceRelayedChains(const LandmarkMap& own_local, const SubmapBook& book, double now,
-                          std::vector<MapSource>* inputs) {
+  // (RelayedAlignmentDue). A peer's placement is verified at once when the peer did not offer
+  // one at the last try. Once placed, the chain lies where the last solve put its first frame.
+  void PlaceRelayedChains(const LandmarkMap& own_local, const SubmapInputs& submaps, std::vector<MapSource>* inputs) {
+    const SubmapBook& book = *submaps.book;
     std::set<std::pair<RobotId, std::uint32_t>> heard = {{self_, incarnation_}};
     for (const MapSource& s : *inputs) heard.insert({s.robot, s.incarnation});
+    const std::size_t direct = inputs->size();
     report_.relayed_chains = report_.relayed_placed = 0;
     std::optional<LandmarkMap> target;  // the own and placed maps, built when an unplaced chain needs it
     for (const SubmapChain& c : book.Chains()) {
@@ -198,11 +215,20 @@ class JoiningFusion : public FusionBackend {
       r.map.Extend(chain);
       const LandmarkMap& theirs = r.map.map();
       if (!r.to_own && theirs.size() >= 3) {
+        const std::vector<Offer> offers = Offers({c.robot, c.incarnation}, std::span(inputs->data(), direct),
+                                                 submaps.peers_placements);
+        const bool new_offer = std::any_of(offers.begin(), offers.end(),
+                                           [&](const Offer& o) { return !r.offered_by.contains(o.by); });
         if (!target) target = BuildGlobalMap(own_local, self_, *inputs, association_, incarnation_).map;
         r.tried.candidate = r.candidate.has_value();
-        if (RelayedAlignmentDue(r.tried, theirs.size(), target->size(), now, options_)) {
-          r.tried.tried_at = now;
-          Align(c, r, *target);
+        const bool due = RelayedAlignmentDue(r.tried, theirs.size(), target->size(), submaps.now, options_);
+        if (due || new_offer) {
+          r.offered_by.clear();
+          for (const Offer& o : offers) r.offered_by.insert(o.by);
+          if (!PlaceByOffer(r, offers, *target) && due) {
+            r.tried.tried_at = submaps.now;
+            Align(c, r, *target);
+          }
         }
       }
       if (!r.to_own) continue;
@@ -212,6 +238,44 @@ class JoiningFusion : public FusionBackend {
       inputs->push_back(MapSource{c.robot, c.incarnation, theirs, at, r.to_own_cov});
       target.reset();
     }
+  }
+
+  // The placements of chain `key` that the aligned one-hop peers (`direct`, in order) offer, each
+  // composed with where we put the peer: where the last solve put its chain's first frame, else
+  // its alignment.
+  std::vector<Offer> Offers(const std::pair<RobotId, std::uint32_t>& key, std::span<const MapSource> direct,
+                            const std::map<PeerKey, std::vector<ChainPlacement>>* placements) const {
+    std::vector<Offer> offers;
+    if (placements == nullptr) return offers;
+    for (const MapSource& s : direct) {
+      const auto held = placements->find({s.robot, s.incarnation});
+      if (held == placements->end()) continue;
+      const auto it = std::lower_bound(held->second.begin(), held->second.end(), key,
+                                       [](const ChainPlacement& p, const std::pair<RobotId, std::uint32_t>& k) {
+                                         return std::pair{p.robot, p.incarnation} < k;
+                                       });
+      if (it == held->second.end() || std::pair{it->robot, it->incarnation} != key) continue;
+      const auto last = last_frames_.find({s.robot, s.incarnation});
+      const Pose2 peer = last != last_frames_.end() && !last->second.empty() ? last->second.front() : s.to_own;
+      offers.push_back({{s.robot, s.incarnation}, peer * Pose2{it->x, it->y, it->theta}});
+    }
+    return offers;
+  }
+
+  // Places the chain at the first offer the maps verify; false when none does.
+  bool PlaceByOffer(Relayed& r, const std::vector<Offer>& offers, const LandmarkMap& target) {
+    for (const Offer& o : offers) {
+      const AlignmentResult a = VerifyAlignment(target, r.map.map(), o.to_own, options_.align);
+      if (!a.accepted()) {
+        ++report_.placements_refused;
+        continue;
+      }
+      r.to_own = a.transform;
+      r.to_own_cov = a.cov;
+      ++report_.relayed_by_placement;
+      return true;
+    }
+    return false;
   }
 
   void Align(const SubmapChain& c, Relayed& r, const LandmarkMap& target) {

@@ -6,7 +6,9 @@
 // landmarks only the peers' open submaps hold are placed as the CI build places them), else of
 // the one-hop maps. Joining also places the chains of robots whose submaps reached the agent
 // only through relays: each such chain's map is rebuilt from its submaps (ChainMap) and aligned
-// against the own and one-hop maps, and used once a later alignment agrees (two hops and more).
+// against the own and one-hop maps, and used once a later alignment agrees (two hops and more);
+// or, where an aligned peer's join placed the chain (its local map carries the placements), at
+// that placement composed with the peer's, once the maps verify it.
 // A chain whose time a later incarnation of its robot maps again (a lockstep restart replays the
 // robot's stream) is left out, so that no measurement is joined twice.
 // A back-end reads what it is given and changes only its own memory (association, relayed
@@ -20,6 +22,7 @@
 #include "agent/peer_state.h"
 #include "common/map/submap_book.h"
 #include "common/merge/global_map.h"
+#include "common/types/messages.h"
 
 namespace mapmesh {
 
@@ -33,6 +36,8 @@ struct SubmapInputs {
   // for none.
   const std::map<PeerKey, WireSubmap>* peers_open = nullptr;
   double now = 0.0;  // scenario time of the build (the exchange sets it): when alignments are due
+  // Each peer incarnation's chain placements, from its latest local map (null for none).
+  const std::map<PeerKey, std::vector<ChainPlacement>>* peers_placements = nullptr;
 };
 
 // What the joining back-end's last solve on submap chains did (all zero before one).
@@ -59,6 +64,10 @@ struct JoiningReport {
   int relayed_placed = 0;
   int relayed_alignments = 0;
   int relayed_disagreements = 0;
+  // Relayed chains placed where an aligned peer's join put them (composed with where ours put
+  // the peer), and the verifications of such placements the maps refused so far.
+  int relayed_by_placement = 0;
+  int placements_refused = 0;
   // Chains left out at the last build: a later incarnation of their robot maps their time again
   // (SubmapBook::Superseded).
   int superseded_chains = 0;
@@ -73,6 +82,9 @@ class FusionBackend {
     GlobalMap global;
     GlobalMap published;
     JoiningReport joining;
+    // Joining: where the last join put each other chain's first frame (the local map carries
+    // them to the peers), in (robot, incarnation) order.
+    std::vector<ChainPlacement> placements;
   };
   virtual Built Build(const LandmarkMap& own_local, const std::vector<MapSource>& sources,
                       const std::vector<MapSource>& direct, const SubmapInputs& submaps = {}) = 0;

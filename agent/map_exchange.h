@@ -80,6 +80,9 @@ class MapExchange {
   const GlobalMap& global() const { return global_; }
   // The joining back-end's last solve on submap chains (fusion_backend.h).
   const JoiningReport& joining() const { return joining_; }
+  // Where the joining back-end's last build put the other chains it joined (the agent's local
+  // map carries them; empty with CI).
+  const std::vector<ChainPlacement>& placements() const { return placements_; }
   // The one-hop global map: the own local map fused with aligned peers' local maps (and an
   // earlier own incarnation's maps). This is what the agent publishes as its GLOBAL map.
   const GlobalMap& published() const { return published_; }
@@ -150,6 +153,7 @@ class MapExchange {
   std::unique_ptr<FusionBackend> fusion_;  // agent.fusion, chosen once
   SubmapInputs submap_inputs_;
   JoiningReport joining_;
+  std::vector<ChainPlacement> placements_;
   GlobalMap global_;
   GlobalMap published_;
   std::uint64_t updates_ = 0;

@@ -115,6 +115,13 @@ mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch& scratch) {
   m.open_submap._length = m.open_submap._maximum;
   m.open_submap._buffer = const_cast<std::uint8_t*>(v.open_submap.data());
   m.open_submap._release = false;
+  scratch.placements.clear();
+  for (const ChainPlacement& c : v.placements)
+    scratch.placements.push_back({c.robot, c.incarnation, c.x, c.y, c.theta});
+  m.placements._maximum = static_cast<std::uint32_t>(scratch.placements.size());
+  m.placements._length = m.placements._maximum;
+  m.placements._buffer = scratch.placements.data();
+  m.placements._release = false;
   return m;
 }
 
@@ -142,6 +149,11 @@ MapMessage FromMsg(const mapmesh_msg_MapMessage& m) {
   }
   if (m.open_submap._length > 0)
     v.open_submap.assign(m.open_submap._buffer, m.open_submap._buffer + m.open_submap._length);
+  v.placements.reserve(m.placements._length);
+  for (std::uint32_t i = 0; i < m.placements._length; ++i) {
+    const mapmesh_msg_ChainPlacement& c = m.placements._buffer[i];
+    v.placements.push_back({c.robot, c.incarnation, c.x, c.y, c.theta});
+  }
   return v;
 }
 

@@ -36,6 +36,7 @@ struct MsgScratch {
   std::vector<mapmesh_msg_Sighting> sightings;
   std::vector<mapmesh_msg_SubmapChain> chains;
   std::vector<mapmesh_msg_SubmapBlob> blobs;
+  std::vector<mapmesh_msg_ChainPlacement> placements;
   std::vector<std::uint32_t> ids, ids2;
 };
 

@@ -108,6 +108,16 @@ struct SubmapChain {
   friend auto operator<=>(const SubmapChain&, const SubmapChain&) = default;
 };
 
+// Where the publisher's last join put another robot's submap chain (fusion joining, issue J1):
+// the chain's first frame in the publisher's local frame. A peer that holds the chain only
+// through relays composes it with where it put the publisher, instead of searching for it.
+struct ChainPlacement {
+  RobotId robot = 0;
+  std::uint32_t incarnation = 0;
+  double x = 0.0, y = 0.0, theta = 0.0;  // m, m, rad
+  friend auto operator<=>(const ChainPlacement&, const ChainPlacement&) = default;
+};
+
 struct MapMessage {
   RobotId robot_id = 0;
   MapKind kind = MapKind::kLocal;
@@ -128,6 +138,9 @@ struct MapMessage {
   // is the count of the publisher's closed ones, its closed_s the map's stamp). It changes at
   // every publication until it closes, so it is never relayed nor kept beyond the next one.
   std::vector<std::uint8_t> open_submap;
+  // With fusion joining, on the local map: where its last join put the other chains it joined,
+  // in (robot, incarnation) order.
+  std::vector<ChainPlacement> placements;
 };
 
 // The lockstep exchange, from the feeder to the agents (feeder.pace lockstep). At each exchange

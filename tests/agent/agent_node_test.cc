@@ -361,6 +361,54 @@ TEST(AgentNodeLimits, RefusesPeerMapsBeyondItsLimitsAndCountsWhy) {
   EXPECT_EQ(node.stats().maps_received, 1u);
 }
 
+// With fusion joining, a peer's local map carries where its join put other robots' chains.
+// They are taken all or none: one implausible placement (of a robot not in the run, of the
+// publisher's own chain, not finite, beyond a map's bound, out of order) refuses them all,
+// counted; a later version replaces them, an earlier one changes nothing.
+TEST(AgentNodeLimits, TakesAPeersChainPlacementsOnlyWhenEveryOneIsPlausible) {
+  Scenario sc = TwoRobots();
+  sc.agent.exchange.global.method = FusionMethod::kJoining;
+  Capture out;
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
+  node.OnLinks({0.0, {{1, 2}}});
+  LandmarkMap map;
+  for (std::uint32_t i = 0; i < 3; ++i)
+    map.landmarks.push_back({i, -1, {1.0 * i, 2.0}, 0.01 * Eigen::Matrix2d::Identity()});
+  std::uint32_t version = 0;
+  auto send = [&](std::vector<ChainPlacement> placements, std::uint32_t v = 0) {
+    MapMessage m = PeerMap(2, EncodeMap(map));
+    m.incarnation = 1;
+    m.version = v != 0 ? v : ++version;
+    m.placements = std::move(placements);
+    node.OnMap(m);
+  };
+  const ChainPlacement earlier_self{1, 7, 0.5, -2.0, 0.1};  // an earlier incarnation of robot 1: plausible
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<std::vector<ChainPlacement>> implausible = {
+      {earlier_self, {9, 1, 0.0, 0.0, 0.0}},  // robot 9 is not in the run
+      {earlier_self, {2, 1, 0.0, 0.0, 0.0}},  // the publisher's own chain
+      {{1, 7, 0.5, nan, 0.1}},                // not finite
+      {{1, 7, 0.5, -2.0, std::numeric_limits<double>::infinity()}},
+      {{1, 7, 9000.0, -2.0, 0.1}},                            // beyond a map's bound
+      {{2, 3, 0.0, 0.0, 0.0}, earlier_self},                  // out of order
+      {earlier_self, earlier_self},                           // twice
+      std::vector<ChainPlacement>(2 * 8 + 1, earlier_self)};  // more than two robots' kept incarnations
+  for (const auto& p : implausible) send(p);
+  EXPECT_EQ(node.stats().submaps_refused[static_cast<int>(SubmapRefusal::kImplausiblePlacements)], implausible.size());
+  EXPECT_TRUE(node.peers_placements().empty());
+  EXPECT_EQ(node.stats().maps_received, implausible.size());  // the maps themselves are taken
+  const std::vector<ChainPlacement> good = {earlier_self, {2, 3, 4.0, 5.0, -3.0}};
+  send(good);
+  const PeerKey two{2, 1};
+  ASSERT_EQ(node.peers_placements().count(two), 1u);
+  EXPECT_EQ(node.peers_placements().at(two), good);
+  send({earlier_self}, 2);  // an earlier version
+  EXPECT_EQ(node.peers_placements().at(two), good);
+  send({earlier_self});
+  EXPECT_EQ(node.peers_placements().at(two), std::vector<ChainPlacement>{earlier_self});
+  EXPECT_EQ(node.stats().submaps_refused[static_cast<int>(SubmapRefusal::kImplausiblePlacements)], implausible.size());
+}
+
 // One reading 30 km away (beyond what the 8 m sensor sees) never reaches the map, and the
 // agent keeps publishing.
 TEST(AgentNodeLimits, AReadingBeyondTheSensorsRangeIsRefused) {

@@ -210,15 +210,58 @@ TEST_F(FusionBackendTest, ThePublishedMapHoldsTheOneHopMapsOnly) {
   EXPECT_EQ(j.published.map.size(), 9u);
 }
 
-// J1, two hops: robot 3 never reached us, but its submaps did (relayed by robot 2). The joining
-// back-end rebuilds robot 3's map from its chain, aligns it against ours and robot 2's, and
-// joins it once a later alignment (after the chain grew) agrees with the first: then robot 3's
-// landmarks are in our global map where they are, and every chain is joined.
-TEST(FusionBackendRelayed, AChainHeldOnlyThroughRelaysIsPlacedOnceConfirmedAndJoined) {
-  testing::World w(20, 2.0);
-  std::mt19937_64 rng(7);
-  std::uniform_real_distribution<double> jitter(-0.6, 0.6);
-  for (Eigen::Vector2d& l : w.landmarks) l += Eigen::Vector2d(jitter(rng), jitter(rng));
+// Three robots along a row of landmarks (J1, two hops): robot 3 never reached us (robot 1), but
+// its submaps did, relayed by robot 2, whose map we hold aligned.
+class FusionBackendRelayed : public ::testing::Test {
+ protected:
+  static testing::World Jittered() {
+    testing::World w(20, 2.0);
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> jitter(-0.6, 0.6);
+    for (Eigen::Vector2d& l : w.landmarks) l += Eigen::Vector2d(jitter(rng), jitter(rng));
+    return w;
+  }
+  static LandmarkMap Rebuilt(const std::vector<WireSubmap>& s) {
+    std::vector<const WireSubmap*> p;
+    for (const WireSubmap& x : s) p.push_back(&x);
+    ChainMap c;
+    c.Extend(p);
+    return c.map();
+  }
+  static bool HoldsRobot3(const FusionBackend::Built& b) {
+    for (const auto& origins : b.global.origins) {
+      for (const LandmarkOrigin& g : origins) {
+        if (g.robot == 3) return true;
+      }
+    }
+    return false;
+  }
+  // A book of robots 1's and 2's submaps and robot 3's first `three`.
+  SubmapBook Book(std::size_t three) const {
+    SubmapBook book;
+    for (const auto* s : {&s1, &s2}) {
+      for (const WireSubmap& x : *s) book.Add(x, EncodeSubmap(x));
+    }
+    for (std::size_t k = 0; k < three; ++k) book.Add(s3[k], EncodeSubmap(s3[k]));
+    return book;
+  }
+  // Robot 3's landmarks in our global map: how many, and the largest NEES of one against the truth.
+  std::pair<int, double> Robot3Landmarks(const FusionBackend::Built& b) const {
+    int n = 0;
+    double worst = 0.0;
+    for (std::size_t g = 0; g < b.global.map.size(); ++g) {
+      const auto& origins = b.global.origins[g];
+      if (std::none_of(origins.begin(), origins.end(), [](const LandmarkOrigin& o) { return o.robot == 3; })) continue;
+      const Eigen::Vector2d truth = start1.TransformTo(w.landmarks[origins.front().id]);  // keys are the world's
+      const Landmark& l = b.global.map.landmarks[g];
+      worst = std::max(worst, (l.mean - truth).dot(l.cov.ldlt().solve(l.mean - truth)));
+      ++n;
+    }
+    return {n, worst};
+  }
+
+  testing::World w = Jittered();
+  std::mt19937_64 rng{7};
   const Pose2 start1{1.0, 5.0, 0.0}, start2{13.0, 5.0, -0.2}, start3{25.0, 6.0, 0.1};
   const testing::TrueChain t1 = testing::Drive(w, start1, 4, 3.0);
   const testing::TrueChain t2 = testing::Drive(w, start2, 4, 3.0);
@@ -226,26 +269,23 @@ TEST(FusionBackendRelayed, AChainHeldOnlyThroughRelaysIsPlacedOnceConfirmedAndJo
   const std::vector<WireSubmap> s1 = testing::MeasureAll(w, t1, 1, rng);
   const std::vector<WireSubmap> s2 = testing::MeasureAll(w, t2, 2, rng);
   const std::vector<WireSubmap> s3 = testing::MeasureAll(w, t3, 3, rng);
-  auto rebuilt = [](const std::vector<WireSubmap>& s) {
-    std::vector<const WireSubmap*> p;
-    for (const WireSubmap& x : s) p.push_back(&x);
-    ChainMap c;
-    c.Extend(p);
-    return c.map();
-  };
-  const LandmarkMap own = rebuilt(s1);
+  const LandmarkMap own = Rebuilt(s1);
   const std::vector<MapSource> direct = {
-      {2, 1, rebuilt(s2), start1.Inverse() * start2, 1e-6 * Eigen::Matrix3d::Identity()}};
-  ExchangeOptions o;
-  o.global.method = FusionMethod::kJoining;
+      {2, 1, Rebuilt(s2), start1.Inverse() * start2, 1e-6 * Eigen::Matrix3d::Identity()}};
+  const ExchangeOptions o = [] {
+    ExchangeOptions x;
+    x.global.method = FusionMethod::kJoining;
+    return x;
+  }();
+};
 
+// The joining back-end rebuilds robot 3's map from its chain, aligns it against ours and robot
+// 2's, and joins it once a later alignment (after the chain grew) agrees with the first: then
+// robot 3's landmarks are in our global map where they are, and every chain is joined.
+TEST_F(FusionBackendRelayed, AChainHeldOnlyThroughRelaysIsPlacedOnceConfirmedAndJoined) {
   // Robot 3's first `first` submaps at 0 s, then its first `then` at then_s.
   auto run = [&](std::size_t first, std::size_t then, double then_s) {
-    SubmapBook book;
-    for (const auto* s : {&s1, &s2}) {
-      for (const WireSubmap& x : *s) book.Add(x, EncodeSubmap(x));
-    }
-    for (std::size_t k = 0; k < first; ++k) book.Add(s3[k], EncodeSubmap(s3[k]));
+    SubmapBook book = Book(first);
     const auto backend = MakeFusionBackend(1, 1, o, 42);
     const FusionBackend::Built b = backend->Build(own, direct, direct, {&book, nullptr, nullptr, 0.0});
     EXPECT_EQ(b.joining.relayed_chains, 1);
@@ -254,24 +294,15 @@ TEST(FusionBackendRelayed, AChainHeldOnlyThroughRelaysIsPlacedOnceConfirmedAndJo
     for (std::size_t k = first; k < then; ++k) book.Add(s3[k], EncodeSubmap(s3[k]));
     return backend->Build(own, direct, direct, {&book, nullptr, nullptr, then_s});
   };
-  auto holds_robot3 = [](const FusionBackend::Built& b) {
-    for (const auto& origins : b.global.origins) {
-      for (const LandmarkOrigin& g : origins) {
-        if (g.robot == 3) return true;
-      }
-    }
-    return false;
-  };
-
   // Nothing grew and the align period has not passed: no second alignment yet.
   const FusionBackend::Built early = run(2, 2, 1.0);
   EXPECT_EQ(early.joining.relayed_alignments, 1);
-  EXPECT_FALSE(holds_robot3(early));
+  EXPECT_FALSE(HoldsRobot3(early));
   // The same maps an align period later: a second draw agrees.
   const FusionBackend::Built later = run(2, 2, o.align_period_s);
   EXPECT_EQ(later.joining.relayed_alignments, 2);
   EXPECT_EQ(later.joining.relayed_placed, 1);
-  EXPECT_TRUE(holds_robot3(later));
+  EXPECT_TRUE(HoldsRobot3(later));
   // Robot 3's chain grew: aligned again at once, and it agrees.
   const FusionBackend::Built b = run(2, 4, 1.0);
   EXPECT_EQ(b.joining.relayed_alignments, 2);
@@ -308,6 +339,61 @@ TEST(FusionBackendRelayed, AChainHeldOnlyThroughRelaysIsPlacedOnceConfirmedAndJo
     EXPECT_EQ(again.global.map.landmarks[g].mean, b.global.map.landmarks[g].mean);
     EXPECT_EQ(again.global.map.landmarks[g].cov, b.global.map.landmarks[g].cov);
   }
+}
+
+// Robot 2's join puts robot 3's chain where it lies and its local map carries that placement;
+// we hold robot 2 aligned, so robot 3's chain is placed at once at the two composed, once our
+// maps verify it there: no alignment to search for or to confirm.
+TEST_F(FusionBackendRelayed, AChainAnAlignedPeerJoinedIsPlacedWhereThePeerPutIt) {
+  SubmapBook book2;
+  for (const auto* s : {&s2, &s3}) {
+    for (const WireSubmap& x : *s) book2.Add(x, EncodeSubmap(x));
+  }
+  const std::vector<MapSource> heard2 = {
+      {3, 1, Rebuilt(s3), start2.Inverse() * start3, 1e-6 * Eigen::Matrix3d::Identity()}};
+  const FusionBackend::Built b2 = MakeFusionBackend(2, 1, o, 42)
+                                      ->Build(Rebuilt(s2), heard2, heard2, {&book2, nullptr, nullptr, 0.0});
+  ASSERT_TRUE(b2.joining.solved);
+  ASSERT_EQ(b2.placements.size(), 1u);  // robot 3's chain; not robot 2's own
+  const ChainPlacement& p = b2.placements[0];
+  EXPECT_EQ(std::pair(p.robot, p.incarnation), std::pair(RobotId{3}, 1u));
+  const Pose2 truth = start2.Inverse() * start3;
+  EXPECT_LT(std::hypot(p.x - truth.x, p.y - truth.y), 0.1);
+  EXPECT_LT(std::abs(WrapAngle(p.theta - truth.theta)), 0.01);
+
+  SubmapBook book = Book(2);  // two of robot 3's submaps: its rebuilt map alone would need two alignments
+  const std::map<PeerKey, std::vector<ChainPlacement>> offered = {{{2, 1}, b2.placements}};
+  const FusionBackend::Built b = MakeFusionBackend(1, 1, o, 42)
+                                     ->Build(own, direct, direct,
+                                             {.book = &book, .now = 0.0, .peers_placements = &offered});
+  EXPECT_EQ(b.joining.relayed_by_placement, 1);
+  EXPECT_EQ(b.joining.placements_refused, 0);
+  EXPECT_EQ(b.joining.relayed_alignments, 0);
+  EXPECT_EQ(b.joining.relayed_placed, 1);
+  EXPECT_EQ(b.joining.chains_joined, 3);
+  const auto [n, worst] = Robot3Landmarks(b);
+  EXPECT_GT(n, 10);
+  EXPECT_LT(worst, 18.4);  // chi-square 2 dof, 99.99 %
+  // Our placements carry on what we joined: robot 2's chain and robot 3's.
+  ASSERT_EQ(b.placements.size(), 2u);
+  EXPECT_EQ(b.placements[1].robot, 3u);
+}
+
+// A placement the maps do not verify (here 3 m and 0.3 rad off) is refused and counted, and the
+// chain is aligned on its own as before; one offered by a peer we have not aligned is not used.
+TEST_F(FusionBackendRelayed, APlacementTheMapsRefuteOrOfAPeerNotAlignedIsNotUsed) {
+  const Pose2 truth = start2.Inverse() * start3;
+  const std::map<PeerKey, std::vector<ChainPlacement>> offered = {
+      {{2, 1}, {{3, 1, truth.x + 3.0, truth.y, truth.theta + 0.3}}}, {{5, 1}, {{3, 1, truth.x, truth.y, truth.theta}}}};
+  SubmapBook book = Book(2);
+  const FusionBackend::Built b = MakeFusionBackend(1, 1, o, 42)
+                                     ->Build(own, direct, direct,
+                                             {.book = &book, .now = 0.0, .peers_placements = &offered});
+  EXPECT_EQ(b.joining.placements_refused, 1);
+  EXPECT_EQ(b.joining.relayed_by_placement, 0);
+  EXPECT_EQ(b.joining.relayed_alignments, 1);
+  EXPECT_EQ(b.joining.relayed_placed, 0);  // one alignment is not enough
+  EXPECT_FALSE(HoldsRobot3(b));
 }
 
 }  // namespace

@@ -124,8 +124,9 @@ class ExchangeTest(SwarmCase):
 
     def test_joining_holds_a_robot_two_hops_away(self):
         # line3 (seed 1): robot 1 never hears robot 3, but holds its submaps (relayed by robot
-        # 2). The joining back-end rebuilds robot 3's map from them, aligns it against its own
-        # and robot 2's, and joins it once a second alignment agrees: robot 1's global map has
+        # 2). The joining back-end rebuilds robot 3's map from them and places it where robot
+        # 2's join put it (robot 2's local map carries the placement), composed with where it
+        # put robot 2, once its maps verify it there; it then joins it: robot 1's global map has
         # robot 3's landmarks, near the central optimum on the same landmarks (measured: 161
         # landmarks against 132 without, 1.08 times the optimum's RMSE against 2.43).
         joined = self.run_ok(SCENARIOS / "line3.yaml", "--set", "agent.slam=cekf_submaps", "--set",
@@ -135,6 +136,7 @@ class ExchangeTest(SwarmCase):
         j = stats["joining"]
         self.assertEqual((j["relayed_placed"], j["chains"], j["chains_joined"]), (1, 3, 3), j)
         self.assertEqual(j["relayed_disagreements"], 0, j)
+        self.assertEqual((j["relayed_by_placement"], j["placements_refused"]), (1, 0), j)
         final = json.loads((self.out / "agent_1" / "global_map.json").read_text())
         self.assertGreaterEqual(len(origins(final, 3)), 30)
         self.assertLessEqual(joined[1]["gap_to_central"], 1.5)

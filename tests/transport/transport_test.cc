@@ -198,9 +198,9 @@ TEST_F(TransportTest, ALockstepMapCarriesItsSightings) {
   EXPECT_TRUE(bare[0].sightings.empty());
 }
 
-// A local map carries the submap chains its publisher holds, the closed submaps it sends and its
-// open one, each byte for byte (an empty submap too: the receiver's decoder refuses it, not the
-// wire).
+// A local map carries the submap chains its publisher holds, the closed submaps it sends, its
+// open one and where it placed other chains, each byte for byte (an empty submap too: the
+// receiver's decoder refuses it, not the wire).
 TEST_F(TransportTest, ALocalMapCarriesSubmapsAndTheChainsHeld) {
   Writer<MapMessage> w(p(), kMapTopic, LockstepMapQos(1.0));
   Reader<MapMessage> r(p(), kMapTopic, LockstepMapQos(1.0));
@@ -213,12 +213,14 @@ TEST_F(TransportTest, ALocalMapCarriesSubmapsAndTheChainsHeld) {
   m.submaps_held = {{4, 1, 7}, {9, 2, 0}, {12, 3, 4000000000u}};
   m.submaps = {{0x4d, 0x53, 1, 0, 255}, {}, std::vector<std::uint8_t>(9000, 0xa5)};
   m.open_submap = {7, 6, 5, 4};
+  m.placements = {{9, 2, -1.5, 2e3, 3.1}, {12, 3, 0.25, -7.0, -0.5}};
   w.Write(m);
   const auto got = TakeN(r, 1);
   ASSERT_EQ(got.size(), 1u);
   EXPECT_EQ(got[0].submaps_held, m.submaps_held);
   EXPECT_EQ(got[0].submaps, m.submaps);
   EXPECT_EQ(got[0].open_submap, m.open_submap);
+  EXPECT_EQ(got[0].placements, m.placements);
   EXPECT_EQ(got[0].payload, m.payload);
 }
 
