@@ -257,6 +257,7 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
             {"maps_rejected", rejected},
             {"maps_refused", refused},
             {"maps_received_from", ByRobot(s.maps_received_from)},
+            {"data_until", ByRobot(s.data_until)},
             {"peers_aligned", status.peers_aligned},
             {"peers_stale", status.peers_stale},
             {"sightings",

@@ -375,6 +375,8 @@ void AgentNode::ProcessMap(const MapMessage& msg) {
   }
   ++stats_.maps_received;
   ++stats_.maps_received_from[msg.robot_id];
+  double& until = stats_.data_until[msg.robot_id];
+  until = std::max(until, msg.stamp);
 }
 
 void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {

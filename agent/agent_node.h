@@ -114,6 +114,7 @@ struct AgentStats {
   std::uint64_t landmarks_sent = 0;       // over all maps sent
   std::uint64_t payload_bytes_sent = 0;   // their encoded payloads
   std::map<RobotId, std::uint32_t> maps_received_from;
+  std::map<RobotId, double> data_until;     // per robot: the latest stamp of a map taken from it (its data up to then)
   std::uint32_t sightings_sent = 0;         // robot sightings and answers published (rendezvous)
   std::uint32_t sightings_unsent = 0;       // lockstep: ... dropped, neither map of the tick could carry them
   std::uint64_t sighting_bytes_sent = 0;    // ... their bytes on the wire

@@ -314,6 +314,19 @@ int Run(int argc, char** argv) {
         if (limit.is_number() && aligned.evaluated) {
           entry[local ? "gap_to_own_batch" : "gap_to_central"] = aligned.rmse_m / limit.get<double>();
         }
+        // The global map against the optimum of the information that reached the agent (each
+        // robot's data up to when the agent last received any of it: agent_<id>/
+        // reference_reached.json, written where that is less than the whole run), else against
+        // the central optimum: a map cannot hold what never reached it.
+        if (!local) {
+          const std::optional<BatchReferenceMaps> reached = ReadBatchReference(dir + "/reference_reached.json");
+          json within = limit;
+          if (reached && reached->central) {
+            within = SameLandmarksRmse(*reached->central, reached->central_in_world, aligned, truth, gate_m);
+            entry[kind]["reached_rmse_aligned_m"] = within;
+          }
+          if (within.is_number() && aligned.evaluated) entry["gap_to_reached"] = aligned.rmse_m / within.get<double>();
+        }
       }
       if (reference) {
         // The global map is in the local map's frame: it is placed where the local map aligned.

@@ -348,6 +348,11 @@ io::json ReferenceJson(const lab::Reference& r) {
                 {"total_s", r.total_s}};
   if (!r.available) return j;
   j["loss"] = r.loss;
+  if (!r.until.empty()) {
+    io::json until = io::json::object();
+    for (const auto& [id, t] : r.until) until[std::to_string(id)] = t;
+    j["until"] = until;
+  }
   j["central"] = ReferenceMapJson(r.central, true);
   io::json own = io::json::object();
   for (const auto& [id, m] : r.own) own[std::to_string(id)] = ReferenceMapJson(m, true);
@@ -360,13 +365,34 @@ io::json ReferenceJson(const lab::Reference& r) {
   return j;
 }
 
+// "ROBOT=T" of --until: a robot id and a time, not negative.
+std::optional<std::pair<RobotId, double>> ParseUntil(const std::string& v) {
+  const auto eq = v.find('=');
+  if (eq == std::string::npos) return std::nullopt;
+  try {
+    std::size_t n = 0, m = 0;
+    const unsigned long robot = std::stoul(v.substr(0, eq), &n);
+    const double t = std::stod(v.substr(eq + 1), &m);
+    if (n != eq || m != v.size() - eq - 1 || robot > 0xffffffffUL || !(t >= 0.0) || !std::isfinite(t))
+      return std::nullopt;
+    return std::pair{static_cast<RobotId>(robot), t};
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
 int RunReferenceCommand(const app::ProcessOptions& po, const std::string& datasets, const std::string& loss,
-                        double loss_scale, bool no_known_pose, const std::string& out_path) {
+                        double loss_scale, bool no_known_pose, const std::vector<std::string>& until,
+                        const std::string& out_path) {
   const std::optional<Scenario> sc = app::LoadScenarioOrReport("mapmesh-lab", po);
   if (!sc) return 2;
   lab::ReferenceOptions options;
   options.datasets_root = ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot());
   options.known_pose = !no_known_pose;
+  for (const std::string& u : until) {
+    const auto [robot, t] = *ParseUntil(u);
+    options.until[robot] = t;
+  }
   if (loss == "none") options.robust = RobustKernel{};
   if (loss == "huber") options.robust = RobustKernel{RobustLoss::kHuber, loss_scale > 0 ? loss_scale : 1.345};
   if (loss == "cauchy") options.robust = RobustKernel{RobustLoss::kCauchy, loss_scale > 0 ? loss_scale : 2.0};
@@ -544,6 +570,7 @@ int Run(int argc, char** argv) {
   std::string ref_datasets, ref_loss = "auto", ref_out;
   double ref_loss_scale = 0.0;
   bool ref_no_known = false;
+  std::vector<std::string> ref_until;
   CLI::App* reference = cli.add_subcommand(
       "reference",
       "the limit of a scenario's data: the centralized batch optimum, each robot's own batch optimum and the "
@@ -561,10 +588,17 @@ int Run(int argc, char** argv) {
                    "the loss's scale in standard deviations (default: huber 1.345, cauchy 2)")
       ->check(CLI::PositiveNumber);
   reference->add_flag("--no-known-pose", ref_no_known, "skip the known-pose map");
+  reference
+      ->add_option("--until", ref_until,
+                   "ROBOT=T: that robot's data up to scenario time T only (repeatable; the information that "
+                   "reached one agent)")
+      ->check([](const std::string& v) -> std::string {
+        return ParseUntil(v) ? "" : "expected ROBOT=T (a robot id and a time in seconds, not negative)";
+      });
   reference->add_option("--out", ref_out, "write the JSON here (default: stdout)");
   if (auto code = app::ParseArgs(cli, "mapmesh-lab", argc, argv)) return *code;
   if (reference->parsed())
-    return RunReferenceCommand(ref_po, ref_datasets, ref_loss, ref_loss_scale, ref_no_known, ref_out);
+    return RunReferenceCommand(ref_po, ref_datasets, ref_loss, ref_loss_scale, ref_no_known, ref_until, ref_out);
   if (victoria_world->parsed()) return RunVictoriaWorldCommand(vw_out, vw_datasets, vw);
   if (bus->parsed()) return RunBusCommand(bus_po, bus_kills, bus_restarts, bus_datasets, bus_out);
   if (thesis_fusion->parsed()) {

@@ -117,7 +117,19 @@ ReferenceInput ReadReferenceInput(const Scenario& scenario, const std::string& d
 Reference ComputeReference(const Scenario& scenario, const ReferenceOptions& options) {
   const auto start = Clock::now();
   Reference ref;
-  const ReferenceInput in = ReadReferenceInput(scenario, options.datasets_root);
+  ReferenceInput in = ReadReferenceInput(scenario, options.datasets_root);
+  ref.until = options.until;
+  for (BatchRobotLog& log : in.logs) {
+    const auto until = options.until.find(log.robot);
+    if (until == options.until.end()) continue;
+    // Node 0 (where the odometry starts) stays, its scan only within the time; each later node is
+    // a scan, in time order.
+    if (log.nodes.empty()) continue;
+    if (!(log.nodes.front().stamp <= until->second + 1e-9)) log.nodes.front().obs.clear();
+    log.nodes.erase(std::find_if(log.nodes.begin() + 1, log.nodes.end(),
+                                 [&](const BatchNode& n) { return !(n.stamp <= until->second + 1e-9); }),
+                    log.nodes.end());
+  }
   ref.landmark_truth = in.landmark_truth;
   ref.seen = in.seen;
   std::size_t observations = 0;

@@ -21,6 +21,9 @@ struct ReferenceOptions {
   // the optimum) for simulated worlds, Cauchy at 2 sigma for real datasets (heavy-tailed ranges).
   std::optional<RobustKernel> robust;
   bool known_pose = true;  // also the known-pose map
+  // Each listed robot's data up to this scenario time only (the others' whole): the information
+  // that reached one agent by the end of its run, when it is less than the whole run's.
+  std::map<RobotId, double> until;
 };
 
 // One reference map and how it scores against the truth.
@@ -37,8 +40,9 @@ struct ReferenceMap {
 
 struct Reference {
   bool available = false;
-  std::string why_none;  // when not available
-  std::string loss;      // "none", "huber 1.345", "cauchy 2"
+  std::string why_none;             // when not available
+  std::string loss;                 // "none", "huber 1.345", "cauchy 2"
+  std::map<RobotId, double> until;  // the robots whose data stops early (ReferenceOptions::until)
   ReferenceMap central;
   std::map<RobotId, ReferenceMap> own;  // each robot's single-robot batch
   std::optional<ReferenceMap> known_pose;

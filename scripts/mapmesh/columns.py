@@ -77,6 +77,9 @@ COLUMNS = [
     Column("gap_to_central", table="gap_central", table_format=".2f",
            html="global RMSE / centralized optimum", csv="gap_to_central",
            plot=("global RMSE over the centralized optimum", "ratio (1: the limit)")),
+    # ... and over the optimum of the data that reached the agent by the end (the same where all of
+    # it did: scripts/mapmesh/reached.py).
+    Column("gap_to_reached", html="global RMSE / optimum of what reached it", csv="gap_to_reached"),
     Column("gap_to_own_batch", table="gap_own", table_format=".2f", html="local RMSE / own batch optimum",
            csv="gap_to_own_batch"),
     # The agent's own path (evo's figures): the absolute trajectory error after a rigid fit, and the

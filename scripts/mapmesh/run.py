@@ -21,8 +21,9 @@ from .domain import DomainLease
 from .run_error import RunError  # noqa: F401  (re-exported: sweep and scale raise it)
 from .progress import Progress
 from . import provenance
-from .rundir import (AGENT_LOG, FEEDER, INJECT, REFERENCE, REPORT, STATS, SUMMARY, TIMELINE, TRUTH, RunDir, agent_dir,
-                     clear_earlier_run, earlier_run)
+from .reached import reached_until
+from .rundir import (AGENT_LOG, CHECKPOINT, FEEDER, INJECT, REFERENCE, REFERENCE_REACHED, REPORT, STATS, SUMMARY,
+                     TIMELINE, TRUTH, RunDir, agent_dir, clear_earlier_run, earlier_run)
 
 REPO = Path(__file__).resolve().parents[2]
 # Plots need matplotlib and numpy from Debian, which /usr/bin/python3 has (another python3 may
@@ -634,9 +635,45 @@ class SwarmRun:
         ref = RunDir(self.out).read(REFERENCE)
         return dict(strip_maps(ref), wall_s=wall)
 
+    def compute_reached(self, reference):
+        """agent_<id>/reference_reached.json for every agent that some robot's data reached only in
+        part (reached.py): `mapmesh-lab reference` on the data that reached it, beside the
+        central optimum of all of it. Returns {id: {robot: until_s}} (empty where all of it
+        reached the agent)."""
+        if not reference.get("available"):
+            return {}
+        agents = {}
+        for rid in self.agents:
+            d = self.out / agent_dir(rid)
+            agents[rid] = tuple(json.loads((d / name).read_text()) if (d / name).exists() else None
+                                for name in (STATS, CHECKPOINT))
+        period = self.info.get("resolved", {}).get("agent.map_publish_period_s")
+        period = float(period) if isinstance(period, (int, float)) else 1.0
+        until = reached_until(agents, float(self.info["duration"]), 2.0 * period)
+        for rid, slot in self.agents.items():
+            # A restarted agent holds what its earlier incarnations took (its checkpoint), which
+            # its last process's stats do not count: its limit stays the whole run's.
+            if slot.restarted_at:
+                until[rid] = {}
+        lab = binary("mapmesh-lab")
+        for rid, robots in until.items():
+            path = self.out / agent_dir(rid) / REFERENCE_REACHED
+            path.unlink(missing_ok=True)
+            if not robots:
+                continue
+            cmd = [lab, "reference", "--scenario", self.scenario, "--no-known-pose", "--out", str(path)] + self.common
+            for robot, t in sorted(robots.items()):
+                cmd += ["--until", f"{robot}={t}"]
+            r = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+            if r.returncode != 0:
+                print(f"swarm: the reference of what reached agent {rid} failed: "
+                      f"{last_line(r.stderr, f'exit code {r.returncode}')}", file=sys.stderr)
+        return until
+
     def summarise(self, wall_s, interrupted):
         run = RunDir(self.out)
         reference = self.compute_reference(interrupted)
+        reached = self.compute_reached(reference)
         scores = {}
         if run.path(TRUTH).exists():
             r = subprocess.run([binary("mapmesh-eval"), "--run", str(self.out)], capture_output=True, text=True)
@@ -668,6 +705,10 @@ class SwarmRun:
                 # the robot's own batch optimum (docs/EXPERIMENTS.md "The limit").
                 "gap_to_central": score.get("gap_to_central"),
                 "gap_to_own_batch": score.get("gap_to_own_batch"),
+                # The global map over the optimum of the data that reached the agent by the end
+                # (each other robot's up to reached_until[robot] s, the rest whole; reached.py).
+                "gap_to_reached": score.get("gap_to_reached"),
+                "reached_until": {str(r): t for r, t in sorted(reached.get(rid, {}).items())},
                 "peers_aligned": stats.get("peers_aligned", []),
                 "peers_stale": stats.get("peers_stale", []),
                 "alignment_errors": score.get("alignment_errors", {}),

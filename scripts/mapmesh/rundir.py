@@ -23,6 +23,9 @@ GLOBAL_MAP = "global_map.json"
 TRAJECTORY = "trajectory.json"
 HISTORY = "history.jsonl"
 AGENT_LOG = "agent.log"
+CHECKPOINT = "checkpoint.json"
+# The limit of what reached the agent, where that was less than the whole run (reached.py).
+REFERENCE_REACHED = "reference_reached.json"
 
 
 # Everything else a run writes in DIR, besides agent_dir(id) for each agent: what an earlier run

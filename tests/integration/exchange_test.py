@@ -141,6 +141,18 @@ class ExchangeTest(SwarmCase):
         self.assertGreaterEqual(len(origins(final, 3)), 30)
         self.assertLessEqual(joined[1]["gap_to_central"], 1.5)
         self.assertGreaterEqual(joined[1]["global"]["coverage"], 0.85)
+        # Robot 3 is out of robot 2's range at the end: its last data never reached agents 1 and
+        # 2, whose limit is the optimum of what did (reference_reached.json), with fewer
+        # observations than the whole run's.
+        whole = json.loads((self.out / "reference.json").read_text())
+        for rid in (1, 2):
+            until = joined[rid]["reached_until"]
+            self.assertEqual(set(until), {"3"}, until)
+            self.assertLess(until["3"], 120.0, until)
+            reached = json.loads((self.out / f"agent_{rid}" / "reference_reached.json").read_text())
+            self.assertEqual(reached["until"], until)
+            self.assertLess(reached["central"]["observations"], whole["central"]["observations"])
+            self.assertIsNotNone(joined[rid]["gap_to_reached"])
 
     def test_joining_a_restarted_agent_keeps_its_earlier_chain_and_joins_it_once(self):
         # park4 with every robot out of range of the others (1 m): agent 3's first incarnation

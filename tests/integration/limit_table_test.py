@@ -25,9 +25,9 @@ class LimitTableTest(unittest.TestCase):
             rows = [line for line in r.stdout.splitlines() if line.startswith("| circle |")]
             self.assertEqual(len(rows), 1, r.stdout)
             cells = [c.strip() for c in rows[0].strip("|").split("|")]
-            self.assertEqual(len(cells), 10, rows[0])
+            self.assertEqual(len(cells), 11, rows[0])
             self.assertEqual(cells[1], "1")  # one run
-            self.assertNotIn("–", cells[2:5], rows[0])  # optimum, known poses, global all measured
+            self.assertNotIn("–", cells[2:7], rows[0])  # optimum, known poses, global, both gaps all measured
             run = json.loads((out / "circle" / "seed_3" / "run.json").read_text())
             self.assertIn("agent.slam=cekf_submaps", json.dumps(run))
             self.assertIn("seed=3", json.dumps(run))

@@ -93,6 +93,37 @@ TEST(ReferenceQuality, CentralOptimumIsConsistentAndBetweenTheFloorAndTheLocalMa
   EXPECT_GE(below_local * 10, pairs * 9);
 }
 
+// The reference of what reached one agent (ReferenceOptions::until): a robot's data stops at
+// the time given, the others' stay whole. Its own batch and the centralized optimum then hold
+// exactly the observations up to that time (counted from the streams), and the trajectory
+// ends there; at time 0 the robot adds nothing.
+TEST(ReferenceQuality, ARobotsDataStopsWhereItStoppedReachingTheAgent) {
+  const Scenario sc = SmallWorld(3);
+  const lab::ReferenceInput in = lab::ReadReferenceInput(sc, "");
+  const lab::Reference whole = lab::ComputeReference(sc, {.known_pose = false});
+  ASSERT_TRUE(whole.available);
+  const double until = 45.0;
+  std::size_t before = 0, after = 0;
+  for (const BatchRobotLog& log : in.logs) {
+    if (log.robot != 2) continue;
+    for (const BatchNode& n : log.nodes) (n.stamp <= until ? before : after) += n.obs.size();
+  }
+  ASSERT_GT(before, 0u);
+  ASSERT_GT(after, 0u);
+  const lab::Reference cut = lab::ComputeReference(sc, {.known_pose = false, .until = {{2, until}}});
+  ASSERT_TRUE(cut.available);
+  EXPECT_EQ(cut.until, (std::map<RobotId, double>{{2, until}}));
+  EXPECT_EQ(cut.own.at(2).solution.observations, before);
+  EXPECT_EQ(cut.own.at(1).solution.observations, whole.own.at(1).solution.observations);
+  EXPECT_EQ(cut.central.solution.observations, whole.central.solution.observations - after);
+  ASSERT_FALSE(cut.central.solution.trajectories.at(2).empty());
+  EXPECT_LE(cut.central.solution.trajectories.at(2).back().stamp, until);
+  EXPECT_TRUE(cut.central.solution.report.converged);
+  const lab::Reference none = lab::ComputeReference(sc, {.known_pose = false, .until = {{2, 0.0}}});
+  EXPECT_EQ(none.own.at(2).solution.observations, 0u);
+  EXPECT_EQ(none.central.solution.observations, whole.central.solution.observations - before - after);
+}
+
 // Victoria Park's trees carry no identity: no reference, and it says why (skipped without the
 // datasets).
 TEST(ReferenceQuality, DataWithoutIdentitiesHasNoneAndSaysWhy) {

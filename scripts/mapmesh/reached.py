@@ -1,0 +1,70 @@
+"""What of the run's data reached each agent by its end (issue J1's gap): each other robot's data
+up to the last moment any of it reached the agent, through the robot's own maps, the closed
+submaps the agent holds of it (any number of hops), or a peer's maps that fused it (two hops).
+Where that is less than the whole run for some robot (a robot out of range at the end, a chain
+whose last submaps never came), the optimum of what reached the agent is its limit: no merging
+can recover what never arrived. Each moment is an upper bound of what reached the agent (a map
+holds its sender's data up to its stamp at most; a peer's map fused its peers' data up to when
+it last took theirs), so the limit is never made easier than it is. Pure: reads the agent files
+given, no processes."""
+
+import base64
+import binascii
+import struct
+
+# common/map/submap_codec.h, version 1: magic "MS", version, flags, robot, incarnation, index,
+# opened_s, closed_s.
+SUBMAP_HEADER = struct.Struct("<2sBBIIIdd")
+
+
+def submap_closed(encoded):
+    """(robot, closed_s) of a base64 submap as checkpoint.json holds it; None when it is not one."""
+    try:
+        raw = base64.b64decode(encoded, validate=True)
+        magic, _, _, robot, _, _, _, closed = SUBMAP_HEADER.unpack_from(raw)
+    except (binascii.Error, struct.error, ValueError, TypeError):
+        return None
+    return (robot, closed) if magic == b"MS" else None
+
+
+def last_heard(stats):
+    """{robot: the time up to which the maps the agent took of it hold its data} from its
+    stats.json: `data_until` (each map's stamp, the sender's data up to then), else the peers'
+    `last_heard` (when the last map arrived: later still)."""
+    stats = stats or {}
+    if isinstance(stats.get("data_until"), dict):
+        return {int(r): float(t) for r, t in stats["data_until"].items() if isinstance(t, (int, float))}
+    heard = {}
+    for p in stats.get("peers", []):
+        if "robot" in p and isinstance(p.get("last_heard"), (int, float)):
+            heard[p["robot"]] = max(heard.get(p["robot"], 0.0), float(p["last_heard"]))
+    return heard
+
+
+def reached_until(agents, end_s, slack_s):
+    """agents: {id: (stats, checkpoint)} (either may be None). Per agent, {robot: t} for every
+    other robot of the run whose data reached it only up to t < end_s - slack_s (the rest reached
+    it whole); an empty dict when everything did."""
+    heard = {a: last_heard(stats) for a, (stats, _) in agents.items()}
+    closed = {}
+    for a, (_, checkpoint) in agents.items():
+        latest = {}
+        for encoded in (checkpoint or {}).get("submaps", []):
+            s = submap_closed(encoded)
+            if s:
+                latest[s[0]] = max(latest.get(s[0], 0.0), s[1])
+        closed[a] = latest
+    until = {}
+    for a in agents:
+        mine = {}
+        for r in agents:
+            if r == a:
+                continue
+            t = max(heard[a].get(r, 0.0), closed[a].get(r, 0.0))
+            for p, at in heard[a].items():  # r's data in p's maps, as p last had it when we last heard p
+                if p != r:
+                    t = max(t, min(at, heard.get(p, {}).get(r, 0.0)))
+            if t < end_s - slack_s:
+                mine[r] = round(t, 6)
+        until[a] = mine
+    return until

@@ -1,0 +1,71 @@
+"""scripts/mapmesh/reached.py: what of the run's data reached each agent by its end, from the
+agents' stats.json and checkpoint.json (no processes).
+
+Run: cd tests/integration && /usr/bin/python3 -m unittest reached_test
+"""
+
+import base64
+import struct
+import sys
+import unittest
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
+from mapmesh.reached import reached_until, submap_closed  # noqa: E402
+
+
+def submap(robot, index, closed_s):
+    """A checkpoint's base64 submap: its header as common/map/submap_codec.h writes it, then filler."""
+    header = struct.pack("<2sBBIIIdd", b"MS", 1, 0, robot, 1, index, closed_s - 30.0, closed_s)
+    return base64.b64encode(header + bytes(8)).decode()
+
+
+def stats(**last_heard):
+    """stats.json's peers, {"r3": 88.0} for robot 3 last heard at 88 s."""
+    return {"peers": [{"robot": int(k[1:]), "incarnation": 1, "last_heard": t} for k, t in last_heard.items()]}
+
+
+class ReachedTest(unittest.TestCase):
+    def test_the_maps_stamps_come_before_when_they_arrived(self):
+        # stats.json's data_until (each map's stamp) where it is; the peers' last_heard (when the
+        # last map arrived) in older runs.
+        agents = {1: ({"data_until": {"2": 86.0}, "peers": [{"robot": 2, "last_heard": 88.0}]}, None),
+                  2: ({"peers": [{"robot": 1, "last_heard": 88.0}]}, None)}
+        self.assertEqual(reached_until(agents, 130.0, 4.0), {1: {2: 86.0}, 2: {1: 88.0}})
+
+    def test_line_of_three_robot_three_out_of_range_at_the_end(self):
+        # line3 seed 4 as it ran: robots 1 and 3 never meet; 2 last heard 3 at 88 s. Agent 1
+        # holds robot 3's first two closed submaps (closed at 33.5 and 67.5 s), relayed by 2;
+        # agent 3 holds none of robot 1's and heard 2 last at 88 s.
+        agents = {
+            1: (stats(r2=130.0), {"submaps": [submap(2, 0, 33.5), submap(3, 0, 33.5), submap(3, 1, 67.5)]}),
+            2: (stats(r1=130.0, r3=88.0), {"submaps": [submap(1, 0, 33.5), submap(3, 1, 67.5)]}),
+            3: (stats(r2=88.0), {"submaps": [submap(2, 1, 66.5)]}),
+        }
+        until = reached_until(agents, 130.0, 4.0)
+        # Agent 1: robot 3's data through robot 2's maps (2 had it until 88 s, and we heard 2 to
+        # the end) beats the submaps' 67.5 s.
+        self.assertEqual(until[1], {3: 88.0})
+        self.assertEqual(until[2], {3: 88.0})
+        # Agent 3: robot 2 until 88 s; robot 1 through robot 2's maps, as 2 had it at 88 s.
+        self.assertEqual(until[3], {1: 88.0, 2: 88.0})
+
+    def test_everything_reached_and_closed_submaps_count(self):
+        agents = {
+            1: (stats(r2=129.0), None),
+            2: (stats(r1=60.0), {"submaps": [submap(1, 3, 127.5)]}),  # out of range, but the chain arrived
+        }
+        self.assertEqual(reached_until(agents, 130.0, 4.0), {1: {}, 2: {}})
+        # A robot never heard of at all: nothing of it reached the agent.
+        self.assertEqual(reached_until({1: (None, None), 2: (stats(r1=130.0), None)}, 130.0, 4.0),
+                         {1: {2: 0.0}, 2: {}})
+
+    def test_what_is_not_a_submap_is_left_out(self):
+        self.assertEqual(submap_closed(submap(5, 2, 40.0)), (5, 40.0))
+        for bad in ["", "not base64!", base64.b64encode(b"MS\x01").decode(),
+                    base64.b64encode(b"XX" + bytes(40)).decode(), None]:
+            self.assertIsNone(submap_closed(bad), bad)
+
+
+if __name__ == "__main__":
+    unittest.main()
