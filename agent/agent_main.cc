@@ -236,9 +236,18 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
       digests.push_back(fmt::format("{:016x}", wire::Fnv1a64(*book.Bytes({c.robot, c.incarnation, i}))));
     }
     std::size_t held = 0;
-    for (const SubmapId& id : book.Ids()) held += id.robot == c.robot && id.incarnation == c.incarnation ? 1 : 0;
-    chains.push_back(
-        {{"robot", c.robot}, {"incarnation", c.incarnation}, {"count", c.count}, {"held", held}, {"digests", digests}});
+    double closed_until = 0.0;  // the latest closing of a submap held: the robot's data that reached us in submaps
+    for (const SubmapId& id : book.Ids()) {
+      if (id.robot != c.robot || id.incarnation != c.incarnation) continue;
+      ++held;
+      closed_until = std::max(closed_until, book.Find(id)->closed_s);
+    }
+    chains.push_back({{"robot", c.robot},
+                      {"incarnation", c.incarnation},
+                      {"count", c.count},
+                      {"held", held},
+                      {"closed_until", closed_until},
+                      {"digests", digests}});
   }
   const Pose2 pose = node.Pose();
   const AgentStatus status = node.Status();

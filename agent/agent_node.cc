@@ -284,7 +284,14 @@ bool AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t vers
     for (const std::vector<std::uint8_t>* b : submaps_.Due(in_range, sync_.processed_until()))
       msg.submaps.push_back(*b);
     if (own_open_) msg.open_submap = EncodeSubmap(*own_open_);
-    if (joining_) msg.placements = exchange_.placements();
+    if (joining_) {
+      // Only what a receiver takes (PlausiblePlacements), so that one chain placed beyond a map's
+      // bound does not make the peers refuse all of them.
+      for (const ChainPlacement& c : exchange_.placements()) {
+        if (msg.placements.size() < MaxPlacements() && PlausiblePlacement(c, self_, incarnation_))
+          msg.placements.push_back(c);
+      }
+    }
   }
   ++stats_.maps_sent;
   stats_.bytes_sent += WireBytes(msg);
@@ -414,6 +421,8 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
       if (held == peers_open_.end() ||
           std::tie(d.submap.id.index, d.submap.closed_s) > std::tie(held->second.id.index, held->second.closed_s)) {
         peers_open_[key] = d.submap;
+        double& until = stats_.data_until[msg.robot_id];  // the join may use it: its data reached us
+        until = std::max(until, d.submap.closed_s);
       }
     }
   }
@@ -441,19 +450,23 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
   }
 }
 
+std::size_t AgentNode::MaxPlacements() const {
+  return robot_ids_.size() * static_cast<std::size_t>(options_.exchange.max_incarnations);
+}
+
+bool AgentNode::PlausiblePlacement(const ChainPlacement& c, RobotId publisher, std::uint32_t incarnation) const {
+  const bool within = std::abs(c.x) <= kMapCodecMaxCoordinateM && std::abs(c.y) <= kMapCodecMaxCoordinateM &&
+                      std::isfinite(c.theta);
+  return within && InRun(c.robot) && !(c.robot == publisher && c.incarnation == incarnation);
+}
+
 bool AgentNode::PlausiblePlacements(const MapMessage& msg) const {
-  if (msg.placements.size() > robot_ids_.size() * static_cast<std::size_t>(options_.exchange.max_incarnations)) {
-    return false;
-  }
+  if (msg.placements.size() > MaxPlacements()) return false;
   for (std::size_t i = 0; i < msg.placements.size(); ++i) {
     const ChainPlacement& c = msg.placements[i];
     const bool ordered = i == 0 || std::tie(msg.placements[i - 1].robot, msg.placements[i - 1].incarnation) <
                                        std::tie(c.robot, c.incarnation);
-    const bool within = std::abs(c.x) <= kMapCodecMaxCoordinateM && std::abs(c.y) <= kMapCodecMaxCoordinateM &&
-                        std::isfinite(c.theta);
-    if (!ordered || !within || !InRun(c.robot) || (c.robot == msg.robot_id && c.incarnation == msg.incarnation)) {
-      return false;
-    }
+    if (!ordered || !PlausiblePlacement(c, msg.robot_id, msg.incarnation)) return false;
   }
   return true;
 }

@@ -230,8 +230,13 @@ class AgentNode : private SensorSync::Sink {
   bool Delivered(const ExchangeTick& tick) const;
   // Whether the robot is one of this run's.
   bool InRun(RobotId robot) const;
-  // Whether a local map's chain placements may be taken (SubmapRefusal::kImplausiblePlacements).
+  // Whether a local map's chain placements may be taken (SubmapRefusal::kImplausiblePlacements):
+  // at most MaxPlacements, in (robot, incarnation) order, each a PlausiblePlacement.
   bool PlausiblePlacements(const MapMessage& msg) const;
+  // One placement: of a robot of the run, not of the publisher's own chain, finite and within a
+  // map's bound.
+  bool PlausiblePlacement(const ChainPlacement& c, RobotId publisher, std::uint32_t incarnation) const;
+  std::size_t MaxPlacements() const;  // the run's robots times the incarnations kept of each
   // The scenario time as far as this agent can tell: its own progress, or the link table's
   // when that is ahead (before the first odometry of a restarted agent).
   double Clock() const;

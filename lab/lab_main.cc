@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -368,7 +369,7 @@ io::json ReferenceJson(const lab::Reference& r) {
 // "ROBOT=T" of --until: a robot id and a time, not negative.
 std::optional<std::pair<RobotId, double>> ParseUntil(const std::string& v) {
   const auto eq = v.find('=');
-  if (eq == std::string::npos) return std::nullopt;
+  if (eq == std::string::npos || eq == 0 || !std::isdigit(static_cast<unsigned char>(v[0]))) return std::nullopt;
   try {
     std::size_t n = 0, m = 0;
     const unsigned long robot = std::stoul(v.substr(0, eq), &n);
@@ -391,6 +392,13 @@ int RunReferenceCommand(const app::ProcessOptions& po, const std::string& datase
   options.known_pose = !no_known_pose;
   for (const std::string& u : until) {
     const auto [robot, t] = *ParseUntil(u);
+    const bool in_run = std::any_of(sc->robots.begin(), sc->robots.end(),
+                                    [&](const RobotSpec& r) { return r.id == robot; });
+    if (!in_run || options.until.contains(robot)) {
+      std::fprintf(stderr, "mapmesh-lab: --until %s: %s\n", u.c_str(),
+                   in_run ? "that robot's time is given twice" : "no such robot in the scenario");
+      return 2;
+    }
     options.until[robot] = t;
   }
   if (loss == "none") options.robust = RobustKernel{};

@@ -41,19 +41,30 @@ def last_heard(stats):
     return heard
 
 
-def reached_until(agents, end_s, slack_s):
+def closed_until(stats, checkpoint):
+    """{robot: the latest closing time of its submaps the agent holds}: stats.json's chains
+    (`closed_until`), else the submaps of its checkpoint.json."""
+    latest = {}
+    chains = ((stats or {}).get("submaps") or {}).get("chains")
+    if chains and all("closed_until" in c for c in chains):
+        for c in chains:
+            latest[c["robot"]] = max(latest.get(c["robot"], 0.0), float(c["closed_until"]))
+        return latest
+    for encoded in (checkpoint or {}).get("submaps", []):
+        s = submap_closed(encoded)
+        if s:
+            latest[s[0]] = max(latest.get(s[0], 0.0), s[1])
+    return latest
+
+
+def reached_until(agents, end_s, slack_s, restarted=()):
     """agents: {id: (stats, checkpoint)} (either may be None). Per agent, {robot: t} for every
     other robot of the run whose data reached it only up to t < end_s - slack_s (the rest reached
-    it whole); an empty dict when everything did."""
+    it whole); an empty dict when everything did. A `restarted` peer's maps also carry what its
+    earlier incarnations held, which its last process's stats do not count: all that reached it
+    by the time of its map is taken to have reached us with it."""
     heard = {a: last_heard(stats) for a, (stats, _) in agents.items()}
-    closed = {}
-    for a, (_, checkpoint) in agents.items():
-        latest = {}
-        for encoded in (checkpoint or {}).get("submaps", []):
-            s = submap_closed(encoded)
-            if s:
-                latest[s[0]] = max(latest.get(s[0], 0.0), s[1])
-        closed[a] = latest
+    closed = {a: closed_until(stats, checkpoint) for a, (stats, checkpoint) in agents.items()}
     until = {}
     for a in agents:
         mine = {}
@@ -63,8 +74,8 @@ def reached_until(agents, end_s, slack_s):
             t = max(heard[a].get(r, 0.0), closed[a].get(r, 0.0))
             for p, at in heard[a].items():  # r's data in p's maps, as p last had it when we last heard p
                 if p != r:
-                    t = max(t, min(at, heard.get(p, {}).get(r, 0.0)))
+                    t = max(t, at if p in restarted else min(at, heard.get(p, {}).get(r, 0.0)))
             if t < end_s - slack_s:
-                mine[r] = round(t, 6)
+                mine[r] = t
         until[a] = mine
     return until

@@ -639,9 +639,10 @@ class SwarmRun:
         """agent_<id>/reference_reached.json for every agent that some robot's data reached only in
         part (reached.py): `mapmesh-lab reference` on the data that reached it, beside the
         central optimum of all of it. Returns {id: {robot: until_s}} (empty where all of it
-        reached the agent)."""
+        reached the agent), and the agents whose reference failed (their gap_to_reached: null)."""
+        failed = set()  # agents whose reference of what reached them could not be computed
         if not reference.get("available"):
-            return {}
+            return {}, failed
         agents = {}
         for rid in self.agents:
             d = self.out / agent_dir(rid)
@@ -649,7 +650,8 @@ class SwarmRun:
                                 for name in (STATS, CHECKPOINT))
         period = self.info.get("resolved", {}).get("agent.map_publish_period_s")
         period = float(period) if isinstance(period, (int, float)) else 1.0
-        until = reached_until(agents, float(self.info["duration"]), 2.0 * period)
+        restarted = {rid for rid, slot in self.agents.items() if slot.restarted_at}
+        until = reached_until(agents, float(self.info["duration"]), 2.0 * period, restarted)
         for rid, slot in self.agents.items():
             # A restarted agent holds what its earlier incarnations took (its checkpoint), which
             # its last process's stats do not count: its limit stays the whole run's.
@@ -665,15 +667,16 @@ class SwarmRun:
             for robot, t in sorted(robots.items()):
                 cmd += ["--until", f"{robot}={t}"]
             r = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
-            if r.returncode != 0:
+            if r.returncode != 0 or not path.exists():
                 print(f"swarm: the reference of what reached agent {rid} failed: "
                       f"{last_line(r.stderr, f'exit code {r.returncode}')}", file=sys.stderr)
-        return until
+                failed.add(rid)
+        return until, failed
 
     def summarise(self, wall_s, interrupted):
         run = RunDir(self.out)
         reference = self.compute_reference(interrupted)
-        reached = self.compute_reached(reference)
+        reached, reached_failed = self.compute_reached(reference)
         scores = {}
         if run.path(TRUTH).exists():
             r = subprocess.run([binary("mapmesh-eval"), "--run", str(self.out)], capture_output=True, text=True)
@@ -707,7 +710,7 @@ class SwarmRun:
                 "gap_to_own_batch": score.get("gap_to_own_batch"),
                 # The global map over the optimum of the data that reached the agent by the end
                 # (each other robot's up to reached_until[robot] s, the rest whole; reached.py).
-                "gap_to_reached": score.get("gap_to_reached"),
+                "gap_to_reached": None if rid in reached_failed else score.get("gap_to_reached"),
                 "reached_until": {str(r): t for r, t in sorted(reached.get(rid, {}).items())},
                 "peers_aligned": stats.get("peers_aligned", []),
                 "peers_stale": stats.get("peers_stale", []),

@@ -389,10 +389,14 @@ TEST(AgentNodeLimits, TakesAPeersChainPlacementsOnlyWhenEveryOneIsPlausible) {
       {earlier_self, {2, 1, 0.0, 0.0, 0.0}},  // the publisher's own chain
       {{1, 7, 0.5, nan, 0.1}},                // not finite
       {{1, 7, 0.5, -2.0, std::numeric_limits<double>::infinity()}},
-      {{1, 7, 9000.0, -2.0, 0.1}},                            // beyond a map's bound
-      {{2, 3, 0.0, 0.0, 0.0}, earlier_self},                  // out of order
-      {earlier_self, earlier_self},                           // twice
-      std::vector<ChainPlacement>(2 * 8 + 1, earlier_self)};  // more than two robots' kept incarnations
+      {{1, 7, 9000.0, -2.0, 0.1}},            // beyond a map's bound
+      {{2, 3, 0.0, 0.0, 0.0}, earlier_self},  // out of order
+      {earlier_self, earlier_self},           // twice
+      [] {                                    // more than two robots' kept incarnations, each plausible and in order
+        std::vector<ChainPlacement> many;
+        for (std::uint32_t i = 1; i <= 2 * 8 + 1; ++i) many.push_back({1, i, 0.5, -2.0, 0.1});
+        return many;
+      }()};
   for (const auto& p : implausible) send(p);
   EXPECT_EQ(node.stats().submaps_refused[static_cast<int>(SubmapRefusal::kImplausiblePlacements)], implausible.size());
   EXPECT_TRUE(node.peers_placements().empty());

@@ -2,7 +2,9 @@
 
 import re
 import subprocess
+import tempfile
 import unittest
+from pathlib import Path
 
 from swarm_test import BIN, DATASETS, REPO
 
@@ -63,3 +65,21 @@ class LabBusTest(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class LabReferenceUntilTest(unittest.TestCase):
+    def test_bad_until_is_one_line_and_writes_nothing(self):
+        # --until ROBOT=T (the reference of what reached one agent): a robot not in the scenario,
+        # a robot given twice, or a malformed pair is one line, exit 2, and no file.
+        out = Path(tempfile.mkdtemp(prefix="lab_until_")) / "reference.json"
+        for until in (["9=5"], ["2=5", "2=6"], ["x=5"], ["-1=5"], ["2=-1"], ["2=5s"], ["=5"]):
+            out.unlink(missing_ok=True)
+            args = [str(BIN / "mapmesh-lab"), "reference", "--scenario", str(REPO / "scenarios" / "line3.yaml"),
+                    "--no-known-pose", "--out", str(out)]
+            for u in until:
+                args += ["--until", u]
+            r = subprocess.run(args, capture_output=True, text=True, timeout=60)
+            self.assertEqual(r.returncode, 2, (until, r.stderr))
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, (until, r.stderr))
+            self.assertIn("--until", r.stderr)
+            self.assertFalse(out.exists(), until)

@@ -60,6 +60,18 @@ class ReachedTest(unittest.TestCase):
         self.assertEqual(reached_until({1: (None, None), 2: (stats(r1=130.0), None)}, 130.0, 4.0),
                          {1: {2: 0.0}, 2: {}})
 
+    def test_a_restarted_peer_brings_what_its_earlier_incarnations_held(self):
+        # Robot 2 restarted: its last process took nothing of robot 3, but its maps carry its
+        # earlier incarnation's, robot 3's included: what reached us of 2 may hold 3's data.
+        agents = {1: (stats(r2=120.0), None), 2: (stats(r1=120.0), None), 3: (stats(), None)}
+        self.assertEqual(reached_until(agents, 130.0, 4.0)[1], {2: 120.0, 3: 0.0})
+        self.assertEqual(reached_until(agents, 130.0, 4.0, restarted={2})[1], {2: 120.0, 3: 120.0})
+
+    def test_the_chains_closing_times_in_stats_come_first(self):
+        chains = {"submaps": {"chains": [{"robot": 3, "incarnation": 1, "count": 2, "closed_until": 67.5}]}}
+        agents = {1: (chains, {"submaps": [submap(3, 0, 33.5)]}), 3: (stats(r1=130.0), None)}
+        self.assertEqual(reached_until(agents, 130.0, 4.0)[1], {3: 67.5})
+
     def test_what_is_not_a_submap_is_left_out(self):
         self.assertEqual(submap_closed(submap(5, 2, 40.0)), (5, 40.0))
         for bad in ["", "not base64!", base64.b64encode(b"MS\x01").decode(),
