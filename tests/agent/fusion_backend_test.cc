@@ -245,6 +245,13 @@ class FusionBackendRelayed : public ::testing::Test {
     for (std::size_t k = 0; k < three; ++k) book.Add(s3[k], EncodeSubmap(s3[k]));
     return book;
   }
+  // Our (robot 1's) first build holding two of robot 3's submaps (its rebuilt map alone would
+  // need two alignments), with the peers' placements `offered`.
+  FusionBackend::Built BuildOffered(const std::map<PeerKey, std::vector<ChainPlacement>>& offered) const {
+    SubmapBook book = Book(2);
+    return MakeFusionBackend(1, 1, o, 42)
+        ->Build(own, direct, direct, {.book = &book, .now = 0.0, .peers_placements = &offered});
+  }
   // Robot 3's landmarks in our global map: how many, and the largest NEES of one against the truth.
   std::pair<int, double> Robot3Landmarks(const FusionBackend::Built& b) const {
     int n = 0;
@@ -361,11 +368,7 @@ TEST_F(FusionBackendRelayed, AChainAnAlignedPeerJoinedIsPlacedWhereThePeerPutIt)
   EXPECT_LT(std::hypot(p.x - truth.x, p.y - truth.y), 0.1);
   EXPECT_LT(std::abs(WrapAngle(p.theta - truth.theta)), 0.01);
 
-  SubmapBook book = Book(2);  // two of robot 3's submaps: its rebuilt map alone would need two alignments
-  const std::map<PeerKey, std::vector<ChainPlacement>> offered = {{{2, 1}, b2.placements}};
-  const FusionBackend::Built b = MakeFusionBackend(1, 1, o, 42)
-                                     ->Build(own, direct, direct,
-                                             {.book = &book, .now = 0.0, .peers_placements = &offered});
+  const FusionBackend::Built b = BuildOffered({{{2, 1}, b2.placements}});
   EXPECT_EQ(b.joining.relayed_by_placement, 1);
   EXPECT_EQ(b.joining.placements_refused, 0);
   EXPECT_EQ(b.joining.relayed_alignments, 0);
@@ -385,10 +388,7 @@ TEST_F(FusionBackendRelayed, APlacementTheMapsRefuteOrOfAPeerNotAlignedIsNotUsed
   const Pose2 truth = start2.Inverse() * start3;
   const std::map<PeerKey, std::vector<ChainPlacement>> offered = {
       {{2, 1}, {{3, 1, truth.x + 3.0, truth.y, truth.theta + 0.3}}}, {{5, 1}, {{3, 1, truth.x, truth.y, truth.theta}}}};
-  SubmapBook book = Book(2);
-  const FusionBackend::Built b = MakeFusionBackend(1, 1, o, 42)
-                                     ->Build(own, direct, direct,
-                                             {.book = &book, .now = 0.0, .peers_placements = &offered});
+  const FusionBackend::Built b = BuildOffered(offered);
   EXPECT_EQ(b.joining.placements_refused, 1);
   EXPECT_EQ(b.joining.relayed_by_placement, 0);
   EXPECT_EQ(b.joining.relayed_alignments, 1);
