@@ -39,11 +39,12 @@ std::unique_ptr<LocalMapper> MakeLocalMapper(const AgentOptions& options, const 
 
 std::size_t WireBytes(const MapMessage& msg) {
   std::size_t bytes = kMapMessageFixedBytes + msg.payload.size();
-  // Submaps and the chains held (issue J1): the two sequences' lengths, 12 bytes a chain, and
+  // Submaps and the chains held (issue J1): the four sequences' lengths, 20 bytes a chain, and
   // each submap with its length.
-  if (!msg.submaps_held.empty() || !msg.submaps.empty() || !msg.open_submap.empty()) {
-    bytes += 12 + 12 * msg.submaps_held.size() + msg.open_submap.size();
+  if (!msg.submaps_held.empty() || !msg.submaps.empty() || !msg.open_submap.empty() || !msg.open_relayed.empty()) {
+    bytes += 16 + 20 * msg.submaps_held.size() + msg.open_submap.size();
     for (const auto& b : msg.submaps) bytes += 4 + b.size();
+    for (const auto& b : msg.open_relayed) bytes += 4 + b.size();
   }
   // The placements' length, and robot, incarnation and pose for each.
   if (!msg.placements.empty()) bytes += 4 + kChainPlacementWireBytes * msg.placements.size();
@@ -72,6 +73,7 @@ std::string_view ToString(SubmapRefusal r) {
     case SubmapRefusal::kCovarianceTooLarge: return "covariance_too_large";
     case SubmapRefusal::kNotThePublishers: return "not_the_publishers";
     case SubmapRefusal::kImplausiblePlacements: return "implausible_placements";
+    case SubmapRefusal::kOpenRelayedByItsRobot: return "open_relayed_by_its_robot";
   }
   return "unknown";
 }
@@ -223,7 +225,7 @@ void AgentNode::PublishMaps(std::uint32_t tick, std::vector<Sighting> riders) {
     own_open_ = mapper_->CurrentSubmap({self_, incarnation_, static_cast<std::uint32_t>(own_submaps_taken_)});
     exchange_.SetSubmapInputs({.book = &submaps_.book(),
                                .own_open = own_open_ ? &*own_open_ : nullptr,
-                               .peers_open = &peers_open_,
+                               .peers_open = &submaps_.open(),
                                .peers_placements = &peers_placements_});
   }
   exchange_.Update(local, sync_.processed_until());
@@ -285,6 +287,8 @@ bool AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t vers
       msg.submaps.push_back(*b);
     if (own_open_) msg.open_submap = EncodeSubmap(*own_open_);
     if (joining_) {
+      for (const std::vector<std::uint8_t>* b : submaps_.DueOpen(in_range, sync_.processed_until()))
+        msg.open_relayed.push_back(*b);
       // Only what a receiver takes (PlausiblePlacements), so that one chain placed beyond a map's
       // bound does not make the peers refuse all of them.
       for (const ChainPlacement& c : exchange_.placements()) {
@@ -407,24 +411,30 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
     }
     return false;
   };
-  if (joining_ && !msg.open_submap.empty()) {
-    const SubmapDecodeResult d = DecodeSubmap(msg.open_submap);
+  // Open submaps: the publisher's own, and silent robots' it relays. The latest of each robot
+  // incarnation is kept (an older one arriving late changes nothing); never one of ours.
+  const auto take_open = [&](const std::vector<std::uint8_t>& bytes, bool relayed) {
+    const SubmapDecodeResult d = DecodeSubmap(bytes);
+    const bool publishers = d.submap.id.robot == msg.robot_id && d.submap.id.incarnation == msg.incarnation;
     if (!d.ok()) {
       ++stats_.submaps_rejected[static_cast<int>(d.error)];
-    } else if (d.submap.id.robot != msg.robot_id || d.submap.id.incarnation != msg.incarnation) {
+    } else if (!relayed && !publishers) {
       refuse(SubmapRefusal::kNotThePublishers);
-    } else if (admissible(d.submap)) {
-      // The latest: a later index, or the same one mapped further (an older map arriving late
-      // changes nothing).
-      const PeerKey key{msg.robot_id, msg.incarnation};
-      const auto held = peers_open_.find(key);
-      if (held == peers_open_.end() ||
-          std::tie(d.submap.id.index, d.submap.closed_s) > std::tie(held->second.id.index, held->second.closed_s)) {
-        peers_open_[key] = d.submap;
-        double& until = stats_.data_until[msg.robot_id];  // the join may use it: its data reached us
-        until = std::max(until, d.submap.closed_s);
-      }
+    } else if (relayed && d.submap.id.robot == msg.robot_id) {
+      refuse(SubmapRefusal::kOpenRelayedByItsRobot);
+    } else if (d.submap.id.robot != self_ && admissible(d.submap) &&
+               submaps_.AddOpen(d.submap, bytes, now) == SubmapRelay::Offer::kNew) {
+      double& until = stats_.data_until[d.submap.id.robot];  // the join may use it: its data reached us
+      until = std::max(until, d.submap.closed_s);
     }
+  };
+  if (joining_ && !msg.open_submap.empty()) take_open(msg.open_submap, false);
+  for (std::size_t i = 0; joining_ && i < msg.open_relayed.size(); ++i) {
+    if (i >= kMaxSubmapsPerMap) {
+      refuse(SubmapRefusal::kTooManyOnOneMap);
+      continue;
+    }
+    take_open(msg.open_relayed[i], true);
   }
   if (joining_ && !msg.placements.empty()) {
     const PeerKey key{msg.robot_id, msg.incarnation};

@@ -88,8 +88,9 @@ enum class SubmapRefusal {
   // run or of the publisher's own chain, not finite or beyond a map's bound, or more of them
   // than the robots' chains the publisher could hold.
   kImplausiblePlacements,
+  kOpenRelayedByItsRobot,  // a relayed open submap of the publisher's own robot (it sends its own as open_submap)
 };
-inline constexpr int kSubmapRefusalCount = 8;
+inline constexpr int kSubmapRefusalCount = 9;
 std::string_view ToString(SubmapRefusal r);
 // A local map carries at most this many submaps (the first are taken, the rest refused).
 inline constexpr std::size_t kMaxSubmapsPerMap = 1024;
@@ -260,10 +261,9 @@ class AgentNode : private SensorSync::Sink {
   RadioGate sighting_gate_;  // the radio gate for sightings: its own loss draws, so maps see the same ones
   RendezvousTracker rendezvous_;
   SubmapRelay submaps_;
-  std::size_t own_submaps_taken_ = 0;         // the mapper's closed submaps taken into submaps_
-  bool joining_ = false;                      // agent.fusion joining: the back-end joins submap chains
-  std::optional<WireSubmap> own_open_;        // joining: the open submap at the last publication
-  std::map<PeerKey, WireSubmap> peers_open_;  // joining: each peer incarnation's latest open submap
+  std::size_t own_submaps_taken_ = 0;   // the mapper's closed submaps taken into submaps_
+  bool joining_ = false;                // agent.fusion joining: the back-end joins submap chains
+  std::optional<WireSubmap> own_open_;  // joining: the open submap at the last publication
   // joining: each peer incarnation's chain placements from its latest local map (a later version
   // replaces them), and that map's version
   std::map<PeerKey, std::vector<ChainPlacement>> peers_placements_;

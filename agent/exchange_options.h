@@ -104,11 +104,13 @@ struct ExchangeOptions {
   double SilentAfterS() const { return silent_after_s > 0 ? silent_after_s : 3.0 * map_publish_period_s; }
   // How fast a peer's map versions can grow: one of each kind per period, twice over.
   double MaxVersionsPerS() const { return 2.0 / map_publish_period_s; }
-  // submaps with its zero periods resolved: 3 map periods each.
+  // submaps with its zero periods resolved: 3 map periods each; an open submap is a silent
+  // robot's after SilentAfterS.
   SubmapRelayOptions Submaps() const {
     SubmapRelayOptions o = submaps;
     if (o.resend_after_s <= 0) o.resend_after_s = 3.0 * map_publish_period_s;
     if (o.advert_max_age_s <= 0) o.advert_max_age_s = 3.0 * map_publish_period_s;
+    if (o.open_silent_after_s <= 0) o.open_silent_after_s = SilentAfterS();
     return o;
   }
 

@@ -82,8 +82,9 @@ class JoiningFusion : public FusionBackend {
 
  private:
   // The submap chains joined (submap_network.h): the own chain (closed submaps, then the open
-  // one) in the own frame, and each source's (an aligned peer's closed submaps, then its latest
-  // open one; a placed relayed chain's closed ones) from where the source lies, the association
+  // one) in the own frame, and each source's (an aligned peer's or a placed relayed chain's
+  // closed submaps, then the latest open one taken, the publisher's or relayed, where it
+  // continues them) from where the source lies, the association
   // from the CI build's groups. Each landmark a chain holds gets the
   // joint estimate; one no chain holds keeps the CI build's.
   GlobalMap JoinChains(const GlobalMap& associated, const std::vector<MapSource>& sources,
@@ -213,7 +214,7 @@ class JoiningFusion : public FusionBackend {
       std::vector<const WireSubmap*> chain;
       for (std::uint32_t i = 0; i < c.count; ++i) chain.push_back(book.Find({c.robot, c.incarnation, i}));
       r.map.Extend(chain);
-      const LandmarkMap& theirs = r.map.map();
+      const LandmarkMap& theirs = r.map.map();  // aligned and verified on its closed submaps
       if (!r.to_own && theirs.size() >= 3) {
         const std::vector<Offer> offers = Offers({c.robot, c.incarnation}, std::span(inputs->data(), direct),
                                                  submaps.peers_placements);
@@ -235,7 +236,14 @@ class JoiningFusion : public FusionBackend {
       ++report_.relayed_placed;
       const auto last = last_frames_.find({c.robot, c.incarnation});
       const Pose2 at = last != last_frames_.end() && !last->second.empty() ? last->second.front() : *r.to_own;
-      inputs->push_back(MapSource{c.robot, c.incarnation, theirs, at, r.to_own_cov});
+      // Its landmarks as the join holds them: the open submap relayed to us too, where it
+      // continues the chain (JoinChains joins it).
+      const WireSubmap* open = nullptr;
+      if (submaps.peers_open != nullptr) {
+        const auto o = submaps.peers_open->find({c.robot, c.incarnation});
+        if (o != submaps.peers_open->end()) open = &o->second;
+      }
+      inputs->push_back(MapSource{c.robot, c.incarnation, r.map.MapWith(open), at, r.to_own_cov});
       target.reset();
     }
   }

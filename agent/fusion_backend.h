@@ -32,8 +32,9 @@ namespace mapmesh {
 struct SubmapInputs {
   const SubmapBook* book = nullptr;
   const WireSubmap* own_open = nullptr;
-  // Each peer incarnation's latest open submap (its index: the count of its closed ones); null
-  // for none.
+  // Each other robot incarnation's latest open submap taken, from its publisher or relayed once
+  // it fell silent (SubmapRelay::open); it continues a chain where its index is the count of
+  // the chain's closed submaps held. Null for none.
   const std::map<PeerKey, WireSubmap>* peers_open = nullptr;
   double now = 0.0;  // scenario time of the build (the exchange sets it): when alignments are due
   // Each peer incarnation's chain placements, from its latest local map (null for none).

@@ -6,6 +6,15 @@
 
 namespace mapmesh {
 
+void SubmapRelay::CloseOpen(const SubmapId& id) {
+  const PeerKey key{id.robot, id.incarnation};
+  const auto it = open_.find(key);
+  if (it != open_.end() && it->second.id.index == id.index) {
+    open_.erase(it);
+    open_held_.erase(key);
+  }
+}
+
 SubmapRelay::Offer SubmapRelay::AddOwn(const WireSubmap& submap, std::span<const std::uint8_t> bytes) {
   switch (book_.Add(submap, bytes)) {
     case SubmapBook::Offer::kNew: ++counters_.own; return Offer::kNew;
@@ -24,6 +33,7 @@ SubmapRelay::Offer SubmapRelay::Add(const WireSubmap& submap, std::span<const st
     case SubmapBook::Offer::kNew:
       ++counters_.received_new;
       heard_at_[submap.id] = now;
+      CloseOpen(submap.id);
       return Offer::kNew;
     case SubmapBook::Offer::kDuplicate:
       ++counters_.duplicates;
@@ -47,15 +57,89 @@ void SubmapRelay::OnAdvert(const PeerKey& from, std::span<const SubmapChain> hel
   Advertised& a = adverts_[from];
   a.count.clear();
   a.at = now;
+  a.open_until.clear();
+  a.at = now;
   for (std::size_t i = 0; i < held.size() && i < kMaxChains; ++i) {
     a.count[{held[i].robot, held[i].incarnation}] = held[i].count;
+    if (held[i].open_until > 0) a.open_until[{held[i].robot, held[i].incarnation}] = held[i].open_until;
   }
 }
 
 std::vector<SubmapChain> SubmapRelay::Advert() const {
   std::vector<SubmapChain> chains = book_.Chains();
+  for (const auto& [key, s] : open_) {
+    const auto at = std::lower_bound(chains.begin(), chains.end(), key, [](const SubmapChain& c, const PeerKey& k) {
+      return std::pair{c.robot, c.incarnation} < std::pair{k.robot, k.incarnation};
+    });
+    if (at != chains.end() && at->robot == key.robot && at->incarnation == key.incarnation) {
+      if (at->count == s.id.index) at->open_until = s.closed_s;
+    } else if (s.id.index == 0) {
+      chains.insert(at, SubmapChain{key.robot, key.incarnation, 0, s.closed_s});
+    }
+  }
   if (chains.size() > kMaxChains) chains.resize(kMaxChains);
   return chains;
+}
+
+SubmapRelay::Offer SubmapRelay::AddOpen(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now) {
+  const PeerKey key{submap.id.robot, submap.id.incarnation};
+  const auto held = open_.find(key);
+  if (book_.Find(submap.id) != nullptr ||
+      (held != open_.end() &&
+       std::tie(submap.id.index, submap.closed_s) <= std::tie(held->second.id.index, held->second.closed_s))) {
+    return Offer::kDuplicate;
+  }
+  if (held == open_.end() && open_.size() >= options_.max_held) {
+    ++counters_.full;
+    return Offer::kFull;
+  }
+  open_[key] = submap;
+  OpenHeld& h = open_held_[key];
+  h.bytes.assign(bytes.begin(), bytes.end());
+  h.changed_at = now;
+  ++counters_.open_taken;
+  return Offer::kNew;
+}
+
+std::vector<const std::vector<std::uint8_t>*> SubmapRelay::DueOpen(const std::set<RobotId>& in_range, double now) {
+  std::vector<std::pair<const PeerKey*, const Advertised*>> listening;
+  for (const auto& [key, a] : adverts_) {
+    if (in_range.contains(key.robot) && now - a.at <= options_.advert_max_age_s) listening.push_back({&key, &a});
+  }
+  std::vector<const WireSubmap*> due;
+  for (const auto& [key, s] : open_) {
+    const OpenHeld& h = open_held_.at(key);
+    if (now - h.changed_at < options_.open_silent_after_s || now - h.sent_at < options_.resend_after_s) continue;
+    const std::pair chain{key.robot, key.incarnation};
+    const bool lacked = std::any_of(listening.begin(), listening.end(), [&](const auto& l) {
+      const auto& [peer, a] = l;
+      if (peer->robot == key.robot) return false;  // its own robot
+      const auto c = a->count.find(chain);
+      if ((c == a->count.end() ? 0U : c->second) != s.id.index) return false;  // it cannot chain it, or has it closed
+      const auto o = a->open_until.find(chain);
+      return o == a->open_until.end() || o->second < s.closed_s;
+    });
+    if (lacked) due.push_back(&s);
+  }
+  std::sort(due.begin(), due.end(), [](const WireSubmap* a, const WireSubmap* b) {
+    return std::tie(a->id.index, a->id.robot, a->id.incarnation) <
+           std::tie(b->id.index, b->id.robot, b->id.incarnation);
+  });
+  std::vector<const std::vector<std::uint8_t>*> out;
+  std::size_t bytes = 0;
+  for (const WireSubmap* s : due) {
+    OpenHeld& h = open_held_.at({s->id.robot, s->id.incarnation});
+    if (!out.empty() && bytes + h.bytes.size() > options_.send_bytes) {
+      ++counters_.held_back;
+      continue;
+    }
+    bytes += h.bytes.size();
+    out.push_back(&h.bytes);
+    h.sent_at = now;
+    ++counters_.open_relayed;
+    counters_.open_bytes_relayed += h.bytes.size();
+  }
+  return out;
 }
 
 std::vector<const std::vector<std::uint8_t>*> SubmapRelay::Due(const std::set<RobotId>& in_range, double now) {

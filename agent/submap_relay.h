@@ -15,9 +15,19 @@
 // enters every book once (SubmapBook). Decisions depend on the facts given and the scenario
 // time only: lockstep runs send the same submaps.
 //
+// Open submaps (fusion joining): the agent keeps each other robot incarnation's latest open
+// submap it took (a later index, or the same one mapped further), its publisher's or relayed.
+// One that has not changed for open_silent_after_s is a silent robot's: it goes, as taken, to
+// a peer in range whose advertisement holds the chain up to it (count = its index) but not it
+// (an earlier open_until), again only after resend_after_s. A robot's open submap reaches the
+// peers of the last agents that heard it, hop by hop, once it falls silent; while it publishes,
+// its peers hear it themselves and nothing is relayed. The closed submap of its index replaces
+// it. It enters a join only where it continues the chain held, so nothing is counted twice.
+//
 // Pure: no DDS, clocks or random numbers.
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <set>
 #include <span>
@@ -29,12 +39,13 @@
 namespace mapmesh {
 
 struct SubmapRelayOptions {
-  std::size_t send_bytes = 65536;  // agent.submap_send_bytes: submap bytes per publication (the first one due
-                                   // always goes, whatever its size)
-  double resend_after_s = 0.0;     // agent.submap_resend_after_s: a submap sent goes again no sooner (0: 3 map
-                                   // periods, a round trip of advertisements and one to spare)
-  std::size_t max_held = 20000;    // agent.max_submaps_held: submaps held at most (own ones always)
-  double advert_max_age_s = 0.0;   // a peer's advertisement counts this long after it arrived (0: 3 map periods)
+  std::size_t send_bytes = 65536;    // agent.submap_send_bytes: submap bytes per publication (the first one due
+                                     // always goes, whatever its size)
+  double resend_after_s = 0.0;       // agent.submap_resend_after_s: a submap sent goes again no sooner (0: 3 map
+                                     // periods, a round trip of advertisements and one to spare)
+  std::size_t max_held = 20000;      // agent.max_submaps_held: submaps held at most (own ones always)
+  double advert_max_age_s = 0.0;     // a peer's advertisement counts this long after it arrived (0: 3 map periods)
+  double open_silent_after_s = 0.0;  // an open submap unchanged this long is relayed (0: agent.silent_after_s)
 };
 
 class SubmapRelay {
@@ -52,8 +63,22 @@ class SubmapRelay {
   // A peer's advertisement, received at scenario time now; replaces its earlier one. Chains
   // beyond max_chains are ignored.
   void OnAdvert(const PeerKey& from, std::span<const SubmapChain> held, double now);
-  // The chains to advertise (SubmapBook::Chains), at most max_chains.
+  // The chains to advertise (SubmapBook::Chains, with open_until where an open submap held
+  // continues the chain; a chain only an open submap of index 0 starts has count 0), at most
+  // max_chains.
   std::vector<SubmapChain> Advert() const;
+
+  // Another robot's decoded, validated open submap, from its publisher or relayed, received at
+  // scenario time now: kept when it is the first of its robot incarnation, or later (a higher
+  // index, or the same mapped further) than the one kept, and no closed submap of its index is
+  // held (kDuplicate otherwise, ignored); kFull when max_held open ones are kept already.
+  Offer AddOpen(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now);
+  // The open submaps kept, by robot incarnation (the joining back-end's input).
+  const std::map<PeerKey, WireSubmap>& open() const { return open_; }
+  // The silent robots' open submaps to relay at scenario time now (see the header), lowest
+  // index first, then robot and incarnation; at most send_bytes in all (the first always).
+  // Marks them sent at now.
+  std::vector<const std::vector<std::uint8_t>*> DueOpen(const std::set<RobotId>& in_range, double now);
   // The submaps to send at scenario time now: those held that a peer in range (a robot of
   // `in_range` whose advertisement is at most advert_max_age_s old) lacks by an advertisement
   // that came after the submap was last heard, not sent within resend_after_s, the lowest
@@ -63,16 +88,19 @@ class SubmapRelay {
 
   const SubmapBook& book() const { return book_; }
   struct Counters {
-    std::uint32_t own = 0;           // own closed submaps entered
-    std::uint32_t received_new = 0;  // peers' submaps entered
-    std::uint32_t restored = 0;      // submaps entered from the checkpoint (Restore)
-    std::uint32_t duplicates = 0;    // ... held already
-    std::uint32_t conflicts = 0;     // ... a different submap under a held identity (refused)
-    std::uint32_t full = 0;          // ... refused, max_held reached
-    std::uint32_t sent = 0;          // submaps sent (own and relayed, each time)
-    std::uint64_t bytes_sent = 0;    // ... their bytes
-    std::uint32_t sent_again = 0;    // ... of which sent before (to a peer come into range since, or lost)
-    std::uint32_t held_back = 0;     // due ones left for a later publication (send_bytes)
+    std::uint32_t own = 0;                 // own closed submaps entered
+    std::uint32_t received_new = 0;        // peers' submaps entered
+    std::uint32_t restored = 0;            // submaps entered from the checkpoint (Restore)
+    std::uint32_t duplicates = 0;          // ... held already
+    std::uint32_t conflicts = 0;           // ... a different submap under a held identity (refused)
+    std::uint32_t full = 0;                // ... refused, max_held reached
+    std::uint32_t sent = 0;                // submaps sent (own and relayed, each time)
+    std::uint64_t bytes_sent = 0;          // ... their bytes
+    std::uint32_t sent_again = 0;          // ... of which sent before (to a peer come into range since, or lost)
+    std::uint32_t held_back = 0;           // due ones left for a later publication (send_bytes)
+    std::uint32_t open_taken = 0;          // open submaps kept (AddOpen: each later version)
+    std::uint32_t open_relayed = 0;        // silent robots' open submaps sent (DueOpen, each time)
+    std::uint64_t open_bytes_relayed = 0;  // ... their bytes
   };
   const Counters& counters() const { return counters_; }
 
@@ -81,14 +109,24 @@ class SubmapRelay {
 
  private:
   struct Advertised {
-    std::map<std::pair<RobotId, std::uint32_t>, std::uint32_t> count;  // chain -> submaps held from 0
+    std::map<std::pair<RobotId, std::uint32_t>, std::uint32_t> count;  // chain -> submaps held from 0 ...
+    std::map<std::pair<RobotId, std::uint32_t>, double> open_until;    // ... and its open one's end, if any
     double at = 0.0;
   };
+  struct OpenHeld {
+    std::vector<std::uint8_t> bytes;
+    double changed_at = 0.0;  // scenario time this version was taken
+    double sent_at = -std::numeric_limits<double>::infinity();
+  };
+  // Drops the open submap a closed one of the same identity replaces.
+  void CloseOpen(const SubmapId& id);
   SubmapRelayOptions options_;
   SubmapBook book_;
   std::map<PeerKey, Advertised> adverts_;
-  std::map<SubmapId, double> sent_at_;   // scenario time each submap was last sent ...
-  std::map<SubmapId, double> heard_at_;  // ... and last received from a peer
+  std::map<SubmapId, double> sent_at_;     // scenario time each submap was last sent ...
+  std::map<SubmapId, double> heard_at_;    // ... and last received from a peer
+  std::map<PeerKey, WireSubmap> open_;     // the open submaps kept ...
+  std::map<PeerKey, OpenHeld> open_held_;  // ... their bytes and times
   Counters counters_;
 };
 

@@ -22,4 +22,20 @@ std::size_t ChainMap::Extend(std::span<const WireSubmap* const> chain) {
   return added;
 }
 
+const LandmarkMap& ChainMap::MapWith(const WireSubmap* open) {
+  if (open == nullptr || broken_ || joiner_.submaps() == 0 || open->id.index != joiner_.submaps()) return map_;
+  if (with_open_ && with_open_->joined == joiner_.submaps() && with_open_->index == open->id.index &&
+      with_open_->closed_s == open->closed_s) {
+    return with_open_->map;
+  }
+  const SubmapEstimate estimate{open->x, open->Covariance(), open->keys};
+  try {
+    with_open_ = WithOpen{joiner_.submaps(), open->id.index, open->closed_s,
+                          JoinedLandmarkMap(joiner_.Solve(&estimate), false)};
+  } catch (const std::invalid_argument&) {
+    return map_;
+  }
+  return with_open_->map;
+}
+
 }  // namespace mapmesh

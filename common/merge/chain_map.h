@@ -9,6 +9,7 @@
 // Pure: Eigen only, no clocks, threads or random numbers.
 
 #include <cstddef>
+#include <optional>
 #include <span>
 
 #include "common/map/landmark_map.h"
@@ -30,11 +31,24 @@ class ChainMap {
   bool broken() const { return broken_; }
   // The joined map (empty before the first submap).
   const LandmarkMap& map() const { return map_; }
+  // The joined map with the chain's open submap `open` after the submaps joined (as
+  // SubmapSlam::Map gives it with its open submap); map() when open is null, does not continue
+  // the chain (its index is not joined(), or none is), the chain is broken or the joiner
+  // refuses it. The last one is kept: the same open submap (identity and closed_s: one version
+  // of it) on the same chain is not solved again.
+  const LandmarkMap& MapWith(const WireSubmap* open);
 
  private:
   SubmapJoiner joiner_;
   LandmarkMap map_;
   bool broken_ = false;
+  struct WithOpen {
+    std::size_t joined = 0;
+    std::uint32_t index = 0;
+    double closed_s = 0.0;
+    LandmarkMap map;
+  };
+  std::optional<WithOpen> with_open_;
 };
 
 }  // namespace mapmesh

@@ -93,24 +93,32 @@ mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch& scratch) {
   m.sightings._buffer = scratch.sightings.data();
   m.sightings._release = false;
   scratch.chains.clear();
-  for (const SubmapChain& c : v.submaps_held) scratch.chains.push_back({c.robot, c.incarnation, c.count});
+  for (const SubmapChain& c : v.submaps_held) scratch.chains.push_back({c.robot, c.incarnation, c.count, c.open_until});
   m.submaps_held._maximum = static_cast<std::uint32_t>(scratch.chains.size());
   m.submaps_held._length = m.submaps_held._maximum;
   m.submaps_held._buffer = scratch.chains.data();
   m.submaps_held._release = false;
+  // Both blob sequences borrow from one scratch vector, sized first so that it never moves.
   scratch.blobs.clear();
-  for (const std::vector<std::uint8_t>& b : v.submaps) {
-    mapmesh_msg_SubmapBlob blob{};
-    blob.bytes._maximum = static_cast<std::uint32_t>(b.size());
-    blob.bytes._length = blob.bytes._maximum;
-    blob.bytes._buffer = const_cast<std::uint8_t*>(b.data());
-    blob.bytes._release = false;
-    scratch.blobs.push_back(blob);
-  }
-  m.submaps._maximum = static_cast<std::uint32_t>(scratch.blobs.size());
-  m.submaps._length = m.submaps._maximum;
-  m.submaps._buffer = scratch.blobs.data();
-  m.submaps._release = false;
+  scratch.blobs.reserve(v.submaps.size() + v.open_relayed.size());
+  const auto blobs = [&scratch](const std::vector<std::vector<std::uint8_t>>& from,
+                                dds_sequence_mapmesh_msg_SubmapBlob& to) {
+    const std::size_t first = scratch.blobs.size();
+    for (const std::vector<std::uint8_t>& b : from) {
+      mapmesh_msg_SubmapBlob blob{};
+      blob.bytes._maximum = static_cast<std::uint32_t>(b.size());
+      blob.bytes._length = blob.bytes._maximum;
+      blob.bytes._buffer = const_cast<std::uint8_t*>(b.data());
+      blob.bytes._release = false;
+      scratch.blobs.push_back(blob);
+    }
+    to._maximum = static_cast<std::uint32_t>(from.size());
+    to._length = to._maximum;
+    to._buffer = from.empty() ? nullptr : scratch.blobs.data() + first;
+    to._release = false;
+  };
+  blobs(v.submaps, m.submaps);
+  blobs(v.open_relayed, m.open_relayed);
   m.open_submap._maximum = static_cast<std::uint32_t>(v.open_submap.size());
   m.open_submap._length = m.open_submap._maximum;
   m.open_submap._buffer = const_cast<std::uint8_t*>(v.open_submap.data());
@@ -140,7 +148,7 @@ MapMessage FromMsg(const mapmesh_msg_MapMessage& m) {
   v.submaps_held.reserve(m.submaps_held._length);
   for (std::uint32_t i = 0; i < m.submaps_held._length; ++i) {
     const mapmesh_msg_SubmapChain& c = m.submaps_held._buffer[i];
-    v.submaps_held.push_back({c.robot, c.incarnation, c.count});
+    v.submaps_held.push_back({c.robot, c.incarnation, c.count, c.open_until});
   }
   v.submaps.reserve(m.submaps._length);
   for (std::uint32_t i = 0; i < m.submaps._length; ++i) {
@@ -149,6 +157,11 @@ MapMessage FromMsg(const mapmesh_msg_MapMessage& m) {
   }
   if (m.open_submap._length > 0)
     v.open_submap.assign(m.open_submap._buffer, m.open_submap._buffer + m.open_submap._length);
+  v.open_relayed.reserve(m.open_relayed._length);
+  for (std::uint32_t i = 0; i < m.open_relayed._length; ++i) {
+    const auto& b = m.open_relayed._buffer[i].bytes;
+    v.open_relayed.emplace_back(b._buffer, b._buffer + b._length);
+  }
   v.placements.reserve(m.placements._length);
   for (std::uint32_t i = 0; i < m.placements._length; ++i) {
     const mapmesh_msg_ChainPlacement& c = m.placements._buffer[i];

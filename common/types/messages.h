@@ -105,6 +105,9 @@ struct SubmapChain {
   RobotId robot = 0;
   std::uint32_t incarnation = 0;
   std::uint32_t count = 0;
+  // With fusion joining: the end (closed_s) of the open submap the publisher holds that
+  // continues the chain (index count), its own or a silent robot's relayed to it; 0 when none.
+  double open_until = 0.0;
   friend auto operator<=>(const SubmapChain&, const SubmapChain&) = default;
 };
 
@@ -136,11 +139,14 @@ struct MapMessage {
   std::vector<std::vector<std::uint8_t>> submaps;
   // With fusion joining: the publisher's open submap as it stands (the submap codec; its index
   // is the count of the publisher's closed ones, its closed_s the map's stamp). It changes at
-  // every publication until it closes, so it is never relayed nor kept beyond the next one.
+  // every publication until it closes; a receiver keeps the latest.
   std::vector<std::uint8_t> open_submap;
   // With fusion joining, on the local map: where its last join put the other chains it joined,
   // in (robot, incarnation) order.
   std::vector<ChainPlacement> placements;
+  // With fusion joining, on the local map: open submaps of other robots that fell silent, as
+  // the publisher last took them, relayed to the peers that lack them (agent/submap_relay.h).
+  std::vector<std::vector<std::uint8_t>> open_relayed;
 };
 
 // The lockstep exchange, from the feeder to the agents (feeder.pace lockstep). At each exchange

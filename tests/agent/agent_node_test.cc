@@ -413,6 +413,53 @@ TEST(AgentNodeLimits, TakesAPeersChainPlacementsOnlyWhenEveryOneIsPlausible) {
   EXPECT_EQ(node.stats().submaps_refused[static_cast<int>(SubmapRefusal::kImplausiblePlacements)], implausible.size());
 }
 
+// With fusion joining, a local map carries its publisher's open submap and silent robots'
+// open submaps it relays. A relayed one is taken (and counts as that robot's data reaching us)
+// unless it is the publisher's own robot's (it sends its own as open_submap), a robot's not in
+// the run, or ours; an open_submap that is not the publisher's is refused.
+TEST(AgentNodeLimits, TakesTheOpenSubmapsAPeerRelaysOfOtherRobotsOnly) {
+  Scenario sc = ParseScenario(R"(version: 1
+world: {landmarks: {list: [[5, 0], [0, 5]]}}
+robots:
+  list:
+    - {id: 1, start: [0, 0, 0]}
+    - {id: 2, start: [1, 0, 0]}
+    - {id: 3, start: [2, 0, 0]}
+feeder: {pace: realtime}
+agent: {map_publish_period_s: 1.0, fusion: joining}
+)",
+                              "test.yaml");
+  Capture out;
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
+  node.OnLinks({0.0, {{1, 2}}});
+  const auto open = [](RobotId robot, double closed_s) {
+    WireSubmap s;
+    s.id = {robot, 1, 0};
+    s.closed_s = closed_s;
+    s.keys = {0};
+    s.x = Eigen::VectorXd::Zero(5);
+    EXPECT_TRUE(s.SetCovariance(0.01 * Eigen::MatrixXd::Identity(5, 5)));
+    return EncodeSubmap(s);
+  };
+  LandmarkMap map;
+  map.landmarks.push_back({0, -1, {1.0, 2.0}, 0.01 * Eigen::Matrix2d::Identity()});
+  MapMessage m = PeerMap(2, EncodeMap(map));
+  m.incarnation = 1;
+  m.stamp = 0.0;
+  m.open_submap = open(3, 0.0);                                               // not the publisher's
+  m.open_relayed = {open(2, 0.0), open(3, 0.0), open(9, 0.0), open(1, 0.0)};  // its own, 3's, 9's, ours
+  node.OnMap(m);
+  const auto refused = [&](SubmapRefusal r) { return node.stats().submaps_refused[static_cast<int>(r)]; };
+  EXPECT_EQ(node.stats().maps_received, 1u);
+  EXPECT_EQ(refused(SubmapRefusal::kNotThePublishers), 1u);
+  EXPECT_EQ(refused(SubmapRefusal::kOpenRelayedByItsRobot), 1u);
+  EXPECT_EQ(refused(SubmapRefusal::kUnknownRobot), 1u);
+  ASSERT_EQ(node.submaps().open().size(), 1u);
+  EXPECT_EQ(node.submaps().open().begin()->first, (PeerKey{3, 1}));
+  EXPECT_EQ(node.stats().data_until.at(3), 0.0);
+  EXPECT_EQ(node.stats().data_until.count(1), 0u);
+}
+
 // One reading 30 km away (beyond what the 8 m sensor sees) never reaches the map, and the
 // agent keeps publishing.
 TEST(AgentNodeLimits, AReadingBeyondTheSensorsRangeIsRefused) {

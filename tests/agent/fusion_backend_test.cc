@@ -245,12 +245,24 @@ class FusionBackendRelayed : public ::testing::Test {
     for (std::size_t k = 0; k < three; ++k) book.Add(s3[k], EncodeSubmap(s3[k]));
     return book;
   }
-  // Our (robot 1's) first build holding two of robot 3's submaps (its rebuilt map alone would
-  // need two alignments), with the peers' placements `offered`.
-  FusionBackend::Built BuildOffered(const std::map<PeerKey, std::vector<ChainPlacement>>& offered) const {
-    SubmapBook book = Book(2);
+  // Our (robot 1's) first build holding `three` of robot 3's submaps (two: its rebuilt map
+  // alone would need two alignments), with the peers' placements `offered` and the open
+  // submaps `open`.
+  FusionBackend::Built BuildOffered(const std::map<PeerKey, std::vector<ChainPlacement>>& offered,
+                                    const std::map<PeerKey, WireSubmap>* open = nullptr, std::size_t three = 2) const {
+    SubmapBook book = Book(three);
     return MakeFusionBackend(1, 1, o, 42)
-        ->Build(own, direct, direct, {.book = &book, .now = 0.0, .peers_placements = &offered});
+        ->Build(own, direct, direct, {.book = &book, .peers_open = open, .now = 0.0, .peers_placements = &offered});
+  }
+  // Robot 2's join of its chain and robot 3's, whose placements it publishes.
+  FusionBackend::Built BuildRobot2() const {
+    SubmapBook book2;
+    for (const auto* s : {&s2, &s3}) {
+      for (const WireSubmap& x : *s) book2.Add(x, EncodeSubmap(x));
+    }
+    const std::vector<MapSource> heard2 = {
+        {3, 1, Rebuilt(s3), start2.Inverse() * start3, 1e-6 * Eigen::Matrix3d::Identity()}};
+    return MakeFusionBackend(2, 1, o, 42)->Build(Rebuilt(s2), heard2, heard2, {&book2, nullptr, nullptr, 0.0});
   }
   // Robot 3's landmarks in our global map: how many, and the largest NEES of one against the truth.
   std::pair<int, double> Robot3Landmarks(const FusionBackend::Built& b) const {
@@ -352,14 +364,7 @@ TEST_F(FusionBackendRelayed, AChainHeldOnlyThroughRelaysIsPlacedOnceConfirmedAnd
 // we hold robot 2 aligned, so robot 3's chain is placed at once at the two composed, once our
 // maps verify it there: no alignment to search for or to confirm.
 TEST_F(FusionBackendRelayed, AChainAnAlignedPeerJoinedIsPlacedWhereThePeerPutIt) {
-  SubmapBook book2;
-  for (const auto* s : {&s2, &s3}) {
-    for (const WireSubmap& x : *s) book2.Add(x, EncodeSubmap(x));
-  }
-  const std::vector<MapSource> heard2 = {
-      {3, 1, Rebuilt(s3), start2.Inverse() * start3, 1e-6 * Eigen::Matrix3d::Identity()}};
-  const FusionBackend::Built b2 = MakeFusionBackend(2, 1, o, 42)
-                                      ->Build(Rebuilt(s2), heard2, heard2, {&book2, nullptr, nullptr, 0.0});
+  const FusionBackend::Built b2 = BuildRobot2();
   ASSERT_TRUE(b2.joining.solved);
   ASSERT_EQ(b2.placements.size(), 1u);  // robot 3's chain; not robot 2's own
   const ChainPlacement& p = b2.placements[0];
@@ -394,6 +399,30 @@ TEST_F(FusionBackendRelayed, APlacementTheMapsRefuteOrOfAPeerNotAlignedIsNotUsed
   EXPECT_EQ(b.joining.relayed_alignments, 1);
   EXPECT_EQ(b.joining.relayed_placed, 0);  // one alignment is not enough
   EXPECT_FALSE(HoldsRobot3(b));
+}
+
+// Robot 3 fell silent with its third submap open, and robot 2 relayed that open submap to us:
+// it joins after robot 3's two closed ones, so our map holds every landmark robot 3's three
+// submaps saw (as many as with the third one closed), each where it is; an open submap that
+// does not continue the chain held (a gap before it) is not joined.
+TEST_F(FusionBackendRelayed, ARelayedChainsOpenSubmapJoinsWhereItContinuesTheChain) {
+  const std::map<PeerKey, std::vector<ChainPlacement>> offered = {{{2, 1}, BuildRobot2().placements}};
+  const auto closed2 = Robot3Landmarks(BuildOffered(offered));
+  const auto closed3 = Robot3Landmarks(BuildOffered(offered, nullptr, 3));
+  ASSERT_GT(closed3.first, closed2.first);  // the third submap saw landmarks the first two did not
+  const std::map<PeerKey, WireSubmap> open = {{{3, 1}, s3[2]}};
+  const FusionBackend::Built b = BuildOffered(offered, &open);
+  EXPECT_EQ(b.joining.relayed_placed, 1);
+  EXPECT_EQ(b.joining.chains_joined, 3);
+  EXPECT_EQ(b.joining.submaps, static_cast<int>(s1.size() + s2.size()) + 3);
+  const auto [n, worst] = Robot3Landmarks(b);
+  EXPECT_EQ(n, closed3.first);
+  EXPECT_LT(worst, 18.4);  // chi-square 2 dof, 99.99 %
+  // The fourth submap open while the third is not held: robot 3's two closed ones only.
+  const std::map<PeerKey, WireSubmap> gap = {{{3, 1}, s3[3]}};
+  const FusionBackend::Built g = BuildOffered(offered, &gap);
+  EXPECT_EQ(g.joining.submaps, static_cast<int>(s1.size() + s2.size()) + 2);
+  EXPECT_EQ(Robot3Landmarks(g).first, closed2.first);
 }
 
 }  // namespace

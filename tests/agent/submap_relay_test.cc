@@ -239,5 +239,140 @@ TEST(SubmapRelay, EveryChainReachesEveryHopThroughALossyLine) {
   }
 }
 
+// Robot 3's open submap, as this relay took it at `at` (its index continues two closed ones).
+WireSubmap Open(double closed_s, std::uint32_t index = 2, RobotId robot = 3) {
+  WireSubmap s = Submap(robot, 1, index);
+  s.closed_s = closed_s;
+  return s;
+}
+
+SubmapRelay::Offer AddOpen(SubmapRelay& r, const WireSubmap& s, double now) {
+  return r.AddOpen(s, EncodeSubmap(s), now);
+}
+
+std::vector<double> Ends(const std::vector<const std::vector<std::uint8_t>*>& sent) {
+  std::vector<double> out;
+  for (const auto* b : sent) {
+    const SubmapDecodeResult d = DecodeSubmap(*b);
+    EXPECT_TRUE(d.ok());
+    out.push_back(d.submap.closed_s);
+  }
+  return out;
+}
+
+// A robot's open submap goes on only once the robot fell silent (unchanged for
+// open_silent_after_s), to a peer in range that holds the chain up to it but not it, and again
+// only after resend_after_s while the peer still lacks it; the latest version is kept; the
+// closed submap of its index replaces it.
+TEST(SubmapRelay, AnOpenSubmapGoesOnOnceItsRobotFellSilentToAPeerThatLacksIt) {
+  SubmapRelayOptions o = Options();
+  o.open_silent_after_s = 6.0;
+  SubmapRelay r(o);
+  for (std::uint32_t i = 0; i < 2; ++i) {
+    const WireSubmap s = Submap(3, 1, i);
+    EXPECT_EQ(r.Add(s, EncodeSubmap(s), 0.0), SubmapRelay::Offer::kNew);
+  }
+  EXPECT_EQ(AddOpen(r, Open(29.0), 10.0), SubmapRelay::Offer::kNew);
+  EXPECT_EQ(r.Advert(), (std::vector<SubmapChain>{{3, 1, 2, 29.0}}));
+  const std::vector<SubmapChain> lacks = {{3, 1, 2, 0.0}};
+  r.OnAdvert({1, 1}, lacks, 12.0);
+  EXPECT_TRUE(r.DueOpen({1}, 12.0).empty());  // robot 3 is still heard
+  EXPECT_EQ(AddOpen(r, Open(31.0), 12.0), SubmapRelay::Offer::kNew);
+  EXPECT_EQ(AddOpen(r, Open(30.0), 13.0), SubmapRelay::Offer::kDuplicate);     // an older one, late
+  EXPECT_EQ(AddOpen(r, Open(31.0, 1), 13.0), SubmapRelay::Offer::kDuplicate);  // its closed one is held
+  EXPECT_EQ(r.open().at({3, 1}).closed_s, 31.0);
+  EXPECT_EQ(r.counters().open_taken, 2u);
+  EXPECT_TRUE(r.DueOpen({1}, 17.0).empty());  // unchanged for 5 s only
+  EXPECT_TRUE(r.Due({1}, 18.0).empty());      // the closed ones it has
+  EXPECT_EQ(Ends(r.DueOpen({1}, 18.0)), (std::vector<double>{31.0}));
+  EXPECT_TRUE(r.DueOpen({1}, 19.0).empty());  // sent: not again before resend_after_s
+  EXPECT_TRUE(r.DueOpen({2}, 24.0).empty());  // robot 1 out of range, no other listener
+  const std::vector<SubmapChain> has_it = {{3, 1, 2, 31.0}};
+  r.OnAdvert({1, 1}, has_it, 20.0);
+  EXPECT_TRUE(r.DueOpen({1}, 25.0).empty());
+  r.OnAdvert({1, 1}, lacks, 26.0);  // it lost it (restarted)
+  EXPECT_EQ(Ends(r.DueOpen({1}, 26.0)), (std::vector<double>{31.0}));
+  EXPECT_EQ(r.counters().open_relayed, 2u);
+  EXPECT_EQ(r.counters().open_bytes_relayed, 2 * EncodeSubmap(Open(31.0)).size());
+  // Not to its own robot, nor to a peer that cannot chain it or holds its closed one.
+  const std::vector<SubmapChain> own = {{3, 1, 2, 0.0}}, short_chain = {{3, 1, 1, 0.0}}, closed = {{3, 1, 3, 0.0}};
+  r.OnAdvert({3, 1}, own, 40.0);
+  r.OnAdvert({4, 1}, short_chain, 40.0);
+  r.OnAdvert({5, 1}, closed, 40.0);
+  EXPECT_TRUE(r.DueOpen({3, 4, 5}, 40.0).empty());
+  // Its closed submap arrives: the open one is gone, and the chain advertised is the closed one.
+  const WireSubmap two = Submap(3, 1, 2);
+  EXPECT_EQ(r.Add(two, EncodeSubmap(two), 41.0), SubmapRelay::Offer::kNew);
+  EXPECT_TRUE(r.open().empty());
+  EXPECT_EQ(r.Advert(), (std::vector<SubmapChain>{{3, 1, 3, 0.0}}));
+  EXPECT_TRUE(r.DueOpen({1, 4}, 50.0).empty());
+}
+
+// An open submap that starts a chain is advertised as the chain of count 0; one that does not
+// continue the chain held is kept but not advertised; max_held bounds the open ones kept.
+TEST(SubmapRelay, OpenSubmapsAdvertisedWhereTheyContinueAChainAndBounded) {
+  SubmapRelayOptions o = Options();
+  o.max_held = 2;
+  SubmapRelay r(o);
+  AddOwn(r, Submap(1, 1, 0));
+  EXPECT_EQ(AddOpen(r, Open(5.0, 0, 2), 1.0), SubmapRelay::Offer::kNew);
+  EXPECT_EQ(AddOpen(r, Open(25.0, 2, 4), 1.0), SubmapRelay::Offer::kNew);  // robot 4's 0 and 1 not held
+  EXPECT_EQ(AddOpen(r, Open(5.0, 0, 5), 1.0), SubmapRelay::Offer::kFull);
+  EXPECT_EQ(AddOpen(r, Open(6.0, 0, 2), 2.0), SubmapRelay::Offer::kNew);  // a later version still enters
+  EXPECT_EQ(r.counters().full, 1u);
+  EXPECT_EQ(r.Advert(), (std::vector<SubmapChain>{{1, 1, 1, 0.0}, {2, 1, 0, 6.0}}));
+}
+
+// A silent robot's open submap reaches every hop of a line, one relay after another, each
+// relay sending it once: every agent holds it, and nobody holds an older one.
+TEST(SubmapRelay, ASilentRobotsOpenSubmapReachesEveryHopOnce) {
+  const int n = 5;
+  const double period = 2.0;
+  SubmapRelayOptions o = Options();
+  o.open_silent_after_s = 3 * period;
+  std::vector<SubmapRelay> relays(n, SubmapRelay(o));
+  // Agent 1 (index 0) heard robot 9's chain of two and its open submap, then lost it.
+  for (std::uint32_t i = 0; i < 2; ++i) {
+    const WireSubmap s = Submap(9, 1, i);
+    relays[0].Add(s, EncodeSubmap(s), 0.0);
+  }
+  AddOpen(relays[0], Open(29.0, 2, 9), 0.0);
+  AddOpen(relays[0], Open(30.0, 2, 9), 2.0);
+  struct Message {
+    int from;
+    std::vector<SubmapChain> advert;
+    std::vector<std::vector<std::uint8_t>> submaps, open;
+  };
+  std::vector<Message> in_flight;
+  for (int t = 0; t < 60; ++t) {
+    const double now = t * period;
+    for (const Message& m : in_flight) {
+      for (int to : {m.from - 1, m.from + 1}) {
+        if (to < 0 || to >= n) continue;
+        relays[to].OnAdvert({static_cast<RobotId>(m.from + 1), 1}, m.advert, now);
+        for (const auto& b : m.submaps) relays[to].Add(DecodeSubmap(b).submap, b, now);
+        for (const auto& b : m.open) relays[to].AddOpen(DecodeSubmap(b).submap, b, now);
+      }
+    }
+    in_flight.clear();
+    for (int i = 0; i < n; ++i) {
+      std::set<RobotId> in_range;
+      if (i > 0) in_range.insert(static_cast<RobotId>(i));
+      if (i + 1 < n) in_range.insert(static_cast<RobotId>(i + 2));
+      Message m{i, relays[i].Advert(), {}, {}};
+      for (const auto* b : relays[i].Due(in_range, now)) m.submaps.push_back(*b);
+      for (const auto* b : relays[i].DueOpen(in_range, now)) m.open.push_back(*b);
+      in_flight.push_back(std::move(m));
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    const SubmapRelay& r = relays[i];
+    EXPECT_EQ(r.book().ChainLength(9, 1), 2u) << "agent " << i + 1;
+    ASSERT_EQ(r.open().size(), 1u) << "agent " << i + 1;
+    EXPECT_EQ(r.open().at({9, 1}).closed_s, 30.0);
+    EXPECT_EQ(r.counters().open_relayed, i + 1 < n ? 1u : 0u) << "agent " << i + 1;
+  }
+}
+
 }  // namespace
 }  // namespace mapmesh

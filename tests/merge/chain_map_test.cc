@@ -118,5 +118,41 @@ TEST(ChainMap, AMalformedSubmapEndsTheChain) {
   EXPECT_FALSE(two.broken());
 }
 
+// A chain's open submap (relayed when its robot fell silent) joins after the closed ones: the
+// map is the one joining it as the next submap gives, the chain itself is unchanged, and an
+// open submap that does not continue the chain, or is malformed, leaves the closed ones' map.
+TEST(ChainMap, AnOpenSubmapJoinsAfterTheClosedOnesWithoutChangingTheChain) {
+  const World w(10, 2.0);
+  std::mt19937_64 rng(5);
+  const TrueChain t = Drive(w, Pose2{0.5, 1.0, 0.1}, 5, 3.0);
+  const std::vector<WireSubmap> subs = MeasureAll(w, t, 2, rng);
+  const std::vector<const WireSubmap*> all = Pointers(subs);
+  ChainMap four, five;
+  four.Extend(std::span(all).first(4));
+  five.Extend(all);
+  EXPECT_EQ(&four.MapWith(nullptr), &four.map());
+  const LandmarkMap with = four.MapWith(all[4]);
+  EXPECT_EQ(four.joined(), 4u);
+  ASSERT_EQ(with.size(), five.map().size());
+  EXPECT_GT(with.size(), four.map().size());
+  for (std::size_t i = 0; i < with.size(); ++i) {
+    EXPECT_EQ(with.landmarks[i].id, five.map().landmarks[i].id);
+    EXPECT_LT((with.landmarks[i].mean - five.map().landmarks[i].mean).norm(), 1e-9);
+    EXPECT_LT((with.landmarks[i].cov - five.map().landmarks[i].cov).norm(), 1e-9);
+  }
+  // Asked again for the same open submap: the same map, kept.
+  EXPECT_EQ(&four.MapWith(all[4]), &four.MapWith(all[4]));
+  // Not the chain's next submap: the closed ones' map.
+  EXPECT_EQ(&four.MapWith(all[3]), &four.map());
+  EXPECT_EQ(&five.MapWith(all[4]), &five.map());
+  WireSubmap bad = subs[4];
+  bad.x(0) = std::numeric_limits<double>::quiet_NaN();
+  bad.closed_s += 1.0;  // a later version of it, malformed
+  EXPECT_EQ(&four.MapWith(&bad), &four.map());
+  EXPECT_FALSE(four.broken());
+  ChainMap none;
+  EXPECT_EQ(&none.MapWith(all[0]), &none.map());
+}
+
 }  // namespace
 }  // namespace mapmesh
