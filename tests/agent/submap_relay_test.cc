@@ -32,13 +32,20 @@ void AddOwn(SubmapRelay& r, const WireSubmap& s) {
   EXPECT_EQ(r.AddOwn(s, b), SubmapRelay::Offer::kNew);
 }
 
-std::vector<SubmapId> Ids(const std::vector<const std::vector<std::uint8_t>*>& sent) {
-  std::vector<SubmapId> out;
+// The submaps sent, decoded.
+std::vector<WireSubmap> Decoded(const std::vector<const std::vector<std::uint8_t>*>& sent) {
+  std::vector<WireSubmap> out;
   for (const auto* b : sent) {
     const SubmapDecodeResult d = DecodeSubmap(*b);
     EXPECT_TRUE(d.ok());
-    out.push_back(d.submap.id);
+    out.push_back(d.submap);
   }
+  return out;
+}
+
+std::vector<SubmapId> Ids(const std::vector<const std::vector<std::uint8_t>*>& sent) {
+  std::vector<SubmapId> out;
+  for (const WireSubmap& s : Decoded(sent)) out.push_back(s.id);
   return out;
 }
 
@@ -252,11 +259,7 @@ SubmapRelay::Offer AddOpen(SubmapRelay& r, const WireSubmap& s, double now) {
 
 std::vector<double> Ends(const std::vector<const std::vector<std::uint8_t>*>& sent) {
   std::vector<double> out;
-  for (const auto* b : sent) {
-    const SubmapDecodeResult d = DecodeSubmap(*b);
-    EXPECT_TRUE(d.ok());
-    out.push_back(d.submap.closed_s);
-  }
+  for (const WireSubmap& s : Decoded(sent)) out.push_back(s.closed_s);
   return out;
 }
 
