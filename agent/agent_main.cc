@@ -262,6 +262,8 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
             {"global_landmarks", node.global().map.size()},
             {"observations", node.mapper().stats()},
             {"bytes_per_landmark", s.BytesPerLandmark()},
+            {"payload_bytes_sent", s.payload_bytes_sent},  // of bytes_sent: the maps' payloads
+            {"landmarks_sent", s.landmarks_sent},
             {"maps_dropped", s.MapsDropped()},
             {"maps_rejected", rejected},
             {"maps_refused", refused},
@@ -292,6 +294,7 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"bytes_sent", sc.bytes_sent},
               {"sent_again", sc.sent_again},
               {"held_back", sc.held_back},
+              {"open_own_bytes_sent", s.open_submap_bytes_sent},
               {"open_held", node.submaps().open().size()},
               {"open_taken", sc.open_taken},
               {"open_relayed", sc.open_relayed},

@@ -301,6 +301,7 @@ bool AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t vers
   stats_.bytes_sent += WireBytes(msg);
   stats_.landmarks_sent += landmarks;
   stats_.payload_bytes_sent += msg.payload.size();
+  stats_.open_submap_bytes_sent += msg.open_submap.size();
   stats_.sightings_sent += static_cast<std::uint32_t>(riders.size());
   stats_.sighting_bytes_sent += riders.size() * kSightingWireBytes;
   msg.sightings = std::move(riders);

@@ -110,10 +110,11 @@ struct AgentStats {
   std::array<std::uint32_t, kMapRefusalCount> maps_refused{};  // by MapRefusal
   std::uint32_t maps_encode_failed = 0;                        // own maps that could not be encoded (never sent) ...
   MapDecodeError last_encode_error = MapDecodeError::kOk;      // ... the last time, why
-  std::uint32_t maps_encode_trimmed = 0;  // own maps sent without landmarks beyond the codec's bound
-  std::uint32_t links_refused = 0;        // link tables with implausible stamps
-  std::uint64_t landmarks_sent = 0;       // over all maps sent
-  std::uint64_t payload_bytes_sent = 0;   // their encoded payloads
+  std::uint32_t maps_encode_trimmed = 0;     // own maps sent without landmarks beyond the codec's bound
+  std::uint32_t links_refused = 0;           // link tables with implausible stamps
+  std::uint64_t landmarks_sent = 0;          // over all maps sent
+  std::uint64_t payload_bytes_sent = 0;      // their encoded payloads
+  std::uint64_t open_submap_bytes_sent = 0;  // the own open submaps riding on them (fusion joining)
   std::map<RobotId, std::uint32_t> maps_received_from;
   std::map<RobotId, double> data_until;     // per robot: the latest stamp of a map taken from it (its data up to then)
   std::uint32_t sightings_sent = 0;         // robot sightings and answers published (rendezvous)
