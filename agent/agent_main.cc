@@ -297,6 +297,7 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"open_own_bytes_sent", s.open_submap_bytes_sent},
               {"open_held", node.submaps().open().size()},
               {"open_taken", sc.open_taken},
+              {"open_gaps", sc.open_gaps},
               {"open_relayed", sc.open_relayed},
               {"open_bytes_relayed", sc.open_bytes_relayed},
               {"rejected", submap_rejected},

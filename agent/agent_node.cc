@@ -121,7 +121,11 @@ AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId s
                      run.seed * 998244353ULL + self * 104729ULL + incarnation),
       rendezvous_(self, incarnation, run.robots, options.rendezvous, run.sensor.sigma_range_m,
                   run.sensor.sigma_bearing_rad),
-      submaps_(options.exchange.Submaps()),
+      submaps_([&] {
+        SubmapRelayOptions o = options.exchange.Submaps();
+        o.max_open = run.robots.size() * static_cast<std::size_t>(options.exchange.max_incarnations);
+        return o;
+      }()),
       joining_(options.exchange.global.method == FusionMethod::kJoining),
       exchange_ticks_(run.exchange_ticks),
       next_checkpoint_s_(options.checkpoint_period_s) {}
@@ -283,11 +287,14 @@ bool AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t vers
       if (r != self_ && gate_.InRange(r)) in_range.insert(r);
     }
     msg.submaps_held = submaps_.Advert();
-    for (const std::vector<std::uint8_t>* b : submaps_.Due(in_range, sync_.processed_until()))
+    std::size_t spent = 0;  // one send_bytes budget for the closed and the open submaps relayed
+    for (const std::vector<std::uint8_t>* b : submaps_.Due(in_range, sync_.processed_until())) {
       msg.submaps.push_back(*b);
+      spent += b->size();
+    }
     if (own_open_) msg.open_submap = EncodeSubmap(*own_open_);
     if (joining_) {
-      for (const std::vector<std::uint8_t>* b : submaps_.DueOpen(in_range, sync_.processed_until()))
+      for (const std::vector<std::uint8_t>* b : submaps_.DueOpen(in_range, sync_.processed_until(), spent))
         msg.open_relayed.push_back(*b);
       // Only what a receiver takes (PlausiblePlacements), so that one chain placed beyond a map's
       // bound does not make the peers refuse all of them.
@@ -424,7 +431,7 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
     } else if (relayed && d.submap.id.robot == msg.robot_id) {
       refuse(SubmapRefusal::kOpenRelayedByItsRobot);
     } else if (d.submap.id.robot != self_ && admissible(d.submap) &&
-               submaps_.AddOpen(d.submap, bytes, now) == SubmapRelay::Offer::kNew) {
+               submaps_.AddOpen(d.submap, bytes, now, relayed) == SubmapRelay::Offer::kNew) {
       double& until = stats_.data_until[d.submap.id.robot];  // the join may use it: its data reached us
       until = std::max(until, d.submap.closed_s);
     }

@@ -74,8 +74,8 @@ enum class MapRefusal {
 inline constexpr int kMapRefusalCount = 6;
 std::string_view ToString(MapRefusal r);
 
-// Why a well-formed closed submap riding on a peer's local map was refused (issue J1); each
-// refusal changes nothing.
+// Why a well-formed submap riding on a peer's local map (closed, or with fusion joining open)
+// was refused (issue J1); each refusal changes nothing.
 enum class SubmapRefusal {
   kTooManyOnOneMap = 0,  // beyond kMaxSubmapsPerMap on one map (the rest of them)
   kUnknownRobot,         // made by a robot not of this run
@@ -92,7 +92,8 @@ enum class SubmapRefusal {
 };
 inline constexpr int kSubmapRefusalCount = 9;
 std::string_view ToString(SubmapRefusal r);
-// A local map carries at most this many submaps (the first are taken, the rest refused).
+// A local map carries at most this many closed submaps, and as many relayed open ones (the first
+// are taken, the rest refused).
 inline constexpr std::size_t kMaxSubmapsPerMap = 1024;
 
 // Counters of the maps the agent sent, received, dropped or rejected, and why.
@@ -116,7 +117,9 @@ struct AgentStats {
   std::uint64_t payload_bytes_sent = 0;      // their encoded payloads
   std::uint64_t open_submap_bytes_sent = 0;  // the own open submaps riding on them (fusion joining)
   std::map<RobotId, std::uint32_t> maps_received_from;
-  std::map<RobotId, double> data_until;     // per robot: the latest stamp of a map taken from it (its data up to then)
+  // per robot: the latest stamp of a map taken from it, or end of an open submap of it taken
+  // (its publisher's or relayed): its data up to then
+  std::map<RobotId, double> data_until;
   std::uint32_t sightings_sent = 0;         // robot sightings and answers published (rendezvous)
   std::uint32_t sightings_unsent = 0;       // lockstep: ... dropped, neither map of the tick could carry them
   std::uint64_t sighting_bytes_sent = 0;    // ... their bytes on the wire

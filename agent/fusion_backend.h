@@ -2,8 +2,8 @@
 // How an agent builds its global maps from its own local map and its peers' placed maps
 // (agent.fusion), chosen once when the exchange starts: Covariance Intersection into the cloned
 // global map (the thesis's method and the default), or least-squares joining: of the own and
-// the aligned peers' submap chains where the agent holds them (agent.slam cekf_submaps; the
-// landmarks only the peers' open submaps hold are placed as the CI build places them), else of
+// the aligned peers' submap chains where the agent holds them (agent.slam cekf_submaps; each
+// chain's open submap taken joined after its closed ones), else of
 // the one-hop maps. Joining also places the chains of robots whose submaps reached the agent
 // only through relays: each such chain's map is rebuilt from its submaps (ChainMap) and aligned
 // against the own and one-hop maps, and used once a later alignment agrees (two hops and more);
@@ -27,8 +27,8 @@
 namespace mapmesh {
 
 // What a back-end may use besides maps (issue J1): the closed submaps the agent holds, by
-// identity (its own and its peers'), and its own open submap (index: its closed ones' count;
-// null for none). Everything is the agent's and only pointed to: it must outlive the use.
+// identity (its own and its peers'), its own open submap (index: its closed ones' count; null
+// for none) and the other robots' it took. Everything is the agent's and only pointed to: it must outlive the use.
 struct SubmapInputs {
   const SubmapBook* book = nullptr;
   const WireSubmap* own_open = nullptr;

@@ -56,7 +56,6 @@ SubmapRelay::Offer SubmapRelay::Restore(const WireSubmap& submap, std::span<cons
 void SubmapRelay::OnAdvert(const PeerKey& from, std::span<const SubmapChain> held, double now) {
   Advertised& a = adverts_[from];
   a.count.clear();
-  a.at = now;
   a.open_until.clear();
   a.at = now;
   for (std::size_t i = 0; i < held.size() && i < kMaxChains; ++i) {
@@ -72,8 +71,8 @@ std::vector<SubmapChain> SubmapRelay::Advert() const {
       return std::pair{c.robot, c.incarnation} < std::pair{k.robot, k.incarnation};
     });
     if (at != chains.end() && at->robot == key.robot && at->incarnation == key.incarnation) {
-      if (at->count == s.id.index) at->open_until = s.closed_s;
-    } else if (s.id.index == 0) {
+      if (s.id.index >= at->count) at->open_until = s.closed_s;
+    } else if (chains.size() < kMaxChains) {  // never at the cost of a closed chain
       chains.insert(at, SubmapChain{key.robot, key.incarnation, 0, s.closed_s});
     }
   }
@@ -81,7 +80,8 @@ std::vector<SubmapChain> SubmapRelay::Advert() const {
   return chains;
 }
 
-SubmapRelay::Offer SubmapRelay::AddOpen(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now) {
+SubmapRelay::Offer SubmapRelay::AddOpen(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now,
+                                        bool relayed) {
   const PeerKey key{submap.id.robot, submap.id.incarnation};
   const auto held = open_.find(key);
   if (book_.Find(submap.id) != nullptr ||
@@ -89,7 +89,12 @@ SubmapRelay::Offer SubmapRelay::AddOpen(const WireSubmap& submap, std::span<cons
        std::tie(submap.id.index, submap.closed_s) <= std::tie(held->second.id.index, held->second.closed_s))) {
     return Offer::kDuplicate;
   }
-  if (held == open_.end() && open_.size() >= options_.max_held) {
+  if (relayed && submap.id.index != book_.ChainLength(submap.id.robot, submap.id.incarnation)) {
+    ++counters_.open_gaps;
+    return Offer::kGap;
+  }
+  const std::size_t max_open = options_.max_open > 0 ? options_.max_open : options_.max_held;
+  if (held == open_.end() && open_.size() >= max_open) {
     ++counters_.full;
     return Offer::kFull;
   }
@@ -101,7 +106,8 @@ SubmapRelay::Offer SubmapRelay::AddOpen(const WireSubmap& submap, std::span<cons
   return Offer::kNew;
 }
 
-std::vector<const std::vector<std::uint8_t>*> SubmapRelay::DueOpen(const std::set<RobotId>& in_range, double now) {
+std::vector<const std::vector<std::uint8_t>*> SubmapRelay::DueOpen(const std::set<RobotId>& in_range, double now,
+                                                                   std::size_t spent) {
   std::vector<std::pair<const PeerKey*, const Advertised*>> listening;
   for (const auto& [key, a] : adverts_) {
     if (in_range.contains(key.robot) && now - a.at <= options_.advert_max_age_s) listening.push_back({&key, &a});
@@ -126,10 +132,10 @@ std::vector<const std::vector<std::uint8_t>*> SubmapRelay::DueOpen(const std::se
            std::tie(b->id.index, b->id.robot, b->id.incarnation);
   });
   std::vector<const std::vector<std::uint8_t>*> out;
-  std::size_t bytes = 0;
+  std::size_t bytes = spent;
   for (const WireSubmap* s : due) {
     OpenHeld& h = open_held_.at({s->id.robot, s->id.incarnation});
-    if (!out.empty() && bytes + h.bytes.size() > options_.send_bytes) {
+    if ((spent > 0 || !out.empty()) && bytes + h.bytes.size() > options_.send_bytes) {
       ++counters_.held_back;
       continue;
     }

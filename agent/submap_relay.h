@@ -19,7 +19,9 @@
 // submap it took (a later index, or the same one mapped further), its publisher's or relayed.
 // One that has not changed for open_silent_after_s is a silent robot's: it goes, as taken, to
 // a peer in range whose advertisement holds the chain up to it (count = its index) but not it
-// (an earlier open_until), again only after resend_after_s. A robot's open submap reaches the
+// (no open_until, or an earlier one: a peer holding a later open submap of the robot does not
+// lack it), again only after resend_after_s. A relayed one is taken only where it continues the
+// chain held. A robot's open submap reaches the
 // peers of the last agents that heard it, hop by hop, once it falls silent; while it publishes,
 // its peers hear it themselves and nothing is relayed. The closed submap of its index replaces
 // it. It enters a join only where it continues the chain held, so nothing is counted twice.
@@ -46,13 +48,15 @@ struct SubmapRelayOptions {
   std::size_t max_held = 20000;      // agent.max_submaps_held: submaps held at most (own ones always)
   double advert_max_age_s = 0.0;     // a peer's advertisement counts this long after it arrived (0: 3 map periods)
   double open_silent_after_s = 0.0;  // an open submap unchanged this long is relayed (0: agent.silent_after_s)
+  std::size_t max_open = 0;  // open submaps kept at most (the agent's: robots x agent.max_incarnations; 0: max_held)
 };
 
 class SubmapRelay {
  public:
   explicit SubmapRelay(const SubmapRelayOptions& options) : options_(options) {}
 
-  enum class Offer { kNew, kDuplicate, kConflict, kFull };
+  // kGap: a relayed open submap that does not continue the chain held (AddOpen).
+  enum class Offer { kNew, kDuplicate, kConflict, kFull, kGap };
   // One of the agent's own closed submaps. kFull never happens: own submaps always enter.
   Offer AddOwn(const WireSubmap& submap, std::span<const std::uint8_t> bytes);
   // A decoded, validated submap received from a peer (or relayed by one) at scenario time now.
@@ -63,22 +67,26 @@ class SubmapRelay {
   // A peer's advertisement, received at scenario time now; replaces its earlier one. Chains
   // beyond max_chains are ignored.
   void OnAdvert(const PeerKey& from, std::span<const SubmapChain> held, double now);
-  // The chains to advertise (SubmapBook::Chains, with open_until where an open submap held
-  // continues the chain; a chain only an open submap of index 0 starts has count 0), at most
-  // max_chains.
+  // The chains to advertise (SubmapBook::Chains, with open_until where an open submap is held
+  // beyond the chain's closed ones; a chain of which only an open submap is held has count 0,
+  // advertised only where max_chains leaves room), at most max_chains.
   std::vector<SubmapChain> Advert() const;
 
   // Another robot's decoded, validated open submap, from its publisher or relayed, received at
   // scenario time now: kept when it is the first of its robot incarnation, or later (a higher
   // index, or the same mapped further) than the one kept, and no closed submap of its index is
-  // held (kDuplicate otherwise, ignored); kFull when max_held open ones are kept already.
-  Offer AddOpen(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now);
+  // held (kDuplicate otherwise, ignored). A relayed one only where it continues the chain held
+  // (its index is the ChainLength: kGap otherwise, as a relay sends it); kFull when max_open
+  // open ones are kept already.
+  Offer AddOpen(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now, bool relayed = false);
   // The open submaps kept, by robot incarnation (the joining back-end's input).
   const std::map<PeerKey, WireSubmap>& open() const { return open_; }
   // The silent robots' open submaps to relay at scenario time now (see the header), lowest
-  // index first, then robot and incarnation; at most send_bytes in all (the first always).
+  // index first, then robot and incarnation; at most send_bytes in all with the `spent` bytes
+  // of the closed ones due in the same publication (the first always, when those are none).
   // Marks them sent at now.
-  std::vector<const std::vector<std::uint8_t>*> DueOpen(const std::set<RobotId>& in_range, double now);
+  std::vector<const std::vector<std::uint8_t>*> DueOpen(const std::set<RobotId>& in_range, double now,
+                                                        std::size_t spent = 0);
   // The submaps to send at scenario time now: those held that a peer in range (a robot of
   // `in_range` whose advertisement is at most advert_max_age_s old) lacks by an advertisement
   // that came after the submap was last heard, not sent within resend_after_s, the lowest
@@ -99,6 +107,7 @@ class SubmapRelay {
     std::uint32_t sent_again = 0;          // ... of which sent before (to a peer come into range since, or lost)
     std::uint32_t held_back = 0;           // due ones left for a later publication (send_bytes)
     std::uint32_t open_taken = 0;          // open submaps kept (AddOpen: each later version)
+    std::uint32_t open_gaps = 0;           // relayed open submaps refused: not continuing the chain held (kGap)
     std::uint32_t open_relayed = 0;        // silent robots' open submaps sent (DueOpen, each time)
     std::uint64_t open_bytes_relayed = 0;  // ... their bytes
   };

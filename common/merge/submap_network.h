@@ -2,8 +2,8 @@
 // Least-squares joining of several robots' submap chains (issue J1, the `joining` back-end):
 // the multi-robot form of SubmapJoiner (I-SLSJF; Downs 4.3).
 //
-// Chain c is one robot incarnation's closed submaps 0 .. K_c - 1 (and, for the own robot, its
-// open one last). Submap k of chain c is an estimate, in its frame F_{c,k}, of the robot's pose
+// Chain c is one robot incarnation's closed submaps 0 .. K_c - 1 (and the open one last where
+// the caller holds it: the own robot's, a peer's, or a silent robot's relayed). Submap k of chain c is an estimate, in its frame F_{c,k}, of the robot's pose
 // at its end (the origin of F_{c,k+1}) and of its landmarks, with their joint covariance. The
 // unknowns are every chain's frames X_{c,k} in the joined frame (the first chain's X_{0,0} is
 // the joined frame's origin, fixed) and the landmarks; each landmark is a group of

@@ -105,8 +105,8 @@ struct SubmapChain {
   RobotId robot = 0;
   std::uint32_t incarnation = 0;
   std::uint32_t count = 0;
-  // With fusion joining: the end (closed_s) of the open submap the publisher holds that
-  // continues the chain (index count), its own or a silent robot's relayed to it; 0 when none.
+  // With fusion joining: the end (closed_s) of another robot's open submap the publisher holds
+  // beyond the chain's closed ones (from that robot, or relayed once it fell silent); 0 when none.
   double open_until = 0.0;
   friend auto operator<=>(const SubmapChain&, const SubmapChain&) = default;
 };

@@ -1,6 +1,8 @@
 """What of the run's data reached each agent by its end (issue J1's gap): each other robot's data
-up to the last moment any of it reached the agent, through the robot's own maps, the closed
-submaps the agent holds of it (any number of hops), or a peer's maps that fused it (two hops).
+up to the last moment any of it reached the agent, through the robot's own maps and open
+submaps, its open submap relayed once it fell silent (both in stats.json's data_until), the
+closed submaps the agent holds of it (any number of hops), or a peer's maps that fused it (two
+hops).
 Where that is less than the whole run for some robot (a robot out of range at the end, a chain
 whose last submaps never came), the optimum of what reached the agent is its limit: no merging
 can recover what never arrived. Each moment is an upper bound of what reached the agent (a map

@@ -447,7 +447,7 @@ agent: {map_publish_period_s: 1.0, fusion: joining}
   m.incarnation = 1;
   m.stamp = 0.0;
   m.open_submap = open(3, 0.0);                                               // not the publisher's
-  m.open_relayed = {open(2, 0.0), open(3, 0.0), open(9, 0.0), open(1, 0.0)};  // its own, 3's, 9's, ours
+  m.open_relayed = {open(2, 0.0), open(3, 5.0), open(9, 0.0), open(1, 0.0)};  // its own, 3's, 9's, ours
   node.OnMap(m);
   const auto refused = [&](SubmapRefusal r) { return node.stats().submaps_refused[static_cast<int>(r)]; };
   EXPECT_EQ(node.stats().maps_received, 1u);
@@ -456,7 +456,7 @@ agent: {map_publish_period_s: 1.0, fusion: joining}
   EXPECT_EQ(refused(SubmapRefusal::kUnknownRobot), 1u);
   ASSERT_EQ(node.submaps().open().size(), 1u);
   EXPECT_EQ(node.submaps().open().begin()->first, (PeerKey{3, 1}));
-  EXPECT_EQ(node.stats().data_until.at(3), 0.0);
+  EXPECT_EQ(node.stats().data_until.at(3), 5.0);
   EXPECT_EQ(node.stats().data_until.count(1), 0u);
 }
 

@@ -282,48 +282,75 @@ TEST(SubmapRelay, AnOpenSubmapGoesOnOnceItsRobotFellSilentToAPeerThatLacksIt) {
   EXPECT_TRUE(r.DueOpen({1}, 12.0).empty());  // robot 3 is still heard
   EXPECT_EQ(AddOpen(r, Open(31.0), 12.0), SubmapRelay::Offer::kNew);
   EXPECT_EQ(AddOpen(r, Open(30.0), 13.0), SubmapRelay::Offer::kDuplicate);     // an older one, late
-  EXPECT_EQ(AddOpen(r, Open(31.0, 1), 13.0), SubmapRelay::Offer::kDuplicate);  // its closed one is held
+  EXPECT_EQ(AddOpen(r, Open(31.0, 1), 13.0), SubmapRelay::Offer::kDuplicate);  // an earlier index
   EXPECT_EQ(r.open().at({3, 1}).closed_s, 31.0);
   EXPECT_EQ(r.counters().open_taken, 2u);
   EXPECT_TRUE(r.DueOpen({1}, 17.0).empty());  // unchanged for 5 s only
   EXPECT_TRUE(r.Due({1}, 18.0).empty());      // the closed ones it has
   EXPECT_EQ(Ends(r.DueOpen({1}, 18.0)), (std::vector<double>{31.0}));
+  r.OnAdvert({1, 1}, lacks, 18.5);            // spoken before it arrived
   EXPECT_TRUE(r.DueOpen({1}, 19.0).empty());  // sent: not again before resend_after_s
-  EXPECT_TRUE(r.DueOpen({2}, 24.0).empty());  // robot 1 out of range, no other listener
   const std::vector<SubmapChain> has_it = {{3, 1, 2, 31.0}};
   r.OnAdvert({1, 1}, has_it, 20.0);
   EXPECT_TRUE(r.DueOpen({1}, 25.0).empty());
   r.OnAdvert({1, 1}, lacks, 26.0);  // it lost it (restarted)
   EXPECT_EQ(Ends(r.DueOpen({1}, 26.0)), (std::vector<double>{31.0}));
-  EXPECT_EQ(r.counters().open_relayed, 2u);
-  EXPECT_EQ(r.counters().open_bytes_relayed, 2 * EncodeSubmap(Open(31.0)).size());
-  // Not to its own robot, nor to a peer that cannot chain it or holds its closed one.
-  const std::vector<SubmapChain> own = {{3, 1, 2, 0.0}}, short_chain = {{3, 1, 1, 0.0}}, closed = {{3, 1, 3, 0.0}};
+  // Robot 2 lacks it too, but is out of range until it is.
+  r.OnAdvert({2, 1}, lacks, 33.0);
+  EXPECT_TRUE(r.DueOpen({}, 33.0).empty());
+  EXPECT_EQ(Ends(r.DueOpen({2}, 33.0)), (std::vector<double>{31.0}));
+  EXPECT_EQ(r.counters().open_relayed, 3u);
+  EXPECT_EQ(r.counters().open_bytes_relayed, 3 * EncodeSubmap(Open(31.0)).size());
+  // Not to its own robot, nor to a peer that cannot chain it, holds its closed one, or holds a
+  // later open one (beyond a closed one it lacks).
+  const std::vector<SubmapChain> own = {{3, 1, 2, 0.0}}, short_chain = {{3, 1, 1, 0.0}}, closed = {{3, 1, 3, 0.0}},
+                                 later = {{3, 1, 2, 45.0}};
   r.OnAdvert({3, 1}, own, 40.0);
   r.OnAdvert({4, 1}, short_chain, 40.0);
   r.OnAdvert({5, 1}, closed, 40.0);
-  EXPECT_TRUE(r.DueOpen({3, 4, 5}, 40.0).empty());
-  // Its closed submap arrives: the open one is gone, and the chain advertised is the closed one.
+  r.OnAdvert({6, 1}, later, 40.0);
+  EXPECT_TRUE(r.DueOpen({3, 4, 5, 6}, 40.0).empty());
+  r.OnAdvert({6, 1}, lacks, 40.0);
+  EXPECT_EQ(Ends(r.DueOpen({3, 4, 5, 6}, 40.0)), (std::vector<double>{31.0}));  // the one that lacks it
+  // Its closed submap arrives: the open one is gone, no open one of its index enters again, and
+  // the chain advertised is the closed one.
   const WireSubmap two = Submap(3, 1, 2);
   EXPECT_EQ(r.Add(two, EncodeSubmap(two), 41.0), SubmapRelay::Offer::kNew);
   EXPECT_TRUE(r.open().empty());
+  EXPECT_EQ(AddOpen(r, Open(45.0), 42.0), SubmapRelay::Offer::kDuplicate);
+  EXPECT_TRUE(r.open().empty());
   EXPECT_EQ(r.Advert(), (std::vector<SubmapChain>{{3, 1, 3, 0.0}}));
-  EXPECT_TRUE(r.DueOpen({1, 4}, 50.0).empty());
 }
 
-// An open submap that starts a chain is advertised as the chain of count 0; one that does not
-// continue the chain held is kept but not advertised; max_held bounds the open ones kept.
-TEST(SubmapRelay, OpenSubmapsAdvertisedWhereTheyContinueAChainAndBounded) {
+// A chain of which only an open submap is held is advertised with count 0; an open submap held
+// beyond the closed ones gives its chain's open_until. A relayed open submap enters only where
+// it continues the chain held; max_open bounds the open ones kept; the closed ones and the
+// relayed open ones of one publication share send_bytes.
+TEST(SubmapRelay, OpenSubmapsAdvertisedBoundedAndWithinTheBudget) {
   SubmapRelayOptions o = Options();
-  o.max_held = 2;
+  o.max_open = 2;
+  o.open_silent_after_s = 1.0;
   SubmapRelay r(o);
   AddOwn(r, Submap(1, 1, 0));
   EXPECT_EQ(AddOpen(r, Open(5.0, 0, 2), 1.0), SubmapRelay::Offer::kNew);
-  EXPECT_EQ(AddOpen(r, Open(25.0, 2, 4), 1.0), SubmapRelay::Offer::kNew);  // robot 4's 0 and 1 not held
+  EXPECT_EQ(AddOpen(r, Open(25.0, 2, 4), 1.0),
+            SubmapRelay::Offer::kNew);  // its publisher's: robot 4's 0 and 1 not held
   EXPECT_EQ(AddOpen(r, Open(5.0, 0, 5), 1.0), SubmapRelay::Offer::kFull);
   EXPECT_EQ(AddOpen(r, Open(6.0, 0, 2), 2.0), SubmapRelay::Offer::kNew);  // a later version still enters
   EXPECT_EQ(r.counters().full, 1u);
-  EXPECT_EQ(r.Advert(), (std::vector<SubmapChain>{{1, 1, 1, 0.0}, {2, 1, 0, 6.0}}));
+  EXPECT_EQ(r.Advert(), (std::vector<SubmapChain>{{1, 1, 1, 0.0}, {2, 1, 0, 6.0}, {4, 1, 0, 25.0}}));
+  EXPECT_EQ(r.AddOpen(Open(7.0, 1, 2), EncodeSubmap(Open(7.0, 1, 2)), 3.0, true), SubmapRelay::Offer::kGap);
+  EXPECT_EQ(r.AddOpen(Open(8.0, 0, 2), EncodeSubmap(Open(8.0, 0, 2)), 3.0, true), SubmapRelay::Offer::kNew);
+  EXPECT_EQ(r.counters().open_gaps, 1u);
+  // Robot 6 lacks robot 1's closed submap and robot 2's open one: the closed one spent the
+  // budget, so the open one waits (the first of a publication goes whatever its size).
+  const std::vector<SubmapChain> lacks = {{2, 1, 0, 0.0}};
+  r.OnAdvert({6, 1}, lacks, 10.0);
+  const auto closed = r.Due({6}, 10.0);
+  ASSERT_EQ(closed.size(), 1u);
+  EXPECT_TRUE(r.DueOpen({6}, 10.0, o.send_bytes).empty());
+  EXPECT_EQ(r.counters().held_back, 1u);
+  EXPECT_EQ(Ends(r.DueOpen({6}, 11.0, closed[0]->size())), (std::vector<double>{8.0}));
 }
 
 // A silent robot's open submap reaches every hop of a line, one relay after another, each

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <limits>
 #include <random>
 #include <set>
@@ -140,14 +141,26 @@ TEST(ChainMap, AnOpenSubmapJoinsAfterTheClosedOnesWithoutChangingTheChain) {
     EXPECT_LT((with.landmarks[i].mean - five.map().landmarks[i].mean).norm(), 1e-9);
     EXPECT_LT((with.landmarks[i].cov - five.map().landmarks[i].cov).norm(), 1e-9);
   }
-  // Asked again for the same open submap: the same map, kept.
-  EXPECT_EQ(&four.MapWith(all[4]), &four.MapWith(all[4]));
+  // Asked again for the same version of the open submap (identity and end): the map kept, not
+  // solved again (this copy's moved landmarks would move the map).
+  WireSubmap same = subs[4];
+  same.x.tail(same.x.size() - 3).array() += 1.0;
+  const LandmarkMap& kept = four.MapWith(&same);
+  ASSERT_EQ(kept.size(), with.size());
+  for (std::size_t i = 0; i < with.size(); ++i) EXPECT_EQ(kept.landmarks[i].mean, with.landmarks[i].mean);
+  same.closed_s += 1.0;  // a later version: solved again
+  const LandmarkMap& later = four.MapWith(&same);
+  ASSERT_EQ(later.size(), with.size());
+  double moved = 0.0;
+  for (std::size_t i = 0; i < with.size(); ++i)
+    moved = std::max(moved, (later.landmarks[i].mean - with.landmarks[i].mean).norm());
+  EXPECT_GT(moved, 1e-3);  // the kept one was equal to the digit
   // Not the chain's next submap: the closed ones' map.
   EXPECT_EQ(&four.MapWith(all[3]), &four.map());
   EXPECT_EQ(&five.MapWith(all[4]), &five.map());
   WireSubmap bad = subs[4];
   bad.x(0) = std::numeric_limits<double>::quiet_NaN();
-  bad.closed_s += 1.0;  // a later version of it, malformed
+  bad.closed_s += 2.0;  // a later version of it, malformed
   EXPECT_EQ(&four.MapWith(&bad), &four.map());
   EXPECT_FALSE(four.broken());
   ChainMap none;
