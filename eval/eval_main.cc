@@ -69,6 +69,31 @@ AgentFiles ReadAgent(const std::string& dir, const io::RunTruth& truth) {
   return f;
 }
 
+// Every global map's landmarks without a signature (its peers') signed by their origins
+// (SignByOrigins): the identities the robots' sensors gave them, from each robot's final local
+// map (its last incarnation's; origins in an earlier incarnation keep matching by distance).
+std::map<RobotId, OriginSigning> SignGlobalMapsByOrigins(std::map<RobotId, AgentFiles>& files) {
+  LocalSignatures known;
+  for (const auto& [robot, f] : files) {
+    if (!f.local || !f.has_stats || !f.stats.contains("incarnation")) continue;
+    const auto incarnation = f.stats.at("incarnation").get<std::uint32_t>();
+    for (const Landmark& l : f.local->landmarks) known[{robot, incarnation, l.id}] = l.signature;
+  }
+  std::map<RobotId, OriginSigning> out;
+  for (auto& [robot, f] : files) {
+    if (!f.global) continue;
+    std::vector<std::vector<LocalLandmark>> origins;
+    for (const json& l : f.global_json.at("landmarks")) {
+      origins.emplace_back();
+      for (const json& o : l.value("origins", json::array())) {
+        origins.back().emplace_back(o.at(0).get<RobotId>(), o.at(1).get<std::uint32_t>(), o.at(2).get<std::uint32_t>());
+      }
+    }
+    out[robot] = SignByOrigins(*f.global, origins, known);
+  }
+  return out;
+}
+
 // Errors of the agent's alignments against the truth, keyed by peer ("3"; an older
 // incarnation of a peer as "3@1"). trans_m is taken at the peer map's centroid, against the
 // true start poses of both frames; trans_fit_m and rot_fit_rad against the frames the two
@@ -261,6 +286,7 @@ int Run(int argc, char** argv) {
   for (const io::RobotTruth& robot : truth.robots) {
     files[robot.id] = ReadAgent(run_dir + "/agent_" + std::to_string(robot.id), truth);
   }
+  const std::map<RobotId, OriginSigning> signing = SignGlobalMapsByOrigins(files);
   json agents = json::object();
   for (const io::RobotTruth& robot : truth.robots) {
     const std::string dir = run_dir + "/agent_" + std::to_string(robot.id);
@@ -289,6 +315,10 @@ int Run(int argc, char** argv) {
       entry[kind] = QualityJson(EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, fitted ? local_fit : origin,
                                                     gate_m));
       if (fitted) entry[kind]["frame"] = "local_map_fit";
+      if (const auto s = signing.find(robot.id); std::string(kind) == "global" && s != signing.end()) {
+        entry[kind]["signed_by_origins"] = s->second.signed_count;
+        entry[kind]["identities_mixed"] = s->second.mixed;
+      }
       // The same map after a least-squares rigid fit of all of it to the truth, whatever its
       // origin: the error of its shape alone (relayed landmarks included in a global map).
       const MapQuality aligned = EvaluateFittedMap(map, truth.landmarks, truth.seen, origin ? origin : f.local_in_world,

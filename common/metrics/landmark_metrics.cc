@@ -157,4 +157,26 @@ LandmarkMap RestrictToTruth(const LandmarkMap& map, const std::vector<int>& trut
   return out;
 }
 
+OriginSigning SignByOrigins(LandmarkMap& map, const std::vector<std::vector<LocalLandmark>>& origins,
+                            const LocalSignatures& known) {
+  OriginSigning out;
+  for (std::size_t i = 0; i < map.size() && i < origins.size(); ++i) {
+    std::int32_t& signature = map.landmarks[i].signature;
+    bool mixed = false;
+    std::int32_t first = signature;
+    for (const auto& origin : origins[i]) {
+      const auto it = known.find(origin);
+      if (it == known.end() || it->second < 0) continue;
+      if (first < 0) first = it->second;
+      mixed = mixed || it->second != first;
+    }
+    if (mixed) ++out.mixed;
+    if (signature < 0 && first >= 0 && !mixed) {
+      signature = first;
+      ++out.signed_count;
+    }
+  }
+  return out;
+}
+
 }  // namespace mapmesh

@@ -3,13 +3,17 @@
 // ratio at the 95 % chi-square bound, and coverage.
 
 #include <Eigen/Core>
+#include <cstdint>
+#include <map>
 #include <optional>
+#include <tuple>
 #include <utility>
 #include <vector>
 
 #include "common/geometry/pose2.h"
 
 #include "common/map/landmark_map.h"
+#include "common/types/messages.h"
 
 namespace mapmesh {
 
@@ -73,6 +77,27 @@ MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::
 // evaluated is false when there is no start or fewer than two landmarks match.
 MapQuality EvaluateFittedMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
                              const std::vector<int>& seen, const std::optional<Pose2>& initial, double gate_m = 2.0);
+
+// A local map's landmark: robot, incarnation, landmark id (a global map's origins name them).
+using LocalLandmark = std::tuple<RobotId, std::uint32_t, std::uint32_t>;
+// Local landmarks' identities as their robots' sensors gave them (their signatures).
+using LocalSignatures = std::map<LocalLandmark, std::int32_t>;
+
+// What SignByOrigins did.
+struct OriginSigning {
+  int signed_count = 0;  // landmarks without a signature given one by their origins
+  int mixed = 0;         // landmarks whose origins, the holder's included, name different signatures
+};
+
+// Gives each landmark of a global map that carries no signature (a peer's: maps on the wire
+// carry none) the signature its origins (`origins[i]`, the source landmarks fused into landmark
+// i) have in `known`, so that it is scored against the landmark its robots' sensors measured
+// rather than the nearest true one (in rows 1.5 m apart, a neighbour's, once a map's frame
+// drifts). Origins `known` lacks are skipped. A landmark whose known origins name different
+// signatures (a false association, or a pairing the join dropped: its origins are the
+// association's) counts in `mixed` and is not signed: it is matched by distance as before.
+OriginSigning SignByOrigins(LandmarkMap& map, const std::vector<std::vector<LocalLandmark>>& origins,
+                            const LocalSignatures& known);
 
 // The landmarks of a map whose signature is among truth_indices (increasing): a reference map (whose
 // signatures are the true landmarks' indices) on the landmarks another map holds.

@@ -55,6 +55,7 @@ class ExchangeTest(SwarmCase):
             self.assertEqual(g["coverage"], 1.0)  # every landmark either robot saw
             self.assertEqual(g["matched"], g["landmarks"])  # and no duplicates nor strays
             self.assertLessEqual(g["nees_mean"], a["local"]["nees_mean"] + 1e-6)
+            self.assertEqual(g["identities_mixed"], 0, g)  # no landmark fuses two trees
 
     def test_multi_hop_line_of_three(self):
         agents = self.run_ok(SCENARIOS / "line3.yaml")
@@ -147,6 +148,10 @@ class ExchangeTest(SwarmCase):
         self.assertGreaterEqual(len(origins(final, 3)), 65)
         self.assertLessEqual(joined[1]["gap_to_reached"], 1.25)
         self.assertGreaterEqual(joined[1]["global"]["coverage"], 0.92)
+        # Robot 3's landmarks (and robot 2's) are scored against the trees their robots'
+        # sensors measured (mapmesh-eval: by their origins), and none fuses two trees.
+        self.assertGreaterEqual(joined[1]["global"]["signed_by_origins"], 65)
+        self.assertEqual(joined[1]["global"]["identities_mixed"], 0)
         # Robot 3 is out of robot 2's range at the end: its last data never reached agents 1 and
         # 2, whose limit is the optimum of what did (reference_reached.json), with fewer
         # observations than the whole run's.

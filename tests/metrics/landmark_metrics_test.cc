@@ -165,5 +165,57 @@ TEST(EvaluateFittedMap, FitsEveryMatchedLandmarkNotOnlyThoseWithSignatures) {
   EXPECT_NEAR(started.rmse_m, whole.rmse_m, 1e-9);
 }
 
+// A peer's landmarks in a global map carry no signature; their origins name the local
+// landmarks their robots' sensors measured. In a row of trees 1.5 m apart, a map 1 m off in its
+// true frame (its heading drifted) is scored against the trees those landmarks are, where the
+// nearest true landmark is a neighbour.
+TEST(SignByOrigins, ScoresAPeersLandmarkAgainstWhatItsRobotMeasured) {
+  std::vector<Eigen::Vector2d> truth;
+  for (int i = 0; i < 8; ++i) truth.emplace_back(1.5 * i, 0.0);
+  LandmarkMap global;
+  std::vector<std::vector<LocalLandmark>> origins;
+  for (int i = 0; i < 8; ++i) {
+    Landmark l;
+    l.id = static_cast<std::uint32_t>(i);
+    l.signature = i < 2 ? i : -1;  // the holder's own two, then robot 2's six
+    l.mean = truth[i] + Eigen::Vector2d(1.0, 0.0);
+    l.cov = Eigen::Matrix2d::Identity() * 0.25;
+    global.landmarks.push_back(l);
+    origins.push_back(i < 2 ? std::vector<LocalLandmark>{{1, 1, 10 + i}} : std::vector<LocalLandmark>{{2, 1, 20 + i}});
+  }
+  // Robot 2's local map: its landmark 20 + i is tree i; landmark 27 is not in it (dropped).
+  LocalSignatures known;
+  for (int i = 0; i < 7; ++i) known[{2, 1, 20 + i}] = i;
+  known[{1, 1, 10}] = 0;
+  known[{1, 1, 11}] = 1;
+  // By distance: each of robot 2's first five lands on its right-hand neighbour (1 m against
+  // 0.5 m), NEES 1 (0.5^2 / 0.25) where its own tree's is 4.
+  const MapQuality nearest = EvaluateMap(global, truth, {}, 2.0);
+  LandmarkMap signed_map = global;
+  const OriginSigning s = SignByOrigins(signed_map, origins, known);
+  EXPECT_EQ(s.signed_count, 5);  // 2..6; 7's origin is unknown
+  EXPECT_EQ(s.mixed, 0);
+  for (int i = 0; i < 7; ++i) EXPECT_EQ(signed_map.landmarks[i].signature, i);
+  EXPECT_EQ(signed_map.landmarks[7].signature, -1);
+  const MapQuality by_origin = EvaluateMap(signed_map, truth, {}, 2.0);
+  EXPECT_EQ(by_origin.matched, 8);
+  EXPECT_NEAR(by_origin.rmse_m, 1.0, 1e-12);  // landmark 7 still by distance: its own tree
+  EXPECT_NEAR(by_origin.nees_mean, 4.0, 1e-12);
+  // By distance, landmark 7 finds its tree taken and stays unmatched: the map looked better.
+  EXPECT_EQ(nearest.matched, 7);
+  EXPECT_NEAR(nearest.nees_mean, (4.0 + 4.0 + 5 * 1.0) / 7.0, 1e-12);
+  // A landmark whose origins name two trees (a false association) counts as mixed: it keeps
+  // the holder's signature, and one without stays unsigned (matched by distance).
+  origins[0].push_back({2, 1, 23});
+  origins[3].insert(origins[3].begin(), LocalLandmark{3, 1, 99});  // unknown: skipped
+  origins[3].push_back({2, 1, 24});
+  LandmarkMap again = global;
+  const OriginSigning t = SignByOrigins(again, origins, known);
+  EXPECT_EQ(t.mixed, 2);
+  EXPECT_EQ(again.landmarks[0].signature, 0);
+  EXPECT_EQ(again.landmarks[3].signature, -1);
+  EXPECT_EQ(t.signed_count, 4);
+}
+
 }  // namespace
 }  // namespace mapmesh
