@@ -243,7 +243,7 @@ class JoiningFusion : public FusionBackend {
         const auto o = submaps.peers_open->find({c.robot, c.incarnation});
         if (o != submaps.peers_open->end()) open = &o->second;
       }
-      inputs->push_back(MapSource{c.robot, c.incarnation, r.map.MapWith(open), at, r.to_own_cov});
+      inputs->push_back(MapSource{c.robot, c.incarnation, r.map.MapWith(open), at, r.to_own_cov, false});
       target.reset();
     }
   }

@@ -233,7 +233,10 @@ void MapExchange::ChooseSource(PeerState& p, const LandmarkMap& own_local, bool 
     }
   }
   // A relay not judged again keeps the global map judged last (moved by the new transform).
-  if (p.relayed) s.map = reconsider_relay || !p.source ? p.global : p.source->map;
+  if (p.relayed) {
+    s.map = reconsider_relay || !p.source ? p.global : p.source->map;
+    s.relayed = true;
+  }
   // An earlier own incarnation's global map is frozen (it cannot echo anything back).
   if (p.own_checkpoint) p.direct = s;
   p.source = std::move(s);

@@ -86,6 +86,7 @@ std::map<RobotId, OriginSigning> SignGlobalMapsByOrigins(std::map<RobotId, Agent
     for (const json& l : f.global_json.at("landmarks")) {
       origins.emplace_back();
       for (const json& o : l.value("origins", json::array())) {
+        if (o.size() > 3 && o.at(3) == 1) continue;  // a relayed global map's id, not its robot's
         origins.back().emplace_back(o.at(0).get<RobotId>(), o.at(1).get<std::uint32_t>(), o.at(2).get<std::uint32_t>());
       }
     }

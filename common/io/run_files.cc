@@ -32,7 +32,9 @@ json GlobalMapToJson(const GlobalMap& g) {
   json j = MapToJson(g.map);
   for (std::size_t i = 0; i < g.map.size() && i < g.origins.size(); ++i) {
     json o = json::array();
-    for (const LandmarkOrigin& x : g.origins[i]) o.push_back({x.robot, x.incarnation, x.id});
+    for (const LandmarkOrigin& x : g.origins[i]) {
+      o.push_back(x.relayed ? json{x.robot, x.incarnation, x.id, 1} : json{x.robot, x.incarnation, x.id});
+    }
     j["landmarks"][i]["origins"] = o;
   }
   const GlobalMapStats& s = g.stats;

@@ -331,7 +331,7 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
     // Fuse into the matched clusters; start new ones for the rest.
     for (std::size_t s = 0; s < moved.size(); ++s) {
       const Gaussian2 e{moved[s].mean, moved[s].cov};
-      const LandmarkOrigin origin{src.robot, src.incarnation, moved[s].id};
+      const LandmarkOrigin origin{src.robot, src.incarnation, moved[s].id, src.relayed};
       if (assign[s] >= 0) {
         Cluster& c = clusters[assign[s]];
         c.inputs.push_back(e);

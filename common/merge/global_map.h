@@ -41,6 +41,7 @@ struct MapSource {
   LandmarkMap map;                                       // in the source's own frame
   Pose2 to_own;                                          // maps the source's frame into the own frame
   Eigen::Matrix3d to_own_cov = Eigen::Matrix3d::Zero();  // of (x, y, theta) of to_own
+  bool relayed = false;  // map is the source's global map (a relay): its ids are that map's, not its robot's
 };
 
 struct GlobalMapOptions {
@@ -63,6 +64,7 @@ struct LandmarkOrigin {
   RobotId robot = 0;
   std::uint32_t incarnation = 0;
   std::uint32_t id = 0;  // the landmark's id in its source map
+  bool relayed = false;  // the source map was a relayed global map (MapSource::relayed)
 };
 
 struct GlobalMapStats {

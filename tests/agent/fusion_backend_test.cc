@@ -32,7 +32,7 @@ LandmarkMap Seen(int first, int last, const Pose2& frame, std::mt19937_64& rng) 
 }
 
 MapSource Source(RobotId robot, const LandmarkMap& map, const Pose2& to_own) {
-  return MapSource{robot, 1, map, to_own, 1e-8 * Eigen::Matrix3d::Identity()};
+  return MapSource{robot, 1, map, to_own, 1e-8 * Eigen::Matrix3d::Identity(), false};
 }
 
 // The global landmark fused from our landmark `own_id` and one of each source.
@@ -146,8 +146,8 @@ TEST_F(FusionBackendTest, JoiningLeavesOutAChainALaterIncarnationMapsAgain) {
     SubmapBook book;
     if (first_held) book.Add(submap(1, 0.0), EncodeSubmap(submap(1, 0.0)));
     book.Add(submap(2, second_from), EncodeSubmap(submap(2, second_from)));
-    const std::vector<MapSource> sources = {MapSource{2, 1, two, frame2, 1e-8 * Eigen::Matrix3d::Identity()},
-                                            MapSource{2, 2, two, frame2, 1e-8 * Eigen::Matrix3d::Identity()}};
+    const std::vector<MapSource> sources = {MapSource{2, 1, two, frame2, 1e-8 * Eigen::Matrix3d::Identity(), false},
+                                            MapSource{2, 2, two, frame2, 1e-8 * Eigen::Matrix3d::Identity(), false}};
     return MakeFusionBackend(1, 1, o, 1)->Build(own, sources, sources, SubmapInputs{&book, &ours, nullptr});
   };
   const FusionBackend::Built replayed = build(0.0);

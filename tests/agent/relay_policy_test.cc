@@ -32,7 +32,7 @@ PeerState Peer(RobotId robot, const LandmarkMap& local, const Pose2& to_own) {
   p.has_local = true;
   p.to_own = to_own;
   p.to_own_cov = 1e-4 * Eigen::Matrix3d::Identity();
-  p.direct = MapSource{robot, 1, local, to_own, p.to_own_cov};
+  p.direct = MapSource{robot, 1, local, to_own, p.to_own_cov, false};
   p.source = p.direct;
   return p;
 }

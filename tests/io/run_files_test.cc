@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <iterator>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -25,6 +26,33 @@ TEST(RunFiles, MapJsonRoundTrips) {
   EXPECT_EQ(back.landmarks[0].mean, m.landmarks[0].mean);
   EXPECT_EQ(back.landmarks[0].cov, c);
   EXPECT_THROW(MapFromJson(json{{"landmarks", {{{"x", 1}}}}}), std::runtime_error);
+}
+
+// A global landmark's origins name the source maps' landmarks; one from a relayed global map
+// (a peer's global map, whose ids are its own and not its robot's) is marked, so that the
+// evaluation does not read its id as its robot's landmark.
+TEST(RunFiles, GlobalMapJsonMarksOriginsFromRelayedMaps) {
+  const Eigen::Matrix2d c = 0.01 * Eigen::Matrix2d::Identity();
+  LandmarkMap local, direct, relay;
+  local.landmarks.push_back({1, 4, {0, 0}, c});
+  direct.landmarks.push_back({5, -1, {0.01, 0}, c});
+  relay.landmarks.push_back({70, -1, {0, 0.01}, c});
+  relay.landmarks.push_back({71, -1, {20, 0}, c});
+  const std::vector<MapSource> sources = {{2, 1, direct, Pose2{}, Eigen::Matrix3d::Zero(), false},
+                                          {3, 1, relay, Pose2{}, Eigen::Matrix3d::Zero(), true}};
+  const GlobalMap g = BuildGlobalMap(local, 1, sources, {}, 1);
+  ASSERT_EQ(g.map.size(), 2u);
+  const json j = GlobalMapToJson(g);
+  ASSERT_EQ(j.at("landmarks").size(), 2u);
+  std::vector<json> all;
+  for (const json& l : j.at("landmarks")) {
+    for (const json& o : l.at("origins")) all.push_back(o);
+  }
+  EXPECT_EQ(all.size(), 4u);
+  EXPECT_NE(std::find(all.begin(), all.end(), json{1, 1, 1}), all.end());      // the own
+  EXPECT_NE(std::find(all.begin(), all.end(), json{2, 1, 5}), all.end());      // a peer's local map
+  EXPECT_NE(std::find(all.begin(), all.end(), json{3, 1, 70, 1}), all.end());  // relayed
+  EXPECT_NE(std::find(all.begin(), all.end(), json{3, 1, 71, 1}), all.end());
 }
 
 TEST(RunFiles, TruthRoundTripsAndInterpolates) {
