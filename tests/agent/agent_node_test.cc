@@ -541,6 +541,31 @@ TEST_F(LockstepTest, MapsGoOutOnlyAtTicksTaggedWithThem) {
   EXPECT_EQ(out_.maps.size(), 2u);
 }
 
+// A joining agent's peers use its local map and submaps only: its global map stays off the
+// wire, and the tick counts the one map that went out.
+TEST(LockstepJoiningTest, AJoiningAgentPublishesItsLocalMapOnly) {
+  const Scenario sc = ParseScenario(R"(version: 1
+world: {landmarks: {list: [[5, 0], [0, 5]]}}
+robots:
+  list:
+    - {id: 1, start: [0, 0, 0]}
+    - {id: 2, start: [1, 0, 0]}
+feeder: {pace: lockstep}
+agent: {map_publish_period_s: 1.0, frame_at_first_landmark: false, slam: cekf_submaps, fusion: joining}
+)",
+                                    "test.yaml");
+  FullCapture out;
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
+  for (int k = 1; k <= 30; ++k) node.OnOdometry(Odom(0.1 * k, 0));
+  ASSERT_TRUE(node.OnTick(Tick(3, TickPhase::kExchange, {{1, 1, 0}, {2, 1, 0}})));
+  ASSERT_EQ(out.maps.size(), 1u);
+  EXPECT_EQ(out.maps[0].kind, MapKind::kLocal);
+  EXPECT_TRUE(DecodeMap(out.maps[0].payload).ok());
+  EXPECT_EQ(out.statuses.back().tick_published, 1u);
+  EXPECT_EQ(node.stats().maps_sent, 1u);
+  EXPECT_EQ(node.stats().bytes_sent, WireBytes(out.maps[0]));
+}
+
 // Peers' maps wait in the inbox and count for nothing until the next exchange phase applies
 // them; a deliver phase holds until every message it lists has arrived.
 TEST_F(LockstepTest, PeersMapsWaitForTheNextTickAndDeliveryWaitsForEveryListedMessage) {
