@@ -81,7 +81,8 @@ std::map<RobotId, OriginSigning> SignGlobalMapsByOrigins(std::map<RobotId, Agent
   }
   std::map<RobotId, OriginSigning> out;
   for (auto& [robot, f] : files) {
-    if (!f.global) continue;
+    // A file written before origins from relayed maps were marked cannot tell them apart.
+    if (!f.global || !f.global_json.value("origins_mark_relays", false)) continue;
     std::vector<std::vector<LocalLandmark>> origins;
     for (const json& l : f.global_json.at("landmarks")) {
       origins.emplace_back();

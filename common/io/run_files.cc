@@ -37,6 +37,7 @@ json GlobalMapToJson(const GlobalMap& g) {
     }
     j["landmarks"][i]["origins"] = o;
   }
+  j["origins_mark_relays"] = true;  // files written before the mark existed lack this
   const GlobalMapStats& s = g.stats;
   j["stats"] = {{"local", s.local},
                 {"sources", s.sources},

@@ -24,7 +24,8 @@ using nlohmann::json;
 json MapToJson(const LandmarkMap& map);
 // MapToJson plus, per landmark, "origins": [[robot, incarnation, id]...] (the source-map
 // landmarks fused into it, the first one its anchor; [robot, incarnation, id, 1] where the
-// source map was a relayed global map, whose ids are its own), and the rebuild's counters.
+// source map was a relayed global map, whose ids are its own; "origins_mark_relays": true
+// says so, files written before have no mark), and the rebuild's counters.
 json GlobalMapToJson(const GlobalMap& map);
 // Throws std::runtime_error on a malformed document.
 LandmarkMap MapFromJson(const json& j);

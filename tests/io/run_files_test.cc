@@ -43,6 +43,7 @@ TEST(RunFiles, GlobalMapJsonMarksOriginsFromRelayedMaps) {
   const GlobalMap g = BuildGlobalMap(local, 1, sources, {}, 1);
   ASSERT_EQ(g.map.size(), 2u);
   const json j = GlobalMapToJson(g);
+  EXPECT_TRUE(j.at("origins_mark_relays").get<bool>());
   ASSERT_EQ(j.at("landmarks").size(), 2u);
   std::vector<json> all;
   for (const json& l : j.at("landmarks")) {
