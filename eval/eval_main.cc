@@ -69,31 +69,32 @@ AgentFiles ReadAgent(const std::string& dir, const io::RunTruth& truth) {
   return f;
 }
 
-// Every global map's landmarks without a signature (its peers') signed by their origins
-// (SignByOrigins): the identities the robots' sensors gave them, from each robot's final local
-// map (its last incarnation's; origins in an earlier incarnation keep matching by distance).
-std::map<RobotId, OriginSigning> SignGlobalMapsByOrigins(std::map<RobotId, AgentFiles>& files) {
+// Each robot's local landmarks' signatures, from its final local map (its last incarnation's;
+// origins in an earlier incarnation keep matching by distance).
+LocalSignatures KnownSignatures(const std::map<RobotId, AgentFiles>& files) {
   LocalSignatures known;
   for (const auto& [robot, f] : files) {
     if (!f.local || !f.has_stats || !f.stats.contains("incarnation")) continue;
     const auto incarnation = f.stats.at("incarnation").get<std::uint32_t>();
     for (const Landmark& l : f.local->landmarks) known[{robot, incarnation, l.id}] = l.signature;
   }
-  std::map<RobotId, OriginSigning> out;
-  for (auto& [robot, f] : files) {
-    // A file written before origins from relayed maps were marked cannot tell them apart.
-    if (!f.global || !f.global_json.value("origins_mark_relays", false)) continue;
-    std::vector<std::vector<LocalLandmark>> origins;
-    for (const json& l : f.global_json.at("landmarks")) {
-      origins.emplace_back();
-      for (const json& o : l.value("origins", json::array())) {
-        if (o.size() > 3 && o.at(3) == 1) continue;  // a relayed global map's id, not its robot's
-        origins.back().emplace_back(o.at(0).get<RobotId>(), o.at(1).get<std::uint32_t>(), o.at(2).get<std::uint32_t>());
-      }
+  return known;
+}
+
+// A global map's landmarks without a signature (its peers') signed by their origins
+// (SignByOrigins), given the map's file; nullopt for a file written before origins from
+// relayed maps were marked, which cannot tell them apart.
+std::optional<OriginSigning> SignGlobalMap(const json& file, LandmarkMap& map, const LocalSignatures& known) {
+  if (!file.value("origins_mark_relays", false)) return std::nullopt;
+  std::vector<std::vector<LocalLandmark>> origins;
+  for (const json& l : file.at("landmarks")) {
+    origins.emplace_back();
+    for (const json& o : l.value("origins", json::array())) {
+      if (o.size() > 3 && o.at(3) == 1) continue;  // a relayed global map's id, not its robot's
+      origins.back().emplace_back(o.at(0).get<RobotId>(), o.at(1).get<std::uint32_t>(), o.at(2).get<std::uint32_t>());
     }
-    out[robot] = SignByOrigins(*f.global, origins, known);
   }
-  return out;
+  return SignByOrigins(map, origins, known);
 }
 
 // Errors of the agent's alignments against the truth, keyed by peer ("3"; an older
@@ -148,7 +149,9 @@ json AlignmentErrors(const json& stats, const io::RunTruth& truth, const std::op
 }
 
 // The agent's history.jsonl with each snapshot's maps scored as the run went on.
-json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::RunTruth& truth, double gate_m) {
+// Global snapshots are signed by their origins as the final map is (SignGlobalMap).
+json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::RunTruth& truth, double gate_m,
+                 const LocalSignatures& known) {
   json out = json::array();
   std::ifstream in(dir + "/history.jsonl");
   std::string text;
@@ -163,7 +166,9 @@ json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::
     for (const char* kind : {"local", "global"}) {
       const std::string path = dir + "/" + snapshot + "_" + kind + ".json";
       if (snapshot.empty() || !std::filesystem::exists(path)) continue;
-      const LandmarkMap map = io::MapFromJson(io::ReadJson(path));
+      const json file = io::ReadJson(path);
+      LandmarkMap map = io::MapFromJson(file);
+      if (std::string(kind) == "global") SignGlobalMap(file, map, known);
       const MapQuality q = EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, origin, gate_m);
       line[kind] = QualityJson(q);
       // As the final maps: after a rigid fit of the whole map to the truth (the global map's fit
@@ -288,7 +293,12 @@ int Run(int argc, char** argv) {
   for (const io::RobotTruth& robot : truth.robots) {
     files[robot.id] = ReadAgent(run_dir + "/agent_" + std::to_string(robot.id), truth);
   }
-  const std::map<RobotId, OriginSigning> signing = SignGlobalMapsByOrigins(files);
+  const LocalSignatures known = KnownSignatures(files);
+  std::map<RobotId, OriginSigning> signing;
+  for (auto& [robot, f] : files) {
+    if (!f.global) continue;
+    if (const auto s = SignGlobalMap(f.global_json, *f.global, known)) signing[robot] = *s;
+  }
   json agents = json::object();
   for (const io::RobotTruth& robot : truth.robots) {
     const std::string dir = run_dir + "/agent_" + std::to_string(robot.id);
@@ -436,7 +446,7 @@ int Run(int argc, char** argv) {
     // else its rigid fit by signatures, else unknown.
     const std::optional<Pose2> frame = origin ? origin : f.local_in_world;
     entry["frame_in_world"] = frame ? json{frame->x, frame->y, frame->theta} : json();
-    entry["history"] = HistoryJson(dir, robot, truth, gate_m);
+    entry["history"] = HistoryJson(dir, robot, truth, gate_m, known);
     agents[std::to_string(robot.id)] = entry;
   }
   std::printf("%s\n", json{{"agents", agents}, {"seen_landmarks", truth.seen.size()}}.dump(1).c_str());
