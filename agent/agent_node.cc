@@ -231,6 +231,8 @@ void AgentNode::PublishMaps(std::uint32_t tick, std::vector<Sighting> riders) {
                                .own_open = own_open_ ? &*own_open_ : nullptr,
                                .peers_open = &submaps_.open(),
                                .peers_placements = &peers_placements_});
+  } else if (options_.exchange.ci_placement == CiPlacement::kPiecewise) {
+    exchange_.SetSubmapInputs({.book = &submaps_.book()});
   }
   exchange_.Update(local, sync_.processed_until());
   Publish(MapKind::kLocal, local, ++local_version_, tick, riders);

@@ -39,8 +39,16 @@ enum class AlignBy { kBoth, kOverlap, kRendezvous };
 inline constexpr ChoiceTable<AlignBy, 3> kAlignBy{
     {{AlignBy::kBoth, "both"}, {AlignBy::kOverlap, "overlap"}, {AlignBy::kRendezvous, "rendezvous"}}};
 
+// How a CI-fusing agent places a peer's map whose closed submaps it holds (agent.slam
+// cekf_submaps): each submap on its own against the own map (submap_placement.h), or the whole
+// map at its alignment. Without submaps the whole map either way.
+enum class CiPlacement { kPiecewise, kRigid };
+inline constexpr ChoiceTable<CiPlacement, 2> kCiPlacement{
+    {{CiPlacement::kPiecewise, "piecewise"}, {CiPlacement::kRigid, "rigid"}}};
+
 struct ExchangeOptions {
-  AlignBy align_by = AlignBy::kBoth;  // agent.align_by
+  AlignBy align_by = AlignBy::kBoth;               // agent.align_by
+  CiPlacement ci_placement = CiPlacement::kRigid;  // agent.ci_placement
   bool ByOverlap() const { return align_by != AlignBy::kRendezvous; }
   bool ByRendezvous() const { return align_by != AlignBy::kOverlap; }
   double align_period_s = 5.0;     // agent.align_period_s: an unaligned peer is tried again this often, when its
@@ -119,6 +127,7 @@ struct ExchangeOptions {
   void Read(Reader& r) {
     global.Read(r);
     r.GetChoice("align_by", align_by, kAlignBy);
+    r.GetChoice("ci_placement", ci_placement, kCiPlacement);
     r.GetChoice("align_search", align.search, kTransformSearch);
     r.GetInRange("align_period_s", align_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
     r.GetZeroOrInRange("refine_period_s", refine_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);

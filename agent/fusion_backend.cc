@@ -12,25 +12,69 @@
 #include "common/merge/map_alignment.h"
 #include "common/merge/map_joining.h"
 #include "common/merge/submap_network.h"
+#include "common/merge/submap_placement.h"
 
 namespace mapmesh {
 namespace {
 
 // The cloned global map (thesis 2.3.2): each source's landmarks associated with the map's and
 // fused by Covariance Intersection (or the estimator options.method names).
+// Given the submaps the agent holds (agent.ci_placement piecewise), each aligned peer's map whose
+// closed submaps it holds enters as its submaps, each placed on its own against the own local
+// map (submap_placement.h); relayed global maps enter whole.
 class CloneFusion : public FusionBackend {
  public:
   CloneFusion(RobotId self, std::uint32_t incarnation, const GlobalMapOptions& options)
       : self_(self), incarnation_(incarnation), options_(options) {}
   Built Build(const LandmarkMap& own_local, const std::vector<MapSource>& sources, const std::vector<MapSource>& direct,
-              const SubmapInputs&) override {
+              const SubmapInputs& submaps) override {
     Built b;
-    b.global = BuildGlobalMap(own_local, self_, sources, options_, incarnation_, &global_memo_);
-    b.published = BuildGlobalMap(own_local, self_, direct, options_, incarnation_, &published_memo_);
+    if (submaps.book == nullptr) {
+      b.global = BuildGlobalMap(own_local, self_, sources, options_, incarnation_, &global_memo_);
+      b.published = BuildGlobalMap(own_local, self_, direct, options_, incarnation_, &published_memo_);
+      return b;
+    }
+    // A peer is in both lists when its own map is used (not a relay of it): placed once.
+    std::map<std::pair<RobotId, std::uint32_t>, std::pair<const MapSource*, std::vector<MapSource>>> placed;
+    const auto piecewise = [&](const std::vector<MapSource>& in) {
+      std::vector<MapSource> out;
+      for (const MapSource& s : in) {
+        if (s.relayed) {
+          out.push_back(s);
+          continue;
+        }
+        auto& [from, pieces] = placed[{s.robot, s.incarnation}];
+        if (from == nullptr || !SamePlacedMap(*from, s)) {
+          from = &s;
+          pieces = Pieces(own_local, s, *submaps.book, &b.piecewise);
+        }
+        out.insert(out.end(), pieces.begin(), pieces.end());
+      }
+      return out;
+    };
+    b.global = BuildGlobalMap(own_local, self_, piecewise(sources), options_, incarnation_, &global_memo_);
+    b.published = BuildGlobalMap(own_local, self_, piecewise(direct), options_, incarnation_, &published_memo_);
     return b;
   }
 
  private:
+  static bool SamePlacedMap(const MapSource& a, const MapSource& b) {
+    return a.to_own.Vector() == b.to_own.Vector() && a.to_own_cov == b.to_own_cov &&
+           std::equal(a.map.landmarks.begin(), a.map.landmarks.end(), b.map.landmarks.begin(), b.map.landmarks.end(),
+                      [](const Landmark& x, const Landmark& y) {
+                        return x.id == y.id && x.mean == y.mean && x.cov == y.cov && x.signature == y.signature;
+                      });
+  }
+  // Peer map s as its closed submaps placed on their own, then the landmarks none holds (s
+  // whole when the agent holds none of its chain).
+  static std::vector<MapSource> Pieces(const LandmarkMap& own_local, const MapSource& s, const SubmapBook& book,
+                                       PiecewiseStats* stats) {
+    std::vector<const WireSubmap*> chain;
+    const std::uint32_t n = book.ChainLength(s.robot, s.incarnation);
+    for (std::uint32_t i = 0; i < n; ++i) chain.push_back(book.Find({s.robot, s.incarnation, i}));
+    return PlaceSubmapsPiecewise(own_local, s, chain, {}, stats);
+  }
+
   RobotId self_;
   std::uint32_t incarnation_;
   GlobalMapOptions options_;

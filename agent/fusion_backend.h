@@ -22,6 +22,7 @@
 #include "agent/peer_state.h"
 #include "common/map/submap_book.h"
 #include "common/merge/global_map.h"
+#include "common/merge/submap_placement.h"
 #include "common/types/messages.h"
 
 namespace mapmesh {
@@ -86,6 +87,8 @@ class FusionBackend {
     // Joining: where the last join put each other chain's first frame (the local map carries
     // them to the peers), in (robot, incarnation) order.
     std::vector<ChainPlacement> placements;
+    // CI given the submaps (agent.ci_placement piecewise): how this build placed the peers'.
+    PiecewiseStats piecewise;
   };
   virtual Built Build(const LandmarkMap& own_local, const std::vector<MapSource>& sources,
                       const std::vector<MapSource>& direct, const SubmapInputs& submaps = {}) = 0;

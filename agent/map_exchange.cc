@@ -366,6 +366,7 @@ void MapExchange::Build(const LandmarkMap& own_local) {
   global_ = std::move(built.global);
   published_ = std::move(built.published);
   joining_ = built.joining;
+  piecewise_ = built.piecewise;
   placements_ = std::move(built.placements);
 }
 

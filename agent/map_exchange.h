@@ -80,6 +80,8 @@ class MapExchange {
   const GlobalMap& global() const { return global_; }
   // The joining back-end's last solve on submap chains (fusion_backend.h).
   const JoiningReport& joining() const { return joining_; }
+  // How the last CI build placed the peers' submaps (zero unless given them: fusion_backend.h).
+  const PiecewiseStats& piecewise() const { return piecewise_; }
   // Where the joining back-end's last build put the other chains it joined (the agent's local
   // map carries them; empty with CI).
   const std::vector<ChainPlacement>& placements() const { return placements_; }
@@ -153,6 +155,7 @@ class MapExchange {
   std::unique_ptr<FusionBackend> fusion_;  // agent.fusion, chosen once
   SubmapInputs submap_inputs_;
   JoiningReport joining_;
+  PiecewiseStats piecewise_;
   std::vector<ChainPlacement> placements_;
   GlobalMap global_;
   GlobalMap published_;

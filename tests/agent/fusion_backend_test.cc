@@ -86,6 +86,54 @@ WireSubmap ExactSubmap(RobotId robot, std::uint32_t index, int first, int last, 
   return s;
 }
 
+// Given the submaps it holds (agent.ci_placement piecewise), CI places a peer's submap on its own
+// against our map: laid 0.03 rad off by its alignment, robot 2's map would put the landmarks only
+// it saw (6-8) up to 0.6 m off; its submap, fitted on the three we share, puts them within the
+// maps' noise. A relayed global map still enters whole.
+TEST_F(FusionBackendTest, CovarianceIntersectionPlacesAPeersSubmapsOnTheirOwn) {
+  ExchangeOptions o;
+  o.global.method = FusionMethod::kCiConstant;
+  SubmapBook book;
+  const WireSubmap theirs = ExactSubmap(2, 0, 3, 9, frame2);  // landmarks 3-8 (their ids 0-5)
+  book.Add(theirs, EncodeSubmap(theirs));
+  const Pose2 off = Pose2{0.0, 0.0, 0.03} * frame2;
+  const std::vector<MapSource> sources = {Source(2, two, off)};
+  const FusionBackend::Built rigid = MakeFusionBackend(1, 1, o, 1)->Build(own, sources, sources);
+  const FusionBackend::Built piecewise = MakeFusionBackend(1, 1, o, 1)
+                                             ->Build(own, sources, sources, SubmapInputs{.book = &book});
+  EXPECT_EQ(piecewise.piecewise.fitted, 1);  // once for the global map and the published one
+  EXPECT_EQ(piecewise.piecewise.chained, 0);
+  EXPECT_EQ(rigid.piecewise.submaps, 0);
+  ASSERT_EQ(piecewise.global.map.size(), 9u);  // 0-8, each once
+  EXPECT_GT(rigid.global.map.size(), 9u);      // laid off, shared landmarks fail the gate: duplicates
+  // The worst landmark of robot 2's (anchored at one of its landmarks or fused with one).
+  const auto worst = [](const GlobalMap& g) {
+    double w = 0.0;
+    for (std::size_t k = 0; k < g.map.size(); ++k) {
+      for (const LandmarkOrigin& o : g.origins[k]) {
+        if (o.robot != 2) continue;
+        const int i = static_cast<int>(o.id) + 3;
+        const Eigen::Vector2d truth(3.0 * i, (i % 3) * 4.0 + (i % 2) * 1.5);
+        w = std::max(w, (g.map.landmarks[k].mean - truth).norm());
+      }
+    }
+    return w;
+  };
+  const double worst_rigid = worst(rigid.global), worst_piecewise = worst(piecewise.global);
+  EXPECT_GT(worst_rigid, 0.5);
+  EXPECT_LT(worst_piecewise, 4 * kSigma);
+  // A relay (a peer's global map) is not a chain: it enters as it is.
+  MapSource relay = Source(2, two, off);
+  relay.relayed = true;
+  const FusionBackend::Built relayed = MakeFusionBackend(1, 1, o, 1)
+                                           ->Build(own, {relay}, {}, SubmapInputs{.book = &book});
+  EXPECT_EQ(relayed.piecewise.submaps, 0);
+  const GlobalMap whole = BuildGlobalMap(own, 1, std::vector<MapSource>{relay}, o.global, 1);
+  ASSERT_EQ(relayed.global.map.size(), whole.map.size());
+  for (std::size_t g = 0; g < whole.map.size(); ++g)
+    EXPECT_EQ(relayed.global.map.landmarks[g].mean, whole.map.landmarks[g].mean);
+}
+
 // With submap chains (cekf_submaps), joining takes every landmark a chain holds from the joint
 // estimate of the chains (here exact measurements: the truth, whatever the noisy maps say), and
 // a landmark no chain holds (robot 2's last, mapped after its submap) from the CI build.
