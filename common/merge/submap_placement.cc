@@ -78,9 +78,11 @@ std::optional<Fit> FitPlacement(const LandmarkMap& local, const LandmarkMap& tar
   std::optional<Pose2> pose = FitRigid2D(src, dst);
   if (!pose) return std::nullopt;
   Fit f;
-  Eigen::Matrix3d h;
+  const double n = static_cast<double>(pairs.size());
+  Eigen::Matrix3d h, m;
   for (int it = 0; it < 3; ++it) {
     h.setZero();
+    m.setZero();
     Eigen::Vector3d g = Eigen::Vector3d::Zero();
     *chi2 = 0.0;
     const PoseMap2 t(*pose);
@@ -88,9 +90,12 @@ std::optional<Fit> FitPlacement(const LandmarkMap& local, const LandmarkMap& tar
     for (const auto& [i, j] : pairs) {
       Eigen::Matrix<double, 2, 3> jac;
       const Eigen::Vector2d r = t.Apply(local.landmarks[i].mean, &jac) - target.landmarks[j].mean;
-      const Eigen::Matrix2d w = (rot * local.landmarks[i].cov * rot.transpose() + target.landmarks[j].cov).inverse();
-      h += jac.transpose() * w * jac;
-      g += jac.transpose() * w * r;
+      const Eigen::Matrix2d c = rot * local.landmarks[i].cov * rot.transpose();
+      const Eigen::Matrix2d w = (c + target.landmarks[j].cov).inverse();
+      const Eigen::Matrix<double, 3, 2> jw = jac.transpose() * w;
+      h += jw * jac;
+      g += jw * r;
+      m += jw * (c + n * target.landmarks[j].cov) * jw.transpose();
       *chi2 += r.dot(w * r);
     }
     const Eigen::LDLT<Eigen::Matrix3d> ldlt(h);
@@ -101,7 +106,11 @@ std::optional<Fit> FitPlacement(const LandmarkMap& local, const LandmarkMap& tar
     *pose = Pose2{pose->x + step.x(), pose->y + step.y(), WrapAngle(pose->theta + step.z())};
   }
   f.pose = *pose;
-  f.cov = h.inverse();
+  // The target's landmarks (one map's) may share their errors: the covariance bounds
+  // Cov(sum of n terms) by n times the sum of theirs, whatever their correlation (the residual
+  // and the chi-square gate see the pairs' own errors only: a shared error moves the pose).
+  const Eigen::Matrix3d h_inv = h.inverse();
+  f.cov = h_inv * m * h_inv;
   f.pairs = static_cast<int>(pairs.size());
   return f;
 }
