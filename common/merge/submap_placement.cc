@@ -222,14 +222,7 @@ std::vector<MapSource> PlaceSubmapsPiecewise(const LandmarkMap& target, const Ma
   }
   s.rest = static_cast<int>(rest.map.size());
   if (!rest.map.landmarks.empty()) out.push_back(std::move(rest));
-  if (stats != nullptr) {
-    stats->submaps += s.submaps;
-    stats->fitted += s.fitted;
-    stats->refused += s.refused;
-    stats->chained += s.chained;
-    stats->pairs += s.pairs;
-    stats->rest += s.rest;
-  }
+  if (stats != nullptr) *stats += s;
   return out;
 }
 

@@ -50,10 +50,20 @@ struct PiecewiseOptions {
 struct PiecewiseStats {
   int submaps = 0;  // submaps placed ...
   int fitted = 0;   // ... by their own fit on the target
-  int refused = 0;  // ... whose fit the gates refused (placed along the chain)
-  int chained = 0;  // ... along the chain (too few pairs, or refused)
+  int refused = 0;  // ... whose fit the gates refused (placed at their start)
+  int chained = 0;  // ... at their start (too few pairs, or refused)
   int pairs = 0;    // pairs in the accepted fits
   int rest = 0;     // the whole map's landmarks no submap holds
+
+  PiecewiseStats& operator+=(const PiecewiseStats& o) {
+    submaps += o.submaps;
+    fitted += o.fitted;
+    refused += o.refused;
+    chained += o.chained;
+    pairs += o.pairs;
+    rest += o.rest;
+    return *this;
+  }
 };
 
 // The piecewise sources of one peer: `whole` is its local map placed by its alignment (its

@@ -16,14 +16,9 @@ namespace {
 
 using testing::Drive;
 using testing::MeasureAll;
+using testing::Pointers;
 using testing::TrueChain;
 using testing::World;
-
-std::vector<const WireSubmap*> Pointers(const std::vector<WireSubmap>& submaps) {
-  std::vector<const WireSubmap*> out;
-  for (const WireSubmap& s : submaps) out.push_back(&s);
-  return out;
-}
 
 // Without noise the rebuilt map is the world, in the chain's first frame, every landmark once by
 // its key.

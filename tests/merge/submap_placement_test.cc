@@ -15,14 +15,9 @@ namespace {
 
 using testing::Drive;
 using testing::MeasureAll;
+using testing::Pointers;
 using testing::TrueChain;
 using testing::World;
-
-std::vector<const WireSubmap*> Pointers(const std::vector<WireSubmap>& submaps) {
-  std::vector<const WireSubmap*> out;
-  for (const WireSubmap& s : submaps) out.push_back(&s);
-  return out;
-}
 
 // The world's landmarks as the holder's map (the own frame is the world's), each known to
 // sigma.
@@ -47,6 +42,20 @@ std::vector<WireSubmap> BentChain(const World& w, const TrueChain& t, double ben
     subs[k].x(2) += bend;
   }
   return subs;
+}
+
+// The peer's whole map, exact in its first frame, at its true placement: the landmarks its
+// submaps hold and `extra` ones.
+MapSource WholeMap(const World& w, const TrueChain& t, const std::vector<WireSubmap>& subs,
+                   const std::set<std::uint32_t>& extra = {}) {
+  MapSource whole{4, 1, {}, t.frames[0], 1e-4 * Eigen::Matrix3d::Identity(), false};
+  std::set<std::uint32_t> ids = extra;
+  for (const WireSubmap& s : subs) ids.insert(s.keys.begin(), s.keys.end());
+  for (const std::uint32_t id : ids) {
+    whole.map.landmarks.push_back({id, -1, t.frames[0].TransformTo(w.landmarks[id]),
+                                   0.01 * Eigen::Matrix2d::Identity()});
+  }
+  return whole;
 }
 
 double PlacementError(const Pose2& a, const Pose2& b) {
@@ -121,13 +130,7 @@ TEST(PlaceSubmapsPiecewise, ASubmapOverNoTargetLandmarksLiesWhereTheWholeMapPuts
   std::mt19937_64 rng(8);
   const TrueChain t = Drive(w, Pose2{2.0, 2.0, 0.1}, 4, 3.0);
   const std::vector<WireSubmap> subs = BentChain(w, t, 0.05, rng);
-  MapSource whole{4, 1, {}, t.frames[0], 1e-4 * Eigen::Matrix3d::Identity(), false};
-  std::set<std::uint32_t> held;
-  for (const WireSubmap& s : subs) held.insert(s.keys.begin(), s.keys.end());
-  for (const std::uint32_t id : held) {
-    whole.map.landmarks.push_back({id, -1, t.frames[0].TransformTo(w.landmarks[id]),
-                                   0.01 * Eigen::Matrix2d::Identity()});
-  }
+  const MapSource whole = WholeMap(w, t, subs);
   const std::set<int> out(t.seen[3].begin(), t.seen[3].end());
   PiecewiseStats stats;
   const std::vector<MapSource> placed = PlaceSubmapsPiecewise(Target(w, 0.02, out), whole, Pointers(subs), {}, &stats);
@@ -146,19 +149,14 @@ TEST(PlaceSubmapsPiecewise, LandmarksNoSubmapHoldsFollowAtTheAlignment) {
   std::mt19937_64 rng(5);
   const TrueChain t = Drive(w, Pose2{2.0, 2.0, 0.1}, 3, 3.0);
   const std::vector<WireSubmap> subs = BentChain(w, t, 0.0, rng);
-  MapSource whole{4, 1, {}, t.frames[0], 1e-4 * Eigen::Matrix3d::Identity(), false};
   std::set<std::uint32_t> held;
   for (const WireSubmap& s : subs) held.insert(s.keys.begin(), s.keys.end());
+  std::set<std::uint32_t> extra;
   for (std::uint32_t id : {3u, 77u, 140u}) {
-    if (!held.contains(id))
-      whole.map.landmarks.push_back({id, -1, t.frames[0].TransformTo(w.landmarks[id]),
-                                     0.01 * Eigen::Matrix2d::Identity()});
+    if (!held.contains(id)) extra.insert(id);
   }
-  ASSERT_FALSE(whole.map.landmarks.empty());
-  for (const std::uint32_t id : held) {
-    whole.map.landmarks.push_back({id, -1, t.frames[0].TransformTo(w.landmarks[id]),
-                                   0.01 * Eigen::Matrix2d::Identity()});
-  }
+  ASSERT_FALSE(extra.empty());
+  const MapSource whole = WholeMap(w, t, subs, extra);
   PiecewiseStats stats;
   const std::vector<MapSource> placed = PlaceSubmapsPiecewise(Target(w, 0.02), whole, Pointers(subs), {}, &stats);
   ASSERT_EQ(placed.size(), subs.size() + 1);

@@ -83,4 +83,11 @@ inline TrueChain Drive(const World& w, Pose2 start, int submaps, double step) {
   return c;
 }
 
+// The submaps as a chain (pointers into them).
+inline std::vector<const WireSubmap*> Pointers(const std::vector<WireSubmap>& submaps) {
+  std::vector<const WireSubmap*> out;
+  for (const WireSubmap& s : submaps) out.push_back(&s);
+  return out;
+}
+
 }  // namespace mapmesh::testing
