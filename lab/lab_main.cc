@@ -339,7 +339,39 @@ io::json ReferenceMapJson(const lab::ReferenceMap& m, bool with_map) {
                 {"variables", s.variables},
                 {"observations", s.observations},
                 {"covariance_ok", s.covariance_ok}};
-  if (with_map) j["map"] = io::MapToJson(s.map);
+  if (!s.components.empty()) {
+    // A centralized solve: the sightings it used, and the robots whose data the rest share too
+    // little with to tie their frames (components of their own, each in its own gauge).
+    j["sightings"] = s.sightings;
+    j["cost"] = s.report.final_cost;
+    io::json comps = io::json::array();
+    io::json unconnected = io::json::array();
+    for (std::size_t k = 0; k < s.components.size(); ++k) {
+      const BatchComponent& c = s.components[k];
+      comps.push_back({{"robots", c.robots}, {"landmarks", c.landmarks}, {"in_world", c.in_world}});
+      if (k > 0) {
+        for (RobotId id : c.robots) unconnected.push_back(id);
+      }
+    }
+    j["components"] = comps;
+    j["unconnected"] = unconnected;
+    j["observations_left_out"] = s.observations_left_out;
+    j["sightings_left_out"] = s.sightings_left_out;
+    if (m.from_truth) {
+      j["from_truth"] = {{"cost", m.from_truth->final_cost},
+                         {"iterations", m.from_truth->iterations},
+                         {"converged", m.from_truth->converged}};
+    }
+  }
+  if (with_map) {
+    j["map"] = io::MapToJson(s.map);
+    // Each landmark's component (by signature), where there are several.
+    if (s.components.size() > 1) {
+      io::json of = io::json::object();
+      for (const auto& [sig, c] : s.landmark_component) of[std::to_string(sig)] = c;
+      j["landmark_component"] = of;
+    }
+  }
   return j;
 }
 
@@ -355,6 +387,7 @@ io::json ReferenceJson(const lab::Reference& r) {
     j["until"] = until;
   }
   j["central"] = ReferenceMapJson(r.central, true);
+  j["central_known_starts"] = r.has_known_starts ? ReferenceMapJson(r.central_known_starts, true) : io::json();
   io::json own = io::json::object();
   for (const auto& [id, m] : r.own) own[std::to_string(id)] = ReferenceMapJson(m, true);
   j["own_batch"] = own;
@@ -383,13 +416,16 @@ std::optional<std::pair<RobotId, double>> ParseUntil(const std::string& v) {
 }
 
 int RunReferenceCommand(const app::ProcessOptions& po, const std::string& datasets, const std::string& loss,
-                        double loss_scale, bool no_known_pose, const std::vector<std::string>& until,
+                        double loss_scale, bool no_known_pose, bool no_known_starts, bool check_start,
+                        const std::vector<std::string>& until,
                         const std::string& out_path) {
   const std::optional<Scenario> sc = app::LoadScenarioOrReport("mapmesh-lab", po);
   if (!sc) return 2;
   lab::ReferenceOptions options;
   options.datasets_root = ResolveDatasetsRoot(datasets, app::DefaultDatasetsRoot());
   options.known_pose = !no_known_pose;
+  options.check_start = check_start;
+  options.known_starts = !no_known_starts;
   for (const std::string& u : until) {
     const auto [robot, t] = *ParseUntil(u);
     const bool in_run = std::any_of(sc->robots.begin(), sc->robots.end(),
@@ -416,10 +452,24 @@ int RunReferenceCommand(const app::ProcessOptions& po, const std::string& datase
     return 0;
   }
   auto line = [](const char* what, const lab::ReferenceMap& m) {
-    std::fprintf(stderr, "%-11s %4d landmarks  %.4f m after a rigid fit  NEES %.2f  %s in %.2f s\n", what, m.landmarks,
+    std::fprintf(stderr, "%-12s %4d landmarks  %.4f m after a rigid fit  NEES %.2f  %s in %.2f s\n", what, m.landmarks,
                  m.rmse_aligned_m, m.nees_mean, m.solution.report.converged ? "converged" : "NOT converged", m.solve_s);
   };
   line("central", r.central);
+  const BatchSolution& fair = r.central.solution;
+  if (fair.components.size() > 1) {
+    std::string robots;
+    for (std::size_t k = 1; k < fair.components.size(); ++k) {
+      for (RobotId id : fair.components[k].robots) robots += " " + std::to_string(id);
+    }
+    std::fprintf(stderr, "central: %zu components, each solved in its own frame; not connected to the largest:%s\n",
+                 fair.components.size(), robots.c_str());
+  }
+  if (r.central.from_truth) {
+    std::fprintf(stderr, "central: cost %.6f from the robots' own solutions, %.6f from the truth\n",
+                 fair.report.final_cost, r.central.from_truth->final_cost);
+  }
+  if (r.has_known_starts) line("known starts", r.central_known_starts);
   if (r.known_pose) line("known poses", *r.known_pose);
   for (const auto& [id, m] : r.own) line(("robot " + std::to_string(id)).c_str(), m);
   for (const auto& [id, m] : r.own_known_pose) line(("known " + std::to_string(id)).c_str(), m);
@@ -577,7 +627,7 @@ int Run(int argc, char** argv) {
   app::ProcessOptions ref_po;
   std::string ref_datasets, ref_loss = "auto", ref_out;
   double ref_loss_scale = 0.0;
-  bool ref_no_known = false;
+  bool ref_no_known = false, ref_no_known_starts = false, ref_check_start = false;
   std::vector<std::string> ref_until;
   CLI::App* reference = cli.add_subcommand(
       "reference",
@@ -596,6 +646,11 @@ int Run(int argc, char** argv) {
                    "the loss's scale in standard deviations (default: huber 1.345, cauchy 2)")
       ->check(CLI::PositiveNumber);
   reference->add_flag("--no-known-pose", ref_no_known, "skip the known-pose map");
+  reference->add_flag("--no-known-starts", ref_no_known_starts,
+                      "skip the centralized optimum with every true start (central_known_starts: null)");
+  reference->add_flag("--check-start", ref_check_start,
+                      "also solve the fair optimum from the truth and give its cost (central.from_truth): the solve "
+                      "from the robots' own solutions should reach it");
   reference
       ->add_option("--until", ref_until,
                    "ROBOT=T: that robot's data up to scenario time T only (repeatable; the information that "
@@ -606,7 +661,9 @@ int Run(int argc, char** argv) {
   reference->add_option("--out", ref_out, "write the JSON here (default: stdout)");
   if (auto code = app::ParseArgs(cli, "mapmesh-lab", argc, argv)) return *code;
   if (reference->parsed())
-    return RunReferenceCommand(ref_po, ref_datasets, ref_loss, ref_loss_scale, ref_no_known, ref_until, ref_out);
+    return RunReferenceCommand(ref_po, ref_datasets, ref_loss, ref_loss_scale, ref_no_known, ref_no_known_starts,
+                              ref_check_start, ref_until,
+                              ref_out);
   if (victoria_world->parsed()) return RunVictoriaWorldCommand(vw_out, vw_datasets, vw);
   if (bus->parsed()) return RunBusCommand(bus_po, bus_kills, bus_restarts, bus_datasets, bus_out);
   if (thesis_fusion->parsed()) {

@@ -1,8 +1,9 @@
 #pragma once
 // The limit beside every run: from a scenario and its seed (the feeder's own streams, read in
-// process), the centralized batch optimum of all robots' data, each robot's single-robot batch
-// optimum, and the known-pose map (common/slam/batch_slam.h), each scored against the truth.
-// docs/EXPERIMENTS.md "The limit".
+// process), the centralized batch optimum of all robots' data with what the agents know of
+// their starts (none: the fair limit), the same with every robot's true start (what no agent
+// knows), each robot's single-robot batch optimum, and the known-pose map
+// (common/slam/batch_slam.h), each scored against the truth. docs/EXPERIMENTS.md "The limit".
 
 #include <map>
 #include <optional>
@@ -20,10 +21,14 @@ struct ReferenceOptions {
   // The loss on each observation; nullopt: by the data, none (Gaussian noise, least squares is
   // the optimum) for simulated worlds, Cauchy at 2 sigma for real datasets (heavy-tailed ranges).
   std::optional<RobustKernel> robust;
-  bool known_pose = true;  // also the known-pose map
+  bool known_pose = true;    // also the known-pose map
+  bool known_starts = true;  // also the centralized optimum with every true start (central_known_starts)
   // Each listed robot's data up to this scenario time only (the others' whole): the information
   // that reached one agent by the end of its run, when it is less than the whole run's.
   std::map<RobotId, double> until;
+  // Also solve the fair optimum from the truth (the true poses at every node and the true
+  // landmarks), to check that the solve from the robots' own solutions reaches the same cost.
+  bool check_start = false;
 };
 
 // One reference map and how it scores against the truth.
@@ -36,6 +41,9 @@ struct ReferenceMap {
   std::optional<double> rmse_m;  // in the world frame, when the map is in it (true starts)
   double nees_mean = 0.0;        // in the world frame when it is, else after the fit
   double consistent_ratio = 0.0;
+  // check_start: the same problem solved from the truth (its final cost; nullopt when not asked
+  // for or without true poses).
+  std::optional<LevenbergMarquardtReport> from_truth;
 };
 
 struct Reference {
@@ -43,7 +51,9 @@ struct Reference {
   std::string why_none;             // when not available
   std::string loss;                 // "none", "huber 1.345", "cauchy 2"
   std::map<RobotId, double> until;  // the robots whose data stops early (ReferenceOptions::until)
-  ReferenceMap central;
+  ReferenceMap central;               // the fair optimum: no robot's start known (each component's gauge)
+  ReferenceMap central_known_starts;  // every robot's true start known ...
+  bool has_known_starts = false;      // ... when computed (ReferenceOptions::known_starts)
   std::map<RobotId, ReferenceMap> own;  // each robot's single-robot batch
   std::optional<ReferenceMap> known_pose;
   std::map<RobotId, ReferenceMap> own_known_pose;  // each robot's own observations at its true poses
@@ -59,6 +69,10 @@ struct Reference {
 // them; and each robot's true poses when known.
 struct ReferenceInput {
   std::vector<BatchRobotLog> logs;
+  // The robots' sightings of each other that the agents use (agent.align_by with rendezvous),
+  // each between the two robots' nodes at its time (the logs hold a node there).
+  std::vector<BatchSighting> sightings;
+  int sightings_without_pose = 0;  // outside the other robot's stream: left out
   std::map<RobotId, std::vector<GroundTruth>> truth;  // each from its start pose, when known
   std::vector<Eigen::Vector2d> landmark_truth;
   std::vector<int> seen;

@@ -148,6 +148,44 @@ MapQuality EvaluateFittedMap(const LandmarkMap& map, const std::vector<Eigen::Ve
   return q;
 }
 
+MapQuality EvaluateFittedParts(const LandmarkMap& map, const std::map<std::int32_t, int>& part_of,
+                               const std::vector<Eigen::Vector2d>& truth, const std::vector<int>& seen,
+                               const std::optional<Pose2>& initial, double gate_m) {
+  std::map<int, LandmarkMap> parts;
+  for (const Landmark& l : map.landmarks) {
+    const auto it = part_of.find(l.signature);
+    LandmarkMap& part = parts[it != part_of.end() ? it->second : -1];
+    part.shape_sigma_m = map.shape_sigma_m;
+    part.landmarks.push_back(l);
+  }
+  if (parts.size() <= 1) return EvaluateFittedMap(map, truth, seen, initial, gate_m);
+  LandmarkMap placed;  // every fitted part where its fit puts it
+  placed.shape_sigma_m = map.shape_sigma_m;
+  std::optional<Pose2> largest;
+  std::size_t largest_size = 0;
+  for (const auto& [k, part] : parts) {
+    const MapQuality q = EvaluateFittedMap(part, truth, seen, initial, gate_m);
+    if (!q.evaluated || !q.fit) continue;
+    const LandmarkMap moved = TransformMap(part, *q.fit);
+    placed.landmarks.insert(placed.landmarks.end(), moved.landmarks.begin(), moved.landmarks.end());
+    if (part.size() > largest_size) {
+      largest_size = part.size();
+      largest = q.fit;
+    }
+  }
+  if (!largest) {
+    MapQuality q;
+    q.evaluated = false;
+    q.landmarks = static_cast<int>(map.size());
+    return q;
+  }
+  MapQuality q = EvaluateMap(placed, truth, seen, gate_m);
+  q.landmarks = static_cast<int>(map.size());
+  q.aligned = true;
+  q.fit = largest;
+  return q;
+}
+
 LandmarkMap RestrictToTruth(const LandmarkMap& map, const std::vector<int>& truth_indices) {
   LandmarkMap out;
   out.shape_sigma_m = map.shape_sigma_m;

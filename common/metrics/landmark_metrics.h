@@ -78,6 +78,16 @@ MapQuality EvaluateOwnFrameMap(const LandmarkMap& map, const std::vector<Eigen::
 MapQuality EvaluateFittedMap(const LandmarkMap& map, const std::vector<Eigen::Vector2d>& truth,
                              const std::vector<int>& seen, const std::optional<Pose2>& initial, double gate_m = 2.0);
 
+// Quality of a map whose landmarks lie in frames of their own, one per part (`part_of`, by
+// signature: a centralized optimum's components, which nothing in the data ties together):
+// each part after its own rigid fit, as EvaluateFittedMap, the figures pooled over the parts
+// fitted (a part with fewer than two matched landmarks is left out). A landmark `part_of` does
+// not name is in part -1. With a single part, EvaluateFittedMap itself; fit is the largest
+// part's.
+MapQuality EvaluateFittedParts(const LandmarkMap& map, const std::map<std::int32_t, int>& part_of,
+                               const std::vector<Eigen::Vector2d>& truth, const std::vector<int>& seen,
+                               const std::optional<Pose2>& initial, double gate_m = 2.0);
+
 // A local map's landmark: robot, incarnation, landmark id (a global map's origins name them).
 using LocalLandmark = std::tuple<RobotId, std::uint32_t, std::uint32_t>;
 // Local landmarks' identities as their robots' sensors gave them (their signatures).

@@ -71,6 +71,23 @@ void BatchLogBuilder::Scan(double stamp, const std::vector<Observation>& obs) {
   moved_ = false;
 }
 
+int BatchLogBuilder::Mark(double stamp) {
+  if (!moved_) {  // no odometry since the last node: the same pose
+    BatchNode& last = log_.nodes.back();
+    if (std::isnan(last.stamp)) last.stamp = stamp;
+    return static_cast<int>(log_.nodes.size()) - 1;
+  }
+  BatchNode node;
+  node.stamp = stamp;
+  node.delta = delta_;
+  node.delta_cov = 0.5 * (delta_cov_ + delta_cov_.transpose());
+  log_.nodes.push_back(std::move(node));
+  delta_ = Pose2{};
+  delta_cov_.setZero();
+  moved_ = false;
+  return static_cast<int>(log_.nodes.size()) - 1;
+}
+
 Eigen::Vector3d RelativePoseError(const Pose2& a, const Pose2& b, const Pose2& delta, Eigen::Matrix3d* j_a,
                                   Eigen::Matrix3d* j_b) {
   const Pose2 d = Between(a, b, j_a, j_b);
@@ -81,6 +98,14 @@ Eigen::Vector2d RangeBearingError(const Pose2& pose, const Eigen::Vector2d& m, c
                                   Eigen::Matrix<double, 2, 3>* j_pose, Eigen::Matrix2d* j_m) {
   const Eigen::Vector2d h = ObserveRangeBearing(pose, m, j_pose, j_m);
   return {h(0) - z(0), WrapAngle(h(1) - z(1))};
+}
+
+Eigen::Vector2d SightingError(const Pose2& a, const Pose2& b, const Eigen::Vector2d& z, Eigen::Matrix<double, 2, 3>* j_a,
+                              Eigen::Matrix<double, 2, 3>* j_b) {
+  Eigen::Matrix2d j_m;
+  const Eigen::Vector2d e = RangeBearingError(a, {b.x, b.y}, z, j_a, j_b ? &j_m : nullptr);
+  if (j_b) *j_b << j_m, Eigen::Vector2d::Zero();
+  return e;
 }
 
 namespace {
@@ -103,12 +128,20 @@ struct Chain {
   std::vector<char> skipped;  // per node: no factor uses it (known-pose map: no truth there)
 };
 
-// The batch problem over some chains' active nodes and the landmarks they observe.
+// A sighting between two chains of a problem (by index), at active, unskipped nodes.
+struct ChainSighting {
+  int a = 0, node_a = 0, b = 0, node_b = 0;
+  Eigen::Vector2d z = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Identity();
+};
+
+// The batch problem over some chains' active nodes, the landmarks they observe and the
+// sightings between them.
 class BatchProblem : public LeastSquaresProblem {
  public:
   // Landmarks not in `landmarks` start where their first observation puts them.
   BatchProblem(std::vector<Chain> chains, std::map<std::int32_t, Eigen::Vector2d> landmarks,
-               const BatchOptions& options)
+               const BatchOptions& options, const std::vector<ChainSighting>& sightings = {})
       : chains_(std::move(chains)), options_(options) {
     std::vector<int> sizes;
     for (Chain& c : chains_) {
@@ -172,6 +205,27 @@ class BatchProblem : public LeastSquaresProblem {
         }
       }
     }
+    for (const ChainSighting& s : sightings) {
+      const std::size_t a = static_cast<std::size_t>(s.a), b = static_cast<std::size_t>(s.b);
+      MAPMESH_CHECK(s.a != s.b && s.node_a < chains_[a].active && s.node_b < chains_[b].active &&
+                        !chains_[a].skipped[static_cast<std::size_t>(s.node_a)] &&
+                        !chains_[b].skipped[static_cast<std::size_t>(s.node_b)],
+                    "a sighting joins two chains' active nodes");
+      Sight f;
+      f.a = s.a;
+      f.node_a = s.node_a;
+      f.b = s.b;
+      f.node_b = s.node_b;
+      f.z = s.z;
+      f.white = Whitening<2>(s.cov);
+      const int va = var_[a][static_cast<std::size_t>(s.node_a)], vb = var_[b][static_cast<std::size_t>(s.node_b)];
+      if (va < 0 && vb < 0) continue;  // both fixed: nothing to estimate
+      std::vector<int> vars;
+      if (va >= 0) vars.push_back(va);
+      if (vb >= 0) vars.push_back(vb);
+      f.handle = eq_->Couple(vars);
+      sight_.push_back(f);
+    }
     eq_->Finalize();
   }
 
@@ -205,7 +259,7 @@ class BatchProblem : public LeastSquaresProblem {
   // The solution: landmarks with their marginal covariances, and the chains' active nodes.
   void Extract(BatchSolution* out) {
     std::vector<int> vars(landmark_var_.begin(), landmark_var_.end());
-    const std::vector<Eigen::MatrixXd> cov = eq_->Marginals(vars);
+    const std::vector<Eigen::MatrixXd> cov = vars.empty() ? std::vector<Eigen::MatrixXd>{} : eq_->Marginals(vars);
     out->covariance_ok = cov.size() == vars.size();
     out->map.landmarks.clear();
     // By increasing identity.
@@ -232,9 +286,15 @@ class BatchProblem : public LeastSquaresProblem {
     }
     out->variables = eq_->dim();
     out->observations = obs_.size();
-    const long rows = 3L * static_cast<long>(odo_.size()) + 2L * static_cast<long>(obs_.size());
-    out->chi2_per_dof = rows > eq_->dim() ? chi2_ / static_cast<double>(rows - eq_->dim()) : 0.0;
+    out->sightings = sight_.size();
+    out->chi2_per_dof = Rows() > eq_->dim() ? chi2_ / static_cast<double>(Rows() - eq_->dim()) : 0.0;
   }
+
+  // Residual rows, and the sum of the squared whitened residuals at the last evaluation.
+  long Rows() const {
+    return 3L * static_cast<long>(odo_.size()) + 2L * static_cast<long>(obs_.size() + sight_.size());
+  }
+  double chi2() const { return chi2_; }
 
   std::vector<Chain>& chains() { return chains_; }
   std::map<std::int32_t, Eigen::Vector2d> Landmarks() const {
@@ -252,6 +312,12 @@ class BatchProblem : public LeastSquaresProblem {
   };
   struct Obs {
     int robot = 0, node = 0, landmark = 0;
+    Eigen::Vector2d z;
+    Eigen::Matrix2d white;
+    int handle = 0;
+  };
+  struct Sight {
+    int a = 0, node_a = 0, b = 0, node_b = 0;
     Eigen::Vector2d z;
     Eigen::Matrix2d white;
     int handle = 0;
@@ -297,6 +363,22 @@ class BatchProblem : public LeastSquaresProblem {
       j5.middleCols<2>(cols) = f.white * jm;
       eq->Add(f.handle, j5.leftCols(cols + 2), res, options_.robust.Weight(s));
     }
+    Eigen::Matrix<double, 2, 3> ja2, jb2;
+    Eigen::Matrix<double, 2, 6> j6s;
+    for (const Sight& f : sight_) {
+      const std::size_t a = static_cast<std::size_t>(f.a), b = static_cast<std::size_t>(f.b);
+      const std::size_t na = static_cast<std::size_t>(f.node_a), nb = static_cast<std::size_t>(f.node_b);
+      const Eigen::Vector2d res = f.white * SightingError(chains_[a].poses[na], chains_[b].poses[nb], f.z,
+                                                          eq ? &ja2 : nullptr, eq ? &jb2 : nullptr);
+      const double s = res.squaredNorm();
+      cost += 0.5 * options_.robust.Rho(s);
+      chi2_ += s;
+      if (!eq) continue;
+      int cols = 0;
+      if (var_[a][na] >= 0) j6s.middleCols<3>(3 * cols++) = f.white * ja2;
+      if (var_[b][nb] >= 0) j6s.middleCols<3>(3 * cols++) = f.white * jb2;
+      eq->Add(f.handle, j6s.leftCols(3 * cols), res, options_.robust.Weight(s));
+    }
     return cost;
   }
 
@@ -309,6 +391,7 @@ class BatchProblem : public LeastSquaresProblem {
   std::vector<int> landmark_var_;
   std::vector<Odo> odo_;
   std::vector<Obs> obs_;
+  std::vector<Sight> sight_;
   std::unique_ptr<BlockNormalEquations> eq_;
   std::vector<std::vector<Pose2>> saved_poses_;
   std::vector<Eigen::Vector2d> saved_landmarks_;
@@ -366,63 +449,245 @@ BatchSolution SolveSingleRobotBatch(const BatchRobotLog& log, const BatchOptions
   return out;
 }
 
+namespace {
+
+// How a centralized solve is laid out: its components, each robot's place, the landmarks each
+// component holds.
+struct CentralPlan {
+  struct Part {
+    std::vector<std::size_t> robots;  // indices into the logs, in joining order
+    std::vector<char> gauge;          // per robot of the part: its node 0 fixed
+    std::vector<Pose2> frame;         // per robot of the part: its single solution's frame in the part's
+    bool in_world = false;
+    // The landmarks it holds (the sum and count of their placed estimates, for the start).
+    std::map<std::int32_t, std::pair<Eigen::Vector2d, int>> landmarks;
+  };
+  std::vector<Part> parts;
+  std::vector<int> part_of;            // per log
+  std::map<std::int32_t, int> owner;   // landmark: the part that holds it
+};
+
+CentralPlan PlanCentral(const std::vector<BatchRobotLog>& logs, const std::vector<BatchSolution>& singles,
+                        const std::vector<BatchSighting>& sightings, const std::map<RobotId, std::size_t>& index,
+                        StartKnowledge starts) {
+  const std::size_t n = logs.size();
+  CentralPlan plan;
+  plan.part_of.assign(n, -1);
+  // Each robot's sightings (either side), those whose nodes its log holds.
+  std::vector<std::vector<const BatchSighting*>> sights(n);
+  for (const BatchSighting& s : sightings) {
+    const auto a = index.find(s.robot), b = index.find(s.other);
+    if (a == index.end() || b == index.end()) continue;
+    if (s.node < 0 || static_cast<std::size_t>(s.node) >= logs[a->second].nodes.size() || s.other_node < 0 ||
+        static_cast<std::size_t>(s.other_node) >= logs[b->second].nodes.size()) {
+      continue;
+    }
+    sights[a->second].push_back(&s);
+    sights[b->second].push_back(&s);
+  }
+  auto track = [&](std::size_t r) -> const std::vector<BatchPose>& { return singles[r].trajectories.at(logs[r].robot); };
+  auto place = [&](std::size_t r, int k, const Pose2& frame, bool gauge) {
+    CentralPlan::Part& part = plan.parts[static_cast<std::size_t>(k)];
+    plan.part_of[r] = k;
+    part.robots.push_back(r);
+    part.gauge.push_back(gauge);
+    part.frame.push_back(frame);
+    for (const Landmark& l : singles[r].map.landmarks) {
+      const auto owned = plan.owner.find(l.signature);
+      if (owned != plan.owner.end() && owned->second != k) continue;
+      auto& [sum, count] = part.landmarks.try_emplace(l.signature, Eigen::Vector2d::Zero(), 0).first->second;
+      sum += frame.Apply(l.mean);
+      ++count;
+    }
+  };
+  // A robot's pose at a node where its part places it.
+  auto placed_pose = [&](std::size_t r, int node) {
+    const CentralPlan::Part& part = plan.parts[static_cast<std::size_t>(plan.part_of[r])];
+    const std::size_t at = static_cast<std::size_t>(
+        std::find(part.robots.begin(), part.robots.end(), r) - part.robots.begin());
+    return part.frame[at] * track(r)[static_cast<std::size_t>(node)].pose;
+  };
+  // Robot r's frame in part k from what it shares with it: landmarks the part holds and
+  // sightings between r and the part's robots, as pairs of points (r's single frame, k's).
+  auto fit = [&](std::size_t r, int k) -> std::optional<Pose2> {
+    const CentralPlan::Part& part = plan.parts[static_cast<std::size_t>(k)];
+    std::vector<Eigen::Vector2d> src, dst;
+    for (const Landmark& l : singles[r].map.landmarks) {
+      const auto it = part.landmarks.find(l.signature);
+      if (it == part.landmarks.end()) continue;
+      src.push_back(l.mean);
+      dst.push_back(it->second.first / it->second.second);
+    }
+    for (const BatchSighting* s : sights[r]) {
+      const bool sees = index.at(s->robot) == r;
+      const std::size_t o = index.at(sees ? s->other : s->robot);
+      if (plan.part_of[o] != k) continue;
+      if (sees) {  // r saw o
+        src.push_back(InverseRangeBearing(track(r)[static_cast<std::size_t>(s->node)].pose, s->z));
+        const Pose2 at = placed_pose(o, s->other_node);
+        dst.emplace_back(at.x, at.y);
+      } else {  // o saw r
+        const Pose2 at = track(r)[static_cast<std::size_t>(s->other_node)].pose;
+        src.emplace_back(at.x, at.y);
+        dst.push_back(InverseRangeBearing(placed_pose(o, s->node), s->z));
+      }
+    }
+    if (src.size() < 2) return std::nullopt;
+    return FitRigid2D(src, dst);
+  };
+  auto close = [&](int k) {
+    for (const auto& [sig, _] : plan.parts[static_cast<std::size_t>(k)].landmarks) plan.owner.try_emplace(sig, k);
+  };
+  for (int k = 0;; ++k) {
+    std::vector<std::size_t> seeds;
+    if (k == 0 && starts == StartKnowledge::kKnown) {
+      for (std::size_t r = 0; r < n; ++r) {
+        if (logs[r].start) seeds.push_back(r);
+      }
+    }
+    if (seeds.empty()) {
+      for (std::size_t r = 0; r < n && seeds.empty(); ++r) {
+        if (plan.part_of[r] < 0) seeds.push_back(r);
+      }
+    }
+    if (seeds.empty()) break;
+    plan.parts.emplace_back();
+    plan.parts.back().in_world = std::all_of(seeds.begin(), seeds.end(), [&](std::size_t r) { return logs[r].start; });
+    for (std::size_t r : seeds) place(r, k, Pose2{}, true);
+    for (bool progress = true; progress;) {
+      progress = false;
+      for (std::size_t r = 0; r < n; ++r) {
+        if (plan.part_of[r] >= 0) continue;
+        if (const std::optional<Pose2> frame = fit(r, k)) {
+          place(r, k, *frame, false);
+          progress = true;
+        }
+      }
+    }
+    close(k);
+  }
+  return plan;
+}
+
+}  // namespace
+
 BatchSolution SolveCentralBatch(const std::vector<BatchRobotLog>& logs, const std::vector<BatchSolution>& singles,
-                                const BatchOptions& options) {
+                                const std::vector<BatchSighting>& sightings, const CentralBatchOptions& options,
+                                const CentralStart* from) {
   MAPMESH_CHECK(logs.size() == singles.size(), "one single-robot solution per log");
   BatchSolution out;
   if (logs.empty()) return out;
-  // Each robot's frame in the problem's: its single-robot solution is in its start's frame
-  // (the world's when the start is known). Robots of unknown start are placed by a rigid fit
-  // of their landmarks to those already placed; the first robot is the gauge when no start is
-  // known.
-  const bool any_start = std::any_of(logs.begin(), logs.end(), [](const BatchRobotLog& l) { return l.start; });
-  std::vector<std::optional<Pose2>> placed(logs.size());
-  std::map<std::int32_t, std::pair<Eigen::Vector2d, int>> sum;  // placed landmark estimates
-  auto place = [&](std::size_t r, const Pose2& frame) {
-    placed[r] = frame;
-    for (const Landmark& l : singles[r].map.landmarks) {
-      auto& [s, k] = sum.try_emplace(l.signature, Eigen::Vector2d::Zero(), 0).first->second;
-      s += frame.Apply(l.mean);
-      ++k;
-    }
-  };
+  std::map<RobotId, std::size_t> index;
   for (std::size_t r = 0; r < logs.size(); ++r) {
-    if (logs[r].start || (!any_start && r == 0)) place(r, Pose2{});
-  }
-  for (bool progress = true; progress;) {
-    progress = false;
-    for (std::size_t r = 0; r < logs.size(); ++r) {
-      if (placed[r]) continue;
-      std::vector<Eigen::Vector2d> src, dst;
-      for (const Landmark& l : singles[r].map.landmarks) {
-        const auto it = sum.find(l.signature);
-        if (it == sum.end()) continue;
-        src.push_back(l.mean);
-        dst.push_back(it->second.first / it->second.second);
-      }
-      if (src.size() < 2) continue;
-      const std::optional<Pose2> frame = FitRigid2D(src, dst);
-      if (!frame) continue;
-      place(r, *frame);
-      progress = true;
-    }
-  }
-  std::vector<Chain> chains;
-  for (std::size_t r = 0; r < logs.size(); ++r) {
-    if (!placed[r]) continue;  // shares too few landmarks with the others to be placed
-    Chain c = DeadReckoned(logs[r], Pose2{});
+    MAPMESH_CHECK(index.emplace(logs[r].robot, r).second, "one log per robot");
     const auto& track = singles[r].trajectories.at(logs[r].robot);
     MAPMESH_CHECK(track.size() == logs[r].nodes.size(), "a single-robot solution covers its log");
-    for (std::size_t i = 0; i < track.size(); ++i) c.poses[i] = *placed[r] * track[i].pose;
-    c.fixed[0] = logs[r].start || (!any_start && r == 0);
-    chains.push_back(std::move(c));
   }
-  std::map<std::int32_t, Eigen::Vector2d> landmarks;
-  for (const auto& [sig, s] : sum) landmarks[sig] = s.first / s.second;
-  BatchProblem problem(std::move(chains), landmarks, options);
-  out.report = MinimiseLevenbergMarquardt(problem, problem.equations(), options.lm);
-  out.solves = 1;
-  problem.Extract(&out);
+  const CentralPlan plan = PlanCentral(logs, singles, sightings, index, options.starts);
+  out.report.converged = true;
+  double chi2 = 0.0;
+  long dof = 0;
+  std::vector<std::pair<int, std::size_t>> order;  // (landmarks, part): the largest first
+  std::vector<BatchSolution> solved;
+  for (std::size_t k = 0; k < plan.parts.size(); ++k) {
+    const CentralPlan::Part& part = plan.parts[k];
+    // Each robot's log without the observations of landmarks an earlier part holds.
+    std::vector<BatchRobotLog> kept;
+    kept.reserve(part.robots.size());
+    for (std::size_t r : part.robots) {
+      kept.push_back(logs[r]);
+      for (BatchNode& node : kept.back().nodes) {
+        const auto end = std::remove_if(node.obs.begin(), node.obs.end(), [&](const BatchObservation& o) {
+          return plan.owner.at(o.landmark) != static_cast<int>(k);
+        });
+        out.observations_left_out += static_cast<std::size_t>(node.obs.end() - end);
+        node.obs.erase(end, node.obs.end());
+      }
+    }
+    std::vector<Chain> chains;
+    for (std::size_t i = 0; i < part.robots.size(); ++i) {
+      const std::size_t r = part.robots[i];
+      Chain c = DeadReckoned(kept[i], Pose2{});
+      const auto& track = singles[r].trajectories.at(logs[r].robot);
+      const std::vector<Pose2>* given = nullptr;
+      if (from) {
+        const auto it = from->poses.find(logs[r].robot);
+        if (it != from->poses.end() && it->second.size() == track.size()) given = &it->second;
+      }
+      for (std::size_t j = 0; j < track.size(); ++j) c.poses[j] = given ? (*given)[j] : part.frame[i] * track[j].pose;
+      c.fixed[0] = part.gauge[i];
+      if (part.gauge[i]) c.poses[0] = part.frame[i] * track[0].pose;  // where the gauge holds it
+      chains.push_back(std::move(c));
+    }
+    std::map<std::int32_t, Eigen::Vector2d> landmarks;
+    for (const auto& [sig, sum] : part.landmarks) landmarks[sig] = sum.first / sum.second;
+    if (from) {
+      for (auto& [sig, at] : landmarks) {
+        if (const auto it = from->landmarks.find(sig); it != from->landmarks.end()) at = it->second;
+      }
+    }
+    std::vector<ChainSighting> chain_sightings;
+    for (const BatchSighting& s : sightings) {
+      const auto a = index.find(s.robot), b = index.find(s.other);
+      if (a == index.end() || b == index.end()) continue;
+      const int pa = plan.part_of[a->second], pb = plan.part_of[b->second];
+      if (pa != static_cast<int>(k) && pb != static_cast<int>(k)) continue;
+      const bool nodes_held = s.node >= 0 && static_cast<std::size_t>(s.node) < logs[a->second].nodes.size() &&
+                              s.other_node >= 0 && static_cast<std::size_t>(s.other_node) < logs[b->second].nodes.size();
+      if (pa != pb || !nodes_held) {
+        if (pa == static_cast<int>(k)) ++out.sightings_left_out;  // counted once
+        continue;
+      }
+      auto chain = [&](std::size_t r) {
+        return static_cast<int>(std::find(part.robots.begin(), part.robots.end(), r) - part.robots.begin());
+      };
+      chain_sightings.push_back({chain(a->second), s.node, chain(b->second), s.other_node, s.z, s.cov});
+    }
+    BatchProblem problem(std::move(chains), landmarks, options.batch, chain_sightings);
+    BatchSolution part_out;
+    if (problem.equations().dim() > 0) {
+      part_out.report = MinimiseLevenbergMarquardt(problem, problem.equations(), options.batch.lm);
+      ++out.solves;
+    } else {
+      part_out.report.converged = true;
+      part_out.report.stop = "cost";
+      problem.Cost();
+    }
+    problem.Extract(&part_out);
+    chi2 += problem.chi2();
+    dof += std::max(0L, problem.Rows() - problem.equations().dim());
+    order.emplace_back(static_cast<int>(part_out.map.size()), k);
+    solved.push_back(std::move(part_out));
+  }
+  // The largest component first (by landmarks), ties in planning order.
+  std::stable_sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  for (const auto& [count, k] : order) {
+    const int c = static_cast<int>(out.components.size());
+    BatchComponent comp;
+    for (std::size_t r : plan.parts[k].robots) comp.robots.push_back(logs[r].robot);
+    comp.in_world = plan.parts[k].in_world;
+    comp.landmarks = count;
+    out.components.push_back(std::move(comp));
+    BatchSolution& s = solved[k];
+    for (const Landmark& l : s.map.landmarks) {
+      out.map.landmarks.push_back(l);
+      out.landmark_component[l.signature] = c;
+    }
+    for (auto& [robot, t] : s.trajectories) out.trajectories[robot] = std::move(t);
+    out.report.iterations += s.report.iterations;
+    out.report.steps_accepted += s.report.steps_accepted;
+    out.report.initial_cost += s.report.initial_cost;
+    out.report.final_cost += s.report.final_cost;
+    if (out.report.stop.empty() || (out.report.converged && !s.report.converged)) out.report.stop = s.report.stop;
+    out.report.converged = out.report.converged && s.report.converged;
+    out.variables += s.variables;
+    out.observations += s.observations;
+    out.sightings += s.sightings;
+    out.covariance_ok = out.covariance_ok && s.covariance_ok;
+  }
+  std::sort(out.map.landmarks.begin(), out.map.landmarks.end(),
+            [](const Landmark& a, const Landmark& b) { return a.signature < b.signature; });
+  out.chi2_per_dof = dof > 0 ? chi2 / static_cast<double>(dof) : 0.0;
   return out;
 }
 

@@ -7,10 +7,21 @@
 // integrated, with the filter's own motion model and noise (FilterNoise), into one relative-pose
 // factor with its propagated covariance: exact whatever the odometry's rate, since the
 // unicycle and car models are invariant to the frame they start in. Each landmark observation
-// is a range-bearing factor, with known association (the signature). A robot's first node is
-// fixed at its true start pose where that is known; when no robot's is, the first robot's is
-// fixed at the origin (the gauge) and the others' are found from shared landmarks. The
-// problem is solved by Levenberg-Marquardt over a sparse Cholesky factorisation
+// is a range-bearing factor, with known association (the signature). Robots' sightings of
+// each other (a range and bearing of the other robot's position) are factors too, between the
+// two robots' nodes at the sighting's time.
+//
+// What the centralized solve knows of where the robots started is a choice (CentralBatchOptions):
+// - none, as no agent does (the fair optimum, docs/EXPERIMENTS.md "The limit"): the robots form
+//   components, each robot joining one when it shares at least two links with it (a landmark
+//   both observe, or a sighting between them: fewer leave its frame free to turn). Each
+//   component's first robot is its gauge, node 0 fixed at its true start where known, else at
+//   the origin; every other robot's start is free. A component is solved apart from the others
+//   (a landmark two components observe stays with the first; a sighting across components is
+//   left out), since nothing in the data ties their frames.
+// - every robot's true start where known (an oracle), each of those node 0s fixed; robots of
+//   unknown start are placed from shared landmarks and sightings, as above.
+// The problem is solved by Levenberg-Marquardt over a sparse Cholesky factorisation
 // (common/solver/least_squares.h), with a robust loss on the observations for real data, and
 // the landmarks' marginal covariances come from the information matrix at the optimum.
 //
@@ -60,6 +71,18 @@ struct BatchRobotLog {
   std::size_t Observations() const;
 };
 
+// A robot's sighting of another: z = [range, bearing] of robot `other`'s position at node
+// `other_node` of its log, from robot `robot`'s node `node` (both nodes at the sighting's time).
+struct BatchSighting {
+  RobotId robot = 0;
+  int node = 0;
+  RobotId other = 0;
+  int other_node = 0;
+  double stamp = 0.0;
+  Eigen::Vector2d z = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Identity();  // of [range, bearing]
+};
+
 // Builds a robot's log from its data in time order, as its agent's estimator receives it:
 // odometry (Move) integrated from the previous node, landmark observations (Scan) kept when
 // they carry an identity and a range within [min_range_m, max_range_m].
@@ -69,6 +92,9 @@ class BatchLogBuilder {
                   std::optional<Pose2> start);
   void Move(const OdometryControl& u, double dt);
   void Scan(double stamp, const std::vector<Observation>& obs);
+  // A node at the robot's pose now (a sighting's end): the last node when the robot has not
+  // moved since it, else a new node without observations. Returns its index.
+  int Mark(double stamp);
   const BatchRobotLog& log() const { return log_; }
 
  private:
@@ -101,6 +127,31 @@ struct BatchOptions {
                                       // short interval's covariance has rank 2 (no sideways slip in the model)
 };
 
+// The sighting factor's error: the predicted [range, bearing] of the other robot's position
+// from pose a minus z, with its Jacobians with respect to a and b (b's heading does not enter).
+Eigen::Vector2d SightingError(const Pose2& a, const Pose2& b, const Eigen::Vector2d& z,
+                              Eigen::Matrix<double, 2, 3>* j_a = nullptr, Eigen::Matrix<double, 2, 3>* j_b = nullptr);
+
+// What the centralized solve knows of the robots' starts (see the top of this file).
+enum class StartKnowledge {
+  kNone,   // the agents' knowledge: each component's gauge only
+  kKnown,  // every robot's true start where known, as an oracle
+};
+
+struct CentralBatchOptions {
+  BatchOptions batch;
+  StartKnowledge starts = StartKnowledge::kNone;
+};
+
+// Robots whose frames the data ties: solved together, apart from the others.
+struct BatchComponent {
+  std::vector<RobotId> robots;  // the gauge first, then in the order they joined
+  // The gauge's node 0 is at its true start (so the component is in the world frame), else at
+  // the origin. With known starts, every robot of known start is a gauge of the first component.
+  bool in_world = false;
+  int landmarks = 0;
+};
+
 // A pose of a solved chain.
 struct BatchPose {
   double stamp = 0.0;
@@ -121,16 +172,34 @@ struct BatchSolution {
   // The residuals at the optimum: sum of the squared whitened residuals over (rows - variables),
   // near 1 when the noise is what the model says.
   double chi2_per_dof = 0.0;
+  std::size_t sightings = 0;  // sighting factors used
+  // A centralized solve's components (the largest first, by landmarks): one unless some robots'
+  // data share too little with the rest. Each landmark's component, by identity.
+  std::vector<BatchComponent> components;
+  std::map<std::int32_t, int> landmark_component;
+  std::size_t observations_left_out = 0;  // of a landmark an earlier component holds
+  std::size_t sightings_left_out = 0;     // across components
 };
 
 // The batch optimum of one robot's data: node 0 at the robot's true start, else at the origin.
 BatchSolution SolveSingleRobotBatch(const BatchRobotLog& log, const BatchOptions& options = {});
 
-// The centralized batch optimum of every robot's data, started from their single-robot
-// solutions (`singles`, one per log in the same order): a robot whose start is unknown is
-// placed by a rigid fit of its landmarks to those already placed.
+// Where a centralized solve starts: every robot's nodes and the landmarks (missing ones start
+// where their first observation puts them). A check: the truth, to see that the solve from the
+// robots' own solutions reaches the same cost.
+struct CentralStart {
+  std::map<RobotId, std::vector<Pose2>> poses;  // per robot, one per node of its log
+  std::map<std::int32_t, Eigen::Vector2d> landmarks;
+};
+
+// The centralized batch optimum of every robot's data (logs in increasing robot order) and
+// their sightings, started from their single-robot solutions (`singles`, one per log in the same
+// order, each in its start's frame): each robot not a gauge is placed by a rigid fit of its
+// landmarks and sighted positions to those already placed (no truth used), or, with `from`,
+// where it says (a gauge's node 0 stays where the gauge fixes it).
 BatchSolution SolveCentralBatch(const std::vector<BatchRobotLog>& logs, const std::vector<BatchSolution>& singles,
-                                const BatchOptions& options = {});
+                                const std::vector<BatchSighting>& sightings, const CentralBatchOptions& options,
+                                const CentralStart* from = nullptr);
 
 // The true pose of a robot at a time, nullopt when unknown.
 using BatchTruePose = std::function<std::optional<Pose2>(RobotId robot, double stamp)>;

@@ -70,13 +70,19 @@ COLUMNS = [
     Column("global.coverage", table="cov_global", table_format=".2f", html="global coverage", csv="coverage_global",
            plot=("global coverage", "share of the seen true landmarks")),
     # Each map against its limit on the same landmarks (docs/EXPERIMENTS.md "The limit"): the RMSE
-    # after a rigid fit over that of the centralized batch optimum (global map) or of the robot's
-    # own batch optimum (local map); 1 is the limit.
+    # after a rigid fit over that of the centralized batch optimum with what the agents know of
+    # the starts, none (global map), or of the robot's own batch optimum (local map); 1 is the limit.
     Column("global.central_rmse_aligned_m", html="centralized optimum on the same landmarks (m)",
            csv="rmse_central_same_m"),
     Column("gap_to_central", table="gap_central", table_format=".2f",
            html="global RMSE / centralized optimum", csv="gap_to_central",
            plot=("global RMSE over the centralized optimum", "ratio (1: the limit)")),
+    # ... and over the optimum that knows every robot's true start, which no agent does (below 1 is
+    # out of reach by more than what the starts tell).
+    Column("global.central_known_starts_rmse_aligned_m", html="optimum with the true starts on the same landmarks (m)",
+           csv="rmse_central_known_starts_same_m"),
+    Column("gap_to_central_known_starts", html="global RMSE / optimum with the true starts",
+           csv="gap_to_central_known_starts"),
     # ... and over the optimum of the data that reached the agent by the end (the same where all of
     # it did: scripts/mapmesh/reached.py).
     Column("gap_to_reached", html="global RMSE / optimum of what reached it", csv="gap_to_reached"),
@@ -102,7 +108,9 @@ HTML_COLUMNS = [c for c in COLUMNS if c.html]
 SWEEP_COLUMNS = [BY_KEY[k] for k in ("id", "alive_at_end", "local.landmarks", "global.landmarks", "global.coverage",
                                      "global.nees_mean", "global.rmse_aligned_m", "global.rmse_m",
                                      "local.rmse_aligned_m", "local.rmse_m", "local.nees_mean",
-                                     "global.central_rmse_aligned_m", "gap_to_central", "gap_to_own_batch",
+                                     "global.central_rmse_aligned_m", "gap_to_central",
+                                     "global.central_known_starts_rmse_aligned_m", "gap_to_central_known_starts",
+                                     "gap_to_own_batch",
                                      "peers_aligned", "bytes_sent")]
 SWEEP_HEADER = ["seed"] + [c.csv for c in SWEEP_COLUMNS] + ["wall_s"]
 # The sweep plot's panels, left to right.

@@ -612,7 +612,8 @@ class SwarmRun:
     # ----- results ------------------------------------------------------------------------
     def compute_reference(self, interrupted):
         """DIR/reference.json by `mapmesh-lab reference` on the run's scenario (the same --agents and
-        --set): the centralized batch optimum, each robot's own and the known-pose map, after the
+        --set): the centralized batch optimum (with no robot's start known, the fair limit, and with
+        every true start), each robot's own and the known-pose map, after the
         run so that it takes nothing from the agents. What summary.json's `reference` holds (the
         maps left out), with the wall time it took."""
         if getattr(self.args, "no_reference", False):
@@ -663,7 +664,8 @@ class SwarmRun:
             path.unlink(missing_ok=True)
             if not robots:
                 continue
-            cmd = [lab, "reference", "--scenario", self.scenario, "--no-known-pose", "--out", str(path)] + self.common
+            cmd = [lab, "reference", "--scenario", self.scenario, "--no-known-pose", "--no-known-starts",
+                   "--out", str(path)] + self.common
             for robot, t in sorted(robots.items()):
                 cmd += ["--until", f"{robot}={t}"]
             r = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
@@ -704,9 +706,11 @@ class SwarmRun:
                 "local": score.get("local"),
                 "global": score.get("global"),
                 # The map against the limit on the same landmarks (RMSE after a rigid fit over the
-                # optimum's): the global map over the centralized batch optimum, the local map over
-                # the robot's own batch optimum (docs/EXPERIMENTS.md "The limit").
+                # optimum's): the global map over the centralized batch optimum with no start
+                # known (the agents' knowledge), and over the one that knows every true start; the
+                # local map over the robot's own batch optimum (docs/EXPERIMENTS.md "The limit").
                 "gap_to_central": score.get("gap_to_central"),
+                "gap_to_central_known_starts": score.get("gap_to_central_known_starts"),
                 "gap_to_own_batch": score.get("gap_to_own_batch"),
                 # The global map over the optimum of the data that reached the agent by the end
                 # (each other robot's up to reached_until[robot] s, the rest whole; reached.py).
@@ -798,15 +802,15 @@ class SwarmRun:
 
 
 def strip_maps(value):
-    """A reference.json without its maps (every "map" key, at any depth)."""
+    """A reference.json without its maps (every "map" and "landmark_component" key, at any depth)."""
     if isinstance(value, dict):
-        return {k: strip_maps(v) for k, v in value.items() if k != "map"}
+        return {k: strip_maps(v) for k, v in value.items() if k not in ("map", "landmark_component")}
     return value
 
 
 def describe_reference(ref):
-    """One line on the run's reference: the centralized optimum and the known-pose map, or why
-    there is none."""
+    """One line on the run's reference: the centralized optimum with no start known (the fair
+    limit), with the true starts, and the known-pose map; or why there is none."""
     if not ref or not ref.get("available"):
         return f"reference: none ({(ref or {}).get('why_none', 'not computed')})"
     c = ref["central"]
@@ -815,6 +819,11 @@ def describe_reference(ref):
         line += f" (NEES {c['nees_mean']:.2f})"
     if not c.get("converged"):
         line += " NOT CONVERGED"
+    if c.get("unconnected"):
+        line += f" (robots {', '.join(str(r) for r in c['unconnected'])} share too little with the rest: apart)"
+    s = ref.get("central_known_starts")
+    if s:
+        line += f", with the true starts {s['rmse_aligned_m']:.3f} m"
     k = ref.get("known_pose")
     if k:
         line += f", known poses {k['rmse_aligned_m']:.3f} m"

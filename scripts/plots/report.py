@@ -717,16 +717,26 @@ def reference_html(ref):
                  cell_text(m.get("nees_mean")), "yes" if m.get("converged") else "NO", cell_text(m.get("solve_s")))
         return "<tr>" + "".join(f"<td>{esc(v)}</td>" for v in cells) + "</tr>"
 
-    rows = [row("centralized batch optimum (all robots' data)", ref.get("central")),
+    central = ref.get("central") or {}
+    rows = [row("centralized batch optimum (all robots' data, no start known)", central),
+            row("the same with every robot's true start", ref.get("central_known_starts")),
             row("known poses (every observation from the true pose)", ref.get("known_pose"))]
     rows += [row(f"robot {rid}'s own batch optimum", m) for rid, m in sorted(
         (ref.get("own_batch") or {}).items(), key=lambda kv: int(kv[0]))]
+    apart = ""
+    if central.get("unconnected"):
+        robots = ", ".join(str(r) for r in central["unconnected"])
+        apart = (f" Robots {esc(robots)} share too little with the others (fewer than two landmarks and sightings) "
+                 "for their frames to be tied: each such group is solved and scored in a frame of its own.")
     return f"""<p id="reference">What the run's data allows, from the feeder's own streams: every odometry
-and range-bearing reading in one sparse least-squares problem with known association (loss
-{esc(ref.get('loss', 'none'))}), solved in {esc(seconds(ref.get('wall_s', ref.get('total_s'))))}. The summary's
+and range-bearing reading, and the robots' sightings of each other that the agents use, in one sparse
+least-squares problem with known association (loss {esc(ref.get('loss', 'none'))}), solved in
+{esc(seconds(ref.get('wall_s', ref.get('total_s'))))}. Like the agents, it knows no robot's start: one robot's
+start fixes the frame (the gauge), every other is found from the data. The summary's
 <i>global RMSE / centralized optimum</i> divides each global map's RMSE after a rigid fit by the
 optimum's on the same landmarks, and <i>local RMSE / own batch optimum</i> each local map's by its
-robot's own optimum's: 1 is the limit.</p>
+robot's own optimum's: 1 is the limit. The optimum that also knows every robot's true start, which no
+agent does, is beside it (<i>global RMSE / optimum with the true starts</i>).{apart}</p>
 <table id="reference-table"><tr><th>map</th><th>landmarks</th><th>RMSE after rigid fit (m)</th>
 <th>RMSE, world frame (m)</th><th>NEES</th><th>converged</th><th>solve (s)</th></tr>
 {''.join(rows)}</table>"""

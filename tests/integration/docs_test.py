@@ -54,8 +54,9 @@ class OutputsDocTest(unittest.TestCase):
             "A map against the truth (`agents[].local`, `agents[].global`)":
                 [a[k] for a in s["agents"] for k in ("local", "global")],
             "The limit (`reference`)": [ref],
-            "A reference map (`reference.central`, `.known_pose`, `.own_batch[]`, `.own_known_pose[]`)":
-                [ref["central"], ref["known_pose"]] + list(ref["own_batch"].values())
+            "A reference map (`reference.central`, `.central_known_starts`, `.known_pose`, `.own_batch[]`, "
+            "`.own_known_pose[]`)":
+                [ref["central"], ref["central_known_starts"], ref["known_pose"]] + list(ref["own_batch"].values())
                 + list(ref["own_known_pose"].values()),
             "How the run was made (`run.json`)": [made],
         }

@@ -25,9 +25,17 @@ class LimitTableTest(unittest.TestCase):
             rows = [line for line in r.stdout.splitlines() if line.startswith("| circle |")]
             self.assertEqual(len(rows), 1, r.stdout)
             cells = [c.strip() for c in rows[0].strip("|").split("|")]
-            self.assertEqual(len(cells), 11, rows[0])
+            self.assertEqual(len(cells), 14, rows[0])
             self.assertEqual(cells[1], "1")  # one run
-            self.assertNotIn("–", cells[2:7], rows[0])  # optimum, known poses, global, both gaps all measured
+            # The fair optimum, the known-starts one, their ratio, known poses, global, and the gaps to
+            # both optima and to what reached each agent: all measured.
+            for cell in cells[2:10]:
+                self.assertNotIn("–", cell, rows[0])
+            # The ratio (of unrounded figures) within what the printed ones' rounding allows.
+            fair, starts = float(cells[2].split()[0]), float(cells[3].split()[0])
+            ratio = float(cells[4].split()[0])
+            self.assertGreaterEqual(ratio, (fair - 0.0005) / (starts + 0.0005) - 0.005, rows[0])
+            self.assertLessEqual(ratio, (fair + 0.0005) / (starts - 0.0005) + 0.005, rows[0])
             run = json.loads((out / "circle" / "seed_3" / "run.json").read_text())
             self.assertIn("agent.slam=cekf_submaps", json.dumps(run))
             self.assertIn("seed=3", json.dumps(run))

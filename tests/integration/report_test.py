@@ -41,20 +41,22 @@ TIMELINE_IMAGES = ["report/rmse.png", "report/exchanges.png", "report/nees.png",
 SUMMARY_KEYS = ["id", "alive_at_end", "exit_code", "restarts", "local.landmarks", "local.rmse_aligned_m",
                 "local.rmse_m", "local.nees_mean", "global.landmarks", "global.rmse_aligned_m", "global.rmse_m",
                 "global.nees_mean", "global.coverage", "global.central_rmse_aligned_m", "gap_to_central",
-                "gap_to_reached", "gap_to_own_batch", "local.trajectory_ate_aligned_m",
+                "global.central_known_starts_rmse_aligned_m", "gap_to_central_known_starts", "gap_to_reached", "gap_to_own_batch", "local.trajectory_ate_aligned_m",
                 "local.trajectory_rpe.translation_rmse_m", "peers_aligned", "maps_received", "bytes_sent",
                 "bytes_per_landmark", "cpu_s", "max_rss_mb"]
 SUMMARY_HEADERS = ["agent", "alive", "exit", "restarts", "local landmarks", "local RMSE after rigid fit (m)",
                    "local RMSE, true frame (m)", "local NEES", "global landmarks", "global RMSE after rigid fit (m)",
                    "global RMSE, true frame (m)", "global NEES", "global coverage",
                    "centralized optimum on the same landmarks (m)", "global RMSE / centralized optimum",
-                   "global RMSE / optimum of what reached it", "local RMSE / own batch optimum",
+                   "optimum with the true starts on the same landmarks (m)",
+                   "global RMSE / optimum with the true starts", "global RMSE / optimum of what reached it", "local RMSE / own batch optimum",
                    "trajectory ATE after rigid fit (m)", "trajectory RPE over 1 s (m)", "peers aligned",
                    "maps received", "bytes sent", "bytes / landmark", "CPU (s)", "max RSS (MB)"]
 # sweep.csv as `swarm sweep` writes it, after the swept parameter.
 SWEEP_HEADER = ["seed", "agent", "alive", "lm_local", "lm_global", "coverage_global", "nees_global",
                 "rmse_global_aligned_m", "rmse_global_m", "rmse_local_aligned_m", "rmse_local_m", "nees_local",
-                "rmse_central_same_m", "gap_to_central", "gap_to_own_batch", "peers_aligned", "bytes_sent", "wall_s"]
+                "rmse_central_same_m", "gap_to_central", "rmse_central_known_starts_same_m",
+                "gap_to_central_known_starts", "gap_to_own_batch", "peers_aligned", "bytes_sent", "wall_s"]
 DASH = "\u2013"
 
 
@@ -180,7 +182,8 @@ def make_fake_run(d):
                 "nees_mean": nees, "frame": "world" if world else "aligned", "solve_s": 0.05, "converged": True}
 
     summary["reference"] = {"available": True, "loss": "none", "total_s": 0.4, "wall_s": 0.45,
-                            "central": limit(0.0321, 1.97, True), "known_pose": limit(0.0187, 2.05, True),
+                            "central": limit(0.0321, 1.97, True), "central_known_starts": limit(0.0280, 2.01, True),
+                            "known_pose": limit(0.0187, 2.05, True),
                             "own_batch": {str(r): limit(0.04 + r / 100, 2.1, True) for r in (1, 2, 3)}}
     _write(d / "summary.json", summary)
 
@@ -508,10 +511,12 @@ class ReportTest(unittest.TestCase):
             self.assertIn("Pauses: agent 1 at 40.0 s for 3.00 s (wall)", text)  # the pause
             self.assertIn("paused at (s)", text)
             self.assertIn("own frame (pose unknown)", text)  # agent 2's frame_in_world is null
-            # The limit: the centralized optimum, the known-pose map and each robot's own optimum.
+            # The limit: the centralized optimum with no start known, with the true starts, the
+            # known-pose map and each robot's own optimum.
             self.assertIn("reference-table", page.ids)
-            self.assertIn("<td>centralized batch optimum (all robots&#x27; data)</td><td>60</td><td>0.0321</td>"
-                          "<td>0.0385</td><td>1.97</td><td>yes</td>", text)
+            self.assertIn("<td>centralized batch optimum (all robots&#x27; data, no start known)</td><td>60</td>"
+                          "<td>0.0321</td><td>0.0385</td><td>1.97</td><td>yes</td>", text)
+            self.assertIn("<td>the same with every robot&#x27;s true start</td><td>60</td><td>0.0280</td>", text)
             self.assertIn("<td>robot 3&#x27;s own batch optimum</td>", text)
 
     def test_report_in_a_real_browser(self):
