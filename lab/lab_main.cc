@@ -417,8 +417,7 @@ std::optional<std::pair<RobotId, double>> ParseUntil(const std::string& v) {
 
 int RunReferenceCommand(const app::ProcessOptions& po, const std::string& datasets, const std::string& loss,
                         double loss_scale, bool no_known_pose, bool no_known_starts, bool check_start,
-                        const std::vector<std::string>& until,
-                        const std::string& out_path) {
+                        const std::vector<std::string>& until, const std::string& out_path) {
   const std::optional<Scenario> sc = app::LoadScenarioOrReport("mapmesh-lab", po);
   if (!sc) return 2;
   lab::ReferenceOptions options;
@@ -662,8 +661,7 @@ int Run(int argc, char** argv) {
   if (auto code = app::ParseArgs(cli, "mapmesh-lab", argc, argv)) return *code;
   if (reference->parsed())
     return RunReferenceCommand(ref_po, ref_datasets, ref_loss, ref_loss_scale, ref_no_known, ref_no_known_starts,
-                              ref_check_start, ref_until,
-                              ref_out);
+                               ref_check_start, ref_until, ref_out);
   if (victoria_world->parsed()) return RunVictoriaWorldCommand(vw_out, vw_datasets, vw);
   if (bus->parsed()) return RunBusCommand(bus_po, bus_kills, bus_restarts, bus_datasets, bus_out);
   if (thesis_fusion->parsed()) {

@@ -296,7 +296,7 @@ Reference ComputeReference(const Scenario& scenario, const ReferenceOptions& opt
   // The fair optimum and the known-starts one, both from the robots' own solutions, side by side;
   // one problem when no robot's start is known but the first one's (the fair gauge).
   const bool same = in.logs.size() <= 1 || std::none_of(in.logs.begin() + 1, in.logs.end(),
-                                                       [](const BatchRobotLog& l) { return l.start.has_value(); });
+                                                        [](const BatchRobotLog& l) { return l.start.has_value(); });
   TwoAtATime(same || !options.known_starts ? 1 : 2, [&](std::size_t k) {
     const StartKnowledge starts = k == 0 ? StartKnowledge::kNone : StartKnowledge::kKnown;
     ReferenceMap& m = k == 0 ? ref.central : ref.central_known_starts;

@@ -48,12 +48,12 @@ struct ReferenceMap {
 
 struct Reference {
   bool available = false;
-  std::string why_none;             // when not available
-  std::string loss;                 // "none", "huber 1.345", "cauchy 2"
-  std::map<RobotId, double> until;  // the robots whose data stops early (ReferenceOptions::until)
-  ReferenceMap central;               // the fair optimum: no robot's start known (each component's gauge)
-  ReferenceMap central_known_starts;  // every robot's true start known ...
-  bool has_known_starts = false;      // ... when computed (ReferenceOptions::known_starts)
+  std::string why_none;                 // when not available
+  std::string loss;                     // "none", "huber 1.345", "cauchy 2"
+  std::map<RobotId, double> until;      // the robots whose data stops early (ReferenceOptions::until)
+  ReferenceMap central;                 // the fair optimum: no robot's start known (each component's gauge)
+  ReferenceMap central_known_starts;    // every robot's true start known ...
+  bool has_known_starts = false;        // ... when computed (ReferenceOptions::known_starts)
   std::map<RobotId, ReferenceMap> own;  // each robot's single-robot batch
   std::optional<ReferenceMap> known_pose;
   std::map<RobotId, ReferenceMap> own_known_pose;  // each robot's own observations at its true poses
@@ -72,7 +72,7 @@ struct ReferenceInput {
   // The robots' sightings of each other that the agents use (agent.align_by with rendezvous),
   // each between the two robots' nodes at its time (the logs hold a node there).
   std::vector<BatchSighting> sightings;
-  int sightings_without_pose = 0;  // outside the other robot's stream: left out
+  int sightings_without_pose = 0;                     // outside the other robot's stream: left out
   std::map<RobotId, std::vector<GroundTruth>> truth;  // each from its start pose, when known
   std::vector<Eigen::Vector2d> landmark_truth;
   std::vector<int> seen;

@@ -69,7 +69,7 @@ class Network : public LeastSquaresProblem {
       const Eigen::VectorXd e = Error(f, &j);
       cost += 0.5 * e.dot(*f.info * e);
       SubmapNormalEquations(j, *f.info, e, &h, &g);
-      // Rows and columns of the fixed origin (the first chain's frame 0) are dropped.
+      // Rows and columns of a fixed origin (the first chain's frame 0, or one held) are dropped.
       const bool fixed = frame_var[static_cast<std::size_t>(f.chain)][static_cast<std::size_t>(f.index)] < 0;
       if (fixed) {
         eq.AddInformation(factor_handles[i], h.bottomRightCorner(h.rows() - 3, h.cols() - 3), g.tail(g.size() - 3));
@@ -181,9 +181,11 @@ Network Place(std::span<const ChainInput> chains, const std::vector<std::size_t>
     // From the given frames (the first pass's, or a previous solve's where the chain has them),
     // else composed along the submaps from the chain's origin.
     const std::vector<Pose2>& given = start_frames ? (*start_frames)[i] : c.start_frames;
-    std::vector<Pose2> frames = {i == 0 ? Pose2{} : (given.empty() ? c.origin : given[0])};
-    std::vector<int> vars = {i == 0 ? -1 : static_cast<int>(sizes.size())};
-    if (i > 0) sizes.push_back(3);
+    // The first chain's origin is the joined frame's; a chain whose origin is fixed stays at it.
+    const bool fixed = i == 0 || c.origin_fixed;
+    std::vector<Pose2> frames = {i == 0 ? Pose2{} : (given.empty() || c.origin_fixed ? c.origin : given[0])};
+    std::vector<int> vars = {fixed ? -1 : static_cast<int>(sizes.size())};
+    if (!fixed) sizes.push_back(3);
     for (std::size_t k = 0; k < c.submaps.size(); ++k) {
       const WireSubmap& w = *c.submaps[k];
       Factor f;

@@ -75,6 +75,10 @@ struct ChainInput {
   // ... but a join judged on the start frames starts each landmark of its exact join where a
   // previous solve put it, by key, where given (the mean over the landmark's references).
   std::map<std::uint32_t, Eigen::Vector2d> start_landmarks;
+  // The chain's first frame stays at `origin` (a check against an optimum that knows every
+  // robot's start: the joined frame is the first chain's first frame, so `origin` is that
+  // frame's inverse times the chain's start). Ignored for the first chain.
+  bool origin_fixed = false;
 };
 
 struct NetworkOptions {

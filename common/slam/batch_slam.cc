@@ -100,8 +100,8 @@ Eigen::Vector2d RangeBearingError(const Pose2& pose, const Eigen::Vector2d& m, c
   return {h(0) - z(0), WrapAngle(h(1) - z(1))};
 }
 
-Eigen::Vector2d SightingError(const Pose2& a, const Pose2& b, const Eigen::Vector2d& z, Eigen::Matrix<double, 2, 3>* j_a,
-                              Eigen::Matrix<double, 2, 3>* j_b) {
+Eigen::Vector2d SightingError(const Pose2& a, const Pose2& b, const Eigen::Vector2d& z,
+                              Eigen::Matrix<double, 2, 3>* j_a, Eigen::Matrix<double, 2, 3>* j_b) {
   Eigen::Matrix2d j_m;
   const Eigen::Vector2d e = RangeBearingError(a, {b.x, b.y}, z, j_a, j_b ? &j_m : nullptr);
   if (j_b) *j_b << j_m, Eigen::Vector2d::Zero();
@@ -290,6 +290,16 @@ class BatchProblem : public LeastSquaresProblem {
     out->chi2_per_dof = Rows() > eq_->dim() ? chi2_ / static_cast<double>(Rows() - eq_->dim()) : 0.0;
   }
 
+  // The joint covariance of chain 0's node `node` and every landmark (in signatures() order),
+  // from the normal equations as last linearised; empty when not positive definite.
+  Eigen::MatrixXd JointOfNodeAndLandmarks(int node) {
+    std::vector<int> vars = {var_[0][static_cast<std::size_t>(node)]};
+    vars.insert(vars.end(), landmark_var_.begin(), landmark_var_.end());
+    return eq_->JointMarginal(vars);
+  }
+  const std::vector<std::int32_t>& signatures() const { return signatures_; }
+  const std::vector<Eigen::Vector2d>& landmarks() const { return landmarks_; }
+
   // Residual rows, and the sum of the squared whitened residuals at the last evaluation.
   long Rows() const {
     return 3L * static_cast<long>(odo_.size()) + 2L * static_cast<long>(obs_.size() + sight_.size());
@@ -463,8 +473,8 @@ struct CentralPlan {
     std::map<std::int32_t, std::pair<Eigen::Vector2d, int>> landmarks;
   };
   std::vector<Part> parts;
-  std::vector<int> part_of;            // per log
-  std::map<std::int32_t, int> owner;   // landmark: the part that holds it
+  std::vector<int> part_of;           // per log
+  std::map<std::int32_t, int> owner;  // landmark: the part that holds it
 };
 
 CentralPlan PlanCentral(const std::vector<BatchRobotLog>& logs, const std::vector<BatchSolution>& singles,
@@ -485,7 +495,9 @@ CentralPlan PlanCentral(const std::vector<BatchRobotLog>& logs, const std::vecto
     sights[a->second].push_back(&s);
     sights[b->second].push_back(&s);
   }
-  auto track = [&](std::size_t r) -> const std::vector<BatchPose>& { return singles[r].trajectories.at(logs[r].robot); };
+  auto track = [&](std::size_t r) -> const std::vector<BatchPose>& {
+    return singles[r].trajectories.at(logs[r].robot);
+  };
   auto place = [&](std::size_t r, int k, const Pose2& frame, bool gauge) {
     CentralPlan::Part& part = plan.parts[static_cast<std::size_t>(k)];
     plan.part_of[r] = k;
@@ -503,8 +515,8 @@ CentralPlan PlanCentral(const std::vector<BatchRobotLog>& logs, const std::vecto
   // A robot's pose at a node where its part places it.
   auto placed_pose = [&](std::size_t r, int node) {
     const CentralPlan::Part& part = plan.parts[static_cast<std::size_t>(plan.part_of[r])];
-    const std::size_t at = static_cast<std::size_t>(
-        std::find(part.robots.begin(), part.robots.end(), r) - part.robots.begin());
+    const std::size_t at = static_cast<std::size_t>(std::find(part.robots.begin(), part.robots.end(), r) -
+                                                    part.robots.begin());
     return part.frame[at] * track(r)[static_cast<std::size_t>(node)].pose;
   };
   // Robot r's frame in part k from what it shares with it: landmarks the part holds and
@@ -633,7 +645,8 @@ BatchSolution SolveCentralBatch(const std::vector<BatchRobotLog>& logs, const st
       const int pa = plan.part_of[a->second], pb = plan.part_of[b->second];
       if (pa != static_cast<int>(k) && pb != static_cast<int>(k)) continue;
       const bool nodes_held = s.node >= 0 && static_cast<std::size_t>(s.node) < logs[a->second].nodes.size() &&
-                              s.other_node >= 0 && static_cast<std::size_t>(s.other_node) < logs[b->second].nodes.size();
+                              s.other_node >= 0 &&
+                              static_cast<std::size_t>(s.other_node) < logs[b->second].nodes.size();
       if (pa != pb || !nodes_held) {
         if (pa == static_cast<int>(k)) ++out.sightings_left_out;  // counted once
         continue;
@@ -643,8 +656,8 @@ BatchSolution SolveCentralBatch(const std::vector<BatchRobotLog>& logs, const st
       };
       chain_sightings.push_back({chain(a->second), s.node, chain(b->second), s.other_node, s.z, s.cov});
     }
-    BatchProblem problem(std::move(chains), landmarks, options.batch, chain_sightings);
     BatchSolution part_out;
+    BatchProblem problem(std::move(chains), landmarks, options.batch, chain_sightings);
     if (problem.equations().dim() > 0) {
       part_out.report = MinimiseLevenbergMarquardt(problem, problem.equations(), options.batch.lm);
       ++out.solves;
@@ -688,6 +701,35 @@ BatchSolution SolveCentralBatch(const std::vector<BatchRobotLog>& logs, const st
   std::sort(out.map.landmarks.begin(), out.map.landmarks.end(),
             [](const Landmark& a, const Landmark& b) { return a.signature < b.signature; });
   out.chi2_per_dof = dof > 0 ? chi2 / static_cast<double>(dof) : 0.0;
+  return out;
+}
+
+std::optional<WireSubmap> SolveBatchWindow(const BatchRobotLog& log, int first, int last, bool with_last,
+                                           const BatchOptions& options) {
+  MAPMESH_CHECK(0 <= first && first < last && static_cast<std::size_t>(last) < log.nodes.size(),
+                "a window of the log's nodes");
+  BatchRobotLog window;
+  window.robot = log.robot;
+  window.obs_cov = log.obs_cov;
+  window.nodes.assign(log.nodes.begin() + first, log.nodes.begin() + last + 1);
+  if (!with_last) window.nodes.back().obs.clear();
+  BatchProblem problem({DeadReckoned(window, Pose2{})}, {}, options);
+  MinimiseLevenbergMarquardt(problem, problem.equations(), options.lm);
+  const int end = last - first;
+  const Eigen::MatrixXd cov = problem.JointOfNodeAndLandmarks(end);
+  if (cov.size() == 0) return std::nullopt;
+  WireSubmap out;
+  out.opened_s = std::isnan(window.nodes.front().stamp) ? 0.0 : window.nodes.front().stamp;
+  out.closed_s = window.nodes.back().stamp;
+  const std::size_t n = problem.signatures().size();
+  out.x.resize(3 + 2 * static_cast<Eigen::Index>(n));
+  const Pose2& at = problem.chains()[0].poses[static_cast<std::size_t>(end)];
+  out.x.head<3>() << at.x, at.y, at.theta;
+  for (std::size_t k = 0; k < n; ++k) {
+    out.keys.push_back(static_cast<std::uint32_t>(problem.signatures()[k]));
+    out.x.segment<2>(3 + 2 * static_cast<Eigen::Index>(k)) = problem.landmarks()[k];
+  }
+  if (!out.SetCovariance(0.5 * (cov + cov.transpose()))) return std::nullopt;
   return out;
 }
 

@@ -41,15 +41,16 @@ TIMELINE_IMAGES = ["report/rmse.png", "report/exchanges.png", "report/nees.png",
 SUMMARY_KEYS = ["id", "alive_at_end", "exit_code", "restarts", "local.landmarks", "local.rmse_aligned_m",
                 "local.rmse_m", "local.nees_mean", "global.landmarks", "global.rmse_aligned_m", "global.rmse_m",
                 "global.nees_mean", "global.coverage", "global.central_rmse_aligned_m", "gap_to_central",
-                "global.central_known_starts_rmse_aligned_m", "gap_to_central_known_starts", "gap_to_reached", "gap_to_own_batch", "local.trajectory_ate_aligned_m",
-                "local.trajectory_rpe.translation_rmse_m", "peers_aligned", "maps_received", "bytes_sent",
+                "global.central_known_starts_rmse_aligned_m", "gap_to_central_known_starts", "gap_to_reached",
+                "gap_to_own_batch", "local.trajectory_ate_aligned_m", "local.trajectory_rpe.translation_rmse_m", "peers_aligned", "maps_received", "bytes_sent",
                 "bytes_per_landmark", "cpu_s", "max_rss_mb"]
 SUMMARY_HEADERS = ["agent", "alive", "exit", "restarts", "local landmarks", "local RMSE after rigid fit (m)",
                    "local RMSE, true frame (m)", "local NEES", "global landmarks", "global RMSE after rigid fit (m)",
                    "global RMSE, true frame (m)", "global NEES", "global coverage",
                    "centralized optimum on the same landmarks (m)", "global RMSE / centralized optimum",
                    "optimum with the true starts on the same landmarks (m)",
-                   "global RMSE / optimum with the true starts", "global RMSE / optimum of what reached it", "local RMSE / own batch optimum",
+                   "global RMSE / optimum with the true starts", "global RMSE / optimum of what reached it",
+                   "local RMSE / own batch optimum",
                    "trajectory ATE after rigid fit (m)", "trajectory RPE over 1 s (m)", "peers aligned",
                    "maps received", "bytes sent", "bytes / landmark", "CPU (s)", "max RSS (MB)"]
 # sweep.csv as `swarm sweep` writes it, after the swept parameter.
@@ -455,7 +456,9 @@ def make_fake_sweep(d, param="radio.range_m"):
                             "nees_global": nees, "rmse_global_aligned_m": round(rng.uniform(0.03, 0.1 + share), 4),
                             "rmse_global_m": round(rng.uniform(0.1, 0.3 + share), 4), "rmse_local_aligned_m": 0.05,
                             "rmse_local_m": 0.2, "nees_local": 1.9, "rmse_central_same_m": 0.03,
-                            "gap_to_central": round(rng.uniform(1.0, 2 + 3 * share), 4), "gap_to_own_batch": 1.05,
+                            "gap_to_central": round(rng.uniform(1.0, 2 + 3 * share), 4),
+                            "rmse_central_known_starts_same_m": 0.027, "gap_to_central_known_starts": 1.2,
+                            "gap_to_own_batch": 1.05,
                             "peers_aligned": 2, "bytes_sent": 1000, "wall_s": 3.2})
     assert list(out[0]) == [param] + SWEEP_HEADER
     with open(d / "sweep.csv", "w", newline="") as f:

@@ -105,6 +105,49 @@ TEST(SubmapNetwork, TwoRobotsAreJoinedConsistently) {
   EXPECT_LT(std::sqrt(origin_err2 / runs), 0.2);  // from 1.8 m off
 }
 
+// A chain whose origin is held stays exactly there, and the rest of the join moves to it: with the
+// true origin held the second chain's landmarks are no further from the truth than when it is
+// found (it knows more); a held origin off by 0.5 m pulls the join with it.
+TEST(SubmapNetwork, AHeldOriginStaysWhereItIsGiven) {
+  const World w(10, 2.0);
+  const TrueChain a = Drive(w, Pose2{0.0, 4.0, 0.0}, 4, 3.5);
+  const TrueChain b = Drive(w, Pose2{18.0, 9.0, M_PI}, 4, 3.5);
+  const std::map<LandmarkRef, int> groups = ByTruth({{1, &a}, {2, &b}});
+  const Pose2 to_joined = a.frames[0].Inverse();
+  const Pose2 b_origin = to_joined * b.frames[0];
+  std::mt19937_64 rng(7);
+  const std::vector<WireSubmap> sa = MeasureAll(w, a, 1, rng), sb = MeasureAll(w, b, 2, rng);
+  auto error = [&](const NetworkResult& r) {
+    double se = 0.0;
+    int n = 0;
+    for (std::size_t g = 0; g < w.landmarks.size(); ++g) {
+      if (const NetworkLandmark* l = r.OfGroup(static_cast<int>(g))) {
+        se += (l->mean - to_joined.Apply(w.landmarks[g])).squaredNorm();
+        ++n;
+      }
+    }
+    return std::sqrt(se / n);
+  };
+  const NetworkResult found = JoinSubmapNetwork(
+      std::vector<ChainInput>{Chain(1, sa, Pose2{}), Chain(2, sb, b_origin * Pose2{1.5, -1.0, 0.14})}, groups);
+  for (const Pose2& held : {b_origin, b_origin * Pose2{0.5, 0.0, 0.0}}) {
+    std::vector<ChainInput> chains = {Chain(1, sa, Pose2{}), Chain(2, sb, held)};
+    chains[1].origin_fixed = true;
+    const NetworkResult r = JoinSubmapNetwork(chains, groups);
+    ASSERT_TRUE(r.solved && r.converged && r.joined[1]);
+    EXPECT_EQ(r.origins[1].x, held.x);
+    EXPECT_EQ(r.origins[1].y, held.y);
+    EXPECT_EQ(r.origins[1].theta, held.theta);
+    EXPECT_EQ(r.frames[1][0].x, held.x);
+    if (held.x == b_origin.x) {
+      EXPECT_LE(error(r), error(found) * 1.05);
+      EXPECT_LT(r.cost, found.cost + 20.0);
+    } else {
+      EXPECT_GT(r.cost, found.cost + 20.0);  // 0.5 m against the submaps' centimetres
+    }
+  }
+}
+
 // Wrong pairings (each of robot 2's landmarks paired with a neighbour of the true one, 2 m away,
 // as a gate in a row of trees would) are dropped by the first pass, and the chain is placed and
 // joined exactly as with the right association less those four pairings.

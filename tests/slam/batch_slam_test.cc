@@ -4,6 +4,7 @@
 
 #include <Eigen/Cholesky>
 #include <random>
+#include <set>
 
 #include "common/geometry/rigid_fit.h"
 #include "common/metrics/landmark_metrics.h"
@@ -149,8 +150,8 @@ World MakeWorld(std::uint64_t seed, int robots, bool noisy, bool starts_known, i
   World w;
   for (int i = 0; i < 40; ++i) w.landmarks.emplace_back(u(rng), u(rng));
   if (extras.group_offset != 0.0) {
-    for (int i = 0; i < 40; ++i) w.landmarks.push_back(w.landmarks[static_cast<std::size_t>(i)] +
-                                                       Eigen::Vector2d(extras.group_offset, 0.0));
+    for (int i = 0; i < 40; ++i)
+      w.landmarks.push_back(w.landmarks[static_cast<std::size_t>(i)] + Eigen::Vector2d(extras.group_offset, 0.0));
   }
   std::map<RobotId, std::map<double, int>> node_at;
   const FilterNoise noise = TestFilterNoise();
@@ -282,7 +283,7 @@ TEST(Batch, SightingsTieRobotsThatShareNoLandmark) {
   WorldExtras extras;
   extras.group_offset = 4.0;  // the groups' circles overlap: they see each other ...
   extras.sightings = true;
-  extras.landmarks = false;   // ... but the second group maps no landmark
+  extras.landmarks = false;  // ... but the second group maps no landmark
   const World w = MakeWorld(3, 4, false, true, 600, extras);
   ASSERT_FALSE(w.sightings.empty());
   const std::vector<BatchSolution> singles = Singles(w);
@@ -307,6 +308,53 @@ TEST(Batch, SightingsTieRobotsThatShareNoLandmark) {
   EXPECT_EQ(apart.components[1].robots, (std::vector<RobotId>{3}));
   EXPECT_EQ(apart.components[2].robots, (std::vector<RobotId>{4}));
   EXPECT_EQ(apart.components[1].landmarks, 0);
+}
+
+// A window's exact estimate (the submap of its nodes): the whole log as one window is the
+// single-robot optimum (the same landmarks, their marginals in the joint covariance), and
+// noise-free every window holds the true end pose and landmarks in its first node's frame.
+TEST(BatchWindow, IsTheWindowsOptimumInItsFirstNodesFrame) {
+  const World w = MakeWorld(5, 1, true, false, 400);
+  const BatchRobotLog& log = w.logs[0];
+  const int n = static_cast<int>(log.nodes.size());
+  const BatchSolution single = SolveSingleRobotBatch(log);
+  const std::optional<WireSubmap> whole = SolveBatchWindow(log, 0, n - 1, true);
+  ASSERT_TRUE(whole.has_value());
+  ASSERT_EQ(whole->keys.size(), single.map.size());
+  const Eigen::MatrixXd cov = whole->Covariance();
+  for (std::size_t k = 0; k < whole->keys.size(); ++k) {
+    const Landmark* l = single.map.Find(whole->keys[k]);
+    ASSERT_NE(l, nullptr);
+    const Eigen::Index at = 3 + 2 * static_cast<Eigen::Index>(k);
+    EXPECT_LT((whole->x.segment<2>(at) - l->mean).norm(), 1e-6) << l->id;
+    EXPECT_LT((cov.block<2, 2>(at, at) - l->cov).cwiseAbs().maxCoeff(), 1e-6 * l->cov.norm() + 1e-12) << l->id;
+  }
+  const Pose2& end = single.trajectories.at(log.robot).back().pose;
+  EXPECT_LT(std::hypot(whole->x(0) - end.x, whole->x(1) - end.y), 1e-6);
+  EXPECT_NEAR(whole->closed_s, log.nodes.back().stamp, 1e-12);
+
+  const World clean = MakeWorld(5, 1, false, true, 400);
+  const BatchRobotLog& c = clean.logs[0];
+  const auto& truth = clean.truth.at(c.robot);
+  for (int first = 1; first + 20 < static_cast<int>(c.nodes.size()); first += 20) {
+    const std::optional<WireSubmap> s = SolveBatchWindow(c, first, first + 20, false);
+    ASSERT_TRUE(s.has_value());
+    const Pose2 origin = truth.at(c.nodes[static_cast<std::size_t>(first)].stamp);
+    const Pose2 rel = Between(origin, truth.at(c.nodes[static_cast<std::size_t>(first + 20)].stamp));
+    EXPECT_LT(std::hypot(s->x(0) - rel.x, s->x(1) - rel.y), 1e-6);
+    EXPECT_LT(std::abs(WrapAngle(s->x(2) - rel.theta)), 1e-6);
+    // Only the observations before the last node: the last node's are the next window's.
+    std::set<std::uint32_t> seen;
+    for (int i = first; i < first + 20; ++i) {
+      for (const BatchObservation& o : c.nodes[static_cast<std::size_t>(i)].obs)
+        seen.insert(static_cast<std::uint32_t>(o.landmark));
+    }
+    EXPECT_EQ(std::set<std::uint32_t>(s->keys.begin(), s->keys.end()), seen);
+    for (std::size_t k = 0; k < s->keys.size(); ++k) {
+      const Eigen::Vector2d t = origin.Inverse().Apply(clean.landmarks[s->keys[k]]);
+      EXPECT_LT((s->x.segment<2>(3 + 2 * static_cast<Eigen::Index>(k)) - t).norm(), 1e-6);
+    }
+  }
 }
 
 // Two groups of robots far apart (no landmark, no sighting in common): each is a component,
