@@ -42,8 +42,8 @@ SUMMARY_KEYS = ["id", "alive_at_end", "exit_code", "restarts", "local.landmarks"
                 "local.rmse_m", "local.nees_mean", "global.landmarks", "global.rmse_aligned_m", "global.rmse_m",
                 "global.nees_mean", "global.coverage", "global.central_rmse_aligned_m", "gap_to_central",
                 "global.central_known_starts_rmse_aligned_m", "gap_to_central_known_starts", "gap_to_reached",
-                "gap_to_own_batch", "local.trajectory_ate_aligned_m", "local.trajectory_rpe.translation_rmse_m", "peers_aligned", "maps_received", "bytes_sent",
-                "bytes_per_landmark", "cpu_s", "max_rss_mb"]
+                "gap_to_own_batch", "local.trajectory_ate_aligned_m", "local.trajectory_rpe.translation_rmse_m",
+                "peers_aligned", "maps_received", "bytes_sent", "bytes_per_landmark", "cpu_s", "max_rss_mb"]
 SUMMARY_HEADERS = ["agent", "alive", "exit", "restarts", "local landmarks", "local RMSE after rigid fit (m)",
                    "local RMSE, true frame (m)", "local NEES", "global landmarks", "global RMSE after rigid fit (m)",
                    "global RMSE, true frame (m)", "global NEES", "global coverage",
