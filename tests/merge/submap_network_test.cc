@@ -66,17 +66,26 @@ TEST(SubmapNetwork, OneChainIsTheSubmapJoiner) {
   EXPECT_EQ(compared, static_cast<int>(j.keys.size()));
 }
 
-// Two robots that start far apart, the second placed 1.5 m and 8 degrees off: the join places
-// it and is consistent over seeded draws (landmark NEES near 2, the second chain's origin within
-// its sampling error), and more accurate than either chain alone where they overlap.
+// Two robots that start far apart and drive towards each other, their landmarks grouped by the
+// truth; the truth in the joined frame (a's first frame) and b's origin there.
+struct TwoRobots {
+  World w{10, 2.0};
+  TrueChain a = Drive(w, Pose2{0.0, 4.0, 0.0}, 4, 3.5);
+  TrueChain b = Drive(w, Pose2{18.0, 9.0, M_PI}, 4, 3.5);
+  std::map<LandmarkRef, int> groups = ByTruth({{1, &a}, {2, &b}});
+  Pose2 to_joined = a.frames[0].Inverse();
+  Pose2 b_origin = to_joined * b.frames[0];
+};
+
+// The second robot placed 1.5 m and 8 degrees off: the join places it and is consistent over
+// seeded draws (landmark NEES near 2, the second chain's origin within its sampling error), and
+// more accurate than either chain alone where they overlap.
 TEST(SubmapNetwork, TwoRobotsAreJoinedConsistently) {
-  const World w(10, 2.0);
-  const TrueChain a = Drive(w, Pose2{0.0, 4.0, 0.0}, 4, 3.5);
-  const TrueChain b = Drive(w, Pose2{18.0, 9.0, M_PI}, 4, 3.5);
-  const std::map<LandmarkRef, int> groups = ByTruth({{1, &a}, {2, &b}});
-  // The truth in the joined frame (a's first frame).
-  const Pose2 to_joined = a.frames[0].Inverse();
-  const Pose2 b_origin = to_joined * b.frames[0];
+  const TwoRobots t;
+  const World& w = t.w;
+  const TrueChain &a = t.a, &b = t.b;
+  const std::map<LandmarkRef, int>& groups = t.groups;
+  const Pose2 to_joined = t.to_joined, b_origin = t.b_origin;
   double nees = 0.0;
   int count = 0;
   double origin_err2 = 0.0;
@@ -109,14 +118,12 @@ TEST(SubmapNetwork, TwoRobotsAreJoinedConsistently) {
 // true origin held the second chain's landmarks are no further from the truth than when it is
 // found (it knows more); a held origin off by 0.5 m pulls the join with it.
 TEST(SubmapNetwork, AHeldOriginStaysWhereItIsGiven) {
-  const World w(10, 2.0);
-  const TrueChain a = Drive(w, Pose2{0.0, 4.0, 0.0}, 4, 3.5);
-  const TrueChain b = Drive(w, Pose2{18.0, 9.0, M_PI}, 4, 3.5);
-  const std::map<LandmarkRef, int> groups = ByTruth({{1, &a}, {2, &b}});
-  const Pose2 to_joined = a.frames[0].Inverse();
-  const Pose2 b_origin = to_joined * b.frames[0];
+  const TwoRobots t;
+  const World& w = t.w;
+  const std::map<LandmarkRef, int>& groups = t.groups;
+  const Pose2 to_joined = t.to_joined, b_origin = t.b_origin;
   std::mt19937_64 rng(7);
-  const std::vector<WireSubmap> sa = MeasureAll(w, a, 1, rng), sb = MeasureAll(w, b, 2, rng);
+  const std::vector<WireSubmap> sa = MeasureAll(w, t.a, 1, rng), sb = MeasureAll(w, t.b, 2, rng);
   auto error = [&](const NetworkResult& r) {
     double se = 0.0;
     int n = 0;
