@@ -225,6 +225,12 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
   for (int i = 0; i < kSubmapRefusalCount; ++i) {
     submap_refused[std::string(ToString(static_cast<SubmapRefusal>(i)))] = s.submaps_refused[i];
   }
+  // Lockstep: the peers' messages the inbox refused, by reason (lockstep_inbox.h).
+  json inbox_refused = json::object();
+  for (int i = 0; i < kInboxRefusalCount; ++i) {
+    inbox_refused[std::string(ToString(static_cast<InboxRefusal>(i)))] = node.inbox_refused()[static_cast<std::size_t>(
+        i)];
+  }
   const SubmapRelay::Counters& sc = node.submaps().counters();
   // Each chain held: how many from index 0 without a gap, how many in all, and the digest of
   // each of the first (FNV-1a of its bytes): two agents holding a submap hold the same bytes.
@@ -267,6 +273,7 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
             {"maps_dropped", s.MapsDropped()},
             {"maps_rejected", rejected},
             {"maps_refused", refused},
+            {"inbox_refused", inbox_refused},
             {"maps_received_from", ByRobot(s.maps_received_from)},
             {"data_until", ByRobot(s.data_until)},
             {"peers_aligned", status.peers_aligned},

@@ -128,6 +128,15 @@ AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId s
       }()),
       joining_(options.exchange.global.method == FusionMethod::kJoining),
       exchange_ticks_(run.exchange_ticks),
+      inbox_(run.robots, self,
+             [&] {
+               LockstepInboxOptions o;
+               o.sightings_per_map = LockstepInboxOptions::SightingsPerMap(
+                   run.robots.size(), std::max(options.exchange.map_publish_period_s, options.rendezvous.window_s),
+                   options.rendezvous.period_s);
+               o.incarnations_before_tick = static_cast<std::uint32_t>(std::max(1, options.exchange.max_incarnations));
+               return o;
+             }()),
       next_checkpoint_s_(options.checkpoint_period_s) {}
 
 void AgentNode::OnOdometry(const Odometry& odom) { sync_.OnOdometry(odom); }
@@ -159,18 +168,9 @@ void AgentNode::PublishSightings(const std::vector<Sighting>& out) {
 
 void AgentNode::OnSighting(const Sighting& msg) {
   if (msg.robot_id == self_ || !options_.exchange.ByRendezvous()) return;
-  if (!exchange_ticks_) return ProcessSighting(msg);
-  // A message of a tick already applied (sent again to a late reader) or before this
-  // incarnation's first is not for it; untagged ones (tick 0) wait for the next tick.
-  if (msg.tick != 0 && (msg.tick < tick_done_ || (first_tick_ && msg.tick < *first_tick_))) return;
-  if (inbox_maps_.size() + inbox_sightings_.size() >= kMaxInbox) {
-    ++stats_.inbox_full;
-    return;
-  }
-  // In lockstep sightings ride on maps (OnMap): the tick's deliver phase counts the maps.
-  const SightingKey key{msg.tick,  msg.robot_id,         msg.incarnation, msg.stamp, static_cast<int>(msg.kind),
-                        msg.other, msg.other_incarnation};
-  inbox_sightings_.emplace(key, msg);
+  // In lockstep agents' sightings ride on their maps (OnMap): one on its own is no agent's.
+  if (exchange_ticks_) return inbox_.OfferUnridden();
+  ProcessSighting(msg);
 }
 
 void AgentNode::ProcessSighting(const Sighting& msg) {
@@ -333,6 +333,11 @@ double AgentNode::Clock() const { return std::max(sync_.processed_until(), gate_
 void AgentNode::OnMap(const MapMessage& msg) {
   // Our own publications echo back; an earlier incarnation of ours comes from the checkpoint.
   if (msg.robot_id == self_) return;
+  // Lockstep: into the inbox, with its riders (each must be the publisher's, of the map's tick).
+  if (exchange_ticks_) {
+    stats_.sightings_implausible += inbox_.OfferMap(msg).foreign_riders;
+    return;
+  }
   // Sightings riding on the map are the publisher's own, or refused.
   for (const Sighting& s : msg.sightings) {
     if (s.robot_id != msg.robot_id || s.incarnation != msg.incarnation || s.tick != msg.tick) {
@@ -341,18 +346,7 @@ void AgentNode::OnMap(const MapMessage& msg) {
       OnSighting(s);
     }
   }
-  if (!exchange_ticks_) return ProcessMap(msg);
-  if (msg.tick != 0 && (msg.tick < tick_done_ || (first_tick_ && msg.tick < *first_tick_))) return;  // see OnSighting
-  if (inbox_maps_.size() + inbox_sightings_.size() >= kMaxInbox) {
-    ++stats_.inbox_full;
-    return;
-  }
-  const MapKey key{msg.tick, msg.robot_id, msg.incarnation, static_cast<int>(msg.kind), msg.version};
-  if (inbox_maps_.contains(key)) return;
-  MapMessage held = msg;
-  held.sightings.clear();
-  inbox_maps_.emplace(key, std::move(held));
-  ++inbox_count_[{msg.tick, msg.robot_id, msg.incarnation}];
+  ProcessMap(msg);
 }
 
 void AgentNode::ProcessMap(const MapMessage& msg) {
@@ -500,12 +494,13 @@ bool AgentNode::InRun(RobotId robot) const {
 
 bool AgentNode::OnTick(const ExchangeTick& tick) {
   if (!exchange_ticks_) return true;
+  inbox_.OnTick(tick.index, tick.peers);
   const bool listed = std::any_of(tick.peers.begin(), tick.peers.end(),
                                   [&](const TickPeer& p) { return p.robot == self_ && p.incarnation == incarnation_; });
   if (!listed) return true;  // a tick from before this incarnation was up
   if (tick.phase == TickPhase::kDeliver) {
     if (tick.index <= tick_delivered_) return true;
-    if (!Delivered(tick)) return false;
+    if (!Missing(tick).empty()) return false;
     tick_delivered_ = tick.index;
     out_.PublishStatus(Status());
     return true;
@@ -537,6 +532,13 @@ void AgentNode::Exchange(const ExchangeTick& tick) {
   // (at 64 agents, about three sightings per agent and tick were as many again as the maps).
   std::vector<Sighting> riders = std::move(held_sightings_);
   held_sightings_.clear();
+  // At most what a peer's inbox takes on one map (a restarted agent's replay makes one sighting
+  // per peer and period of all of it before its first tick): the newest, those still answerable.
+  if (riders.size() > inbox_.sightings_per_map()) {
+    const std::size_t drop = riders.size() - inbox_.sightings_per_map();
+    stats_.sightings_unsent += static_cast<std::uint32_t>(drop);
+    riders.erase(riders.begin(), riders.begin() + static_cast<std::ptrdiff_t>(drop));
+  }
   for (Sighting& r : riders) r.tick = tick.index;
   const std::uint32_t sent_before = stats_.maps_sent;
   PublishMaps(tick.index, std::move(riders));
@@ -552,34 +554,14 @@ void AgentNode::Exchange(const ExchangeTick& tick) {
 void AgentNode::ApplyInbox(std::uint32_t tick) {
   // Untagged messages (tick 0: from outside the run's agents) are applied at the next tick too;
   // those of ticks before this incarnation's first (a late reader gets them from the writers'
-  // history) are not for it.
-  auto due = [&](std::uint32_t t) { return t < tick; };
-  auto ours = [&](std::uint32_t t) { return t == 0 || t >= first_tick_.value_or(0); };
-  for (auto it = inbox_maps_.begin(); it != inbox_maps_.end() && due(std::get<0>(it->first));) {
-    if (ours(std::get<0>(it->first))) ProcessMap(it->second);
-    it = inbox_maps_.erase(it);
-  }
-  for (auto it = inbox_sightings_.begin(); it != inbox_sightings_.end() && due(std::get<0>(it->first));) {
-    if (ours(std::get<0>(it->first))) ProcessSighting(it->second);
-    it = inbox_sightings_.erase(it);
-  }
-  for (auto it = inbox_count_.begin(); it != inbox_count_.end() && due(std::get<0>(it->first));) {
-    it = inbox_count_.erase(it);
-  }
+  // history) are not for it (the inbox drops them).
+  LockstepInbox::Due due = inbox_.TakeBefore(tick);
+  for (const MapMessage& m : due.maps) ProcessMap(m);
+  if (!options_.exchange.ByRendezvous()) return;
+  for (const Sighting& s : due.sightings) ProcessSighting(s);
 }
 
-std::vector<TickPeer> AgentNode::Missing(const ExchangeTick& tick) const {
-  std::vector<TickPeer> out;
-  for (const TickPeer& p : tick.peers) {
-    if (p.robot == self_) continue;
-    const auto it = inbox_count_.find({tick.index, p.robot, p.incarnation});
-    const std::uint32_t here = it == inbox_count_.end() ? 0u : it->second;
-    if (here < p.messages) out.push_back({p.robot, p.incarnation, here});
-  }
-  return out;
-}
-
-bool AgentNode::Delivered(const ExchangeTick& tick) const { return Missing(tick).empty(); }
+std::vector<TickPeer> AgentNode::Missing(const ExchangeTick& tick) const { return inbox_.Missing(tick); }
 
 bool AgentNode::TakeCheckpointDue() { return std::exchange(checkpoint_due_, false); }
 

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "agent/agent_options.h"
+#include "agent/lockstep_inbox.h"
 #include "agent/map_exchange.h"
 #include "agent/radio_gate.h"
 #include "agent/rendezvous_tracker.h"
@@ -121,12 +122,12 @@ struct AgentStats {
   // (its publisher's or relayed): its data up to then
   std::map<RobotId, double> data_until;
   std::uint32_t sightings_sent = 0;         // robot sightings and answers published (rendezvous)
-  std::uint32_t sightings_unsent = 0;       // lockstep: ... dropped, neither map of the tick could carry them
+  std::uint32_t sightings_unsent = 0;       // lockstep: ... dropped: neither map of the tick could carry them, or the
+                                            // oldest beyond what a peer takes on one map
   std::uint64_t sighting_bytes_sent = 0;    // ... their bytes on the wire
   std::uint32_t sightings_received = 0;     // peers' sightings and answers that passed the radio gate
   std::uint32_t sightings_gated = 0;        // ... that it dropped (out of range, lost, busy)
   std::uint32_t sightings_implausible = 0;  // ... refused before it: unknown sender or a stamp ahead of ours
-  std::uint32_t inbox_full = 0;             // lockstep: peers' messages dropped on arrival, the inbox holding kMaxInbox
   std::array<std::uint32_t, kSubmapDecodeErrorCount> submaps_rejected{};  // peers' submaps, by SubmapDecodeError
   std::array<std::uint32_t, kSubmapRefusalCount> submaps_refused{};       // by SubmapRefusal
   std::uint32_t submaps_unsendable = 0;  // own closed submaps that cannot go on the wire (never sent)
@@ -204,6 +205,8 @@ class AgentNode : private SensorSync::Sink {
   // Fusion joining: each peer incarnation's chain placements, from its latest local map.
   const std::map<PeerKey, std::vector<ChainPlacement>>& peers_placements() const { return peers_placements_; }
   const RendezvousStats& rendezvous_stats() const { return rendezvous_.stats(); }
+  // Lockstep: what the inbox refused, by InboxRefusal.
+  const std::array<std::uint32_t, kInboxRefusalCount>& inbox_refused() const { return inbox_.refused(); }
   const GlobalMap& global() const { return exchange_.global(); }
   std::uint32_t incarnation() const { return incarnation_; }
 
@@ -232,7 +235,6 @@ class AgentNode : private SensorSync::Sink {
   void Exchange(const ExchangeTick& tick);
   // The inbox's messages of ticks before `tick`, in order, into the exchange; the rest stay.
   void ApplyInbox(std::uint32_t tick);
-  bool Delivered(const ExchangeTick& tick) const;
   // Whether the robot is one of this run's.
   bool InRun(RobotId robot) const;
   // Whether a local map's chain placements may be taken (SubmapRefusal::kImplausiblePlacements):
@@ -276,17 +278,9 @@ class AgentNode : private SensorSync::Sink {
   // for the next tick.
   void PublishSightings(const std::vector<Sighting>& out);
 
-  // Lockstep exchange (OnTick).
+  // Lockstep exchange (OnTick): peers' messages wait in the inbox (lockstep_inbox.h).
   bool exchange_ticks_ = false;
-  // The inbox, in the order messages are applied: maps by (tick, robot, incarnation, kind,
-  // version), sightings by (tick, robot, incarnation, stamp, kind, other, other incarnation); a
-  // message that arrives twice (a late reader gets a writer's history) is kept once.
-  using MapKey = std::tuple<std::uint32_t, RobotId, std::uint32_t, int, std::uint32_t>;
-  using SightingKey = std::tuple<std::uint32_t, RobotId, std::uint32_t, double, int, RobotId, std::uint32_t>;
-  static constexpr std::size_t kMaxInbox = 1 << 16;
-  std::map<MapKey, MapMessage> inbox_maps_;
-  std::map<SightingKey, Sighting> inbox_sightings_;
-  std::map<std::tuple<std::uint32_t, RobotId, std::uint32_t>, std::uint32_t> inbox_count_;  // per tick and sender
+  LockstepInbox inbox_;
   std::vector<Sighting> held_sightings_;     // own sightings and answers, to go out at the next tick
   std::optional<std::uint32_t> first_tick_;  // the first exchange tick of this incarnation
   std::uint32_t tick_done_ = 0, tick_published_ = 0, tick_delivered_ = 0;

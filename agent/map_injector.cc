@@ -12,8 +12,9 @@ namespace mapmesh {
 std::vector<std::string> AllInjectCases() {
   std::vector<std::string> cases;
   for (int i = 0; i < kPayloadFaultCount; ++i) cases.emplace_back(ToString(static_cast<PayloadFault>(i)));
-  for (const char* c : {kInjectStaleVersion, kInjectUnknownSender, kInjectShuffled, kInjectOdometryStamp,
-                        kInjectFarReading, kInjectLinksStamp, kInjectLinksAhead, kInjectVersionJump, kInjectHugeMap}) {
+  for (const char* c :
+       {kInjectStaleVersion, kInjectUnknownSender, kInjectShuffled, kInjectOdometryStamp, kInjectFarReading,
+        kInjectLinksStamp, kInjectLinksAhead, kInjectVersionJump, kInjectHugeMap, kInjectTickFlood}) {
     cases.emplace_back(c);
   }
   return cases;
@@ -112,6 +113,37 @@ std::optional<InjectedMessage> MapInjector::MakeHostile(const std::string& c, Ro
     m.version = 0xFFFFFFF0u;
     return m;
   }
+  if (c == kInjectTickFlood) {
+    if (flood_payload_.empty()) flood_payload_ = EncodeMap(RandomMap(5));
+    const std::uint32_t turn = flood_version_++;
+    MapMessage m;
+    m.kind = MapKind::kLocal;
+    m.version = 0x40000000u + turn;  // distinct, so that none is taken for a copy of another
+    m.payload = flood_payload_;
+    m.robot_id = turn % 3 == 0 ? unknown_id_ : target;
+    m.incarnation = it != heard_.end() && m.robot_id == target ? it->second.msg.incarnation : 1u;
+    m.tick = 0xFFFFFFFFu;
+    // The second turn: the robot at one of eight ticks far ahead, without riders (its room fills);
+    // the third: at the tick after the robot's latest map's (before one is heard, far ahead).
+    if (turn % 3 == 1) m.tick = 0xFFFFFFFFu - flood_far_[target]++ % 8;
+    if (turn % 3 == 2 && it != heard_.end() && it->second.msg.tick != 0) m.tick = it->second.msg.tick + 1;
+    if (it != heard_.end()) m.stamp = it->second.msg.stamp;
+    if (turn % 3 == 1) return m;
+    m.sightings.resize(kInjectFloodSightings);
+    for (std::size_t i = 0; i < m.sightings.size(); ++i) {
+      Sighting& s = m.sightings[i];
+      s.robot_id = m.robot_id;
+      s.incarnation = m.incarnation;
+      s.tick = m.tick;
+      s.other = target;
+      s.stamp = m.stamp + 1e-3 * static_cast<double>(i);
+      s.cov = {0.01, 0.0, 0.0, 0.01, 0.0, 0.001};
+      s.range = 2.0;
+      s.sigma_range = 0.1;
+      s.sigma_bearing = 0.01;
+    }
+    return m;
+  }
   // huge_map
   if (huge_turns_++ % kInjectHugeEvery != 0) return std::nullopt;
   if (huge_payload_.empty()) huge_payload_ = EncodeMap(RandomMap(static_cast<int>(kMapCodecMaxLandmarks)));
@@ -140,7 +172,7 @@ LandmarkMap MapInjector::RandomMap(int n) {
 
 std::optional<InjectedMessage> MapInjector::Make(const std::string& c, RobotId sender) {
   if (c == kInjectOdometryStamp || c == kInjectFarReading || c == kInjectLinksStamp || c == kInjectLinksAhead ||
-      c == kInjectVersionJump || c == kInjectHugeMap) {
+      c == kInjectVersionJump || c == kInjectHugeMap || c == kInjectTickFlood) {
     return MakeHostile(c, sender);
   }
   MapMessage m;

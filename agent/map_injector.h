@@ -27,7 +27,14 @@
 //   version_jump             a copy of the robot's latest local map under version 0xFFFFFFF0;
 //   huge_map                 a well-formed map of kMapCodecMaxLandmarks landmarks (1.6 MB) from
 //                            a further incarnation of the robot (kInjectHugeIncarnation), one
-//                            in every kInjectHugeEvery turns of the case.
+//                            in every kInjectHugeEvery turns of the case;
+//   tick_flood               lockstep's inbox flooded (issue R3), in turn: a map from a robot
+//                            not in the run at tick 0xFFFFFFFF carrying kInjectFloodSightings
+//                            sightings (each the claimed publisher's, of the map's tick); one
+//                            from the robot at one of the eight ticks below 0xFFFFFFFF, without
+//                            sightings; and one from the robot at the tick after its latest
+//                            map's (a tick agents take; before one is heard, 0xFFFFFFFF) with the
+//                            sightings.
 
 #include <cstdint>
 #include <map>
@@ -56,6 +63,8 @@ inline constexpr const char* kInjectVersionJump = "version_jump";
 inline constexpr const char* kInjectHugeMap = "huge_map";
 inline constexpr std::uint32_t kInjectHugeIncarnation = 3000000001u;
 inline constexpr int kInjectHugeEvery = 10;
+inline constexpr const char* kInjectTickFlood = "tick_flood";
+inline constexpr std::size_t kInjectFloodSightings = 1000;
 inline constexpr std::uint32_t kInjectFarReadingSeq = 999999u;
 // The incarnation the faulty peer of the shuffled case claims (real agents count from 1).
 inline constexpr std::uint32_t kInjectFaultyIncarnation = 3000000000u;
@@ -119,6 +128,9 @@ class MapInjector {
   std::vector<std::uint8_t> huge_payload_;     // made once
   std::map<RobotId, std::uint32_t> huge_version_;
   int huge_turns_ = 0;
+  std::vector<std::uint8_t> flood_payload_;  // made once
+  std::uint32_t flood_version_ = 0;
+  std::map<RobotId, std::uint32_t> flood_far_;  // per robot: its far-ahead maps so far
 };
 
 }  // namespace mapmesh

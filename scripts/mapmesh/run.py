@@ -751,6 +751,8 @@ class SwarmRun:
                 "links_refused": stats.get("links_refused"),
                 "not_from_feeder": stats.get("not_from_feeder"),
                 "maps_refused": stats.get("maps_refused", {}),
+                # Lockstep: peers' messages the inbox refused on arrival, by reason (docs/OUTPUTS.md).
+                "inbox_refused": stats.get("inbox_refused", {}),
                 # Writes that failed (a full disk): from the first, no snapshots or checkpoints.
                 "outputs": stats.get("outputs"),
                 # The most landmarks its local and global maps held at any checkpoint of any

@@ -4,6 +4,7 @@
 
 #include <map>
 #include <random>
+#include <set>
 
 #include "common/map/map_codec.h"
 #include "common/map/map_faults.h"
@@ -41,7 +42,7 @@ std::optional<MapMessage> NextMap(MapInjector& inj) {
 
 TEST(InjectCases, ParsesAllAListAndRefusesUnknownOnes) {
   EXPECT_EQ(ParseInjectCases("all"), AllInjectCases());
-  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 9));
+  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 10));
   EXPECT_EQ(ParseInjectCases("shuffled,truncated,shuffled"), (std::vector<std::string>{"shuffled", "truncated"}));
   EXPECT_FALSE(ParseInjectCases("shuffle").has_value());
   EXPECT_FALSE(ParseInjectCases("").has_value());
@@ -146,6 +147,41 @@ TEST(MapInjector, MalformedOwnMapsAndOtherRobotsAreNotHeard) {
   global.kind = MapKind::kGlobal;
   inj.OnMap(global);
   EXPECT_FALSE(NextMap(inj).has_value());
+}
+
+// The tick flood, in turn: a robot not in the run at tick 0xFFFFFFFF with kInjectFloodSightings
+// sightings (every one the claimed publisher's, of the map's tick), the robot at one of eight
+// ticks below without, and the robot at the tick after its latest map's (before one is heard,
+// at 0xFFFFFFFF) with them.
+TEST(MapInjector, TheTickFloodTakesTurnsOfClaimedSenderAndTick) {
+  MapInjector inj({2}, {"tick_flood"}, 99, 5);
+  std::vector<MapMessage> made;
+  for (int i = 0; i < 3; ++i) made.push_back(*NextMap(inj));
+  MapMessage heard = RobotMap(2, 3, 10);
+  heard.tick = 41;
+  inj.OnMap(heard);
+  for (int i = 0; i < 3; ++i) made.push_back(*NextMap(inj));
+  const std::vector<std::pair<RobotId, std::uint32_t>> expected = {
+      {99, 0xFFFFFFFFu}, {2, 0xFFFFFFFFu}, {2, 0xFFFFFFFFu}, {99, 0xFFFFFFFFu}, {2, 0xFFFFFFFEu}, {2, 42u}};
+  // (the far ticks count per robot: 0xFFFFFFFF, then 0xFFFFFFFE, ...)
+  std::set<std::uint32_t> versions;
+  for (std::size_t k = 0; k < made.size(); ++k) {
+    const MapMessage& m = made[k];
+    EXPECT_EQ(m.robot_id, expected[k].first) << k;
+    EXPECT_EQ(m.tick, expected[k].second) << k;
+    EXPECT_EQ(m.incarnation, k >= 4 ? 7u : 1u) << k;  // the heard incarnation once heard
+    versions.insert(m.version);
+    ASSERT_EQ(m.sightings.size(), k % 3 == 1 ? 0u : kInjectFloodSightings) << k;
+    for (const Sighting& s : m.sightings) {
+      EXPECT_EQ(s.robot_id, m.robot_id);
+      EXPECT_EQ(s.incarnation, m.incarnation);
+      EXPECT_EQ(s.tick, m.tick);
+    }
+    EXPECT_TRUE(DecodeMap(m.payload).ok());
+  }
+  EXPECT_EQ(versions.size(), made.size());
+  EXPECT_EQ(inj.sent().at("tick_flood").at(99), 2);
+  EXPECT_EQ(inj.sent().at("tick_flood").at(2), 4);
 }
 
 // The hostile cases: forged odometry, a far reading at the time the agent reported, a links

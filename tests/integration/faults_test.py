@@ -96,9 +96,41 @@ class HostileInputTest(FaultRunCase):
                 self.assertLessEqual(a["local"]["rmse_m"], 1.1 * c["local"]["rmse_m"])
                 self.assertLessEqual(a["global"]["rmse_m"], 1.1 * c["global"]["rmse_m"])
                 self.assertGreaterEqual(a["global"]["coverage"], 0.9 * c["global"]["coverage"])
-                # 1.6 MB maps refused unread (their cost is a benchmark: BM_AgentReceivesPeerMap).
-                huge_receivers += stats["maps_refused"]["too_many_landmarks"] > 0
+                # 1.6 MB maps refused unread (their cost is a benchmark: BM_AgentReceivesPeerMap):
+                # in lockstep by the inbox, since no tick listed their incarnation.
+                huge_receivers += stats["inbox_refused"]["incarnation"] > 0
+                self.assertEqual(stats["maps_refused"]["too_many_landmarks"], 0)
         self.assertGreater(huge_receivers, 0)
+
+
+class TickFloodTest(FaultRunCase):
+    # R3: one participant stalled a lockstep run for good. Maps claiming a robot not in the run
+    # at tick 0xFFFFFFFF, the run's own robots at ticks far ahead, or at the next tick with 1000
+    # sightings each, every 0.02 s: the agents kept every one of a tick not yet applied, their inbox filled (65 536
+    # entries), every genuine map was dropped, and no deliver phase could complete (park4 at 1000
+    # s stopped at t = 380, no summary.json; 268adcd's agents with this injector). Now the inbox
+    # (agent/lockstep_inbox.h) refuses each on arrival, counted, and the run is the clean run.
+    def test_a_flood_of_far_ticks_and_sightings_stalls_nothing_and_changes_nothing(self):
+        base = self.out
+        longer = ["--set", "duration_s=400"]
+        clean = self.run_ok(PARK4, *longer, out=base.parent / "clean")
+        flooded = self.run_ok(PARK4, *longer, "--inject", "tick_flood", "--inject-period", "0.02",
+                              out=base.parent / "flooded")
+        summary = self.summary()
+        self.assertEqual(summary["injector_exit_code"], 0)
+        self.assertGreater(summary["injected"]["cases"]["tick_flood"]["sent"], 100)
+        self.assertEqual(summary["sim_duration_s"], 400.0)
+        for rid, a in flooded.items():
+            with self.subTest(agent=rid):
+                refused = a["inbox_refused"]
+                for reason in ("unknown_robot", "far_tick", "too_many_sightings"):
+                    self.assertGreater(refused[reason], 0, refused)
+                self.assertEqual(refused["incarnation"], 0, refused)
+                self.assertLessEqual(a["max_rss_mb"], 1.2 * clean[rid]["max_rss_mb"], (a, clean[rid]))
+        # The same run, byte for byte (lockstep), at a CPU cost within a fifth of the clean run's.
+        self.assert_same_maps(self.out, base.parent / "clean")
+        cpu = sum(a["cpu_s"] for a in flooded.values())
+        self.assertLessEqual(cpu, 1.2 * sum(a["cpu_s"] for a in clean.values()))
 
 
 def storm(robot, kills=12, first=10, every=15, back_after=3):

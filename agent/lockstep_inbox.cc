@@ -1,0 +1,221 @@
+#include "agent/lockstep_inbox.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <utility>
+
+namespace mapmesh {
+
+std::string_view ToString(InboxRefusal r) {
+  switch (r) {
+    case InboxRefusal::kPastTick: return "past_tick";
+    case InboxRefusal::kFarTick: return "far_tick";
+    case InboxRefusal::kUnknownRobot: return "unknown_robot";
+    case InboxRefusal::kIncarnation: return "incarnation";
+    case InboxRefusal::kTooManySightings: return "too_many_sightings";
+    case InboxRefusal::kPublisherFull: return "publisher_full";
+    case InboxRefusal::kUnridden: return "unridden_sighting";
+  }
+  return "?";
+}
+
+std::size_t LockstepInboxOptions::SightingsPerMap(std::size_t robots, double span_s, double rendezvous_period_s) {
+  const double per_peer = 1.0 + std::ceil(std::max(span_s, 0.0) / std::max(rendezvous_period_s, 1e-3));
+  const double peers = robots > 1 ? static_cast<double>(robots - 1) : 1.0;
+  return static_cast<std::size_t>(std::min(2.0 * peers * per_peer, 1e6));
+}
+
+LockstepInbox::LockstepInbox(std::vector<RobotId> robots, RobotId self, const LockstepInboxOptions& options)
+    : robots_(std::move(robots)), self_(self), options_(options) {}
+
+std::uint32_t LockstepInbox::MaxIncarnation(RobotId robot) const {
+  if (listed_.empty()) return options_.incarnations_before_tick;
+  const auto it = listed_.find(robot);
+  return (it == listed_.end() ? 0u : it->second) + 1u;
+}
+
+bool LockstepInbox::Plausible(RobotId robot, std::uint32_t incarnation) const {
+  return incarnation >= 1 && incarnation <= MaxIncarnation(robot);
+}
+
+void LockstepInbox::OnTick(std::uint32_t index, const std::vector<TickPeer>& peers) {
+  for (const TickPeer& p : peers) {
+    std::uint32_t& m = listed_[p.robot];
+    m = std::max(m, p.incarnation);
+  }
+  if (latest_ && index <= *latest_) return;
+  latest_ = index;
+  // Before the first exchange, maps of ticks before the latest are history (past), and those of
+  // incarnations no longer plausible (before the first tick anything up to the bound was) go.
+  for (auto pub = held_.begin(); pub != held_.end();) {
+    Held& h = pub->second;
+    if (!first_) {
+      for (auto it = h.ticks.begin(); it != h.ticks.end() && it->first < index;) {
+        if (it->first == 0) {
+          ++it;
+          continue;
+        }
+        Refuse(InboxRefusal::kPastTick, static_cast<std::uint32_t>(it->second.maps.size()));
+        std::erase_if(h.arrivals, [&](const MapKey& k) { return std::get<0>(k) == it->first; });
+        it = h.ticks.erase(it);
+      }
+    }
+    if (h.ticks.empty() || !Plausible(pub->first.first, pub->first.second)) {
+      std::uint32_t n = 0;
+      for (const auto& [t, slot] : h.ticks) n += static_cast<std::uint32_t>(slot.maps.size());
+      Refuse(InboxRefusal::kIncarnation, n);
+      pub = held_.erase(pub);
+    } else {
+      ++pub;
+    }
+  }
+}
+
+void LockstepInbox::DropOldest(Held& h) {
+  const MapKey oldest = h.arrivals.front();
+  h.arrivals.pop_front();
+  const auto slot = h.ticks.find(std::get<0>(oldest));
+  if (slot == h.ticks.end()) return;
+  slot->second.maps.erase(oldest);
+  if (slot->second.maps.empty()) h.ticks.erase(slot);
+  Refuse(InboxRefusal::kPastTick);
+}
+
+LockstepInbox::Offer LockstepInbox::OfferMap(const MapMessage& map) {
+  const RobotId robot = map.robot_id;
+  // The gates, in order; the first that fails is counted.
+  std::optional<InboxRefusal> refusal;
+  if (std::find(robots_.begin(), robots_.end(), robot) == robots_.end() || robot == self_) {
+    refusal = InboxRefusal::kUnknownRobot;
+  } else if (!Plausible(robot, map.incarnation)) {
+    refusal = InboxRefusal::kIncarnation;
+  } else if (map.tick != 0 &&
+             (map.tick < applied_ || (first_ && map.tick < *first_) || (!first_ && latest_ && map.tick < *latest_))) {
+    refusal = InboxRefusal::kPastTick;
+  } else if (map.sightings.size() > options_.sightings_per_map) {
+    refusal = InboxRefusal::kTooManySightings;
+  }
+  if (refusal) {
+    Refuse(*refusal);
+    return {refusal};
+  }
+  Held& h = held_[{robot, map.incarnation}];
+  const MapKey key{map.tick, robot, map.incarnation, static_cast<int>(map.kind), map.version};
+  auto slot = h.ticks.find(map.tick);
+  if (slot != h.ticks.end() && slot->second.maps.contains(key)) return {};  // a duplicate: kept once
+  if (!first_) {
+    // Before the first exchange: the latest arrivals are kept.
+    while (h.arrivals.size() >= static_cast<std::size_t>(options_.room_ticks) * options_.maps_per_tick) {
+      DropOldest(h);
+    }
+    h.arrivals.push_back(key);
+    slot = h.ticks.find(map.tick);
+  } else if (slot == h.ticks.end() && h.ticks.size() >= options_.room_ticks) {
+    // The room is full: a nearer tick displaces the farthest, else it is the farthest.
+    const auto farthest = std::prev(h.ticks.end());
+    if (farthest->first < map.tick) {
+      Refuse(InboxRefusal::kFarTick);
+      return {InboxRefusal::kFarTick};
+    }
+    Refuse(InboxRefusal::kFarTick, static_cast<std::uint32_t>(farthest->second.maps.size()));
+    h.ticks.erase(farthest);
+  }
+  if (slot == h.ticks.end()) slot = h.ticks.emplace(map.tick, Slot{}).first;
+  Slot& s = slot->second;
+  if (s.maps.size() >= options_.maps_per_tick) {
+    s.counted = std::min(s.counted + 1, 2 * options_.maps_per_tick);
+    if (!first_) h.arrivals.pop_back();
+    Refuse(InboxRefusal::kPublisherFull);
+    return {InboxRefusal::kPublisherFull};
+  }
+  ++s.counted;
+  Offer out;
+  for (const Sighting& r : map.sightings) {
+    if (r.robot_id != robot || r.incarnation != map.incarnation || r.tick != map.tick) {
+      ++out.foreign_riders;
+      continue;
+    }
+    const SightingKey k{r.tick,  r.robot_id,         r.incarnation, r.stamp, static_cast<int>(r.kind),
+                        r.other, r.other_incarnation};
+    s.sightings.emplace(k, r);
+  }
+  MapMessage kept = map;
+  kept.sightings.clear();
+  s.maps.emplace(key, std::move(kept));
+  return out;
+}
+
+void LockstepInbox::OfferUnridden() { Refuse(InboxRefusal::kUnridden); }
+
+LockstepInbox::Due LockstepInbox::TakeBefore(std::uint32_t tick) {
+  if (!first_) {
+    first_ = tick;
+    for (auto& [pub, h] : held_) h.arrivals.clear();  // from here on the rooms are kept by tick
+  }
+  applied_ = std::max(applied_, tick);
+  std::map<MapKey, MapMessage> maps;
+  std::map<SightingKey, Sighting> sightings;
+  for (auto pub = held_.begin(); pub != held_.end();) {
+    Held& h = pub->second;
+    for (auto it = h.ticks.begin(); it != h.ticks.end() && it->first < tick;) {
+      if (it->first != 0 && it->first < *first_) {
+        Refuse(InboxRefusal::kPastTick, static_cast<std::uint32_t>(it->second.maps.size()));
+      } else {
+        maps.merge(it->second.maps);
+        sightings.merge(it->second.sightings);
+      }
+      it = h.ticks.erase(it);
+    }
+    pub = h.ticks.empty() ? held_.erase(pub) : std::next(pub);
+  }
+  Due out;
+  out.maps.reserve(maps.size());
+  for (auto& [k, m] : maps) out.maps.push_back(std::move(m));
+  out.sightings.reserve(sightings.size());
+  for (auto& [k, s] : sightings) out.sightings.push_back(std::move(s));
+  return out;
+}
+
+std::vector<TickPeer> LockstepInbox::Missing(const ExchangeTick& tick) const {
+  std::vector<TickPeer> out;
+  for (const TickPeer& p : tick.peers) {
+    if (p.robot == self_) continue;
+    std::uint32_t here = 0;
+    const auto pub = held_.find({p.robot, p.incarnation});
+    if (pub != held_.end()) {
+      const auto slot = pub->second.ticks.find(tick.index);
+      if (slot != pub->second.ticks.end()) here = slot->second.counted;
+    }
+    if (here < p.messages) out.push_back({p.robot, p.incarnation, here});
+  }
+  return out;
+}
+
+std::uint32_t LockstepInbox::refused_total() const { return std::accumulate(refused_.begin(), refused_.end(), 0u); }
+
+std::size_t LockstepInbox::maps_held() const {
+  std::size_t n = 0;
+  for (const auto& [pub, h] : held_) {
+    for (const auto& [t, s] : h.ticks) n += s.maps.size();
+  }
+  return n;
+}
+
+std::size_t LockstepInbox::sightings_held() const {
+  std::size_t n = 0;
+  for (const auto& [pub, h] : held_) {
+    for (const auto& [t, s] : h.ticks) n += s.sightings.size();
+  }
+  return n;
+}
+
+std::size_t LockstepInbox::MaxMapsHeld() const {
+  std::size_t incarnations = 0;
+  for (RobotId r : robots_) {
+    if (r != self_) incarnations += MaxIncarnation(r);
+  }
+  return incarnations * options_.room_ticks * options_.maps_per_tick;
+}
+
+}  // namespace mapmesh
