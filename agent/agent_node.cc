@@ -134,7 +134,6 @@ AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId s
                o.sightings_per_map = LockstepInboxOptions::SightingsPerMap(
                    run.robots.size(), std::max(options.exchange.map_publish_period_s, options.rendezvous.window_s),
                    options.rendezvous.period_s);
-               o.incarnations_before_tick = static_cast<std::uint32_t>(std::max(1, options.exchange.max_incarnations));
                return o;
              }()),
       next_checkpoint_s_(options.checkpoint_period_s) {}

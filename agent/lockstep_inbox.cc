@@ -29,27 +29,43 @@ std::size_t LockstepInboxOptions::SightingsPerMap(std::size_t robots, double spa
 LockstepInbox::LockstepInbox(std::vector<RobotId> robots, RobotId self, const LockstepInboxOptions& options)
     : robots_(std::move(robots)), self_(self), options_(options) {}
 
-std::uint32_t LockstepInbox::MaxIncarnation(RobotId robot) const {
-  if (listed_.empty()) return options_.incarnations_before_tick;
-  const auto it = listed_.find(robot);
-  return (it == listed_.end() ? 0u : it->second) + 1u;
-}
-
-bool LockstepInbox::Plausible(RobotId robot, std::uint32_t incarnation) const {
-  return incarnation >= 1 && incarnation <= MaxIncarnation(robot);
+bool LockstepInbox::MakeRoomForIncarnation(RobotId robot) {
+  std::size_t held = 0;
+  auto oldest = held_.end();
+  for (auto it = held_.lower_bound({robot, 0}); it != held_.end() && it->first.first == robot; ++it) {
+    ++held;
+    if (Listed(it->first.first, it->first.second)) continue;
+    if (oldest == held_.end() || it->second.last_arrival < oldest->second.last_arrival) oldest = it;
+  }
+  if (held < options_.incarnations_per_robot) return true;
+  if (oldest == held_.end()) return false;
+  for (const auto& [t, slot] : oldest->second.ticks) {
+    Refuse(InboxRefusal::kIncarnation, static_cast<std::uint32_t>(slot.maps.size()));
+    displaced_[{t, robot, oldest->first.second}] = slot.counted;
+  }
+  while (displaced_.size() > 4 * static_cast<std::size_t>(options_.incarnations_per_robot) * robots_.size()) {
+    displaced_.erase(displaced_.begin());  // the lowest ticks: long applied
+  }
+  held_.erase(oldest);
+  return true;
 }
 
 void LockstepInbox::OnTick(std::uint32_t index, const std::vector<TickPeer>& peers) {
-  for (const TickPeer& p : peers) {
-    std::uint32_t& m = listed_[p.robot];
-    m = std::max(m, p.incarnation);
-  }
-  if (latest_ && index <= *latest_) return;
+  if (latest_ && index < *latest_) return;  // an older phase sent again
+  if (!latest_ || index > *latest_) listed_.clear();
+  for (const TickPeer& p : peers) listed_.insert({p.robot, p.incarnation});
   latest_ = index;
-  // Before the first exchange, maps of ticks before the latest are history (past), and those of
-  // incarnations no longer plausible (before the first tick anything up to the bound was) go.
+  // Maps of incarnations the tick does not list, for it or earlier ticks, go; before the first
+  // exchange, maps of ticks before the latest are history (past).
   for (auto pub = held_.begin(); pub != held_.end();) {
     Held& h = pub->second;
+    if (!Listed(pub->first.first, pub->first.second)) {
+      for (auto it = h.ticks.begin(); it != h.ticks.end() && it->first <= index;) {
+        Refuse(InboxRefusal::kIncarnation, static_cast<std::uint32_t>(it->second.maps.size()));
+        std::erase_if(h.arrivals, [&](const MapKey& k) { return std::get<0>(k) == it->first; });
+        it = h.ticks.erase(it);
+      }
+    }
     if (!first_) {
       for (auto it = h.ticks.begin(); it != h.ticks.end() && it->first < index;) {
         if (it->first == 0) {
@@ -61,14 +77,7 @@ void LockstepInbox::OnTick(std::uint32_t index, const std::vector<TickPeer>& pee
         it = h.ticks.erase(it);
       }
     }
-    if (h.ticks.empty() || !Plausible(pub->first.first, pub->first.second)) {
-      std::uint32_t n = 0;
-      for (const auto& [t, slot] : h.ticks) n += static_cast<std::uint32_t>(slot.maps.size());
-      Refuse(InboxRefusal::kIncarnation, n);
-      pub = held_.erase(pub);
-    } else {
-      ++pub;
-    }
+    pub = h.ticks.empty() ? held_.erase(pub) : std::next(pub);
   }
 }
 
@@ -88,7 +97,7 @@ LockstepInbox::Offer LockstepInbox::OfferMap(const MapMessage& map) {
   std::optional<InboxRefusal> refusal;
   if (std::find(robots_.begin(), robots_.end(), robot) == robots_.end() || robot == self_) {
     refusal = InboxRefusal::kUnknownRobot;
-  } else if (!Plausible(robot, map.incarnation)) {
+  } else if (map.incarnation == 0) {
     refusal = InboxRefusal::kIncarnation;
   } else if (map.tick != 0 &&
              (map.tick < applied_ || (first_ && map.tick < *first_) || (!first_ && latest_ && map.tick < *latest_))) {
@@ -99,6 +108,10 @@ LockstepInbox::Offer LockstepInbox::OfferMap(const MapMessage& map) {
   if (refusal) {
     Refuse(*refusal);
     return {refusal};
+  }
+  if (!held_.contains({robot, map.incarnation}) && !MakeRoomForIncarnation(robot)) {
+    Refuse(InboxRefusal::kIncarnation);
+    return {InboxRefusal::kIncarnation};
   }
   Held& h = held_[{robot, map.incarnation}];
   const MapKey key{map.tick, robot, map.incarnation, static_cast<int>(map.kind), map.version};
@@ -130,6 +143,7 @@ LockstepInbox::Offer LockstepInbox::OfferMap(const MapMessage& map) {
     return {InboxRefusal::kPublisherFull};
   }
   ++s.counted;
+  h.last_arrival = ++arrivals_;
   Offer out;
   for (const Sighting& r : map.sightings) {
     if (r.robot_id != robot || r.incarnation != map.incarnation || r.tick != map.tick) {
@@ -187,6 +201,8 @@ std::vector<TickPeer> LockstepInbox::Missing(const ExchangeTick& tick) const {
       const auto slot = pub->second.ticks.find(tick.index);
       if (slot != pub->second.ticks.end()) here = slot->second.counted;
     }
+    const auto displaced = displaced_.find({tick.index, p.robot, p.incarnation});
+    if (displaced != displaced_.end()) here += displaced->second;
     if (here < p.messages) out.push_back({p.robot, p.incarnation, here});
   }
   return out;
@@ -211,11 +227,9 @@ std::size_t LockstepInbox::sightings_held() const {
 }
 
 std::size_t LockstepInbox::MaxMapsHeld() const {
-  std::size_t incarnations = 0;
-  for (RobotId r : robots_) {
-    if (r != self_) incarnations += MaxIncarnation(r);
-  }
-  return incarnations * options_.room_ticks * options_.maps_per_tick;
+  const std::size_t publishers = robots_.size() - static_cast<std::size_t>(std::find(robots_.begin(), robots_.end(),
+                                                                                     self_) != robots_.end());
+  return publishers * options_.incarnations_per_robot * options_.room_ticks * options_.maps_per_tick;
 }
 
 }  // namespace mapmesh

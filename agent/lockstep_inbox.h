@@ -5,11 +5,16 @@
 // not all come (Missing).
 //
 // What it keeps is bounded whatever arrives, and a message it refuses never holds a tick:
-// - a map is taken only from a robot of the run, of an incarnation some tick has listed or the
-//   next one (before any tick: up to incarnations_before_tick), for a tick not applied yet (and,
-//   before this incarnation's first exchange, not before the latest tick known: a late joiner
-//   gets every writer's history of earlier ticks first), with at most sightings_per_map riding
-//   on it;
+// - a map is taken only from a robot of the run, for a tick not applied yet (and, before this
+//   incarnation's first exchange, not before the latest tick known: a late joiner gets every
+//   writer's history of earlier ticks first), with at most sightings_per_map riding on it;
+// - each robot has room for incarnations_per_robot incarnations. Incarnations are any numbers
+//   (the launcher counts from 1, an agent started by hand takes its process id), and a
+//   restarted one publishes for a tick before the tick that lists it may have arrived here, so
+//   an incarnation no tick listed yet is held too; but an incarnation the latest tick lists is
+//   never displaced by one it does not list (the one of those heard longest ago goes), and a
+//   tick drops the maps of incarnations it does not list for it or earlier ticks. A tick waits
+//   for the maps of a displaced incarnation no more (they were counted);
 // - each publisher incarnation has room for room_ticks ticks of at most maps_per_tick maps each.
 //   A genuine publisher needs two ticks of two maps (its local and global map of the tick not
 //   applied yet, and of the next when it is ahead), whatever the ticks' indices (the feeder
@@ -35,6 +40,7 @@
 #include <deque>
 #include <map>
 #include <optional>
+#include <set>
 #include <string_view>
 #include <tuple>
 #include <vector>
@@ -49,7 +55,7 @@ enum class InboxRefusal : std::uint8_t {
                       // host, so their count does (swarm compare leaves it out); genuine ones among them
   kFarTick,           // displaced by a nearer tick from a full room, or refused from one (the farthest)
   kUnknownRobot,      // from a robot not in the run
-  kIncarnation,       // from an incarnation no tick has listed, nor the next one
+  kIncarnation,       // 0, or of an incarnation no tick listed for its tick, or displaced by another
   kTooManySightings,  // more sightings riding on it than a publisher makes in a tick
   kPublisherFull,     // beyond maps_per_tick for its tick and publisher: counted for the barrier, not kept
   kUnridden,          // a sighting on its own topic: in lockstep agents' sightings ride on their maps
@@ -62,7 +68,7 @@ struct LockstepInboxOptions {
   std::uint32_t room_ticks = 4;     // per publisher incarnation: the ticks kept (a genuine one needs two)
   std::uint32_t maps_per_tick = 4;  // kept per publisher incarnation and tick (a genuine one sends two)
   std::size_t sightings_per_map = 64;
-  std::uint32_t incarnations_before_tick = 8;  // plausible incarnations before any tick listed one
+  std::uint32_t incarnations_per_robot = 3;  // held per robot (a genuine robot needs one, two across a restart)
 
   // The bound on a publisher's sightings riding on one map: one sighting of each peer every
   // rendezvous period and one answer to each peer's, over span_s and one period more (the
@@ -77,9 +83,9 @@ class LockstepInbox {
   LockstepInbox(std::vector<RobotId> robots, RobotId self, const LockstepInboxOptions& options);
 
   // An exchange or deliver tick as it arrives: its index is the latest known once it is the
-  // highest seen, and the incarnations it lists are plausible from then on. Before the first
-  // exchange, maps held for ticks before it are dropped (kPastTick); those of incarnations no
-  // longer plausible too (kIncarnation).
+  // highest seen. Maps of incarnations it does not list, held for it or earlier ticks, are
+  // dropped (kIncarnation); before the first exchange, maps held for ticks before it too
+  // (kPastTick).
   void OnTick(std::uint32_t index, const std::vector<TickPeer>& peers);
 
   // A peer's map with the sightings riding on it: kept (refused nullopt, also for a duplicate)
@@ -112,7 +118,7 @@ class LockstepInbox {
   std::uint32_t refused_total() const;
   std::size_t maps_held() const;       // maps kept now
   std::size_t sightings_held() const;  // sightings kept now
-  // The most maps it can hold: publishers (robots but self, times plausible incarnations) times
+  // The most maps it can hold: publishers (robots but self, times incarnations_per_robot) times
   // their room.
   std::size_t MaxMapsHeld() const;
 
@@ -128,21 +134,27 @@ class LockstepInbox {
   struct Held {                           // one publisher incarnation's
     std::map<std::uint32_t, Slot> ticks;  // by tick
     std::deque<MapKey> arrivals;          // before any tick is known: its maps held, oldest first
+    std::uint64_t last_arrival = 0;       // the arrival count at its latest map
   };
   // Drops a publisher's oldest arrival (before any tick is known).
   void DropOldest(Held& held);
 
-  bool Plausible(RobotId robot, std::uint32_t incarnation) const;
-  std::uint32_t MaxIncarnation(RobotId robot) const;
+  bool Listed(RobotId robot, std::uint32_t incarnation) const { return listed_.contains({robot, incarnation}); }
+  // Room for one more incarnation of `robot` (displacing one the latest tick does not list);
+  // false when every one held is listed.
+  bool MakeRoomForIncarnation(RobotId robot);
   void Refuse(InboxRefusal r, std::uint32_t n = 1) { refused_[static_cast<std::size_t>(r)] += n; }
 
   std::vector<RobotId> robots_;
   RobotId self_;
   LockstepInboxOptions options_;
-  std::optional<std::uint32_t> latest_;      // the highest tick index seen
-  std::optional<std::uint32_t> first_;       // the first tick taken at
-  std::uint32_t applied_ = 0;                // maps of ticks before this are past
-  std::map<RobotId, std::uint32_t> listed_;  // per robot: the highest incarnation a tick listed
+  std::optional<std::uint32_t> latest_;  // the highest tick index seen
+  std::optional<std::uint32_t> first_;   // the first tick taken at
+  std::uint32_t applied_ = 0;            // maps of ticks before this are past
+  std::set<Publisher> listed_;           // the incarnations the latest tick lists
+  std::uint64_t arrivals_ = 0;           // maps taken so far
+  // Displaced incarnations' counts per tick, for the barrier (the latest few).
+  std::map<std::tuple<std::uint32_t, RobotId, std::uint32_t>, std::uint32_t> displaced_;
   std::map<Publisher, Held> held_;
   std::array<std::uint32_t, kInboxRefusalCount> refused_{};
 };
