@@ -127,10 +127,15 @@ class TickFloodTest(FaultRunCase):
                     self.assertGreater(refused[reason], 0, refused)
                 self.assertEqual(refused["incarnation"], 0, refused)
                 self.assertLessEqual(a["max_rss_mb"], 1.2 * clean[rid]["max_rss_mb"], (a, clean[rid]))
-        # The same run, byte for byte (lockstep), at a CPU cost within a fifth of the clean run's.
+        # The same run, byte for byte (lockstep).
         self.assert_same_maps(self.out, base.parent / "clean")
+        # CPU: the flood's cost is 1.08-1.16 x the clean run's summed over the agents (five
+        # interleaved pairs of 1000 s runs, docs/BENCHMARKS.md "A flood of far ticks"). One pair
+        # cannot show a fifth: two identical clean 400 s runs here differed by 1.20 x (4.37 and
+        # 5.26 CPU-s). What one pair can show is that refusing costs no work per kept message,
+        # as keeping every one did (the forged submaps: 4.5 x): at most half again.
         cpu = sum(a["cpu_s"] for a in flooded.values())
-        self.assertLessEqual(cpu, 1.2 * sum(a["cpu_s"] for a in clean.values()))
+        self.assertLessEqual(cpu, 1.5 * sum(a["cpu_s"] for a in clean.values()))
 
 
 def storm(robot, kills=12, first=10, every=15, back_after=3):
