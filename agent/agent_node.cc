@@ -74,6 +74,8 @@ std::string_view ToString(SubmapRefusal r) {
     case SubmapRefusal::kNotThePublishers: return "not_the_publishers";
     case SubmapRefusal::kImplausiblePlacements: return "implausible_placements";
     case SubmapRefusal::kOpenRelayedByItsRobot: return "open_relayed_by_its_robot";
+    case SubmapRefusal::kOwnRobot: return "own_robot";
+    case SubmapRefusal::kOnRefusedMap: return "on_refused_map";
   }
   return "unknown";
 }
@@ -127,6 +129,7 @@ AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId s
         return o;
       }()),
       joining_(options.exchange.global.method == FusionMethod::kJoining),
+      heard_{{self, incarnation}},
       exchange_ticks_(run.exchange_ticks),
       inbox_(run.robots, self,
              [&] {
@@ -229,9 +232,10 @@ void AgentNode::PublishMaps(std::uint32_t tick, std::vector<Sighting> riders) {
     exchange_.SetSubmapInputs({.book = &submaps_.book(),
                                .own_open = own_open_ ? &*own_open_ : nullptr,
                                .peers_open = &submaps_.open(),
-                               .peers_placements = &peers_placements_});
+                               .peers_placements = &peers_placements_,
+                               .heard = &heard_});
   } else if (options_.exchange.ci_placement == CiPlacement::kPiecewise) {
-    exchange_.SetSubmapInputs({.book = &submaps_.book()});
+    exchange_.SetSubmapInputs({.book = &submaps_.book(), .heard = &heard_});
   }
   exchange_.Update(local, sync_.processed_until());
   Publish(MapKind::kLocal, local, ++local_version_, tick, riders);
@@ -365,19 +369,28 @@ void AgentNode::ProcessMap(const MapMessage& msg) {
     case GateVerdict::kPass: break;
   }
   stats_.bytes_received += WireBytes(msg);
-  if (msg.kind == MapKind::kLocal) ProcessSubmaps(msg, now);
+  // What rides on a map is taken only with the map (issue R3: a stale copy of a peer's map
+  // carried forged submaps and placements in, and its older advertisement replaced the newer).
+  const auto refuse_riders = [&] {
+    const std::size_t riders = msg.submaps.size() + msg.open_relayed.size() + (msg.open_submap.empty() ? 0 : 1);
+    stats_.submaps_refused[static_cast<int>(SubmapRefusal::kOnRefusedMap)] += static_cast<std::uint32_t>(riders);
+  };
   // A map larger than we will align is refused before it is decoded (kept within the codec's
   // own limit, so that a malformed count is still reported as such).
   if (const auto n = MapPayloadCount(msg.payload);
       n && *n <= kMapCodecMaxLandmarks && *n > options_.peer_limits.max_landmarks) {
+    refuse_riders();
     return refuse(MapRefusal::kTooManyLandmarks);
   }
   MapDecodeResult decoded = DecodeMap(msg.payload);
   if (!decoded.ok()) {
+    refuse_riders();
     ++stats_.maps_rejected[static_cast<int>(decoded.error)];
     return;
   }
-  switch (CheckMapLimits(decoded.map, options_.peer_limits)) {
+  const MapLimitViolation limits = CheckMapLimits(decoded.map, options_.peer_limits);
+  if (limits != MapLimitViolation::kNone) refuse_riders();
+  switch (limits) {
     case MapLimitViolation::kNone: break;
     case MapLimitViolation::kTooManyLandmarks: return refuse(MapRefusal::kTooManyLandmarks);
     case MapLimitViolation::kOutOfWorld: return refuse(MapRefusal::kOutOfWorld);
@@ -386,10 +399,15 @@ void AgentNode::ProcessMap(const MapMessage& msg) {
   switch (exchange_.OnPeerMap(msg.robot_id, msg.incarnation, msg.kind, msg.version, msg.origin_stamp,
                               std::move(decoded.map), now)) {
     case MapExchange::Receipt::kAccepted: break;
-    case MapExchange::Receipt::kStaleVersion: ++stats_.maps_stale_version; return;
-    case MapExchange::Receipt::kVersionJump: return refuse(MapRefusal::kVersionJump);
-    case MapExchange::Receipt::kTooManyIncarnations: return refuse(MapRefusal::kTooManyIncarnations);
+    case MapExchange::Receipt::kStaleVersion:
+      refuse_riders();
+      ++stats_.maps_stale_version;
+      return;
+    case MapExchange::Receipt::kVersionJump: refuse_riders(); return refuse(MapRefusal::kVersionJump);
+    case MapExchange::Receipt::kTooManyIncarnations: refuse_riders(); return refuse(MapRefusal::kTooManyIncarnations);
   }
+  heard_.insert({msg.robot_id, msg.incarnation});
+  if (msg.kind == MapKind::kLocal) ProcessSubmaps(msg, now);
   ++stats_.maps_received;
   ++stats_.maps_received_from[msg.robot_id];
   double& until = stats_.data_until[msg.robot_id];
@@ -405,7 +423,13 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
       refuse(SubmapRefusal::kUnknownRobot);
       return false;
     }
-    if (s.closed_s > now + options_.max_stamp_jump_s) {
+    if (s.id.robot == self_) {  // the agent is its robot's only source (issue R3)
+      refuse(SubmapRefusal::kOwnRobot);
+      return false;
+    }
+    // Within the run: opened no earlier than its start (scenario time 0), closed no later than
+    // what the agent has received.
+    if (s.opened_s < 0.0 || s.closed_s > now + options_.max_stamp_jump_s) {
       refuse(SubmapRefusal::kImplausibleStamp);
       return false;
     }
@@ -428,8 +452,7 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
       refuse(SubmapRefusal::kNotThePublishers);
     } else if (relayed && d.submap.id.robot == msg.robot_id) {
       refuse(SubmapRefusal::kOpenRelayedByItsRobot);
-    } else if (d.submap.id.robot != self_ && admissible(d.submap) &&
-               submaps_.AddOpen(d.submap, bytes, now, relayed) == SubmapRelay::Offer::kNew) {
+    } else if (admissible(d.submap) && submaps_.AddOpen(d.submap, bytes, now, relayed) == SubmapRelay::Offer::kNew) {
       double& until = stats_.data_until[d.submap.id.robot];  // the join may use it: its data reached us
       until = std::max(until, d.submap.closed_s);
     }
@@ -511,6 +534,9 @@ bool AgentNode::OnTick(const ExchangeTick& tick) {
 
 void AgentNode::Exchange(const ExchangeTick& tick) {
   if (!first_tick_) first_tick_ = tick.index;
+  // The feeder lists the incarnations up: each is heard. Only the ticks this incarnation
+  // exchanges at count (which earlier ones reach a restarted agent depends on the host).
+  for (const TickPeer& p : tick.peers) heard_.insert({p.robot, p.incarnation});
   // The gates judge the tick's messages by the tick's link table (from the feeder, like the
   // sensor data), whatever has come in on the links topic since.
   if (tick.links.stamp >= 0.0) {
@@ -575,6 +601,7 @@ void AgentNode::Resume(const AgentCheckpoint& c) {
     MAPMESH_CHECK(s.robot == self_ && s.incarnation != incarnation_,
                   "a checkpoint not validated by io::LoadCheckpoint");
     exchange_.AddOwnCheckpoint(s.incarnation, s.origin_stamp, s.local, s.global);
+    heard_.insert({self_, s.incarnation});  // the agent's own history
   };
   add(c);
   for (const IncarnationSnapshot& e : c.earlier) add(e);

@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string_view>
 #include <tuple>
 #include <vector>
@@ -80,7 +81,8 @@ std::string_view ToString(MapRefusal r);
 enum class SubmapRefusal {
   kTooManyOnOneMap = 0,  // beyond kMaxSubmapsPerMap on one map (the rest of them)
   kUnknownRobot,         // made by a robot not of this run
-  kImplausibleStamp,     // closed after what we have received (agent.max_stamp_jump_s)
+  kImplausibleStamp,     // opened before the run (scenario time 0), or closed after what we have received
+                         // (agent.max_stamp_jump_s)
   kTooManyLandmarks,     // the map limits, as for maps
   kOutOfWorld,
   kCovarianceTooLarge,
@@ -90,8 +92,10 @@ enum class SubmapRefusal {
   // than the robots' chains the publisher could hold.
   kImplausiblePlacements,
   kOpenRelayedByItsRobot,  // a relayed open submap of the publisher's own robot (it sends its own as open_submap)
+  kOwnRobot,               // a submap of the agent's own robot, from anyone else (issue R3)
+  kOnRefusedMap,           // riding on a map the agent did not take (refused, stale, beyond the limits)
 };
-inline constexpr int kSubmapRefusalCount = 9;
+inline constexpr int kSubmapRefusalCount = 11;
 std::string_view ToString(SubmapRefusal r);
 // A local map carries at most this many closed submaps, and as many relayed open ones (the first
 // are taken, the rest refused).
@@ -270,6 +274,9 @@ class AgentNode : private SensorSync::Sink {
   std::size_t own_submaps_taken_ = 0;   // the mapper's closed submaps taken into submaps_
   bool joining_ = false;                // agent.fusion joining: the back-end joins submap chains
   std::optional<WireSubmap> own_open_;  // joining: the open submap at the last publication
+  // The robot incarnations heard themselves: the agent's own (this one and its checkpoint's),
+  // those its ticks listed, the publishers of the maps it took. Only these supersede a chain.
+  std::set<std::pair<RobotId, std::uint32_t>> heard_;
   // joining: each peer incarnation's chain placements from its latest local map (a later version
   // replaces them), and that map's version
   std::map<PeerKey, std::vector<ChainPlacement>> peers_placements_;

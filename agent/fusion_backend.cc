@@ -104,7 +104,7 @@ class JoiningFusion : public FusionBackend {
       if (submaps.peers_open != nullptr) {
         for (const auto& [key, s] : *submaps.peers_open) open.push_back(&s);
       }
-      superseded_ = submaps.book->Superseded(open);
+      superseded_ = submaps.book->Superseded(open, submaps.heard);
       report_.superseded_chains = static_cast<int>(superseded_.size());
       std::vector<MapSource> inputs = direct;
       PlaceRelayedChains(own_local, submaps, &inputs);

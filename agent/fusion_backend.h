@@ -16,6 +16,7 @@
 
 #include <map>
 #include <memory>
+#include <set>
 #include <vector>
 
 #include "agent/exchange_options.h"
@@ -40,6 +41,9 @@ struct SubmapInputs {
   double now = 0.0;  // scenario time of the build (the exchange sets it): when alignments are due
   // Each peer incarnation's chain placements, from its latest local map (null for none).
   const std::map<PeerKey, std::vector<ChainPlacement>>* peers_placements = nullptr;
+  // The robot incarnations heard themselves (listed by a tick, a map taken from the robot, the
+  // agent's own): only these supersede an earlier chain (SubmapBook::Superseded). Null: any.
+  const std::set<std::pair<RobotId, std::uint32_t>>* heard = nullptr;
 };
 
 // What the joining back-end's last solve on submap chains did (all zero before one).

@@ -59,7 +59,9 @@ int Run(int argc, char** argv) {
       "odometry_stamp (odometry stamped 1e9 s), far_reading (a scan reading 30 km away, numbered 999999), links_stamp (a links table "
       "stamped 1e300 s), links_ahead (a links table linking everyone, stamped 15 s ahead of the agents, from a writer "
       "that is not the feeder's), version_jump (a robot's map under version 0xFFFFFFF0), huge_map (a valid map of 100 000 "
-      "landmarks, one turn in ten). "
+      "landmarks, one turn in ten), tick_flood (maps at far ticks, from a robot not in the run, with 1000 sightings), "
+      "forged_submaps (a robot's next submaps, landmarks moved, on a stale copy of another's map), ghost_incarnation "
+      "(a robot's submap under an incarnation never run, and one opened at -1e9 s, on the same carrier). "
       "scripts/swarm run --inject CASES starts it alongside a run.");
   app::ProcessOptions po;
   std::string cases_text = "all", report_path;

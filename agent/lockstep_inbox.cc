@@ -5,6 +5,8 @@
 #include <numeric>
 #include <utility>
 
+#include "common/map/wire_bytes.h"
+
 namespace mapmesh {
 
 std::string_view ToString(InboxRefusal r) {
@@ -16,6 +18,7 @@ std::string_view ToString(InboxRefusal r) {
     case InboxRefusal::kTooManySightings: return "too_many_sightings";
     case InboxRefusal::kPublisherFull: return "publisher_full";
     case InboxRefusal::kUnridden: return "unridden_sighting";
+    case InboxRefusal::kReplayed: return "replayed";
   }
   return "?";
 }
@@ -85,8 +88,7 @@ void LockstepInbox::DropOldest(Held& h) {
   const MapKey oldest = h.arrivals.front();
   h.arrivals.pop_front();
   const auto slot = h.ticks.find(std::get<0>(oldest));
-  if (slot == h.ticks.end()) return;
-  slot->second.maps.erase(oldest);
+  if (slot == h.ticks.end() || slot->second.maps.erase(oldest) == 0) return;  // (a copy taken back)
   if (slot->second.maps.empty()) h.ticks.erase(slot);
   Refuse(InboxRefusal::kPastTick);
 }
@@ -117,6 +119,10 @@ LockstepInbox::Offer LockstepInbox::OfferMap(const MapMessage& map) {
   const MapKey key{map.tick, robot, map.incarnation, static_cast<int>(map.kind), map.version};
   auto slot = h.ticks.find(map.tick);
   if (slot != h.ticks.end() && slot->second.maps.contains(key)) return {};  // a duplicate: kept once
+  if (Replayed(map, &h)) {
+    Refuse(InboxRefusal::kReplayed);
+    return {InboxRefusal::kReplayed};
+  }
   if (!first_) {
     // Before the first exchange: the latest arrivals are kept.
     while (h.arrivals.size() >= static_cast<std::size_t>(options_.room_ticks) * options_.maps_per_tick) {
@@ -157,6 +163,18 @@ LockstepInbox::Offer LockstepInbox::OfferMap(const MapMessage& map) {
   MapMessage kept = map;
   kept.sightings.clear();
   s.maps.emplace(key, std::move(kept));
+  // Copies of it kept for later ticks (they came first) are taken back, and not waited for.
+  for (auto later = std::next(slot); later != h.ticks.end(); ++later) {
+    for (auto m = later->second.maps.begin(); m != later->second.maps.end();) {
+      if (m->second.kind == map.kind && m->second.version == map.version && m->second.payload == map.payload) {
+        later->second.counted -= std::min(later->second.counted, 1u);
+        Refuse(InboxRefusal::kReplayed);
+        m = later->second.maps.erase(m);
+      } else {
+        ++m;
+      }
+    }
+  }
   return out;
 }
 
@@ -185,10 +203,35 @@ LockstepInbox::Due LockstepInbox::TakeBefore(std::uint32_t tick) {
   }
   Due out;
   out.maps.reserve(maps.size());
-  for (auto& [k, m] : maps) out.maps.push_back(std::move(m));
+  for (auto& [k, m] : maps) {  // in tick order: a replayed copy that came before its original goes here
+    if (Replayed(m, nullptr)) {
+      Refuse(InboxRefusal::kReplayed);
+      continue;
+    }
+    auto& taken = taken_[{m.robot_id, m.incarnation, static_cast<int>(m.kind)}];
+    taken.emplace_back(m.version, wire::Fnv1a64(m.payload));
+    if (taken.size() > kTakenKept) taken.pop_front();
+    out.maps.push_back(std::move(m));
+  }
   out.sightings.reserve(sightings.size());
   for (auto& [k, s] : sightings) out.sightings.push_back(std::move(s));
   return out;
+}
+
+bool LockstepInbox::Replayed(const MapMessage& map, const Held* held) const {
+  const auto taken = taken_.find({map.robot_id, map.incarnation, static_cast<int>(map.kind)});
+  if (taken != taken_.end()) {
+    const std::pair<std::uint32_t, std::uint64_t> mine{map.version, wire::Fnv1a64(map.payload)};
+    if (std::find(taken->second.begin(), taken->second.end(), mine) != taken->second.end()) return true;
+  }
+  if (held == nullptr) return false;
+  for (const auto& [tick, slot] : held->ticks) {
+    if (tick >= map.tick) break;
+    for (const auto& [key, m] : slot.maps) {
+      if (m.kind == map.kind && m.version == map.version && m.payload == map.payload) return true;
+    }
+  }
+  return false;
 }
 
 std::vector<TickPeer> LockstepInbox::Missing(const ExchangeTick& tick) const {

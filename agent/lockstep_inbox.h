@@ -29,6 +29,14 @@
 //   fills its room, so its maps are all kept. (Under one robot's name a forger can still put its
 //   maps where that robot's would be, and make a tick pass before that robot's came: that is
 //   what authenticated origins are for.)
+// - a map its publisher sent for an earlier tick (the same kind, version and payload), copied
+//   under a later tick, is replayed (issue R3: such a copy carried forged submaps in where the
+//   radio gate had dropped the original): refused, and never counted for the barrier, so it
+//   cannot make a tick pass before the publisher's own maps came; whichever came first (a copy
+//   kept before its original came is taken back when it does; one taken out after its
+//   original, dropped then). Only exact copies: a version below an earlier tick's with another
+//   payload may be genuine after a forger's high version (the exchange refuses the stale one),
+//   and refusing those would let one forged version silence a robot.
 // Every refusal is counted by reason. Duplicates (a late reader gets a writer's history) are
 // kept once and not counted.
 //
@@ -59,8 +67,9 @@ enum class InboxRefusal : std::uint8_t {
   kTooManySightings,  // more sightings riding on it than a publisher makes in a tick
   kPublisherFull,     // beyond maps_per_tick for its tick and publisher: counted for the barrier, not kept
   kUnridden,          // a sighting on its own topic: in lockstep agents' sightings ride on their maps
+  kReplayed,          // a copy of a map its publisher sent for an earlier tick (its kind, version, payload)
 };
-inline constexpr int kInboxRefusalCount = 7;
+inline constexpr int kInboxRefusalCount = 8;
 
 std::string_view ToString(InboxRefusal r);
 
@@ -138,6 +147,14 @@ class LockstepInbox {
   };
   // Drops a publisher's oldest arrival (before any tick is known).
   void DropOldest(Held& held);
+
+  // The latest kTakenKept maps taken out of each publisher incarnation and kind: version and
+  // payload digest.
+  static constexpr std::size_t kTakenKept = 8;
+  std::map<std::tuple<RobotId, std::uint32_t, int>, std::deque<std::pair<std::uint32_t, std::uint64_t>>> taken_;
+  // Whether a map copies one its publisher sent for an earlier tick, taken out or held in
+  // `held` (when given).
+  bool Replayed(const MapMessage& map, const Held* held) const;
 
   bool Listed(RobotId robot, std::uint32_t incarnation) const { return listed_.contains({robot, incarnation}); }
   // Room for one more incarnation of `robot` (displacing one the latest tick does not list);

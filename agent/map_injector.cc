@@ -1,7 +1,10 @@
 #include "agent/map_injector.h"
 
 #include <algorithm>
+#include <cmath>
+#include <numbers>
 #include <sstream>
+#include <tuple>
 
 #include "common/check.h"
 #include "common/map/map_codec.h"
@@ -12,9 +15,9 @@ namespace mapmesh {
 std::vector<std::string> AllInjectCases() {
   std::vector<std::string> cases;
   for (int i = 0; i < kPayloadFaultCount; ++i) cases.emplace_back(ToString(static_cast<PayloadFault>(i)));
-  for (const char* c :
-       {kInjectStaleVersion, kInjectUnknownSender, kInjectShuffled, kInjectOdometryStamp, kInjectFarReading,
-        kInjectLinksStamp, kInjectLinksAhead, kInjectVersionJump, kInjectHugeMap, kInjectTickFlood}) {
+  for (const char* c : {kInjectStaleVersion, kInjectUnknownSender, kInjectShuffled, kInjectOdometryStamp,
+                        kInjectFarReading, kInjectLinksStamp, kInjectLinksAhead, kInjectVersionJump, kInjectHugeMap,
+                        kInjectTickFlood, kInjectForgedSubmaps, kInjectGhostIncarnation}) {
     cases.emplace_back(c);
   }
   return cases;
@@ -45,6 +48,15 @@ void MapInjector::OnMap(const MapMessage& m) {
   if (m.kind != MapKind::kLocal || injected_.count(Key(m)) ||
       std::find(robots_.begin(), robots_.end(), m.robot_id) == robots_.end()) {
     return;
+  }
+  for (const std::vector<std::uint8_t>& bytes : m.submaps) {
+    SubmapDecodeResult s = DecodeSubmap(bytes);
+    if (!s.ok() || s.submap.id.robot != m.robot_id || s.submap.id.incarnation != m.incarnation) continue;
+    const auto held = last_closed_.find(m.robot_id);
+    if (held == last_closed_.end() || std::tie(held->second.id.incarnation, held->second.id.index) <
+                                          std::tie(s.submap.id.incarnation, s.submap.id.index)) {
+      last_closed_[m.robot_id] = std::move(s.submap);
+    }
   }
   const auto it = heard_.find(m.robot_id);
   if (it != heard_.end() && it->second.msg.incarnation == m.incarnation && m.version <= it->second.msg.version) return;
@@ -144,6 +156,32 @@ std::optional<InjectedMessage> MapInjector::MakeHostile(const std::string& c, Ro
     }
     return m;
   }
+  if (c == kInjectForgedSubmaps || c == kInjectGhostIncarnation) {
+    const auto last = last_closed_.find(target);
+    if (last == last_closed_.end()) return std::nullopt;
+    std::vector<std::vector<std::uint8_t>> submaps;
+    if (c == kInjectForgedSubmaps) {
+      std::uniform_real_distribution<double> shift(3.0, 15.0), angle(-std::numbers::pi, std::numbers::pi);
+      for (std::uint32_t k = 1; k <= kInjectForgedSubmapCount; ++k) {
+        WireSubmap s = last->second;
+        s.id.index += k;
+        for (Eigen::Index j = 3; j + 1 < s.x.size(); j += 2) {
+          const double r = shift(rng_), a = angle(rng_);
+          s.x(j) += r * std::cos(a);
+          s.x(j + 1) += r * std::sin(a);
+        }
+        submaps.push_back(EncodeSubmap(s));
+      }
+    } else {
+      WireSubmap ghost = last->second;
+      ghost.id.incarnation = kInjectGhostIncarnationId;
+      submaps.push_back(EncodeSubmap(ghost));
+      ghost.id.incarnation = kInjectGhostIncarnationId + 1;
+      ghost.opened_s = -1e9;
+      submaps.push_back(EncodeSubmap(ghost));
+    }
+    return Carry(target, std::move(submaps));
+  }
   // huge_map
   if (huge_turns_++ % kInjectHugeEvery != 0) return std::nullopt;
   if (huge_payload_.empty()) huge_payload_ = EncodeMap(RandomMap(static_cast<int>(kMapCodecMaxLandmarks)));
@@ -154,6 +192,20 @@ std::optional<InjectedMessage> MapInjector::MakeHostile(const std::string& c, Ro
   m.version = ++huge_version_[target];
   if (it != heard_.end()) m.stamp = it->second.msg.stamp;
   m.payload = huge_payload_;
+  return m;
+}
+
+std::optional<InjectedMessage> MapInjector::Carry(RobotId robot, std::vector<std::vector<std::uint8_t>> submaps) const {
+  const auto at = std::find(robots_.begin(), robots_.end(), robot);
+  const RobotId carrier = std::next(at) == robots_.end() ? robots_.front() : *std::next(at);
+  const auto it = heard_.find(carrier);
+  if (carrier == robot || it == heard_.end()) return std::nullopt;
+  MapMessage m = it->second.msg;  // the carrier's latest: its version taken already, so stale
+  if (m.tick != 0) ++m.tick;
+  m.submaps = std::move(submaps);
+  m.open_submap.clear();
+  m.open_relayed.clear();
+  m.sightings.clear();
   return m;
 }
 
@@ -172,7 +224,8 @@ LandmarkMap MapInjector::RandomMap(int n) {
 
 std::optional<InjectedMessage> MapInjector::Make(const std::string& c, RobotId sender) {
   if (c == kInjectOdometryStamp || c == kInjectFarReading || c == kInjectLinksStamp || c == kInjectLinksAhead ||
-      c == kInjectVersionJump || c == kInjectHugeMap || c == kInjectTickFlood) {
+      c == kInjectVersionJump || c == kInjectHugeMap || c == kInjectTickFlood || c == kInjectForgedSubmaps ||
+      c == kInjectGhostIncarnation) {
     return MakeHostile(c, sender);
   }
   MapMessage m;

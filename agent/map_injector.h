@@ -35,6 +35,17 @@
 //                            sightings; and one from the robot at the tick after its latest
 //                            map's (a tick agents take; before one is heard, 0xFFFFFFFF) with the
 //                            sightings.
+//   forged_submaps           submaps under the robot's identity it never made (issue R3): copies
+//                            of its latest closed submap under its next kInjectForgedSubmaps
+//                            indices, landmarks moved 3-15 m, riding on a copy of the next
+//                            robot's latest local map at the tick after it (so that it waits for
+//                            a tick agents take, and is no genuine map's duplicate). The robot's
+//                            own agent is offered submaps of its own robot, the others forgeries
+//                            of a peer's;
+//   ghost_incarnation        the robot's latest closed submap under incarnation
+//                            kInjectGhostIncarnation (never run), and under
+//                            kInjectGhostIncarnation + 1 opened at -1e9 s, on the same carrier:
+//                            a chain whose time overlaps the robot's took its place in every join.
 
 #include <cstdint>
 #include <map>
@@ -47,6 +58,7 @@
 #include <vector>
 
 #include "common/map/landmark_map.h"
+#include "common/map/submap_codec.h"
 #include "common/types/messages.h"
 
 namespace mapmesh {
@@ -65,6 +77,10 @@ inline constexpr std::uint32_t kInjectHugeIncarnation = 3000000001u;
 inline constexpr int kInjectHugeEvery = 10;
 inline constexpr const char* kInjectTickFlood = "tick_flood";
 inline constexpr std::size_t kInjectFloodSightings = 1000;
+inline constexpr const char* kInjectForgedSubmaps = "forged_submaps";
+inline constexpr std::uint32_t kInjectForgedSubmapCount = 5;
+inline constexpr const char* kInjectGhostIncarnation = "ghost_incarnation";
+inline constexpr std::uint32_t kInjectGhostIncarnationId = 77;
 inline constexpr std::uint32_t kInjectFarReadingSeq = 999999u;
 // The incarnation the faulty peer of the shuffled case claims (real agents count from 1).
 inline constexpr std::uint32_t kInjectFaultyIncarnation = 3000000000u;
@@ -131,6 +147,10 @@ class MapInjector {
   std::vector<std::uint8_t> flood_payload_;  // made once
   std::uint32_t flood_version_ = 0;
   std::map<RobotId, std::uint32_t> flood_far_;  // per robot: its far-ahead maps so far
+  std::map<RobotId, WireSubmap> last_closed_;   // each robot's latest closed submap of its own, as heard
+  // A copy of the local map of the robot after `robot` in the run, at the tick after it, carrying
+  // `submaps` (forged_submaps, ghost_incarnation); nothing while either is unknown.
+  std::optional<InjectedMessage> Carry(RobotId robot, std::vector<std::vector<std::uint8_t>> submaps) const;
 };
 
 }  // namespace mapmesh

@@ -56,7 +56,8 @@ std::vector<SubmapChain> SubmapBook::Chains() const {
   return out;
 }
 
-std::set<std::pair<RobotId, std::uint32_t>> SubmapBook::Superseded(std::span<const WireSubmap* const> open) const {
+std::set<std::pair<RobotId, std::uint32_t>> SubmapBook::Superseded(
+    std::span<const WireSubmap* const> open, const std::set<std::pair<RobotId, std::uint32_t>>* heard) const {
   using Chain = std::pair<RobotId, std::uint32_t>;
   std::map<Chain, std::pair<double, double>> span;  // (robot, incarnation) -> [from, to], in order
   const auto cover = [&span](const WireSubmap& s) {
@@ -74,8 +75,7 @@ std::set<std::pair<RobotId, std::uint32_t>> SubmapBook::Superseded(std::span<con
   for (auto a = span.begin(); a != span.end(); ++a) {
     for (auto b = std::next(a); b != span.end() && b->first.first == a->first.first; ++b) {
       if (b->second.first < a->second.second && a->second.first < b->second.second) {
-        out.insert(a->first);
-        break;
+        out.insert(heard == nullptr || heard->contains(b->first) ? a->first : b->first);
       }
     }
   }

@@ -46,7 +46,13 @@ class SubmapBook {
   // robot's stream from the start (lockstep) maps the same scans again and supersedes the
   // earlier; one that takes the stream where it is does not. Joining both would count those
   // measurements twice.
-  std::set<std::pair<RobotId, std::uint32_t>> Superseded(std::span<const WireSubmap* const> open = {}) const;
+  // With `heard` (the robot incarnations heard themselves: listed by a tick, or a map taken
+  // from the robot; issue R3), a later incarnation supersedes an earlier one only when heard;
+  // one not heard is the one left out of the overlapping pair (a ghost: submaps relabelled
+  // under an incarnation that never ran cannot remove a robot's real chain).
+  std::set<std::pair<RobotId, std::uint32_t>> Superseded(
+      std::span<const WireSubmap* const> open = {},
+      const std::set<std::pair<RobotId, std::uint32_t>>* heard = nullptr) const;
 
  private:
   struct Entry {

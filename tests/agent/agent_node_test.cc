@@ -460,6 +460,61 @@ agent: {map_publish_period_s: 1.0, fusion: joining}
   EXPECT_EQ(node.stats().data_until.count(1), 0u);
 }
 
+// Issue R3: another participant's submaps under the agent's own identity (robot 1) were taken,
+// and the agent then refused its own genuine ones as conflicts; a submap opened at -1e9 s made
+// a ghost chain supersede a real one; a stale copy of a peer's map brought its riders in. Each
+// is refused and counted, and nothing of them is held.
+TEST(AgentNodeLimits, RefusesItsOwnRobotsSubmapsFromOthersAndRidersOfMapsNotTaken) {
+  Scenario sc = ParseScenario(R"(version: 1
+world: {landmarks: {list: [[5, 0], [0, 5]]}}
+robots:
+  list:
+    - {id: 1, start: [0, 0, 0]}
+    - {id: 2, start: [1, 0, 0]}
+    - {id: 3, start: [2, 0, 0]}
+feeder: {pace: realtime}
+agent: {map_publish_period_s: 1.0, fusion: joining}
+)",
+                              "test.yaml");
+  Capture out;
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
+  node.OnLinks({0.0, {{1, 2}}});
+  const auto submap = [](RobotId robot, std::uint32_t index, double opened_s) {
+    WireSubmap s;
+    s.id = {robot, 1, index};
+    s.opened_s = opened_s;
+    s.closed_s = 0.0;
+    s.keys = {0};
+    s.x = Eigen::VectorXd::Zero(5);
+    EXPECT_TRUE(s.SetCovariance(0.01 * Eigen::MatrixXd::Identity(5, 5)));
+    return EncodeSubmap(s);
+  };
+  LandmarkMap map;
+  map.landmarks.push_back({0, -1, {1.0, 2.0}, 0.01 * Eigen::Matrix2d::Identity()});
+  MapMessage m = PeerMap(2, EncodeMap(map));
+  m.incarnation = 1;
+  m.version = 2;
+  m.stamp = 0.0;
+  m.submaps = {submap(1, 0, 0.0), submap(3, 0, -1e9), submap(3, 1, 0.0)};  // ours, opened before the run, 3's
+  m.open_relayed = {submap(1, 1, 0.0)};                                    // our open one
+  node.OnMap(m);
+  const auto refused = [&](SubmapRefusal r) { return node.stats().submaps_refused[static_cast<int>(r)]; };
+  EXPECT_EQ(node.stats().maps_received, 1u);
+  EXPECT_EQ(refused(SubmapRefusal::kOwnRobot), 2u);
+  EXPECT_EQ(refused(SubmapRefusal::kImplausibleStamp), 1u);
+  EXPECT_EQ(node.submaps().book().Ids(), (std::vector<SubmapId>{{3, 1, 1}}));
+  EXPECT_TRUE(node.submaps().open().empty());
+  // The same map under an older version: stale, its riders not looked at (a new one among them).
+  m.version = 1;
+  m.submaps = {submap(3, 2, 0.0), submap(1, 0, 0.0)};
+  m.open_relayed.clear();
+  node.OnMap(m);
+  EXPECT_EQ(node.stats().maps_stale_version, 1u);
+  EXPECT_EQ(refused(SubmapRefusal::kOnRefusedMap), 2u);
+  EXPECT_EQ(refused(SubmapRefusal::kOwnRobot), 2u);
+  EXPECT_EQ(node.submaps().book().size(), 1u);
+}
+
 // One reading 30 km away (beyond what the 8 m sensor sees) never reaches the map, and the
 // agent keeps publishing.
 TEST(AgentNodeLimits, AReadingBeyondTheSensorsRangeIsRefused) {

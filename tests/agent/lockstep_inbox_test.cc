@@ -10,14 +10,15 @@ namespace {
 
 constexpr RobotId kSelf = 1;
 
+// A publisher's versions grow with its ticks: by default, the tick's (the tick far ahead's too).
 MapMessage Map(RobotId robot, std::uint32_t incarnation, std::uint32_t tick, MapKind kind = MapKind::kLocal,
-               std::uint32_t version = 1) {
+               std::uint32_t version = 0) {
   MapMessage m;
   m.robot_id = robot;
   m.incarnation = incarnation;
   m.tick = tick;
   m.kind = kind;
-  m.version = version;
+  m.version = version != 0 ? version : tick + 1;
   m.payload = {static_cast<std::uint8_t>(robot), static_cast<std::uint8_t>(tick), static_cast<std::uint8_t>(version)};
   return m;
 }
@@ -196,10 +197,11 @@ TEST(LockstepInbox, APublishersRoomKeepsTheNearestTicks) {
   EXPECT_EQ(Refused(in, InboxRefusal::kFarTick), 3u);
   in.OnTick(17, Peers({{1, 1}, {2, 1}, {3, 1}}));
   EXPECT_EQ(in.TakeBefore(17).maps.size(), 1u);  // 10's
-  // Four maps of one tick are kept; three more are counted for the barrier, not kept.
-  for (std::uint32_t v = 2; v <= 8; ++v) {
+  // Four maps of one tick are kept (17's first among them); four more are counted for the
+  // barrier, not kept.
+  for (std::uint32_t v = 19; v <= 25; ++v) {  // (after 17's first, version 18)
     const std::optional<InboxRefusal> r = Offer(in, Map(2, 1, 17, MapKind::kLocal, v));
-    if (v <= 4) {
+    if (v <= 21) {
       EXPECT_FALSE(r) << v;
     } else {
       EXPECT_EQ(r, InboxRefusal::kPublisherFull) << v;
@@ -212,6 +214,63 @@ TEST(LockstepInbox, APublishersRoomKeepsTheNearestTicks) {
   EXPECT_EQ(in.maps_held(), 6u);  // four of 17 and the two forged left
   EXPECT_LE(in.maps_held(), in.MaxMapsHeld());
   EXPECT_EQ(in.MaxMapsHeld(), 3u * 3u * 4u * 4u);  // robots 2-4, 3 incarnations each; 4 ticks, 4 maps
+}
+
+// Issue R3: a copy of a peer's map a tick later (its kind, version and payload) carried forged
+// submaps in where the radio gate had dropped the original. A copy is refused and never counted
+// for the barrier, whether it comes after its original or before it (then taken back when the
+// original comes), or is taken out after it. Another payload under the same version is not a
+// copy: after a forger's high version a genuine publisher's versions look old, and must still
+// count (the exchange judges versions).
+TEST(LockstepInbox, ACopyOfAnEarlierTicksMapIsRefusedAndNeverWaitedFor) {
+  LockstepInbox in = Inbox();
+  in.OnTick(5, Peers({{1, 1}, {2, 1}, {3, 1}}));
+  in.TakeBefore(5);
+  const MapMessage original = Map(2, 1, 5, MapKind::kLocal, 40);
+  MapMessage copy = original;
+  copy.tick = 6;
+  ExchangeTick deliver6;
+  deliver6.index = 6;
+  deliver6.peers = {{2, 1, 1}};
+  // The copy first: kept for now (nothing earlier known), and counted ...
+  EXPECT_FALSE(Offer(in, copy));
+  EXPECT_TRUE(in.Missing(deliver6).empty());
+  // ... until its original comes: taken back, and tick 6 waits for robot 2's own map again.
+  EXPECT_FALSE(Offer(in, original));
+  EXPECT_EQ(Refused(in, InboxRefusal::kReplayed), 1u);
+  EXPECT_EQ(in.Missing(deliver6).size(), 1u);
+  // After its original: refused on arrival, not counted.
+  EXPECT_EQ(Offer(in, copy), InboxRefusal::kReplayed);
+  EXPECT_EQ(in.Missing(deliver6).size(), 1u);
+  // Another payload under version 40 at tick 6: not a copy, kept and counted.
+  MapMessage other = copy;
+  other.payload.push_back(9);
+  EXPECT_FALSE(Offer(in, other));
+  EXPECT_TRUE(in.Missing(deliver6).empty());
+  EXPECT_EQ(Refused(in, InboxRefusal::kReplayed), 2u);
+  // Once the original is taken out, a copy for any later tick is refused too; robot 3's map of
+  // the same version and payload, and robot 2's global one, are their own.
+  in.OnTick(6, Peers({{1, 1}, {2, 1}, {3, 1}}));
+  EXPECT_EQ(in.TakeBefore(6).maps.size(), 1u);
+  copy.tick = 9;
+  EXPECT_EQ(Offer(in, copy), InboxRefusal::kReplayed);
+  MapMessage of3 = original;
+  of3.robot_id = 3;
+  of3.tick = 7;
+  EXPECT_FALSE(Offer(in, of3));
+  MapMessage global = original;
+  global.kind = MapKind::kGlobal;
+  global.tick = 7;
+  EXPECT_FALSE(Offer(in, global));
+  // A copy for a tick further on, kept before its original came, is taken back too.
+  LockstepInbox late = Inbox();
+  late.OnTick(5, Peers({{1, 1}, {2, 1}}));
+  late.TakeBefore(5);
+  EXPECT_FALSE(Offer(late, copy));  // tick 9
+  EXPECT_FALSE(Offer(late, original));
+  EXPECT_EQ(Refused(late, InboxRefusal::kReplayed), 1u);
+  late.OnTick(10, Peers({{1, 1}, {2, 1}}));
+  EXPECT_EQ(late.TakeBefore(10).maps.size(), 1u);
 }
 
 // Over seeded streams: three genuine peers publish two maps a tick (with riders), in a random

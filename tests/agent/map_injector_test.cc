@@ -2,12 +2,15 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <map>
+#include <optional>
 #include <random>
 #include <set>
 
 #include "common/map/map_codec.h"
 #include "common/map/map_faults.h"
+#include "common/map/submap_codec.h"
 
 namespace mapmesh {
 namespace {
@@ -42,7 +45,7 @@ std::optional<MapMessage> NextMap(MapInjector& inj) {
 
 TEST(InjectCases, ParsesAllAListAndRefusesUnknownOnes) {
   EXPECT_EQ(ParseInjectCases("all"), AllInjectCases());
-  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 10));
+  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 12));
   EXPECT_EQ(ParseInjectCases("shuffled,truncated,shuffled"), (std::vector<std::string>{"shuffled", "truncated"}));
   EXPECT_FALSE(ParseInjectCases("shuffle").has_value());
   EXPECT_FALSE(ParseInjectCases("").has_value());
@@ -182,6 +185,61 @@ TEST(MapInjector, TheTickFloodTakesTurnsOfClaimedSenderAndTick) {
   EXPECT_EQ(versions.size(), made.size());
   EXPECT_EQ(inj.sent().at("tick_flood").at(99), 2);
   EXPECT_EQ(inj.sent().at("tick_flood").at(2), 4);
+}
+
+// forged_submaps and ghost_incarnation: nothing before the robot's closed submap and the next
+// robot's map are heard; then the robot's submap under its next indices, landmarks moved 3-15
+// m (forged_submaps), or under incarnations 77 and 78, the second opened at -1e9 s (ghost),
+// riding on a copy of the next robot's latest local map (its version, so stale) a tick later.
+TEST(MapInjector, ForgedSubmapsRideOnAStaleCopyOfTheNextRobotsMap) {
+  for (const std::string c : {"forged_submaps", "ghost_incarnation"}) {
+    SCOPED_TRACE(c);
+    MapInjector inj({2, 3}, {c}, 99, 5);
+    WireSubmap own;
+    own.id = {2, 7, 4};
+    own.opened_s = 10.0;
+    own.closed_s = 20.0;
+    own.keys = {5, 6};
+    own.x = Eigen::VectorXd::Zero(7);
+    own.x.tail(4) << 1.0, 2.0, 3.0, 4.0;
+    ASSERT_TRUE(own.SetCovariance(0.01 * Eigen::MatrixXd::Identity(7, 7)));
+    MapMessage from2 = RobotMap(2, 3, 10);
+    from2.submaps = {EncodeSubmap(own)};
+    inj.OnMap(from2);
+    EXPECT_FALSE(NextMap(inj).has_value());  // robot 3's map not heard: no carrier for robot 2's
+    MapMessage from3 = RobotMap(3, 8, 10);
+    from3.tick = 40;
+    inj.OnMap(from3);
+    std::optional<MapMessage> m = NextMap(inj);
+    ASSERT_TRUE(m.has_value());
+    EXPECT_EQ(m->robot_id, 3u);
+    EXPECT_EQ(m->version, 8u);
+    EXPECT_EQ(m->tick, 41u);
+    EXPECT_EQ(m->payload, from3.payload);
+    std::vector<WireSubmap> rode;
+    for (const auto& bytes : m->submaps) {
+      SubmapDecodeResult d = DecodeSubmap(bytes);
+      ASSERT_TRUE(d.ok());
+      rode.push_back(d.submap);
+    }
+    if (c == "forged_submaps") {
+      ASSERT_EQ(rode.size(), kInjectForgedSubmapCount);
+      for (std::uint32_t k = 0; k < rode.size(); ++k) {
+        EXPECT_EQ(rode[k].id, (SubmapId{2, 7, 5 + k}));
+        for (Eigen::Index j = 3; j < 7; j += 2) {
+          const double moved = std::hypot(rode[k].x(j) - own.x(j), rode[k].x(j + 1) - own.x(j + 1));
+          EXPECT_GE(moved, 3.0 - 1e-4);  // (the wire's f32)
+          EXPECT_LE(moved, 15.0 + 1e-4);
+        }
+      }
+    } else {
+      ASSERT_EQ(rode.size(), 2u);
+      EXPECT_EQ(rode[0].id, (SubmapId{2, kInjectGhostIncarnationId, 4}));
+      EXPECT_EQ(rode[0].opened_s, 10.0);
+      EXPECT_EQ(rode[1].id, (SubmapId{2, kInjectGhostIncarnationId + 1, 4}));
+      EXPECT_EQ(rode[1].opened_s, -1e9);
+    }
+  }
 }
 
 // The hostile cases: forged odometry, a far reading at the time the agent reported, a links

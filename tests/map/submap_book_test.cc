@@ -92,5 +92,36 @@ TEST(SubmapBook, AnIncarnationWhoseTimeALaterOneMapsAgainIsSuperseded) {
   EXPECT_EQ(book.Superseded(open), (Chains{{3, 1}, {3, 2}, {5, 1}}));
 }
 
+// Issue R3: submaps relabelled under an incarnation that never ran (a ghost) left robot 3's
+// real chain out of every join. With the incarnations heard, only a heard one supersedes; of
+// an overlapping pair whose later one is not heard, the later one is left out.
+TEST(SubmapBook, OnlyAnIncarnationHeardSupersedes) {
+  SubmapBook book;
+  const auto add = [&](RobotId robot, std::uint32_t incarnation, std::uint32_t index, double from, double to) {
+    WireSubmap s = Submap(robot, incarnation, index);
+    s.opened_s = from;
+    s.closed_s = to;
+    book.Add(s, EncodeSubmap(s));
+  };
+  using Chains = std::set<std::pair<RobotId, std::uint32_t>>;
+  add(3, 1, 0, 0.5, 30.0);
+  add(3, 1, 1, 30.0, 58.0);
+  add(3, 77, 0, 0.5, 30.0);  // robot 3's submap as a ghost's
+  Chains heard = {{3, 1}};
+  EXPECT_EQ(book.Superseded({}, &heard), (Chains{{3, 77}}));
+  EXPECT_EQ(book.Superseded({}), (Chains{{3, 1}}));  // without the facts: what the ghost did
+  // A restart replaying from the start, heard: it supersedes both.
+  add(3, 2, 0, 0.5, 20.0);
+  heard.insert({3, 2});
+  EXPECT_EQ(book.Superseded({}, &heard), (Chains{{3, 1}, {3, 77}}));
+  // Incarnation 2 heard no longer (a restarted agent has heard no one yet): 1 stays, 2 and the
+  // ghost do not.
+  heard = {{3, 1}};
+  EXPECT_EQ(book.Superseded({}, &heard), (Chains{{3, 2}, {3, 77}}));
+  // Nothing heard: of every overlapping pair the later one goes, the earliest chain stays.
+  heard.clear();
+  EXPECT_EQ(book.Superseded({}, &heard), (Chains{{3, 2}, {3, 77}}));
+}
+
 }  // namespace
 }  // namespace mapmesh
