@@ -6,6 +6,7 @@ written from the specification; tests read its files back with the MCAP project'
 (npm @mcap/core), never with this module alone."""
 
 import json
+import os
 import struct
 import zlib
 
@@ -146,7 +147,13 @@ class Writer:
         summary_crc = zlib.crc32(bytes(out[summary_start:]) + footer_head)
         out += footer_head + struct.pack("<I", summary_crc)
         out += MAGIC
-        with open(path, "wb") as f:
-            f.write(out)
+        part = f"{path}.part"  # renamed when whole: a failed write leaves nothing at path
+        try:
+            with open(part, "wb") as f:
+                f.write(out)
+            os.replace(part, path)
+        finally:
+            if os.path.exists(part):
+                os.unlink(part)
         by_id = {c[0]: c[2] for c in self.channels}
         return {by_id[cid]: n for cid, n in counts.items()}

@@ -16,12 +16,11 @@
 Log time is scenario time. The JSON schemas are written here from Foxglove's published message
 definitions, for the fields these messages use. Standard library only."""
 
-import json
 import math
 import sys
 
 from .mcap import Writer
-from .rundir import (HISTORY, TRAJECTORY, TRUTH, alignment_changes, pose_at, radio_links, read_history,
+from .rundir import (HISTORY, TRAJECTORY, TRUTH, alignment_changes, pose_at, radio_links, read_history, read_json,
                      truth_robots)
 
 CHI2_95_2DOF = 5.991464547107979  # the 95 % quantile of chi-square with 2 degrees of freedom
@@ -184,8 +183,8 @@ def export_mcap(run, summary, path):
                 if not f.exists():
                     continue
                 try:
-                    m = json.loads(f.read_text())
-                except ValueError:
+                    m = read_json(f)
+                except (OSError, ValueError):
                     continue
                 ch = ch or w.channel(f"/agent_{rid}/{kind}_map", "foxglove.SceneUpdate", SCENE_UPDATE)
                 w.message(ch, ns(t), map_update(m, f"agent_{rid}", f"agent_{rid}/{kind}_map", t,

@@ -21,6 +21,36 @@ OPTIONS = ("scenario", "agents", "kill", "restart", "pause", "set", "pace", "rat
 REPO = Path(__file__).resolve().parents[2]
 
 
+def option_flags(values, defaults):
+    """The `swarm run` flags that give a run these option values (a dict or namespace of OPTIONS
+    but the scenario; those at their defaults are not repeated). ValueError (one line) on a value
+    no command line could give: a flag's value that is not true or false, a repeatable option's
+    that is not a list of strings."""
+    get = values.get if isinstance(values, dict) else lambda n, d=None: getattr(values, n, d)
+    flags = []
+    for name in OPTIONS:
+        if name == "scenario" or name not in defaults:
+            continue
+        value = get(name, None)
+        if value == defaults[name] or value is None:
+            continue
+        flag = "--" + name.replace("_", "-")
+        if isinstance(defaults[name], bool):
+            if not isinstance(value, bool):
+                raise ValueError(f"{name}: {value!r}, expected true or false")
+            flags.append(flag)
+        elif isinstance(value, list):
+            if not all(isinstance(v, str) for v in value):
+                raise ValueError(f"{name}: {value!r}, expected a list of strings")
+            for v in value:
+                flags += [flag, v]
+        elif isinstance(value, (bool, dict)):
+            raise ValueError(f"{name}: {value!r}, expected a value")
+        else:
+            flags += [flag, str(value)]
+    return flags
+
+
 def sha256_of(path):
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
@@ -90,16 +120,20 @@ def write_run_json(out, args, info, kills, restarts, pauses, bin_dir):
 def options_from(path):
     """The run options recorded in a run.json, with the scenario file to use: the original when it
     is still there unchanged, else the copy beside the run.json. Raises ValueError (one line)."""
+    from .rundir import read_json, why_unreadable
     path = Path(path)
     try:
-        record = json.loads(path.read_text())
+        record = read_json(path, max_bytes=16 * 1024 * 1024)
     except (OSError, ValueError) as e:
-        raise ValueError(f"--from {path}: not a readable run.json ({e})") from None
+        raise ValueError(f"--from {path}: not a readable run.json ({why_unreadable(e)})") from None
     if not isinstance(record, dict) or record.get("version") != VERSION or not isinstance(record.get("options"), dict):
         raise ValueError(f"--from {path}: not a run.json of this version (written by `swarm run`)")
     options = {k: record["options"].get(k) for k in OPTIONS}
-    original = Path(record.get("scenario_file", ""))
-    copy = path.parent / record.get("scenario_copy", SCENARIO_COPY)
+    original = Path(str(record.get("scenario_file", "")))
+    copy_name = record.get("scenario_copy", SCENARIO_COPY)
+    if not isinstance(copy_name, str) or not copy_name or Path(copy_name).name != copy_name or copy_name in (".", ".."):
+        raise ValueError(f"--from {path}: scenario_copy {copy_name!r} is not a file name in the run's folder")
+    copy = path.parent / copy_name
     if original.is_file() and sha256_of(original) == record.get("scenario_sha256"):
         options["scenario"] = str(original)
     elif copy.is_file():

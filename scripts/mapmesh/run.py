@@ -23,7 +23,7 @@ from .progress import Progress
 from . import provenance
 from .reached import reached_until
 from .rundir import (AGENT_LOG, CHECKPOINT, FEEDER, INJECT, REFERENCE, REFERENCE_REACHED, REPORT, STATS, SUMMARY,
-                     TIMELINE, TRUTH, RunDir, agent_dir, clear_earlier_run, earlier_run)
+                     TIMELINE, TRUTH, RunDir, agent_dir, clear_earlier_run, earlier_run, read_json)
 
 REPO = Path(__file__).resolve().parents[2]
 # Plots need matplotlib and numpy from Debian, which /usr/bin/python3 has (another python3 may
@@ -647,7 +647,7 @@ class SwarmRun:
         agents = {}
         for rid in self.agents:
             d = self.out / agent_dir(rid)
-            agents[rid] = tuple(json.loads((d / name).read_text()) if (d / name).exists() else None
+            agents[rid] = tuple(read_json(d / name) if (d / name).exists() else None
                                 for name in (STATS, CHECKPOINT))
         period = self.info.get("resolved", {}).get("agent.map_publish_period_s")
         period = float(period) if isinstance(period, (int, float)) else 1.0
@@ -955,8 +955,18 @@ def cmd_run(args):
                            f"(got --{given[0].replace('_', '-')})", 2)
         try:
             options, _ = provenance.options_from(args.from_run)
+            # Every option as the command line takes it: the same parser, the same ranges.
+            if hasattr(args, "options_parser"):
+                parsed = args.options_parser().parse_args(provenance.option_flags(options, defaults))
+                why = args.option_values_error(parsed)
+                if why:
+                    raise ValueError(why)
+                options = {name: getattr(parsed, name) if name != "scenario" else value
+                           for name, value in options.items()}
         except ValueError as e:
-            raise RunError(str(e), 2) from None
+            message = str(e)
+            where = "" if message.startswith("--from") else f"--from {args.from_run}: "
+            raise RunError(where + message, 2) from None
         for name, value in options.items():
             setattr(args, name, value)
     if not args.scenario:

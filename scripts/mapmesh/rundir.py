@@ -5,7 +5,9 @@ truth.json trajectory. Standard library only."""
 
 import json
 import math
+import os
 import shutil
+import stat
 from pathlib import Path
 
 # The run's files.
@@ -66,9 +68,49 @@ def agent_dir(rid):
     return f"agent_{rid}"
 
 
-def read_json(path):
-    """A JSON file's value; OSError or ValueError when it cannot be read."""
-    return json.loads(Path(path).read_text())
+# The largest run file a tool reads: an agent's checkpoint is at most its loader's 256 MB, and
+# every other file of a 256-agent run is far smaller.
+MAX_FILE_BYTES = 256 * 1024 * 1024
+
+
+class RunFileError(ValueError):
+    """A run file that is not what a run writes: str() is one line, the file then `reason`."""
+
+    def __init__(self, path, reason):
+        super().__init__(f"{path}: {reason}")
+        self.path, self.reason = path, reason
+
+
+def read_bytes(path, max_bytes=MAX_FILE_BYTES):
+    """A run file's bytes; OSError when it cannot be opened, RunFileError when it is not a regular
+    file (a FIFO or /dev/zero is never read) or holds more than max_bytes."""
+    path = Path(path)
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    with os.fdopen(fd, "rb") as f:
+        st = os.fstat(f.fileno())
+        if not stat.S_ISREG(st.st_mode):
+            raise RunFileError(path, "not a regular file")
+        data = f.read(max_bytes + 1)
+    if len(data) > max_bytes:
+        raise RunFileError(path, f"larger than the {max_bytes // (1024 * 1024)} MB a run file may be")
+    return data
+
+
+def read_json(path, max_bytes=MAX_FILE_BYTES):
+    """A JSON file's value; OSError when it cannot be opened, RunFileError (a ValueError, one line
+    naming the file) when it is not a regular file, too large, or not JSON."""
+    data = read_bytes(path, max_bytes)
+    try:
+        return json.loads(data)
+    except json.JSONDecodeError as e:
+        raise RunFileError(path, f"not JSON ({e.msg}, line {e.lineno} column {e.colno})") from None
+    except UnicodeDecodeError:
+        raise RunFileError(path, "not JSON (not UTF-8 text)") from None
+
+
+def why_unreadable(e):
+    """The reason a run file could not be read, for a line that names it."""
+    return e.reason if isinstance(e, RunFileError) else e.__class__.__name__
 
 
 class RunDir:
@@ -106,7 +148,7 @@ class RunDir:
         except (OSError, ValueError) as e:
             if required:
                 raise
-            self.notes.append(f"{name}: unreadable ({e.__class__.__name__})")
+            self.notes.append(f"{name}: unreadable ({why_unreadable(e)})")
             return None
 
     def agent_ids(self):

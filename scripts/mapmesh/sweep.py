@@ -6,6 +6,7 @@ per parameter, then the seed and the agent's figures), and DIR/sweep.png drawn b
 scripts/plots/sweep.py."""
 
 import csv
+import hashlib
 import itertools
 import math
 import os
@@ -17,11 +18,14 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 from .columns import SWEEP_HEADER, sweep_row
-from .provenance import OPTIONS
+from . import provenance
 from .run import REPO, RunError, SwarmRun, last_line, plot
 from .rundir import SUMMARY, read_json
 
 SEED_KEY = "seed"
+# A sweep runs at most this many runs (grid points times seeds); a larger grid is refused in one
+# line before anything is checked: split it into several sweeps.
+MAX_RUNS = 1000
 
 
 def parse_params(params, values):
@@ -64,30 +68,23 @@ def parse_seeds(text):
 
 
 def run_name(point, seed):
-    """The run's folder under runs/: KEY=VALUE_..._seedS, with anything but [A-Za-z0-9._=-] as '-'."""
+    """The run's folder under runs/: KEY=VALUE_..._seedS, with anything but [A-Za-z0-9._=-] as '-'
+    and then, so that values differing only there (`a b`, `a/b`, `a+b`) keep their own folders,
+    the first 8 hex digits of the SHA-1 of the name as given."""
     name = "_".join(f"{k}={v}" for k, v in point) + (f"_seed{seed}" if seed is not None else "")
-    return re.sub(r"[^A-Za-z0-9._=-]", "-", name)
+    safe = re.sub(r"[^A-Za-z0-9._=-]", "-", name)
+    return safe if safe == name else f"{safe}-{hashlib.sha1(name.encode()).hexdigest()[:8]}"
+
+
+def plan_size(grid, seeds):
+    """The runs of a grid and seeds (a product of the counts: the plan is not built)."""
+    return math.prod(len(v) for _, v in grid) * len(seeds)
 
 
 def option_flags(args, defaults):
     """The `swarm run` flags that give a run the options the sweep was given (provenance.OPTIONS
     but the scenario; those left at their defaults are not repeated)."""
-    flags = []
-    for name in OPTIONS:
-        if name == "scenario" or name not in defaults:
-            continue
-        value = getattr(args, name, None)
-        if value == defaults[name] or value is None:
-            continue
-        flag = "--" + name.replace("_", "-")
-        if isinstance(value, bool):
-            flags.append(flag)
-        elif isinstance(value, list):
-            for v in value:
-                flags += [flag, str(v)]
-        else:
-            flags += [flag, str(value)]
-    return flags
+    return provenance.option_flags(args, defaults)
 
 
 def point_flags(point, seed):
@@ -99,10 +96,18 @@ def describe(point, seed):
     return " ".join(f"{k}={v}" for k, v in point) + (f" seed {seed}" if seed is not None else "")
 
 
-def check_all(args, plan, out):
-    """Every run of the plan checked as `swarm run` checks it (scenario and overrides, fault
-    schedule, injector, hosts), before the first starts. RunError names the run at fault."""
+def check_all(args, plan, out, progress=None, every_s=2.0):
+    """Every point of the plan checked once as `swarm run` checks it (scenario and overrides, fault
+    schedule, injector, hosts), with its first seed (any integer is a seed), before the first run
+    starts. RunError names the run at fault. `progress(done, total)` is called every `every_s`
+    seconds of checking and at the end."""
+    points = list(dict.fromkeys(point for point, _ in plan))
+    first_seed = {}
     for point, seed in plan:
+        first_seed.setdefault(point, seed)
+    last = time.monotonic()
+    for done, point in enumerate(points, 1):
+        seed = first_seed[point]
         argv = [args.scenario, "--out", str(out / "runs" / run_name(point, seed))] + option_flags(
             args, args.run_defaults) + point_flags(point, seed)
         run_args = args.run_parser.parse_args(argv)
@@ -110,6 +115,9 @@ def check_all(args, plan, out):
             SwarmRun(run_args).check_plan()
         except RunError as e:
             raise RunError(f"{describe(point, seed)}: {e}", 2) from None
+        if progress is not None and (done == len(points) or time.monotonic() - last >= every_s):
+            last = time.monotonic()
+            progress(done, len(points))
 
 
 def _run_one(args, point, seed, run_dir):
@@ -149,8 +157,16 @@ def cmd_sweep(args):
     if out.exists() and not out.is_dir():
         raise RunError(f"--out {out}: is a file, not a folder; choose a folder", 2)
     keys = [k for k, _ in grid]
+    runs = plan_size(grid, seeds)
+    if runs > MAX_RUNS:
+        counts = " x ".join(f"{len(v)} {k}" for k, v in grid) + (f" x {len(seeds)} seeds" if seeds != [None] else "")
+        raise RunError(f"--param: {counts} is {runs} runs; a sweep runs at most {MAX_RUNS}: split the grid", 2)
     plan = [(tuple(zip(keys, combo)), s) for combo in itertools.product(*[v for _, v in grid]) for s in seeds]
-    check_all(args, plan, out)
+
+    def checking(done, total):
+        print(f"sweep: checked {done} of {total} points", flush=True)
+
+    check_all(args, plan, out, progress=None if getattr(args, "quiet", False) else checking)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     jobs = args.jobs or max(1, min(2, os.cpu_count() or 1))
     start = time.monotonic()

@@ -4,6 +4,8 @@
 library only."""
 
 import math
+import os
+from pathlib import Path
 
 
 def quaternion_of_yaw(theta):
@@ -27,19 +29,36 @@ def line(t, x, y, theta):
     return f"{t:.6f} {x:.9f} {y:.9f} 0 {qx:.9f} {qy:.9f} {qz:.9f} {qw:.9f}"
 
 
+def finite_pose(p):
+    """Whether p is [t, x, y, theta, ...]: at least 4 finite numbers."""
+    return (isinstance(p, (list, tuple)) and len(p) >= 4
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in p[:4]))
+
+
 def write(path, poses, comments=()):
     """Writes [[t, x, y, theta], ...] (time order; a pose whose stamp is not after the one before
-    it is left out, as TUM readers need increasing stamps) to path. Returns the poses written."""
+    it is left out, as TUM readers need increasing stamps) to path. Returns the poses written.
+    ValueError naming the pose when one is not 4 finite numbers; nothing is left at path then
+    (the file is written beside it and renamed when whole)."""
+    path = Path(path)
+    part = path.with_name(path.name + ".part")
     written, last = 0, None
-    with open(path, "w") as f:
-        for c in comments:
-            f.write(f"# {c}\n")
-        f.write("# timestamp tx ty tz qx qy qz qw\n")
-        for t, x, y, theta in poses:
-            if last is not None and t <= last:
-                continue
-            f.write(line(t, x, y, theta) + "\n")
-            written, last = written + 1, t
+    try:
+        with open(part, "w") as f:
+            for c in comments:
+                f.write(f"# {c}\n")
+            f.write("# timestamp tx ty tz qx qy qz qw\n")
+            for i, p in enumerate(poses):
+                if not finite_pose(p):
+                    raise ValueError(f"pose {i}: not 4 finite numbers [t, x, y, theta]")
+                t, x, y, theta = p[:4]
+                if last is not None and t <= last:
+                    continue
+                f.write(line(t, x, y, theta) + "\n")
+                written, last = written + 1, t
+        os.replace(part, path)
+    finally:
+        part.unlink(missing_ok=True)
     return written
 
 

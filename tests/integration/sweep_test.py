@@ -38,7 +38,7 @@ class SweepPlanTest(unittest.TestCase):
         self.assertEqual(grid, [("radio.range_m", ["5", "10"]), ("radio.loss_probability", ["0", "0.5", "0.9"])])
         self.assertEqual(sweep.parse_params(["radio.range_m"], "1,2"), [("radio.range_m", ["1", "2"])])
         point = (("radio.range_m", "5"), ("fusion.method", "a b/c"))
-        self.assertEqual(sweep.run_name(point, 3), "radio.range_m=5_fusion.method=a-b-c_seed3")
+        self.assertEqual(sweep.run_name(point, 3), "radio.range_m=5_fusion.method=a-b-c_seed3-14df9cc5")
         self.assertEqual(sweep.point_flags(point, 3), ["--set", "radio.range_m=5", "--set", "fusion.method=a b/c",
                                                        "--set", "seed=3"])
         for params, values, why in ((["x=1", "x=2"], None, "swept twice"), (["x="], None, "no values"),
@@ -46,6 +46,43 @@ class SweepPlanTest(unittest.TestCase):
                                     (["=1"], None, "expected KEY=V1")):
             with self.assertRaisesRegex(RunError, why):
                 sweep.parse_params(params, values)
+
+
+class SweepBoundsTest(unittest.TestCase):
+    # R3: a 1000 x 1000 grid printed nothing for minutes (every point checked by its own
+    # `mapmesh-feeder --check` first, no cap); values that differ only in characters a folder
+    # name drops (`a b`, `a/b`, `a+b`) shared one folder and two of three runs failed.
+    def test_values_a_folder_name_cannot_hold_keep_their_own_folders(self):
+        names = {sweep.run_name((("fusion.method", v),), 1) for v in ("a b", "a/b", "a+b", "a-b")}
+        self.assertEqual(len(names), 4, names)
+        self.assertIn("fusion.method=a-b_seed1", names)  # a name that needs nothing keeps its form
+        self.assertTrue(all(sweep.re.fullmatch(r"[A-Za-z0-9._=-]+", n) for n in names), names)
+        self.assertEqual(sweep.run_name((("x", "a b"),), 1), sweep.run_name((("x", "a b"),), 1))
+
+    def test_a_grid_beyond_the_bound_is_refused_in_one_line_before_any_check(self):
+        parser = swarm.build_parser()
+        values = ",".join(str(i) for i in range(1000))
+        args = parser.parse_args(["sweep", "/nonexistent.yaml", "--param", f"a={values}", "--param", f"b={values}",
+                                  "--out", "/tmp/never"])
+        with self.assertRaises(RunError) as e:
+            sweep.cmd_sweep(args)
+        self.assertEqual(str(e.exception), f"--param: 1000 a x 1000 b is 1000000 runs; a sweep runs at most "
+                                           f"{sweep.MAX_RUNS}: split the grid")
+        self.assertEqual(e.exception.exit_code, 2)
+
+    def test_each_point_is_checked_once_with_progress(self):
+        parser = swarm.build_parser()
+        args = parser.parse_args(["sweep", "s.yaml", "--param", "a=1,2", "--seeds", "1,2,3", "--out", "/tmp/x"])
+        plan = [((("a", v),), s) for v in ("1", "2") for s in (1, 2, 3)]
+        checked, shown = [], []
+        real = sweep.SwarmRun.check_plan
+        sweep.SwarmRun.check_plan = lambda run: checked.append(run.args.set)
+        try:
+            sweep.check_all(args, plan, sweep.Path("/tmp/x"), progress=lambda d, t: shown.append((d, t)), every_s=0)
+        finally:
+            sweep.SwarmRun.check_plan = real
+        self.assertEqual(checked, [["a=1", "seed=1"], ["a=2", "seed=1"]])
+        self.assertEqual(shown, [(1, 2), (2, 2)])
 
 
 if __name__ == "__main__":
