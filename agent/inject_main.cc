@@ -65,7 +65,7 @@ int Run(int argc, char** argv) {
       "scripts/swarm run --inject CASES starts it alongside a run.");
   app::ProcessOptions po;
   std::string cases_text = "all", report_path;
-  double period_s = 0.2, duration_s = 0.0;
+  double period_s = 0.2, duration_s = 0.0, sim_period_s = 0.0;
   unsigned unknown_id = 0;
   std::optional<std::uint64_t> seed;
   app::AddScenarioOptions(cli, po);
@@ -73,6 +73,10 @@ int Run(int argc, char** argv) {
   cli.add_option("--cases", cases_text, "'all' or a comma-separated list of cases")->capture_default_str();
   cli.add_option("--period-s", period_s, "wall seconds between two messages")
       ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  cli.add_option("--sim-period-s", sim_period_s,
+                 "instead of --period-s: scenario seconds between two messages, by the latest time the agents "
+                 "report (lockstep: the same number of messages over a run whatever the host's load)")
       ->check(CLI::PositiveNumber);
   cli.add_option("--duration-s", duration_s, "stop after this many wall seconds (0: at SIGINT/SIGTERM)")
       ->capture_default_str()
@@ -174,17 +178,29 @@ int Run(int argc, char** argv) {
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period_s));
   auto next = start + period;
   int sent = 0;
+  double sim_next = sim_period_s;  // --sim-period-s: the scenario time of the next messages
+  double reported = 0.0;           // the latest scenario time an agent reported
+  int sim_due = 0;                 // batches due by the scenario time, not yet sent
   while (!shutdown.requested()) {
     if (duration_s > 0 && Clock::now() - start >= std::chrono::duration<double>(duration_s)) break;
-    waitset.Wait(std::max(0.0, std::chrono::duration<double>(next - Clock::now()).count()));
+    waitset.Wait(sim_due > 0 ? 0.0 : std::max(0.0, std::chrono::duration<double>(next - Clock::now()).count()));
     for (const auto& s : maps.Take()) {
       if (s.valid) injector.OnMap(s.value);
     }
     for (const auto& s : status.Take()) {
-      if (s.valid) injector.OnStatus(s.value);
+      if (!s.valid) continue;
+      injector.OnStatus(s.value);
+      reported = std::max(reported, s.value.processed_until);
     }
-    if (Clock::now() < next) continue;
-    next += period;
+    if (sim_period_s > 0) {
+      for (; sim_next <= reported; sim_next += sim_period_s) ++sim_due;
+      if (Clock::now() >= next) next += period;  // (wakes to read, at the wall period)
+      if (sim_due == 0) continue;
+      --sim_due;
+    } else {
+      if (Clock::now() < next) continue;
+      next += period;
+    }
     // One message of each case per period: a case's pace does not depend on how many others run.
     for (std::size_t k = 0; k < cases->size(); ++k) {
       const std::optional<InjectedMessage> m = injector.Next();

@@ -17,7 +17,8 @@ SCENARIO_COPY = "scenario.yaml"
 VERSION = 1
 # The `swarm run` options a run is made with, as argparse names them: what --from restores.
 OPTIONS = ("scenario", "agents", "kill", "restart", "pause", "set", "pace", "rate", "timeout", "inject",
-           "inject_period", "secure", "inject_identity", "hosts", "net_loss", "net_rate", "no_reference")
+           "inject_period", "inject_sim_period", "secure", "inject_identity", "hosts", "net_loss", "net_rate",
+           "no_reference")
 REPO = Path(__file__).resolve().parents[2]
 
 

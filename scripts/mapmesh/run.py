@@ -359,6 +359,8 @@ class SwarmRun:
         cmd = [binary("mapmesh-inject"), "--scenario", self.scenario, "--domain", str(self.lease.id),
                "--cases", self.args.inject, "--period-s", str(self.args.inject_period),
                "--report", str(self.out / INJECT)] + self.common
+        if getattr(self.args, "inject_sim_period", None):
+            cmd += ["--sim-period-s", str(self.args.inject_sim_period)]
         who = self.args.inject_identity
         if self.security and who == "forged":
             cmd += ["--dds-config", str(self.security.forged_config())]

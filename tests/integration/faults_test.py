@@ -106,15 +106,19 @@ class HostileInputTest(FaultRunCase):
 class TickFloodTest(FaultRunCase):
     # R3: one participant stalled a lockstep run for good. Maps claiming a robot not in the run
     # at tick 0xFFFFFFFF, the run's own robots at ticks far ahead, or at the next tick with 1000
-    # sightings each, every 0.02 s: the agents kept every one of a tick not yet applied, their inbox filled (65 536
-    # entries), every genuine map was dropped, and no deliver phase could complete (park4 at 1000
-    # s stopped at t = 380, no summary.json; 268adcd's agents with this injector). Now the inbox
+    # sightings each, one every 1.6 s of scenario time: the agents kept every one of a tick not
+    # yet applied, their inbox filled (65 536 entries), every genuine map was dropped, and no
+    # deliver phase could complete (268adcd's agents with this injector: this run stopped at
+    # t = 314 of 400 when the launcher's timeout ended it, no summary.json). Now the inbox
     # (agent/lockstep_inbox.h) refuses each on arrival, counted, and the run is the clean run.
     def test_a_flood_of_far_ticks_and_sightings_stalls_nothing_and_changes_nothing(self):
         base = self.out
         longer = ["--set", "duration_s=400"]
         clean = self.run_ok(PARK4, *longer, out=base.parent / "clean")
-        flooded = self.run_ok(PARK4, *longer, "--inject", "tick_flood", "--inject-period", "0.02",
+        # One map every 1.6 s of scenario time: about what one every 0.02 s of wall time gives on an
+        # idle host (250), whatever the host's load (by wall time a loaded host's slower run got
+        # more, and its CPU grew with them: 1.54 x once beside a full ctest -j2).
+        flooded = self.run_ok(PARK4, *longer, "--inject", "tick_flood", "--inject-sim-period", "1.6",
                               out=base.parent / "flooded")
         summary = self.summary()
         self.assertEqual(summary["injector_exit_code"], 0)
@@ -157,7 +161,7 @@ class ForgedSubmapsTest(FaultRunCase):
     def test_forged_and_ghost_submaps_are_refused_counted_and_change_nothing(self):
         base = self.out
         clean = self.run_ok(PARK4, *self.JOINING, out=base.parent / "clean")
-        forged = self.run_ok(PARK4, *self.JOINING, "--inject", self.CASES, "--inject-period", "0.05",
+        forged = self.run_ok(PARK4, *self.JOINING, "--inject", self.CASES, "--inject-sim-period", "1.5",
                              out=base.parent / "forged")
         summary = self.summary()
         self.assertEqual(summary["injector_exit_code"], 0)

@@ -20,6 +20,7 @@ class SweepPlanTest(unittest.TestCase):
         argv = ["sweep", "s.yaml", "--param", "radio.range_m=5,10", "--out", "/tmp/x", "--agents", "6",
                 "--kill", "2@30", "--restart", "2@40", "--pause", "3@10:2", "--set", "duration_s=60",
                 "--pace", "realtime", "--rate", "20", "--timeout", "99", "--inject", "all", "--inject-period", "0.5",
+                "--inject-sim-period", "2",
                 "--secure", "--inject-identity", "agent2", "--hosts", "netns", "--net-loss", "5", "--net-rate", "10",
                 "--no-reference"]
         args = parser.parse_args(argv)
@@ -27,6 +28,7 @@ class SweepPlanTest(unittest.TestCase):
         # `swarm run` parses them back to the same options.
         run = args.run_parser.parse_args(["s.yaml", "--out", "/tmp/y"] + flags)
         for name in ("agents", "kill", "restart", "pause", "set", "pace", "rate", "timeout", "inject", "inject_period",
+                     "inject_sim_period",
                      "secure", "inject_identity", "hosts", "net_loss", "net_rate", "no_reference"):
             self.assertEqual(getattr(run, name), getattr(args, name), name)
         # Defaults are not repeated.
