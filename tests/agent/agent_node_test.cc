@@ -413,12 +413,9 @@ TEST(AgentNodeLimits, TakesAPeersChainPlacementsOnlyWhenEveryOneIsPlausible) {
   EXPECT_EQ(node.stats().submaps_refused[static_cast<int>(SubmapRefusal::kImplausiblePlacements)], implausible.size());
 }
 
-// With fusion joining, a local map carries its publisher's open submap and silent robots'
-// open submaps it relays. A relayed one is taken (and counts as that robot's data reaching us)
-// unless it is the publisher's own robot's (it sends its own as open_submap), a robot's not in
-// the run, or ours; an open_submap that is not the publisher's is refused.
-TEST(AgentNodeLimits, TakesTheOpenSubmapsAPeerRelaysOfOtherRobotsOnly) {
-  Scenario sc = ParseScenario(R"(version: 1
+// Three robots in real time with fusion joining, and a one-landmark submap's bytes.
+Scenario JoiningTrio() {
+  return ParseScenario(R"(version: 1
 world: {landmarks: {list: [[5, 0], [0, 5]]}}
 robots:
   list:
@@ -428,19 +425,30 @@ robots:
 feeder: {pace: realtime}
 agent: {map_publish_period_s: 1.0, fusion: joining}
 )",
-                              "test.yaml");
+                       "test.yaml");
+}
+
+std::vector<std::uint8_t> OneLandmarkSubmap(RobotId robot, std::uint32_t index, double opened_s, double closed_s) {
+  WireSubmap s;
+  s.id = {robot, 1, index};
+  s.opened_s = opened_s;
+  s.closed_s = closed_s;
+  s.keys = {0};
+  s.x = Eigen::VectorXd::Zero(5);
+  EXPECT_TRUE(s.SetCovariance(0.01 * Eigen::MatrixXd::Identity(5, 5)));
+  return EncodeSubmap(s);
+}
+
+// With fusion joining, a local map carries its publisher's open submap and silent robots'
+// open submaps it relays. A relayed one is taken (and counts as that robot's data reaching us)
+// unless it is the publisher's own robot's (it sends its own as open_submap), a robot's not in
+// the run, or ours; an open_submap that is not the publisher's is refused.
+TEST(AgentNodeLimits, TakesTheOpenSubmapsAPeerRelaysOfOtherRobotsOnly) {
+  Scenario sc = JoiningTrio();
   Capture out;
   AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
   node.OnLinks({0.0, {{1, 2}}});
-  const auto open = [](RobotId robot, double closed_s) {
-    WireSubmap s;
-    s.id = {robot, 1, 0};
-    s.closed_s = closed_s;
-    s.keys = {0};
-    s.x = Eigen::VectorXd::Zero(5);
-    EXPECT_TRUE(s.SetCovariance(0.01 * Eigen::MatrixXd::Identity(5, 5)));
-    return EncodeSubmap(s);
-  };
+  const auto open = [](RobotId robot, double closed_s) { return OneLandmarkSubmap(robot, 0, 0.0, closed_s); };
   LandmarkMap map;
   map.landmarks.push_back({0, -1, {1.0, 2.0}, 0.01 * Eigen::Matrix2d::Identity()});
   MapMessage m = PeerMap(2, EncodeMap(map));
@@ -465,29 +473,12 @@ agent: {map_publish_period_s: 1.0, fusion: joining}
 // a ghost chain supersede a real one; a stale copy of a peer's map brought its riders in. Each
 // is refused and counted, and nothing of them is held.
 TEST(AgentNodeLimits, RefusesItsOwnRobotsSubmapsFromOthersAndRidersOfMapsNotTaken) {
-  Scenario sc = ParseScenario(R"(version: 1
-world: {landmarks: {list: [[5, 0], [0, 5]]}}
-robots:
-  list:
-    - {id: 1, start: [0, 0, 0]}
-    - {id: 2, start: [1, 0, 0]}
-    - {id: 3, start: [2, 0, 0]}
-feeder: {pace: realtime}
-agent: {map_publish_period_s: 1.0, fusion: joining}
-)",
-                              "test.yaml");
+  Scenario sc = JoiningTrio();
   Capture out;
   AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
   node.OnLinks({0.0, {{1, 2}}});
   const auto submap = [](RobotId robot, std::uint32_t index, double opened_s) {
-    WireSubmap s;
-    s.id = {robot, 1, index};
-    s.opened_s = opened_s;
-    s.closed_s = 0.0;
-    s.keys = {0};
-    s.x = Eigen::VectorXd::Zero(5);
-    EXPECT_TRUE(s.SetCovariance(0.01 * Eigen::MatrixXd::Identity(5, 5)));
-    return EncodeSubmap(s);
+    return OneLandmarkSubmap(robot, index, opened_s, 0.0);
   };
   LandmarkMap map;
   map.landmarks.push_back({0, -1, {1.0, 2.0}, 0.01 * Eigen::Matrix2d::Identity()});
