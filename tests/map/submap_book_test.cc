@@ -63,16 +63,22 @@ TEST(SubmapBook, ChainLengthStopsAtTheFirstGap) {
   EXPECT_EQ(book.Chains(), (std::vector<SubmapChain>{{4, 2, 4}, {4, 3, 1}, {6, 1, 0}, {UINT32_MAX, UINT32_MAX, 0}}));
 }
 
+// A submap of (robot, incarnation, index) opened at `from` and closed at `to`, into the book.
+void AddSpanning(SubmapBook& book, RobotId robot, std::uint32_t incarnation, std::uint32_t index, double from,
+                 double to) {
+  WireSubmap s = Submap(robot, incarnation, index);
+  s.opened_s = from;
+  s.closed_s = to;
+  book.Add(s, EncodeSubmap(s));
+}
+
 // A later incarnation that maps the same time again (a lockstep restart replays the robot's
 // stream from the start) supersedes the earlier; one that begins after the earlier's last
 // submap does not, nor does another robot's chain at the same time. Open submaps count.
 TEST(SubmapBook, AnIncarnationWhoseTimeALaterOneMapsAgainIsSuperseded) {
   SubmapBook book;
   const auto add = [&](RobotId robot, std::uint32_t incarnation, std::uint32_t index, double from, double to) {
-    WireSubmap s = Submap(robot, incarnation, index);
-    s.opened_s = from;
-    s.closed_s = to;
-    book.Add(s, EncodeSubmap(s));
+    AddSpanning(book, robot, incarnation, index, from, to);
   };
   add(3, 1, 0, 0.5, 30.0);
   add(3, 1, 1, 30.0, 58.0);
@@ -98,10 +104,7 @@ TEST(SubmapBook, AnIncarnationWhoseTimeALaterOneMapsAgainIsSuperseded) {
 TEST(SubmapBook, OnlyAnIncarnationHeardSupersedes) {
   SubmapBook book;
   const auto add = [&](RobotId robot, std::uint32_t incarnation, std::uint32_t index, double from, double to) {
-    WireSubmap s = Submap(robot, incarnation, index);
-    s.opened_s = from;
-    s.closed_s = to;
-    book.Add(s, EncodeSubmap(s));
+    AddSpanning(book, robot, incarnation, index, from, to);
   };
   using Chains = std::set<std::pair<RobotId, std::uint32_t>>;
   add(3, 1, 0, 0.5, 30.0);
