@@ -21,6 +21,7 @@
 #include "common/map/wire_bytes.h"
 #include "common/transport/session.h"
 #include "common/transport/shutdown.h"
+#include "common/transport/submap_signer.h"
 #include "common/transport/topics.h"
 #include "common/transport/typed.h"
 
@@ -406,6 +407,10 @@ int Run(int argc, char** argv) {
   cli.add_flag(
       "--resume", resume,
       "restart from OUT/checkpoint.json: re-merge what the earlier incarnation knew (it starts a new map frame)");
+  std::string peer_certificates;
+  cli.add_option("--peer-certificates", peer_certificates,
+                 "secure runs: the directory of every robot's certificate, agent<id>.pem, which its submaps' "
+                 "signatures are checked with (default: the directory of this agent's own certificate)");
   if (auto code = app::ParseArgs(cli, "mapmesh-agent", argc, argv)) return *code;
   app::SetupLogging("agent " + std::to_string(id), po.log_level);
   if (out_dir.empty()) out_dir = "agent_" + std::to_string(id);
@@ -461,6 +466,22 @@ int Run(int argc, char** argv) {
   if (sightings) sighting_writers.emplace(sightings->raw());
   DdsOutput output(p, lease_s, self, lockstep);
   AgentNode node(scenario.agent, run, self, incarnation, output);
+  // Secure runs: submaps signed by their robot and checked at every receiver (issue R3).
+  std::unique_ptr<tp::SubmapSigner> signer;
+  if (session.security()) {
+    std::string why;
+    signer = tp::SubmapSigner::Make(*session.security(), self, peer_certificates, &why);
+    if (!signer) {
+      std::fprintf(stderr, "mapmesh-agent: %s\n", why.c_str());
+      return 2;
+    }
+    for (RobotId r : run.robots) {
+      if (r == self) continue;
+      if (const std::optional<std::string> problem = signer->PeerProblem(r))
+        spdlog::warn("robot {}'s submaps will be refused (unknown_signer): {}", r, *problem);
+    }
+    node.SetSubmapOrigin(signer.get());
+  }
   if (checkpoint) {
     node.Resume(*checkpoint);
     spdlog::info(

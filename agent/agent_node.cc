@@ -39,12 +39,12 @@ std::unique_ptr<LocalMapper> MakeLocalMapper(const AgentOptions& options, const 
 
 std::size_t WireBytes(const MapMessage& msg) {
   std::size_t bytes = kMapMessageFixedBytes + msg.payload.size();
-  // Submaps and the chains held (issue J1): the four sequences' lengths, 20 bytes a chain, and
-  // each submap with its length.
+  // Submaps and the chains held (issue J1): the five sequences' lengths, 20 bytes a chain, and
+  // each submap and its signature (secure runs) with their lengths.
   if (!msg.submaps_held.empty() || !msg.submaps.empty() || !msg.open_submap.empty() || !msg.open_relayed.empty()) {
-    bytes += 16 + 20 * msg.submaps_held.size() + msg.open_submap.size();
-    for (const auto& b : msg.submaps) bytes += 4 + b.size();
-    for (const auto& b : msg.open_relayed) bytes += 4 + b.size();
+    bytes += 20 + 20 * msg.submaps_held.size() + msg.open_submap.size() + msg.open_submap_signature.size();
+    for (const auto& b : msg.submaps) bytes += 8 + b.bytes.size() + b.signature.size();
+    for (const auto& b : msg.open_relayed) bytes += 8 + b.bytes.size() + b.signature.size();
   }
   // The placements' length, and robot, incarnation and pose for each.
   if (!msg.placements.empty()) bytes += 4 + kChainPlacementWireBytes * msg.placements.size();
@@ -76,6 +76,9 @@ std::string_view ToString(SubmapRefusal r) {
     case SubmapRefusal::kOpenRelayedByItsRobot: return "open_relayed_by_its_robot";
     case SubmapRefusal::kOwnRobot: return "own_robot";
     case SubmapRefusal::kOnRefusedMap: return "on_refused_map";
+    case SubmapRefusal::kUnsigned: return "unsigned";
+    case SubmapRefusal::kUnknownSigner: return "unknown_signer";
+    case SubmapRefusal::kForgedSignature: return "forged_signature";
   }
   return "unknown";
 }
@@ -255,8 +258,28 @@ void AgentNode::TakeOwnSubmaps() {
       ++stats_.submaps_unsendable;
       continue;
     }
-    submaps_.AddOwn(*w, bytes);
+    submaps_.AddOwn(*w, bytes, SignOwn(bytes));
   }
+}
+
+std::vector<std::uint8_t> AgentNode::SignOwn(std::span<const std::uint8_t> bytes) const {
+  return origin_ == nullptr ? std::vector<std::uint8_t>{} : origin_->Sign(bytes);
+}
+
+bool AgentNode::Authentic(const WireSubmap& s, std::span<const std::uint8_t> bytes,
+                          std::span<const std::uint8_t> signature) {
+  if (origin_ == nullptr) return true;
+  switch (origin_->Verify(s.id.robot, bytes, signature)) {
+    case SubmapOrigin::Verdict::kValid: return true;
+    case SubmapOrigin::Verdict::kUnsigned: ++stats_.submaps_refused[static_cast<int>(SubmapRefusal::kUnsigned)]; break;
+    case SubmapOrigin::Verdict::kUnknownSigner:
+      ++stats_.submaps_refused[static_cast<int>(SubmapRefusal::kUnknownSigner)];
+      break;
+    case SubmapOrigin::Verdict::kForged:
+      ++stats_.submaps_refused[static_cast<int>(SubmapRefusal::kForgedSignature)];
+      break;
+  }
+  return false;
 }
 
 bool AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version, std::uint32_t tick,
@@ -296,13 +319,16 @@ bool AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t vers
     }
     msg.submaps_held = submaps_.Advert();
     std::size_t spent = 0;  // one send_bytes budget for the closed and the open submaps relayed
-    for (const std::vector<std::uint8_t>* b : submaps_.Due(in_range, sync_.processed_until())) {
+    for (const SubmapBlob* b : submaps_.Due(in_range, sync_.processed_until())) {
       msg.submaps.push_back(*b);
-      spent += b->size();
+      spent += b->bytes.size();
     }
-    if (own_open_) msg.open_submap = EncodeSubmap(*own_open_);
+    if (own_open_) {
+      msg.open_submap = EncodeSubmap(*own_open_);
+      if (!msg.open_submap.empty()) msg.open_submap_signature = SignOwn(msg.open_submap);
+    }
     if (joining_) {
-      for (const std::vector<std::uint8_t>* b : submaps_.DueOpen(in_range, sync_.processed_until(), spent))
+      for (const SubmapBlob* b : submaps_.DueOpen(in_range, sync_.processed_until(), spent))
         msg.open_relayed.push_back(*b);
       // Only what a receiver takes (PlausiblePlacements), so that one chain placed beyond a map's
       // bound does not make the peers refuse all of them.
@@ -443,8 +469,14 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
   };
   // Open submaps: the publisher's own, and silent robots' it relays. The latest of each robot
   // incarnation is kept (an older one arriving late changes nothing); never one of ours.
-  const auto take_open = [&](const std::vector<std::uint8_t>& bytes, bool relayed) {
+  const auto take_open = [&](const std::vector<std::uint8_t>& bytes, std::span<const std::uint8_t> signature,
+                             bool relayed) {
     const SubmapDecodeResult d = DecodeSubmap(bytes);
+    // The signature is checked once per version kept (the same bytes again change nothing).
+    const auto fresh = [&] {
+      const std::vector<std::uint8_t>* kept = submaps_.OpenBytes({d.submap.id.robot, d.submap.id.incarnation});
+      return kept == nullptr || *kept != bytes;
+    };
     const bool publishers = d.submap.id.robot == msg.robot_id && d.submap.id.incarnation == msg.incarnation;
     if (!d.ok()) {
       ++stats_.submaps_rejected[static_cast<int>(d.error)];
@@ -452,18 +484,19 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
       refuse(SubmapRefusal::kNotThePublishers);
     } else if (relayed && d.submap.id.robot == msg.robot_id) {
       refuse(SubmapRefusal::kOpenRelayedByItsRobot);
-    } else if (admissible(d.submap) && submaps_.AddOpen(d.submap, bytes, now, relayed) == SubmapRelay::Offer::kNew) {
+    } else if (admissible(d.submap) && (!fresh() || Authentic(d.submap, bytes, signature)) &&
+               submaps_.AddOpen(d.submap, bytes, now, relayed, signature) == SubmapRelay::Offer::kNew) {
       double& until = stats_.data_until[d.submap.id.robot];  // the join may use it: its data reached us
       until = std::max(until, d.submap.closed_s);
     }
   };
-  if (joining_ && !msg.open_submap.empty()) take_open(msg.open_submap, false);
+  if (joining_ && !msg.open_submap.empty()) take_open(msg.open_submap, msg.open_submap_signature, false);
   for (std::size_t i = 0; joining_ && i < msg.open_relayed.size(); ++i) {
     if (i >= kMaxSubmapsPerMap) {
       refuse(SubmapRefusal::kTooManyOnOneMap);
       continue;
     }
-    take_open(msg.open_relayed[i], true);
+    take_open(msg.open_relayed[i].bytes, msg.open_relayed[i].signature, true);
   }
   if (joining_ && !msg.placements.empty()) {
     const PeerKey key{msg.robot_id, msg.incarnation};
@@ -480,12 +513,18 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
       refuse(SubmapRefusal::kTooManyOnOneMap);
       continue;
     }
-    const SubmapDecodeResult d = DecodeSubmap(msg.submaps[i]);
+    const SubmapBlob& blob = msg.submaps[i];
+    const SubmapDecodeResult d = DecodeSubmap(blob.bytes);
     if (!d.ok()) {
       ++stats_.submaps_rejected[static_cast<int>(d.error)];
       continue;
     }
-    if (admissible(d.submap)) submaps_.Add(d.submap, msg.submaps[i], now);
+    if (!admissible(d.submap)) continue;
+    // A submap held already is a duplicate whatever it is signed with; any other enters (or
+    // counts as a conflict) only with its robot's signature (secure runs).
+    const std::vector<std::uint8_t>* held = submaps_.book().Bytes(d.submap.id);
+    if ((held == nullptr || *held != blob.bytes) && !Authentic(d.submap, blob.bytes, blob.signature)) continue;
+    submaps_.Add(d.submap, blob.bytes, now, blob.signature);
   }
 }
 
@@ -605,7 +644,8 @@ void AgentNode::Resume(const AgentCheckpoint& c) {
   };
   add(c);
   for (const IncarnationSnapshot& e : c.earlier) add(e);
-  for (const std::vector<std::uint8_t>& bytes : c.submaps) {
+  for (const SubmapBlob& blob : c.submaps) {
+    const std::vector<std::uint8_t>& bytes = blob.bytes;
     const SubmapDecodeResult d = DecodeSubmap(bytes);
     MAPMESH_CHECK(d.ok() && !(d.submap.id.robot == self_ && d.submap.id.incarnation == incarnation_),
                   "a checkpoint not validated by io::LoadCheckpoint");
@@ -613,7 +653,7 @@ void AgentNode::Resume(const AgentCheckpoint& c) {
       ++stats_.submaps_refused[static_cast<int>(SubmapRefusal::kUnknownRobot)];
       continue;
     }
-    submaps_.Restore(d.submap, bytes);
+    if (Authentic(d.submap, bytes, blob.signature)) submaps_.Restore(d.submap, bytes, blob.signature);
   }
 }
 
@@ -649,7 +689,7 @@ AgentCheckpoint AgentNode::Checkpoint(std::size_t* left_out, std::size_t* submap
   if (ids.size() > submap_cap) ids.resize(submap_cap);
   std::sort(ids.begin(), ids.end());
   c.submaps.reserve(ids.size());
-  for (const SubmapId& id : ids) c.submaps.push_back(*submaps_.book().Bytes(id));
+  for (const SubmapId& id : ids) c.submaps.push_back(*submaps_.book().Blob(id));
   return c;
 }
 

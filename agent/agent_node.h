@@ -26,6 +26,7 @@
 #include "common/map/landmark_map.h"
 #include "common/map/map_codec.h"
 #include "common/map/map_limits.h"
+#include "common/map/submap_origin.h"
 #include "common/slam/local_mapper.h"
 #include "common/types/messages.h"
 
@@ -94,8 +95,12 @@ enum class SubmapRefusal {
   kOpenRelayedByItsRobot,  // a relayed open submap of the publisher's own robot (it sends its own as open_submap)
   kOwnRobot,               // a submap of the agent's own robot, from anyone else (issue R3)
   kOnRefusedMap,           // riding on a map the agent did not take (refused, stale, beyond the limits)
+  // Secure runs (a SubmapOrigin set; issue R3): no signature, ...
+  kUnsigned,
+  kUnknownSigner,    // ... no certificate of the run's for the robot it claims, ...
+  kForgedSignature,  // ... or a signature that is not that robot's over its bytes
 };
-inline constexpr int kSubmapRefusalCount = 11;
+inline constexpr int kSubmapRefusalCount = 14;
 std::string_view ToString(SubmapRefusal r);
 // A local map carries at most this many closed submaps, and as many relayed open ones (the first
 // are taken, the rest refused).
@@ -181,7 +186,13 @@ class AgentNode : private SensorSync::Sink {
   // checkpoint must be this robot's, from other incarnations than this one, with valid
   // submaps: io::LoadCheckpoint refuses any other, so a violation is a programming error
   // (checked).
+  // In a secure run (a SubmapOrigin set), a submap whose signature is not its robot's is
+  // refused and counted, as from a peer: an edited checkpoint cannot smuggle one in.
   void Resume(const AgentCheckpoint& checkpoint);
+  // Secure runs (issue R3): who signs this agent's submaps and vouches for its peers'
+  // (common/map/submap_origin.h); set before the first message and Resume, outliving the node.
+  // Without one (plain runs) submaps go unsigned and are taken on their map's word.
+  void SetSubmapOrigin(SubmapOrigin* origin) { origin_ = origin; }
   // What to save: this incarnation's maps and the earlier ones not yet re-merged, at most
   // io::CheckpointLimits::max_earlier of them (the newest), so that the file always loads; how
   // many older ones were left out goes to *left_out. And the closed submaps held, at most
@@ -271,6 +282,10 @@ class AgentNode : private SensorSync::Sink {
   RadioGate sighting_gate_;  // the radio gate for sightings: its own loss draws, so maps see the same ones
   RendezvousTracker rendezvous_;
   SubmapRelay submaps_;
+  SubmapOrigin* origin_ = nullptr;  // secure runs: signs own submaps, checks the peers'
+  // Whether a submap's signature is its robot's (always, without an origin); counts a refusal.
+  bool Authentic(const WireSubmap& s, std::span<const std::uint8_t> bytes, std::span<const std::uint8_t> signature);
+  std::vector<std::uint8_t> SignOwn(std::span<const std::uint8_t> bytes) const;
   std::size_t own_submaps_taken_ = 0;   // the mapper's closed submaps taken into submaps_
   bool joining_ = false;                // agent.fusion joining: the back-end joins submap chains
   std::optional<WireSubmap> own_open_;  // joining: the open submap at the last publication

@@ -17,6 +17,7 @@
 #include "common/io/run_files.h"
 #include "common/transport/session.h"
 #include "common/transport/shutdown.h"
+#include "common/transport/submap_signer.h"
 #include "common/transport/topics.h"
 #include "common/transport/typed.h"
 
@@ -61,7 +62,9 @@ int Run(int argc, char** argv) {
       "that is not the feeder's), version_jump (a robot's map under version 0xFFFFFFF0), huge_map (a valid map of 100 000 "
       "landmarks, one turn in ten), tick_flood (maps at far ticks, from a robot not in the run, with 1000 sightings), "
       "forged_submaps (a robot's next submaps, landmarks moved, on a stale copy of another's map), ghost_incarnation "
-      "(a robot's submap under an incarnation never run, and one opened at -1e9 s, on the same carrier). "
+      "(a robot's submap under an incarnation never run, and one opened at -1e9 s, on the same carrier), forged_relay "
+      "(forged_submaps' forgeries on the next robot's next map key, sent before its own; under DDS Security signed "
+      "with the injector's identity). "
       "scripts/swarm run --inject CASES starts it alongside a run.");
   app::ProcessOptions po;
   std::string cases_text = "all", report_path;
@@ -165,6 +168,14 @@ int Run(int argc, char** argv) {
     if (r.id != as_robot) robots.push_back(r.id);  // an impersonator claims only the others
   }
   MapInjector injector(robots, *cases, unknown_id, seed.value_or(loaded->seed));
+  // Under DDS Security its forged submaps carry its own identity's signature (issue R3).
+  std::unique_ptr<tp::SubmapSigner> signer;
+  if (session.security()) {
+    std::string why;
+    signer = tp::SubmapSigner::Make(*session.security(), std::nullopt, "", &why);
+    if (!signer) spdlog::warn("forged submaps go unsigned: {}", why);
+  }
+  if (signer) injector.SignWith([&signer](std::span<const std::uint8_t> b) { return signer->Sign(b); });
   tp::GuardCondition stop(p);
   tp::WaitSet waitset(p);
   waitset.AttachReader(maps.raw(), 1);

@@ -17,7 +17,7 @@ std::vector<std::string> AllInjectCases() {
   for (int i = 0; i < kPayloadFaultCount; ++i) cases.emplace_back(ToString(static_cast<PayloadFault>(i)));
   for (const char* c : {kInjectStaleVersion, kInjectUnknownSender, kInjectShuffled, kInjectOdometryStamp,
                         kInjectFarReading, kInjectLinksStamp, kInjectLinksAhead, kInjectVersionJump, kInjectHugeMap,
-                        kInjectTickFlood, kInjectForgedSubmaps, kInjectGhostIncarnation}) {
+                        kInjectTickFlood, kInjectForgedSubmaps, kInjectGhostIncarnation, kInjectForgedRelay}) {
     cases.emplace_back(c);
   }
   return cases;
@@ -49,8 +49,8 @@ void MapInjector::OnMap(const MapMessage& m) {
       std::find(robots_.begin(), robots_.end(), m.robot_id) == robots_.end()) {
     return;
   }
-  for (const std::vector<std::uint8_t>& bytes : m.submaps) {
-    SubmapDecodeResult s = DecodeSubmap(bytes);
+  for (const SubmapBlob& blob : m.submaps) {
+    SubmapDecodeResult s = DecodeSubmap(blob.bytes);
     if (!s.ok() || s.submap.id.robot != m.robot_id || s.submap.id.incarnation != m.incarnation) continue;
     const auto held = last_closed_.find(m.robot_id);
     if (held == last_closed_.end() || std::tie(held->second.id.incarnation, held->second.id.index) <
@@ -156,11 +156,11 @@ std::optional<InjectedMessage> MapInjector::MakeHostile(const std::string& c, Ro
     }
     return m;
   }
-  if (c == kInjectForgedSubmaps || c == kInjectGhostIncarnation) {
+  if (c == kInjectForgedSubmaps || c == kInjectGhostIncarnation || c == kInjectForgedRelay) {
     const auto last = last_closed_.find(target);
     if (last == last_closed_.end()) return std::nullopt;
     std::vector<std::vector<std::uint8_t>> submaps;
-    if (c == kInjectForgedSubmaps) {
+    if (c != kInjectGhostIncarnation) {
       std::uniform_real_distribution<double> shift(3.0, 15.0), angle(-std::numbers::pi, std::numbers::pi);
       for (std::uint32_t k = 1; k <= kInjectForgedSubmapCount; ++k) {
         WireSubmap s = last->second;
@@ -180,7 +180,7 @@ std::optional<InjectedMessage> MapInjector::MakeHostile(const std::string& c, Ro
       ghost.opened_s = -1e9;
       submaps.push_back(EncodeSubmap(ghost));
     }
-    return Carry(target, std::move(submaps));
+    return Carry(target, std::move(submaps), c == kInjectForgedRelay);
   }
   // huge_map
   if (huge_turns_++ % kInjectHugeEvery != 0) return std::nullopt;
@@ -195,15 +195,23 @@ std::optional<InjectedMessage> MapInjector::MakeHostile(const std::string& c, Ro
   return m;
 }
 
-std::optional<InjectedMessage> MapInjector::Carry(RobotId robot, std::vector<std::vector<std::uint8_t>> submaps) const {
+std::optional<InjectedMessage> MapInjector::Carry(RobotId robot, std::vector<std::vector<std::uint8_t>> submaps,
+                                                  bool ahead) const {
   const auto at = std::find(robots_.begin(), robots_.end(), robot);
   const RobotId carrier = std::next(at) == robots_.end() ? robots_.front() : *std::next(at);
   const auto it = heard_.find(carrier);
   if (carrier == robot || it == heard_.end()) return std::nullopt;
   MapMessage m = it->second.msg;  // the carrier's latest: its version taken already, so stale
-  if (m.tick != 0) ++m.tick;
-  m.submaps = std::move(submaps);
+  // Ahead: two ticks and versions on, so that it is there before the robot's own of that tick.
+  if (m.tick != 0) m.tick += ahead ? 2 : 1;
+  if (ahead) m.version += 2;
+  m.submaps.clear();
+  for (std::vector<std::uint8_t>& bytes : submaps) {
+    std::vector<std::uint8_t> signature = sign_ ? sign_(bytes) : std::vector<std::uint8_t>{};
+    m.submaps.push_back({std::move(bytes), std::move(signature)});
+  }
   m.open_submap.clear();
+  m.open_submap_signature.clear();
   m.open_relayed.clear();
   m.sightings.clear();
   return m;
@@ -225,7 +233,7 @@ LandmarkMap MapInjector::RandomMap(int n) {
 std::optional<InjectedMessage> MapInjector::Make(const std::string& c, RobotId sender) {
   if (c == kInjectOdometryStamp || c == kInjectFarReading || c == kInjectLinksStamp || c == kInjectLinksAhead ||
       c == kInjectVersionJump || c == kInjectHugeMap || c == kInjectTickFlood || c == kInjectForgedSubmaps ||
-      c == kInjectGhostIncarnation) {
+      c == kInjectGhostIncarnation || c == kInjectForgedRelay) {
     return MakeHostile(c, sender);
   }
   MapMessage m;

@@ -45,13 +45,20 @@
 //   ghost_incarnation        the robot's latest closed submap under incarnation
 //                            kInjectGhostIncarnation (never run), and under
 //                            kInjectGhostIncarnation + 1 opened at -1e9 s, on the same carrier:
-//                            a chain whose time overlaps the robot's took its place in every join.
+//                            a chain whose time overlaps the robot's took its place in every join;
+//   forged_relay             the forgeries of forged_submaps on a map key of the next robot's it
+//                            has not used yet (its latest local map two versions and two ticks on,
+//                            there before the robot's own: first arrival wins, and agents take it),
+//                            as a relay holding that robot's credentials would send them (issue
+//                            R3: under DDS Security the injector signs them with its own identity).
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <random>
 #include <set>
+#include <span>
 #include <string>
 #include <tuple>
 #include <variant>
@@ -81,6 +88,7 @@ inline constexpr const char* kInjectForgedSubmaps = "forged_submaps";
 inline constexpr std::uint32_t kInjectForgedSubmapCount = 5;
 inline constexpr const char* kInjectGhostIncarnation = "ghost_incarnation";
 inline constexpr std::uint32_t kInjectGhostIncarnationId = 77;
+inline constexpr const char* kInjectForgedRelay = "forged_relay";
 inline constexpr std::uint32_t kInjectFarReadingSeq = 999999u;
 // The incarnation the faulty peer of the shuffled case claims (real agents count from 1).
 inline constexpr std::uint32_t kInjectFaultyIncarnation = 3000000000u;
@@ -101,6 +109,11 @@ class MapInjector {
   // A map seen on the map topic (the injector's own messages included; they are ignored).
   void OnMap(const MapMessage& m);
   void OnStatus(const AgentStatus& s);
+  // Secure runs: the forged submaps go out signed with the injector's own identity (a robot's
+  // real key makes a signature its peers can check, and refuse as not the claimed robot's).
+  void SignWith(std::function<std::vector<std::uint8_t>(std::span<const std::uint8_t>)> sign) {
+    sign_ = std::move(sign);
+  }
 
   // The next message that can be made now, trying every (case, sender) slot once in turn,
   // or nothing when no case is ready.
@@ -130,6 +143,7 @@ class MapInjector {
 
   std::vector<RobotId> robots_;
   std::vector<std::string> cases_;
+  std::function<std::vector<std::uint8_t>(std::span<const std::uint8_t>)> sign_;
   RobotId unknown_id_;
   std::mt19937_64 rng_;
   std::map<RobotId, Heard> heard_;  // each robot's newest well-formed local map of its own
@@ -150,7 +164,10 @@ class MapInjector {
   std::map<RobotId, WireSubmap> last_closed_;   // each robot's latest closed submap of its own, as heard
   // A copy of the local map of the robot after `robot` in the run, at the tick after it, carrying
   // `submaps` (forged_submaps, ghost_incarnation); nothing while either is unknown.
-  std::optional<InjectedMessage> Carry(RobotId robot, std::vector<std::vector<std::uint8_t>> submaps) const;
+  // The next robot's latest local map carrying `submaps` (signed with sign_, if set), under the
+  // next tick: with `ahead`, two ticks and two versions on.
+  std::optional<InjectedMessage> Carry(RobotId robot, std::vector<std::vector<std::uint8_t>> submaps,
+                                       bool ahead = false) const;
 };
 
 }  // namespace mapmesh

@@ -15,8 +15,9 @@ void SubmapRelay::CloseOpen(const SubmapId& id) {
   }
 }
 
-SubmapRelay::Offer SubmapRelay::AddOwn(const WireSubmap& submap, std::span<const std::uint8_t> bytes) {
-  switch (book_.Add(submap, bytes)) {
+SubmapRelay::Offer SubmapRelay::AddOwn(const WireSubmap& submap, std::span<const std::uint8_t> bytes,
+                                       std::span<const std::uint8_t> signature) {
+  switch (book_.Add(submap, bytes, signature)) {
     case SubmapBook::Offer::kNew: ++counters_.own; return Offer::kNew;
     case SubmapBook::Offer::kDuplicate: return Offer::kDuplicate;
     case SubmapBook::Offer::kConflict: ++counters_.conflicts; return Offer::kConflict;
@@ -24,12 +25,13 @@ SubmapRelay::Offer SubmapRelay::AddOwn(const WireSubmap& submap, std::span<const
   return Offer::kConflict;
 }
 
-SubmapRelay::Offer SubmapRelay::Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now) {
+SubmapRelay::Offer SubmapRelay::Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now,
+                                    std::span<const std::uint8_t> signature) {
   if (book_.Find(submap.id) == nullptr && book_.size() >= options_.max_held) {
     ++counters_.full;
     return Offer::kFull;
   }
-  switch (book_.Add(submap, bytes)) {
+  switch (book_.Add(submap, bytes, signature)) {
     case SubmapBook::Offer::kNew:
       ++counters_.received_new;
       heard_at_[submap.id] = now;
@@ -44,8 +46,9 @@ SubmapRelay::Offer SubmapRelay::Add(const WireSubmap& submap, std::span<const st
   return Offer::kConflict;
 }
 
-SubmapRelay::Offer SubmapRelay::Restore(const WireSubmap& submap, std::span<const std::uint8_t> bytes) {
-  switch (book_.Add(submap, bytes)) {
+SubmapRelay::Offer SubmapRelay::Restore(const WireSubmap& submap, std::span<const std::uint8_t> bytes,
+                                        std::span<const std::uint8_t> signature) {
+  switch (book_.Add(submap, bytes, signature)) {
     case SubmapBook::Offer::kNew: ++counters_.restored; return Offer::kNew;
     case SubmapBook::Offer::kDuplicate: ++counters_.duplicates; return Offer::kDuplicate;
     case SubmapBook::Offer::kConflict: ++counters_.conflicts; return Offer::kConflict;
@@ -81,7 +84,7 @@ std::vector<SubmapChain> SubmapRelay::Advert() const {
 }
 
 SubmapRelay::Offer SubmapRelay::AddOpen(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now,
-                                        bool relayed) {
+                                        bool relayed, std::span<const std::uint8_t> signature) {
   const PeerKey key{submap.id.robot, submap.id.incarnation};
   const auto held = open_.find(key);
   if (book_.Find(submap.id) != nullptr ||
@@ -100,14 +103,19 @@ SubmapRelay::Offer SubmapRelay::AddOpen(const WireSubmap& submap, std::span<cons
   }
   open_[key] = submap;
   OpenHeld& h = open_held_[key];
-  h.bytes.assign(bytes.begin(), bytes.end());
+  h.blob.bytes.assign(bytes.begin(), bytes.end());
+  h.blob.signature.assign(signature.begin(), signature.end());
   h.changed_at = now;
   ++counters_.open_taken;
   return Offer::kNew;
 }
 
-std::vector<const std::vector<std::uint8_t>*> SubmapRelay::DueOpen(const std::set<RobotId>& in_range, double now,
-                                                                   std::size_t spent) {
+const std::vector<std::uint8_t>* SubmapRelay::OpenBytes(const PeerKey& key) const {
+  const auto it = open_held_.find(key);
+  return it == open_held_.end() ? nullptr : &it->second.blob.bytes;
+}
+
+std::vector<const SubmapBlob*> SubmapRelay::DueOpen(const std::set<RobotId>& in_range, double now, std::size_t spent) {
   std::vector<std::pair<const PeerKey*, const Advertised*>> listening;
   for (const auto& [key, a] : adverts_) {
     if (in_range.contains(key.robot) && now - a.at <= options_.advert_max_age_s) listening.push_back({&key, &a});
@@ -131,24 +139,24 @@ std::vector<const std::vector<std::uint8_t>*> SubmapRelay::DueOpen(const std::se
     return std::tie(a->id.index, a->id.robot, a->id.incarnation) <
            std::tie(b->id.index, b->id.robot, b->id.incarnation);
   });
-  std::vector<const std::vector<std::uint8_t>*> out;
+  std::vector<const SubmapBlob*> out;
   std::size_t bytes = spent;
   for (const WireSubmap* s : due) {
     OpenHeld& h = open_held_.at({s->id.robot, s->id.incarnation});
-    if ((spent > 0 || !out.empty()) && bytes + h.bytes.size() > options_.send_bytes) {
+    if ((spent > 0 || !out.empty()) && bytes + h.blob.bytes.size() > options_.send_bytes) {
       ++counters_.held_back;
       continue;
     }
-    bytes += h.bytes.size();
-    out.push_back(&h.bytes);
+    bytes += h.blob.bytes.size();
+    out.push_back(&h.blob);
     h.sent_at = now;
     ++counters_.open_relayed;
-    counters_.open_bytes_relayed += h.bytes.size();
+    counters_.open_bytes_relayed += h.blob.bytes.size();
   }
   return out;
 }
 
-std::vector<const std::vector<std::uint8_t>*> SubmapRelay::Due(const std::set<RobotId>& in_range, double now) {
+std::vector<const SubmapBlob*> SubmapRelay::Due(const std::set<RobotId>& in_range, double now) {
   std::vector<const Advertised*> listening;
   for (const auto& [key, a] : adverts_) {
     if (in_range.contains(key.robot) && now - a.at <= options_.advert_max_age_s) listening.push_back(&a);
@@ -171,15 +179,15 @@ std::vector<const std::vector<std::uint8_t>*> SubmapRelay::Due(const std::set<Ro
   std::sort(due.begin(), due.end(), [](const SubmapId& a, const SubmapId& b) {
     return std::tie(a.index, a.robot, a.incarnation) < std::tie(b.index, b.robot, b.incarnation);
   });
-  std::vector<const std::vector<std::uint8_t>*> out;
+  std::vector<const SubmapBlob*> out;
   std::size_t bytes = 0;
   for (const SubmapId& id : due) {
-    const std::vector<std::uint8_t>* b = book_.Bytes(id);
-    if (!out.empty() && bytes + b->size() > options_.send_bytes) {
+    const SubmapBlob* b = book_.Blob(id);
+    if (!out.empty() && bytes + b->bytes.size() > options_.send_bytes) {
       ++counters_.held_back;
       continue;
     }
-    bytes += b->size();
+    bytes += b->bytes.size();
     out.push_back(b);
     auto [it, first] = sent_at_.try_emplace(id, now);
     if (!first) {
@@ -187,7 +195,7 @@ std::vector<const std::vector<std::uint8_t>*> SubmapRelay::Due(const std::set<Ro
       it->second = now;
     }
     ++counters_.sent;
-    counters_.bytes_sent += b->size();
+    counters_.bytes_sent += b->bytes.size();
   }
   return out;
 }

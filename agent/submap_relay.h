@@ -58,12 +58,17 @@ class SubmapRelay {
   // kGap: a relayed open submap that does not continue the chain held (AddOpen).
   enum class Offer { kNew, kDuplicate, kConflict, kFull, kGap };
   // One of the agent's own closed submaps. kFull never happens: own submaps always enter.
-  Offer AddOwn(const WireSubmap& submap, std::span<const std::uint8_t> bytes);
+  // Each offer carries the submap's bytes and the signature they came with (secure runs; empty
+  // otherwise), which the relay sends on with them.
+  Offer AddOwn(const WireSubmap& submap, std::span<const std::uint8_t> bytes,
+               std::span<const std::uint8_t> signature = {});
   // A decoded, validated submap received from a peer (or relayed by one) at scenario time now.
-  Offer Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now);
+  Offer Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now,
+            std::span<const std::uint8_t> signature = {});
   // A submap the agent held before a restart (its checkpoint): it enters as held (max_held
   // does not apply: the checkpoint held it), due to any peer that lacks it as an own one is.
-  Offer Restore(const WireSubmap& submap, std::span<const std::uint8_t> bytes);
+  Offer Restore(const WireSubmap& submap, std::span<const std::uint8_t> bytes,
+                std::span<const std::uint8_t> signature = {});
   // A peer's advertisement, received at scenario time now; replaces its earlier one. Chains
   // beyond max_chains are ignored.
   void OnAdvert(const PeerKey& from, std::span<const SubmapChain> held, double now);
@@ -78,21 +83,23 @@ class SubmapRelay {
   // held (kDuplicate otherwise, ignored). A relayed one only where it continues the chain held
   // (its index is the ChainLength: kGap otherwise, as a relay sends it); kFull when max_open
   // open ones are kept already.
-  Offer AddOpen(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now, bool relayed = false);
+  Offer AddOpen(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now, bool relayed = false,
+                std::span<const std::uint8_t> signature = {});
+  // The bytes kept of a robot incarnation's open submap; null when none.
+  const std::vector<std::uint8_t>* OpenBytes(const PeerKey& key) const;
   // The open submaps kept, by robot incarnation (the joining back-end's input).
   const std::map<PeerKey, WireSubmap>& open() const { return open_; }
   // The silent robots' open submaps to relay at scenario time now (see the header), lowest
   // index first, then robot and incarnation; at most send_bytes in all with the `spent` bytes
   // of the closed ones due in the same publication (the first always, when those are none).
   // Marks them sent at now.
-  std::vector<const std::vector<std::uint8_t>*> DueOpen(const std::set<RobotId>& in_range, double now,
-                                                        std::size_t spent = 0);
+  std::vector<const SubmapBlob*> DueOpen(const std::set<RobotId>& in_range, double now, std::size_t spent = 0);
   // The submaps to send at scenario time now: those held that a peer in range (a robot of
   // `in_range` whose advertisement is at most advert_max_age_s old) lacks by an advertisement
   // that came after the submap was last heard, not sent within resend_after_s, the lowest
   // indices first (every chain grows alike), then robot and incarnation; at most send_bytes in
   // all. Marks them sent at now.
-  std::vector<const std::vector<std::uint8_t>*> Due(const std::set<RobotId>& in_range, double now);
+  std::vector<const SubmapBlob*> Due(const std::set<RobotId>& in_range, double now);
 
   const SubmapBook& book() const { return book_; }
   struct Counters {
@@ -123,7 +130,7 @@ class SubmapRelay {
     double at = 0.0;
   };
   struct OpenHeld {
-    std::vector<std::uint8_t> bytes;
+    SubmapBlob blob;
     double changed_at = 0.0;  // scenario time this version was taken
     double sent_at = -std::numeric_limits<double>::infinity();
   };

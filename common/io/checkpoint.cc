@@ -15,6 +15,7 @@
 
 #include "common/io/base64.h"
 #include "common/io/run_files.h"
+#include "common/map/submap_origin.h"
 
 namespace mapmesh::io {
 namespace {
@@ -157,8 +158,9 @@ class Validator {
     return Map(j, "local", where, &s->local) && Map(j, "global", where, &s->global);
   }
 
-  // The top level's "submaps" (optional): base64 strings, each a valid submap.
-  bool Submaps(const json& doc, std::vector<std::vector<std::uint8_t>>* out) {
+  // The top level's "submaps" (optional): base64 strings, each a valid submap, or objects of
+  // such a string ("submap") and its signature ("signature", base64, not empty).
+  bool Submaps(const json& doc, std::vector<SubmapBlob>* out) {
     const auto it = doc.find("submaps");
     if (it == doc.end()) return true;
     if (!it->is_array()) return Fail("submaps is " + TypeOf(*it) + ", expected an array");
@@ -171,9 +173,29 @@ class Validator {
     for (std::size_t i = 0; i < it->size(); ++i) {
       const json& e = (*it)[i];
       const std::string at = "submaps[" + std::to_string(i) + "]";
-      if (!e.is_string()) return Fail(at + " is " + TypeOf(e) + ", expected a base64 string");
-      std::optional<std::vector<std::uint8_t>> bytes = Base64Decode(e.get_ref<const std::string&>());
-      if (!bytes) return Fail(at + " is not base64 (padded, the standard alphabet, no whitespace)");
+      SubmapBlob blob;
+      const json* text = &e;
+      std::string field = at;
+      if (e.is_object()) {
+        if (e.size() != 2)
+          return Fail(at + " has " + std::to_string(e.size()) + " keys, expected submap and signature");
+        const json* sig = Member(e, "signature", at);
+        if (sig == nullptr) return false;
+        if (!sig->is_string()) return Fail(at + ".signature is " + TypeOf(*sig) + ", expected a base64 string");
+        std::optional<std::vector<std::uint8_t>> s = Base64Decode(sig->get_ref<const std::string&>());
+        if (!s) return Fail(at + ".signature is not base64 (padded, the standard alphabet, no whitespace)");
+        if (s->empty() || s->size() > kMaxSubmapSignatureBytes) {
+          return Fail(at + ".signature holds " + std::to_string(s->size()) + " bytes, expected 1 to " +
+                      std::to_string(kMaxSubmapSignatureBytes));
+        }
+        blob.signature = std::move(*s);
+        text = Member(e, "submap", at);
+        if (text == nullptr) return false;
+        field = at + ".submap";
+      }
+      if (!text->is_string()) return Fail(field + " is " + TypeOf(*text) + ", expected a base64 string");
+      std::optional<std::vector<std::uint8_t>> bytes = Base64Decode(text->get_ref<const std::string&>());
+      if (!bytes) return Fail(field + " is not base64 (padded, the standard alphabet, no whitespace)");
       const SubmapDecodeResult d = DecodeSubmap(*bytes);
       if (!d.ok()) return Fail(at + " is not a submap: " + std::string(ToString(d.error)));
       const SubmapId& id = d.submap.id;
@@ -193,7 +215,8 @@ class Validator {
       const auto [first, fresh] = seen.emplace(id, i);
       if (!fresh)
         return Fail(at + " repeats the identity " + name + " of submaps[" + std::to_string(first->second) + "]");
-      out->push_back(std::move(*bytes));
+      blob.bytes = std::move(*bytes);
+      out->push_back(std::move(blob));
     }
     return true;
   }
@@ -361,7 +384,13 @@ nlohmann::json CheckpointToJson(const AgentCheckpoint& c) {
   nlohmann::json j = snapshot(c);
   j["earlier"] = std::move(earlier);
   nlohmann::json submaps = nlohmann::json::array();
-  for (const std::vector<std::uint8_t>& b : c.submaps) submaps.push_back(Base64Encode(b));
+  for (const SubmapBlob& b : c.submaps) {
+    if (b.signature.empty()) {
+      submaps.push_back(Base64Encode(b.bytes));
+    } else {
+      submaps.push_back({{"submap", Base64Encode(b.bytes)}, {"signature", Base64Encode(b.signature)}});
+    }
+  }
   j["submaps"] = std::move(submaps);
   return j;
 }

@@ -7,7 +7,8 @@
 // Format: {"robot", "incarnation", "origin_stamp", "processed_until", "local": MAP,
 // "global": MAP, "earlier": [{the same keys but "earlier" and "submaps"}...], "submaps":
 // [SUBMAP...]} with MAP as in run_files.h and SUBMAP a closed submap's bytes as they travel
-// (submap_codec.h) in base64. Older files nest earlier[] inside earlier entries; the loader
+// (submap_codec.h) in base64, or in a secure run {"submap": those, "signature": its origin's
+// signature in base64} (submap_origin.h; checked when the agent resumes). Older files nest earlier[] inside earlier entries; the loader
 // flattens them in document order (an entry, then what it nests). Files without "submaps"
 // (written before issue J1) hold none.
 
@@ -43,7 +44,8 @@ struct AgentCheckpoint : IncarnationSnapshot {
   // The closed submaps the agent held (issue J1), each as it travels: its own of every
   // incarnation and its peers'. They are facts: a restarted agent holds its earlier chains and
   // relays and joins them as before, whether or not a peer kept them.
-  std::vector<std::vector<std::uint8_t>> submaps;
+  // With the signatures they came with (secure runs; empty otherwise).
+  std::vector<SubmapBlob> submaps;
 };
 
 namespace io {

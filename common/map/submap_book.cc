@@ -4,10 +4,12 @@
 
 namespace mapmesh {
 
-SubmapBook::Offer SubmapBook::Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes) {
+SubmapBook::Offer SubmapBook::Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes,
+                                  std::span<const std::uint8_t> signature) {
   const auto it = held_.find(submap.id);
   if (it != held_.end()) {
-    const bool same = std::equal(bytes.begin(), bytes.end(), it->second.bytes.begin(), it->second.bytes.end());
+    const std::vector<std::uint8_t>& held = it->second.blob.bytes;
+    const bool same = std::equal(bytes.begin(), bytes.end(), held.begin(), held.end());
     if (same) {
       ++duplicates_;
       return Offer::kDuplicate;
@@ -15,7 +17,8 @@ SubmapBook::Offer SubmapBook::Add(const WireSubmap& submap, std::span<const std:
     ++conflicts_;
     return Offer::kConflict;
   }
-  held_.emplace(submap.id, Entry{submap, std::vector<std::uint8_t>(bytes.begin(), bytes.end())});
+  held_.emplace(submap.id,
+                Entry{submap, SubmapBlob{{bytes.begin(), bytes.end()}, {signature.begin(), signature.end()}}});
   bytes_ += bytes.size();
   return Offer::kNew;
 }
@@ -27,7 +30,12 @@ const WireSubmap* SubmapBook::Find(const SubmapId& id) const {
 
 const std::vector<std::uint8_t>* SubmapBook::Bytes(const SubmapId& id) const {
   const auto it = held_.find(id);
-  return it == held_.end() ? nullptr : &it->second.bytes;
+  return it == held_.end() ? nullptr : &it->second.blob.bytes;
+}
+
+const SubmapBlob* SubmapBook::Blob(const SubmapId& id) const {
+  const auto it = held_.find(id);
+  return it == held_.end() ? nullptr : &it->second.blob;
 }
 
 std::uint32_t SubmapBook::ChainLength(RobotId robot, std::uint32_t incarnation) const {

@@ -21,12 +21,17 @@ class SubmapBook {
  public:
   enum class Offer { kNew, kDuplicate, kConflict };
 
-  // Offers a decoded submap with the bytes it was decoded from (its identity's content).
-  Offer Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes);
+  // Offers a decoded submap with the bytes it was decoded from (its identity's content) and its
+  // origin's signature over them (secure runs; kept with the bytes, never compared: the bytes
+  // alone say whether two submaps are one).
+  Offer Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes,
+            std::span<const std::uint8_t> signature = {});
 
   const WireSubmap* Find(const SubmapId& id) const;
   // The bytes a held submap came in (what a relay sends on); null when not held.
   const std::vector<std::uint8_t>* Bytes(const SubmapId& id) const;
+  // The bytes with the signature they came with; null when not held.
+  const SubmapBlob* Blob(const SubmapId& id) const;
   // How many of a robot incarnation's submaps are held without a gap from index 0: those a
   // receiver can chain.
   std::uint32_t ChainLength(RobotId robot, std::uint32_t incarnation) const;
@@ -57,7 +62,7 @@ class SubmapBook {
  private:
   struct Entry {
     WireSubmap submap;
-    std::vector<std::uint8_t> bytes;
+    SubmapBlob blob;
   };
   std::map<SubmapId, Entry> held_;
   std::size_t bytes_ = 0;

@@ -101,15 +101,18 @@ mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch& scratch) {
   // Both blob sequences borrow from one scratch vector, sized first so that it never moves.
   scratch.blobs.clear();
   scratch.blobs.reserve(v.submaps.size() + v.open_relayed.size());
-  const auto blobs = [&scratch](const std::vector<std::vector<std::uint8_t>>& from,
-                                dds_sequence_mapmesh_msg_SubmapBlob& to) {
+  const auto borrow = [](const std::vector<std::uint8_t>& from, dds_sequence_octet& to) {
+    to._maximum = static_cast<std::uint32_t>(from.size());
+    to._length = to._maximum;
+    to._buffer = const_cast<std::uint8_t*>(from.data());
+    to._release = false;
+  };
+  const auto blobs = [&scratch, &borrow](const std::vector<SubmapBlob>& from, dds_sequence_mapmesh_msg_SubmapBlob& to) {
     const std::size_t first = scratch.blobs.size();
-    for (const std::vector<std::uint8_t>& b : from) {
+    for (const SubmapBlob& b : from) {
       mapmesh_msg_SubmapBlob blob{};
-      blob.bytes._maximum = static_cast<std::uint32_t>(b.size());
-      blob.bytes._length = blob.bytes._maximum;
-      blob.bytes._buffer = const_cast<std::uint8_t*>(b.data());
-      blob.bytes._release = false;
+      borrow(b.bytes, blob.bytes);
+      borrow(b.signature, blob.signature);
       scratch.blobs.push_back(blob);
     }
     to._maximum = static_cast<std::uint32_t>(from.size());
@@ -119,10 +122,8 @@ mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch& scratch) {
   };
   blobs(v.submaps, m.submaps);
   blobs(v.open_relayed, m.open_relayed);
-  m.open_submap._maximum = static_cast<std::uint32_t>(v.open_submap.size());
-  m.open_submap._length = m.open_submap._maximum;
-  m.open_submap._buffer = const_cast<std::uint8_t*>(v.open_submap.data());
-  m.open_submap._release = false;
+  borrow(v.open_submap, m.open_submap);
+  borrow(v.open_submap_signature, m.open_submap_signature);
   scratch.placements.clear();
   for (const ChainPlacement& c : v.placements)
     scratch.placements.push_back({c.robot, c.incarnation, c.x, c.y, c.theta});
@@ -150,18 +151,18 @@ MapMessage FromMsg(const mapmesh_msg_MapMessage& m) {
     const mapmesh_msg_SubmapChain& c = m.submaps_held._buffer[i];
     v.submaps_held.push_back({c.robot, c.incarnation, c.count, c.open_until});
   }
+  const auto copy = [](const dds_sequence_octet& from) {
+    return from._length == 0 ? std::vector<std::uint8_t>{}
+                             : std::vector<std::uint8_t>(from._buffer, from._buffer + from._length);
+  };
   v.submaps.reserve(m.submaps._length);
-  for (std::uint32_t i = 0; i < m.submaps._length; ++i) {
-    const auto& b = m.submaps._buffer[i].bytes;
-    v.submaps.emplace_back(b._buffer, b._buffer + b._length);
-  }
-  if (m.open_submap._length > 0)
-    v.open_submap.assign(m.open_submap._buffer, m.open_submap._buffer + m.open_submap._length);
+  for (std::uint32_t i = 0; i < m.submaps._length; ++i)
+    v.submaps.push_back({copy(m.submaps._buffer[i].bytes), copy(m.submaps._buffer[i].signature)});
+  v.open_submap = copy(m.open_submap);
+  v.open_submap_signature = copy(m.open_submap_signature);
   v.open_relayed.reserve(m.open_relayed._length);
-  for (std::uint32_t i = 0; i < m.open_relayed._length; ++i) {
-    const auto& b = m.open_relayed._buffer[i].bytes;
-    v.open_relayed.emplace_back(b._buffer, b._buffer + b._length);
-  }
+  for (std::uint32_t i = 0; i < m.open_relayed._length; ++i)
+    v.open_relayed.push_back({copy(m.open_relayed._buffer[i].bytes), copy(m.open_relayed._buffer[i].signature)});
   v.placements.reserve(m.placements._length);
   for (std::uint32_t i = 0; i < m.placements._length; ++i) {
     const mapmesh_msg_ChainPlacement& c = m.placements._buffer[i];

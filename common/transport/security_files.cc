@@ -44,7 +44,7 @@ std::optional<SecurityFiles> SecurityFilesOf(const std::string& config_xml) {
   const std::optional<std::string> cert = FilePath(Element(section, "IdentityCertificate"));
   const std::optional<std::string> key = FilePath(Element(section, "PrivateKey"));
   if (!cert || !key) return std::nullopt;
-  return SecurityFiles{*cert, *key};
+  return SecurityFiles{*cert, *key, FilePath(Element(section, "IdentityCA")).value_or("")};
 }
 
 std::optional<std::string> CheckSecurityFiles(const SecurityFiles& files) {

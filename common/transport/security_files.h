@@ -12,6 +12,7 @@ namespace mapmesh::transport {
 struct SecurityFiles {
   std::string certificate;  // <IdentityCertificate>, a path ("file:" taken off)
   std::string private_key;  // <PrivateKey>
+  std::string identity_ca;  // <IdentityCA>, empty when not a file
 };
 
 // The files a config's <Security> section names; nullopt without one, or when either is not a

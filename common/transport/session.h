@@ -3,9 +3,11 @@
 // otherwise) and the participant every reader and writer hangs off.
 
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "common/transport/dds.h"
+#include "common/transport/security_files.h"
 
 namespace mapmesh::transport {
 
@@ -18,9 +20,13 @@ class Session {
   const Participant& participant() const { return participant_; }
   // The configuration actually used ("CYCLONEDDS_URI" when taken from the environment).
   const std::string& config_used() const { return config_used_; }
+  // The identity files of the config's DDS Security section; nullopt for a plain config (or
+  // one from CYCLONEDDS_URI, which is Cyclone's to read).
+  const std::optional<SecurityFiles>& security() const { return security_; }
 
  private:
-  std::string config_used_;  // first: the domain's initialiser writes it
+  std::string config_used_;  // first: the domain's initialiser writes them
+  std::optional<SecurityFiles> security_;
   std::unique_ptr<Domain> domain_;
   Participant participant_;
 };

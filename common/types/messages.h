@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace mapmesh {
@@ -121,6 +122,20 @@ struct ChainPlacement {
   friend auto operator<=>(const ChainPlacement&, const ChainPlacement&) = default;
 };
 
+// A submap as it travels (common/map/submap_codec.h) and, in a secure run, its origin's
+// signature over those bytes (agent/submap_authority.h; empty in a plain run). Relays carry
+// both unchanged: the bytes are the submap's identity's content, the signature its proof of
+// origin (issue R3).
+struct SubmapBlob {
+  SubmapBlob() = default;
+  // Bytes alone are an unsigned submap (a plain run's).
+  SubmapBlob(std::vector<std::uint8_t> b, std::vector<std::uint8_t> s = {})  // NOLINT(google-explicit-constructor)
+      : bytes(std::move(b)), signature(std::move(s)) {}
+  std::vector<std::uint8_t> bytes;
+  std::vector<std::uint8_t> signature;
+  friend bool operator==(const SubmapBlob&, const SubmapBlob&) = default;
+};
+
 struct MapMessage {
   RobotId robot_id = 0;
   MapKind kind = MapKind::kLocal;
@@ -136,17 +151,18 @@ struct MapMessage {
   // Closed submaps (issue J1), on the local map only: the chains the publisher holds, and the
   // closed submaps it sends (its own or relayed, each the bytes of common/map/submap_codec.h).
   std::vector<SubmapChain> submaps_held;
-  std::vector<std::vector<std::uint8_t>> submaps;
+  std::vector<SubmapBlob> submaps;
   // With fusion joining: the publisher's open submap as it stands (the submap codec; its index
   // is the count of the publisher's closed ones, its closed_s the map's stamp). It changes at
   // every publication until it closes; a receiver keeps the latest.
   std::vector<std::uint8_t> open_submap;
+  std::vector<std::uint8_t> open_submap_signature;  // secure runs: the publisher's signature of open_submap
   // With fusion joining, on the local map: where its last join put the other chains it joined,
   // in (robot, incarnation) order.
   std::vector<ChainPlacement> placements;
   // With fusion joining, on the local map: open submaps of other robots that fell silent, as
   // the publisher last took them, relayed to the peers that lack them (agent/submap_relay.h).
-  std::vector<std::vector<std::uint8_t>> open_relayed;
+  std::vector<SubmapBlob> open_relayed;
 };
 
 // The lockstep exchange, from the feeder to the agents (feeder.pace lockstep). At each exchange

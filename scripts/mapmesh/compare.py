@@ -4,6 +4,9 @@ Compared byte for byte: every agent's local_map.json, global_map.json, trajector
 checkpoint.json, history.jsonl, peers/ and snapshots/, and truth.json. Compared as JSON with the
 host's measurements left out: summary.json, timeline.json, feeder.json, reference.json and each
 agent's stats.json. What is left out, and why, is VOLATILE; logs and the report are not compared.
+A secure run's checkpoint holds its submaps' signatures, which ECDSA draws afresh each time
+(the submaps are compared, their signatures are not): checkpoints that differ in bytes are
+compared again without them.
 """
 
 from pathlib import Path
@@ -61,6 +64,14 @@ def first_difference(a, b, path=""):
     return None if a == b else (path or "/")
 
 
+def without_signatures(checkpoint):
+    """A checkpoint's document with each signed submap ({"submap", "signature"}) as its submap."""
+    if isinstance(checkpoint, dict) and isinstance(checkpoint.get("submaps"), list):
+        checkpoint = dict(checkpoint)
+        checkpoint["submaps"] = [e.get("submap") if isinstance(e, dict) else e for e in checkpoint["submaps"]]
+    return checkpoint
+
+
 def load(path):
     try:
         return read_json(path)
@@ -99,7 +110,12 @@ def compare(a, b):
             if d is not None:
                 diffs.append(f"{name}: differs at {d}")
         elif fa.read_bytes() != fb.read_bytes():
-            diffs.append(f"{name}: differs")
+            if Path(name).name == "checkpoint.json":
+                d = first_difference(without_signatures(load(fa)), without_signatures(load(fb)))
+                if d is not None:
+                    diffs.append(f"{name}: differs at {d}")
+            else:
+                diffs.append(f"{name}: differs")
     return diffs, len(names)
 
 

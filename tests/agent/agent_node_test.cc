@@ -315,7 +315,7 @@ TEST(AgentNodeCheckpoint, HoldsTheSubmapsOfItsCheckpointAgainAndSavesThem) {
   std::size_t left_out = 99;
   const AgentCheckpoint c = node.Checkpoint(nullptr, &left_out);
   EXPECT_EQ(left_out, 0u);
-  EXPECT_EQ(c.submaps, (std::vector<std::vector<std::uint8_t>>{submap(1, 1, 0), submap(1, 1, 1), submap(2, 1, 0)}));
+  EXPECT_EQ(c.submaps, (std::vector<SubmapBlob>{submap(1, 1, 0), submap(1, 1, 1), submap(2, 1, 0)}));
   const io::CheckpointLoad load = io::ParseCheckpoint(io::CheckpointToJson(c).dump(), "c.json", 1, 3);
   ASSERT_TRUE(load.ok()) << load.error;
   EXPECT_EQ(load.checkpoint->submaps, c.submaps);
@@ -504,6 +504,130 @@ TEST(AgentNodeLimits, RefusesItsOwnRobotsSubmapsFromOthersAndRidersOfMapsNotTake
   EXPECT_EQ(refused(SubmapRefusal::kOnRefusedMap), 2u);
   EXPECT_EQ(refused(SubmapRefusal::kOwnRobot), 2u);
   EXPECT_EQ(node.submaps().book().size(), 1u);
+}
+
+// A stand-in for the secure runs' signatures (transport::SubmapSigner): robot r's signature
+// over bytes is {r, their sum mod 256}; robots 1 to 3 have certificates, others none.
+class FakeOrigin final : public SubmapOrigin {
+ public:
+  explicit FakeOrigin(RobotId self) : self_(self) {}
+  static std::vector<std::uint8_t> Of(RobotId robot, std::span<const std::uint8_t> bytes) {
+    unsigned sum = 0;
+    for (std::uint8_t b : bytes) sum += b;
+    return {static_cast<std::uint8_t>(robot), static_cast<std::uint8_t>(sum & 0xff)};
+  }
+  std::vector<std::uint8_t> Sign(std::span<const std::uint8_t> bytes) override { return Of(self_, bytes); }
+  Verdict Verify(RobotId origin, std::span<const std::uint8_t> bytes, std::span<const std::uint8_t> sig) override {
+    ++verified;
+    if (sig.empty()) return Verdict::kUnsigned;
+    if (origin < 1 || origin > 3) return Verdict::kUnknownSigner;
+    const std::vector<std::uint8_t> want = Of(origin, bytes);
+    return std::equal(sig.begin(), sig.end(), want.begin(), want.end()) ? Verdict::kValid : Verdict::kForged;
+  }
+  int verified = 0;
+
+ private:
+  RobotId self_;
+};
+
+// Issue R3, secure runs: a submap enters only with the signature of the robot it claims,
+// whoever relays it; relays send it on with that signature; the same bytes again are a
+// duplicate, not checked again; different bytes under a held identity that are not its
+// robot's count as forged, never as a conflict (which would say the robot made two); an
+// edited checkpoint's submap is refused at Resume.
+TEST(AgentNodeLimits, SecureRunsTakeOnlySubmapsSignedByTheRobotTheyClaim) {
+  const Scenario sc = ParseScenario(R"(version: 1
+world: {landmarks: {list: [[5, 0], [0, 5]]}}
+robots:
+  list:
+    - {id: 1, start: [0, 0, 0]}
+    - {id: 2, start: [1, 0, 0]}
+    - {id: 3, start: [2, 0, 0]}
+    - {id: 4, start: [3, 0, 0]}
+feeder: {pace: realtime}
+agent: {map_publish_period_s: 1.0, slam: cekf_submaps, fusion: joining}
+)",
+                                    "test.yaml");
+  Capture out;
+  FakeOrigin origin(1);
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
+  node.SetSubmapOrigin(&origin);
+  node.OnLinks({0.0, {{1, 2}}});
+  const auto signed_by = [](RobotId signer, std::vector<std::uint8_t> bytes) {
+    std::vector<std::uint8_t> sig = FakeOrigin::Of(signer, bytes);
+    return SubmapBlob{std::move(bytes), std::move(sig)};
+  };
+  LandmarkMap map;
+  map.landmarks.push_back({0, -1, {1.0, 2.0}, 0.01 * Eigen::Matrix2d::Identity()});
+  MapMessage m = PeerMap(2, EncodeMap(map));
+  m.incarnation = 1;
+  m.stamp = 0.0;
+  m.submaps = {signed_by(3, OneLandmarkSubmap(3, 0, 0.0, 0.0)),  // relayed, 3's own signature
+               signed_by(2, OneLandmarkSubmap(3, 1, 0.0, 0.0)),  // 3's index signed by the relay
+               OneLandmarkSubmap(3, 2, 0.0, 0.0),                // unsigned
+               signed_by(4, OneLandmarkSubmap(4, 0, 0.0, 0.0)),  // a robot without a certificate
+               signed_by(2, OneLandmarkSubmap(2, 0, 0.0, 0.0))};
+  m.open_submap = OneLandmarkSubmap(2, 1, 0.0, 0.0);
+  m.open_submap_signature = FakeOrigin::Of(2, m.open_submap);
+  m.open_relayed = {signed_by(2, OneLandmarkSubmap(3, 1, 0.0, 0.0))};  // 3's open one, signed by the relay
+  node.OnMap(m);
+  const auto refused = [&](SubmapRefusal r) { return node.stats().submaps_refused[static_cast<int>(r)]; };
+  EXPECT_EQ(node.submaps().book().Ids(), (std::vector<SubmapId>{{2, 1, 0}, {3, 1, 0}}));
+  EXPECT_EQ(refused(SubmapRefusal::kForgedSignature), 2u);
+  EXPECT_EQ(refused(SubmapRefusal::kUnsigned), 1u);
+  EXPECT_EQ(refused(SubmapRefusal::kUnknownSigner), 1u);
+  ASSERT_EQ(node.submaps().open().size(), 1u);
+  EXPECT_EQ(node.submaps().open().begin()->first, (PeerKey{2, 1}));
+  EXPECT_EQ(origin.verified, 7);
+  // The held ones again, unsigned: duplicates, not checked; one of them changed and signed by
+  // the relay: forged, no conflict; the same open submap: not checked again.
+  m.version = 2;
+  m.submaps = {OneLandmarkSubmap(3, 0, 0.0, 0.0), signed_by(2, OneLandmarkSubmap(3, 0, 0.0, 1.0))};
+  m.open_relayed.clear();
+  node.OnMap(m);
+  EXPECT_EQ(origin.verified, 8);
+  EXPECT_EQ(node.submaps().counters().duplicates, 1u);
+  EXPECT_EQ(node.submaps().counters().conflicts, 0u);
+  EXPECT_EQ(refused(SubmapRefusal::kForgedSignature), 3u);
+  // What it sends on carries the robots' signatures: 3's relayed to robot 2 (which advertised
+  // none), and its own open submap signed by robot 1.
+  const auto step = [&node](int k) {  // robot 1 stands still, seeing the landmark at (5, 0)
+    node.OnScan(ScanAt(0.1 * k - 0.05, 5.0, 0.0, -1));
+    node.OnOdometry(Odom(0.1 * k, 1));
+  };
+  for (int k = 1; k <= 5; ++k) step(k);
+  m.version = 3;
+  m.stamp = 0.5;
+  m.submaps.clear();
+  m.submaps_held.clear();
+  node.OnMap(m);  // robot 2's advertisement since: it holds nothing
+  for (int k = 6; k <= 25; ++k) step(k);
+  int relayed = 0, open_signed = 0;
+  for (const MapMessage& sent : out.maps) {
+    for (const SubmapBlob& b : sent.submaps) {
+      const SubmapDecodeResult d = DecodeSubmap(b.bytes);
+      ASSERT_TRUE(d.ok());
+      EXPECT_EQ(b.signature, FakeOrigin::Of(d.submap.id.robot, b.bytes));
+      ++relayed;
+    }
+    if (!sent.open_submap.empty()) {
+      EXPECT_EQ(sent.open_submap_signature, FakeOrigin::Of(1, sent.open_submap));
+      ++open_signed;
+    }
+  }
+  EXPECT_GT(relayed, 0);
+  EXPECT_GT(open_signed, 0);
+  // A checkpoint's submaps: one edited after it was signed is refused, the others held.
+  AgentCheckpoint c = node.Checkpoint();
+  ASSERT_EQ(c.submaps.size(), 2u);
+  c.submaps[1].bytes = OneLandmarkSubmap(3, 0, 0.0, 0.5);  // 3.1.0 edited, its signature kept
+  Capture out2;
+  FakeOrigin origin2(1);
+  AgentNode resumed(sc.agent, AgentRunFor(sc, 1), 1, 2, out2);
+  resumed.SetSubmapOrigin(&origin2);
+  resumed.Resume(c);
+  EXPECT_EQ(resumed.submaps().book().Ids(), (std::vector<SubmapId>{{2, 1, 0}}));
+  EXPECT_EQ(resumed.stats().submaps_refused[static_cast<int>(SubmapRefusal::kForgedSignature)], 1u);
 }
 
 // One reading 30 km away (beyond what the 8 m sensor sees) never reaches the map, and the

@@ -45,7 +45,7 @@ std::optional<MapMessage> NextMap(MapInjector& inj) {
 
 TEST(InjectCases, ParsesAllAListAndRefusesUnknownOnes) {
   EXPECT_EQ(ParseInjectCases("all"), AllInjectCases());
-  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 12));
+  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 13));
   EXPECT_EQ(ParseInjectCases("shuffled,truncated,shuffled"), (std::vector<std::string>{"shuffled", "truncated"}));
   EXPECT_FALSE(ParseInjectCases("shuffle").has_value());
   EXPECT_FALSE(ParseInjectCases("").has_value());
@@ -190,11 +190,15 @@ TEST(MapInjector, TheTickFloodTakesTurnsOfClaimedSenderAndTick) {
 // forged_submaps and ghost_incarnation: nothing before the robot's closed submap and the next
 // robot's map are heard; then the robot's submap under its next indices, landmarks moved 3-15
 // m (forged_submaps), or under incarnations 77 and 78, the second opened at -1e9 s (ghost),
-// riding on a copy of the next robot's latest local map (its version, so stale) a tick later.
+// riding on a copy of the next robot's latest local map (its version, so stale) a tick later;
+// forged_relay's two ticks and versions on (a key the robot has not used yet), signed when the
+// injector has a signature.
 TEST(MapInjector, ForgedSubmapsRideOnAStaleCopyOfTheNextRobotsMap) {
-  for (const std::string c : {"forged_submaps", "ghost_incarnation"}) {
+  for (const std::string c : {"forged_submaps", "ghost_incarnation", "forged_relay"}) {
     SCOPED_TRACE(c);
     MapInjector inj({2, 3}, {c}, 99, 5);
+    const bool relay = c == "forged_relay";
+    if (relay) inj.SignWith([](std::span<const std::uint8_t> b) { return std::vector<std::uint8_t>{9, b[0]}; });
     WireSubmap own;
     own.id = {2, 7, 4};
     own.opened_s = 10.0;
@@ -213,16 +217,19 @@ TEST(MapInjector, ForgedSubmapsRideOnAStaleCopyOfTheNextRobotsMap) {
     std::optional<MapMessage> m = NextMap(inj);
     ASSERT_TRUE(m.has_value());
     EXPECT_EQ(m->robot_id, 3u);
-    EXPECT_EQ(m->version, 8u);
-    EXPECT_EQ(m->tick, 41u);
+    EXPECT_EQ(m->version, relay ? 10u : 8u);
+    EXPECT_EQ(m->tick, relay ? 42u : 41u);
     EXPECT_EQ(m->payload, from3.payload);
     std::vector<WireSubmap> rode;
-    for (const auto& bytes : m->submaps) {
-      SubmapDecodeResult d = DecodeSubmap(bytes);
+    for (const SubmapBlob& blob : m->submaps) {
+      SubmapDecodeResult d = DecodeSubmap(blob.bytes);
       ASSERT_TRUE(d.ok());
       rode.push_back(d.submap);
+      const std::vector<std::uint8_t> signature = relay ? std::vector<std::uint8_t>{9, blob.bytes[0]}
+                                                        : std::vector<std::uint8_t>{};
+      EXPECT_EQ(blob.signature, signature);
     }
-    if (c == "forged_submaps") {
+    if (c != "ghost_incarnation") {
       ASSERT_EQ(rode.size(), kInjectForgedSubmapCount);
       for (std::uint32_t k = 0; k < rode.size(); ++k) {
         EXPECT_EQ(rode[k].id, (SubmapId{2, 7, 5 + k}));

@@ -33,17 +33,17 @@ void AddOwn(SubmapRelay& r, const WireSubmap& s) {
 }
 
 // The submaps sent, decoded.
-std::vector<WireSubmap> Decoded(const std::vector<const std::vector<std::uint8_t>*>& sent) {
+std::vector<WireSubmap> Decoded(const std::vector<const SubmapBlob*>& sent) {
   std::vector<WireSubmap> out;
-  for (const auto* b : sent) {
-    const SubmapDecodeResult d = DecodeSubmap(*b);
+  for (const SubmapBlob* b : sent) {
+    const SubmapDecodeResult d = DecodeSubmap(b->bytes);
     EXPECT_TRUE(d.ok());
     out.push_back(d.submap);
   }
   return out;
 }
 
-std::vector<SubmapId> Ids(const std::vector<const std::vector<std::uint8_t>*>& sent) {
+std::vector<SubmapId> Ids(const std::vector<const SubmapBlob*>& sent) {
   std::vector<SubmapId> out;
   for (const WireSubmap& s : Decoded(sent)) out.push_back(s.id);
   return out;
@@ -224,7 +224,7 @@ TEST(SubmapRelay, EveryChainReachesEveryHopThroughALossyLine) {
         if (i > 0) in_range.insert(robot - 1);
         if (i + 1 < n) in_range.insert(robot + 1);
         Message m{i, relays[i].Advert(), {}};
-        for (const auto* b : relays[i].Due(in_range, now)) m.submaps.push_back(*b);
+        for (const auto* b : relays[i].Due(in_range, now)) m.submaps.push_back(b->bytes);
         in_flight.push_back(std::move(m));
       }
     }
@@ -257,7 +257,7 @@ SubmapRelay::Offer AddOpen(SubmapRelay& r, const WireSubmap& s, double now) {
   return r.AddOpen(s, EncodeSubmap(s), now);
 }
 
-std::vector<double> Ends(const std::vector<const std::vector<std::uint8_t>*>& sent) {
+std::vector<double> Ends(const std::vector<const SubmapBlob*>& sent) {
   std::vector<double> out;
   for (const WireSubmap& s : Decoded(sent)) out.push_back(s.closed_s);
   return out;
@@ -350,7 +350,7 @@ TEST(SubmapRelay, OpenSubmapsAdvertisedBoundedAndWithinTheBudget) {
   ASSERT_EQ(closed.size(), 1u);
   EXPECT_TRUE(r.DueOpen({6}, 10.0, o.send_bytes).empty());
   EXPECT_EQ(r.counters().held_back, 1u);
-  EXPECT_EQ(Ends(r.DueOpen({6}, 11.0, closed[0]->size())), (std::vector<double>{8.0}));
+  EXPECT_EQ(Ends(r.DueOpen({6}, 11.0, closed[0]->bytes.size())), (std::vector<double>{8.0}));
 }
 
 // A silent robot's open submap reaches every hop of a line, one relay after another, each
@@ -390,8 +390,8 @@ TEST(SubmapRelay, ASilentRobotsOpenSubmapReachesEveryHopOnce) {
       if (i > 0) in_range.insert(static_cast<RobotId>(i));
       if (i + 1 < n) in_range.insert(static_cast<RobotId>(i + 2));
       Message m{i, relays[i].Advert(), {}, {}};
-      for (const auto* b : relays[i].Due(in_range, now)) m.submaps.push_back(*b);
-      for (const auto* b : relays[i].DueOpen(in_range, now)) m.open.push_back(*b);
+      for (const auto* b : relays[i].Due(in_range, now)) m.submaps.push_back(b->bytes);
+      for (const auto* b : relays[i].DueOpen(in_range, now)) m.open.push_back(b->bytes);
       in_flight.push_back(std::move(m));
     }
   }

@@ -2,6 +2,7 @@
 CA, encrypted topics and per-participant permissions) gives the plain run's maps, and rogue
 participants publishing forged maps and sensor data during a secure run are never heard."""
 
+import base64
 import json
 import os
 import shutil
@@ -147,6 +148,51 @@ class SecureTest(SecureRunCase):
         # The exchange works as in the plain run: a lockstep run is the same run whatever the
         # transport, so every map is the plain run's, byte for byte.
         self.assert_same_maps(self.out, self.out.parent / "plain")
+
+
+class SignedSubmapsTest(SecureRunCase):
+    # R3: nothing authenticated a submap's origin; a relay could carry any robot's. Now every
+    # agent of a secure run signs its submaps with its identity and every receiver checks each
+    # new one against its robot's certificate (transport/submap_signer.h).
+    JOINING = ["--set", "agent.slam=cekf_submaps", "--set", "agent.fusion=joining", "--no-reference"]
+
+    def test_secure_joining_runs_sign_every_submap_and_are_the_same_run(self):
+        self.run_ok("plain", *self.JOINING)
+        first = self.run_ok("first", "--secure", *self.JOINING)
+        first_dir = self.out
+        self.run_ok("second", "--secure", *self.JOINING)
+        second_dir = self.out
+        for rid, a in first.items():
+            with self.subTest(agent=rid):
+                self.assertEqual(a["exit_code"], 0)
+                st = json.loads((first_dir / f"agent_{rid}" / "stats.json").read_text())
+                refused = st["submaps"]["refused"]
+                for why in ["unsigned", "unknown_signer", "forged_signature"]:
+                    self.assertEqual(refused[why], 0, refused)
+                self.assertGreater(st["submaps"]["received_new"], 0)
+                # Every submap held keeps its robot's signature: P-256 ECDSA as r | s, 64 bytes.
+                cp = json.loads((first_dir / f"agent_{rid}" / "checkpoint.json").read_text())
+                self.assertGreater(len(cp["submaps"]), 0)
+                for e in cp["submaps"]:
+                    self.assertEqual(sorted(e), ["signature", "submap"])
+                    self.assertEqual(len(base64.b64decode(e["signature"])), 64)
+        # ECDSA draws each signature afresh, so the checkpoints differ in bytes; the runs are the
+        # same run all the same (swarm compare leaves the signatures out), and the plain run's.
+        self.assertNotEqual((first_dir / "agent_1" / "checkpoint.json").read_bytes(),
+                            (second_dir / "agent_1" / "checkpoint.json").read_bytes())
+        r = subprocess.run(SWARM + ["compare", str(first_dir), str(second_dir)], capture_output=True, text=True,
+                           timeout=60)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assert_same_maps(first_dir, first_dir.parent / "plain")
+        # ... and compare still sees a submap changed in a checkpoint.
+        path = second_dir / "agent_2" / "checkpoint.json"
+        cp = json.loads(path.read_text())
+        cp["submaps"][0]["submap"] = cp["submaps"][1]["submap"]
+        path.write_text(json.dumps(cp))
+        r = subprocess.run(SWARM + ["compare", str(first_dir), str(second_dir)], capture_output=True, text=True,
+                           timeout=60)
+        self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+        self.assertIn("agent_2/checkpoint.json: differs at /submaps[0]", r.stdout)
 
 
 class RogueTest(SecureRunCase):

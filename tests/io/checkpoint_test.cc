@@ -338,9 +338,38 @@ TEST(Checkpoint, SubmapsAreValidatedLikeAPeersAndNamedByIdentity) {
   limits.max_submaps = 2;
   const CheckpointLoad r = Parse(doc.dump(), limits);
   ASSERT_TRUE(r.ok()) << r.error;
-  EXPECT_EQ(r.checkpoint->submaps,
-            (std::vector<std::vector<std::uint8_t>>{SubmapBytes(5, 1, 0), SubmapBytes(5, 1, 1, 60.0)}));
+  EXPECT_EQ(r.checkpoint->submaps, (std::vector<SubmapBlob>{SubmapBytes(5, 1, 0), SubmapBytes(5, 1, 1, 60.0)}));
   EXPECT_EQ(CheckpointLimits{}.max_submaps, 20000u);
+}
+
+// Issue R3: a secure run's submaps keep their signatures ({"submap", "signature"}, base64),
+// unsigned ones stay strings; an entry of any other shape is refused in one line naming it.
+TEST(Checkpoint, SignedSubmapsRoundTripAndMalformedOnesAreRefused) {
+  AgentCheckpoint c = Checkpoint();
+  c.submaps[1].signature = std::vector<std::uint8_t>(71, 0x30);
+  c.submaps[3].signature = {1};
+  json doc = CheckpointToJson(c);
+  EXPECT_TRUE(doc["submaps"][0].is_string());
+  EXPECT_EQ(doc["submaps"][1].size(), 2u);
+  const CheckpointLoad back = Parse(doc.dump());
+  ASSERT_TRUE(back.ok()) << back.error;
+  EXPECT_EQ(back.checkpoint->submaps, c.submaps);
+  const std::string bytes = Base64Encode(SubmapBytes(5, 1, 0));
+  const auto refused = [&](json entry, const std::string& why) {
+    json d = doc;
+    d["submaps"][3] = std::move(entry);
+    EXPECT_EQ(Refusal(d), Reason(why));
+  };
+  refused({{"submap", bytes}}, "submaps[3] has 1 keys, expected submap and signature");
+  refused({{"submap", bytes}, {"sig", "AQ=="}}, "submaps[3].signature is missing");
+  refused({{"submap", bytes}, {"signature", 7}}, "submaps[3].signature is 7, expected a base64 string");
+  refused({{"submap", bytes}, {"signature", "A"}},
+          "submaps[3].signature is not base64 (padded, the standard alphabet, no whitespace)");
+  refused({{"submap", bytes}, {"signature", ""}}, "submaps[3].signature holds 0 bytes, expected 1 to 1024");
+  refused({{"submap", bytes}, {"signature", Base64Encode(std::vector<std::uint8_t>(1025, 1))}},
+          "submaps[3].signature holds 1025 bytes, expected 1 to 1024");
+  refused({{"bytes", bytes}, {"signature", "AQ=="}}, "submaps[3].submap is missing");
+  refused({{"submap", 3}, {"signature", "AQ=="}}, "submaps[3].submap is 3, expected a base64 string");
 }
 
 TEST(Checkpoint, MalformedJsonIsOneLine) {

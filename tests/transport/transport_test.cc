@@ -211,9 +211,10 @@ TEST_F(TransportTest, ALocalMapCarriesSubmapsAndTheChainsHeld) {
   m.version = 3;
   m.payload = {1, 2};
   m.submaps_held = {{4, 1, 7, 0.0}, {9, 2, 0, 12.25}, {12, 3, 4000000000u, 1e6}};
-  m.submaps = {{0x4d, 0x53, 1, 0, 255}, {}, std::vector<std::uint8_t>(9000, 0xa5)};
+  m.submaps = {{{0x4d, 0x53, 1, 0, 255}, {}}, {{}, {1}}, {std::vector<std::uint8_t>(9000, 0xa5), {9, 8, 7}}};
   m.open_submap = {7, 6, 5, 4};
-  m.open_relayed = {{3, 2, 1}, std::vector<std::uint8_t>(5000, 0x5a)};
+  m.open_submap_signature = std::vector<std::uint8_t>(72, 0x30);
+  m.open_relayed = {{{3, 2, 1}, {}}, {std::vector<std::uint8_t>(5000, 0x5a), std::vector<std::uint8_t>(70, 2)}};
   m.placements = {{9, 2, -1.5, 2e3, 3.1}, {12, 3, 0.25, -7.0, -0.5}};
   w.Write(m);
   const auto got = TakeN(r, 1);
@@ -221,6 +222,7 @@ TEST_F(TransportTest, ALocalMapCarriesSubmapsAndTheChainsHeld) {
   EXPECT_EQ(got[0].submaps_held, m.submaps_held);
   EXPECT_EQ(got[0].submaps, m.submaps);
   EXPECT_EQ(got[0].open_submap, m.open_submap);
+  EXPECT_EQ(got[0].open_submap_signature, m.open_submap_signature);
   EXPECT_EQ(got[0].open_relayed, m.open_relayed);
   EXPECT_EQ(got[0].placements, m.placements);
   EXPECT_EQ(got[0].payload, m.payload);
