@@ -414,19 +414,17 @@ TEST(AgentNodeLimits, TakesAPeersChainPlacementsOnlyWhenEveryOneIsPlausible) {
 }
 
 // Three robots in real time with fusion joining, and a one-landmark submap's bytes.
-Scenario JoiningTrio() {
-  return ParseScenario(R"(version: 1
-world: {landmarks: {list: [[5, 0], [0, 5]]}}
-robots:
-  list:
-    - {id: 1, start: [0, 0, 0]}
-    - {id: 2, start: [1, 0, 0]}
-    - {id: 3, start: [2, 0, 0]}
-feeder: {pace: realtime}
-agent: {map_publish_period_s: 1.0, fusion: joining}
-)",
-                       "test.yaml");
+// Robots 1 .. n along the x axis, realtime, fusion joining (with the submap filter when asked).
+Scenario JoiningSwarm(int n, bool submap_slam = false) {
+  std::string yaml = "version: 1\nworld: {landmarks: {list: [[5, 0], [0, 5]]}}\nrobots:\n  list:\n";
+  for (int i = 1; i <= n; ++i)
+    yaml += "    - {id: " + std::to_string(i) + ", start: [" + std::to_string(i - 1) + ", 0, 0]}\n";
+  yaml += "feeder: {pace: realtime}\nagent: {map_publish_period_s: 1.0, ";
+  yaml += submap_slam ? "slam: cekf_submaps, fusion: joining}\n" : "fusion: joining}\n";
+  return ParseScenario(yaml, "test.yaml");
 }
+
+Scenario JoiningTrio() { return JoiningSwarm(3); }
 
 std::vector<std::uint8_t> OneLandmarkSubmap(RobotId robot, std::uint32_t index, double opened_s, double closed_s) {
   WireSubmap s;
@@ -536,18 +534,7 @@ class FakeOrigin final : public SubmapOrigin {
 // robot's count as forged, never as a conflict (which would say the robot made two); an
 // edited checkpoint's submap is refused at Resume.
 TEST(AgentNodeLimits, SecureRunsTakeOnlySubmapsSignedByTheRobotTheyClaim) {
-  const Scenario sc = ParseScenario(R"(version: 1
-world: {landmarks: {list: [[5, 0], [0, 5]]}}
-robots:
-  list:
-    - {id: 1, start: [0, 0, 0]}
-    - {id: 2, start: [1, 0, 0]}
-    - {id: 3, start: [2, 0, 0]}
-    - {id: 4, start: [3, 0, 0]}
-feeder: {pace: realtime}
-agent: {map_publish_period_s: 1.0, slam: cekf_submaps, fusion: joining}
-)",
-                                    "test.yaml");
+  const Scenario sc = JoiningSwarm(4, /*submap_slam=*/true);
   Capture out;
   FakeOrigin origin(1);
   AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
