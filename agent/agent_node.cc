@@ -57,6 +57,7 @@ std::string_view ToString(MapRefusal r) {
     case MapRefusal::kTooManyLandmarks: return "too_many_landmarks";
     case MapRefusal::kOutOfWorld: return "out_of_world";
     case MapRefusal::kCovarianceTooLarge: return "covariance_too_large";
+    case MapRefusal::kCovarianceTooSmall: return "covariance_too_small";
     case MapRefusal::kVersionJump: return "version_jump";
     case MapRefusal::kTooManyIncarnations: return "too_many_incarnations";
   }
@@ -71,6 +72,7 @@ std::string_view ToString(SubmapRefusal r) {
     case SubmapRefusal::kTooManyLandmarks: return "too_many_landmarks";
     case SubmapRefusal::kOutOfWorld: return "out_of_world";
     case SubmapRefusal::kCovarianceTooLarge: return "covariance_too_large";
+    case SubmapRefusal::kCovarianceTooSmall: return "covariance_too_small";
     case SubmapRefusal::kNotThePublishers: return "not_the_publishers";
     case SubmapRefusal::kImplausiblePlacements: return "implausible_placements";
     case SubmapRefusal::kOpenRelayedByItsRobot: return "open_relayed_by_its_robot";
@@ -421,6 +423,7 @@ void AgentNode::ProcessMap(const MapMessage& msg) {
     case MapLimitViolation::kTooManyLandmarks: return refuse(MapRefusal::kTooManyLandmarks);
     case MapLimitViolation::kOutOfWorld: return refuse(MapRefusal::kOutOfWorld);
     case MapLimitViolation::kCovarianceTooLarge: return refuse(MapRefusal::kCovarianceTooLarge);
+    case MapLimitViolation::kCovarianceTooSmall: return refuse(MapRefusal::kCovarianceTooSmall);
   }
   switch (exchange_.OnPeerMap(msg.robot_id, msg.incarnation, msg.kind, msg.version, msg.origin_stamp,
                               std::move(decoded.map), now)) {
@@ -464,6 +467,7 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
       case MapLimitViolation::kTooManyLandmarks: refuse(SubmapRefusal::kTooManyLandmarks); break;
       case MapLimitViolation::kOutOfWorld: refuse(SubmapRefusal::kOutOfWorld); break;
       case MapLimitViolation::kCovarianceTooLarge: refuse(SubmapRefusal::kCovarianceTooLarge); break;
+      case MapLimitViolation::kCovarianceTooSmall: refuse(SubmapRefusal::kCovarianceTooSmall); break;
     }
     return false;
   };

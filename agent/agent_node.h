@@ -71,10 +71,11 @@ enum class MapRefusal {
   kTooManyLandmarks,      // agent.max_peer_landmarks (refused before decoding)
   kOutOfWorld,            // a landmark beyond agent.world_radius_m
   kCovarianceTooLarge,    // a landmark less certain than agent.max_landmark_sigma_m
+  kCovarianceTooSmall,    // ... or more certain than agent.min_landmark_sigma_m (issue R3)
   kVersionJump,           // a version further ahead than the peer could have published
   kTooManyIncarnations,   // a new map frame of a robot that has max_incarnations kept already
 };
-inline constexpr int kMapRefusalCount = 6;
+inline constexpr int kMapRefusalCount = 7;
 std::string_view ToString(MapRefusal r);
 
 // Why a well-formed submap riding on a peer's local map (closed, or with fusion joining open)
@@ -87,6 +88,7 @@ enum class SubmapRefusal {
   kTooManyLandmarks,     // the map limits, as for maps
   kOutOfWorld,
   kCovarianceTooLarge,
+  kCovarianceTooSmall,
   kNotThePublishers,  // an open submap that is not the publisher's own incarnation's
   // A local map's chain placements (fusion joining), all of them: one of a robot not of this
   // run or of the publisher's own chain, not finite or beyond a map's bound, or more of them
@@ -100,7 +102,7 @@ enum class SubmapRefusal {
   kUnknownSigner,    // ... no certificate of the run's for the robot it claims, ...
   kForgedSignature,  // ... or a signature that is not that robot's over its bytes
 };
-inline constexpr int kSubmapRefusalCount = 14;
+inline constexpr int kSubmapRefusalCount = 15;
 std::string_view ToString(SubmapRefusal r);
 // A local map carries at most this many closed submaps, and as many relayed open ones (the first
 // are taken, the rest refused).

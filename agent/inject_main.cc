@@ -28,7 +28,7 @@ namespace tp = transport;
 using io::json;
 
 // {"unknown_id": N, "faulty_incarnation": I, "faulty_honest_maps": n,
-//  "cases": {case: {"sent": n, "by_sender": {"id": n}}}}
+//  "heard": {"id": {"maps": n, "closed_submap": b}}, "cases": {case: {"sent": n, "by_sender": {"id": n}}}}
 json ReportJson(const MapInjector& injector) {
   json cases = json::object();
   for (const std::string& c : injector.cases()) {
@@ -42,7 +42,12 @@ json ReportJson(const MapInjector& injector) {
     }
     cases[c] = {{"sent", total}, {"by_sender", by}};
   }
+  json heard = json::object();
+  for (const auto& [robot, h] : injector.heard_from()) {
+    heard[std::to_string(robot)] = {{"maps", h.maps}, {"closed_submap", h.closed_submap}};
+  }
   return {{"unknown_id", injector.unknown_id()},
+          {"heard", heard},
           {"faulty_incarnation", kInjectFaultyIncarnation},
           {"faulty_honest_maps", injector.honest_sent()},
           {"cases", cases}};

@@ -19,6 +19,7 @@ std::string_view ToString(InboxRefusal r) {
     case InboxRefusal::kPublisherFull: return "publisher_full";
     case InboxRefusal::kUnridden: return "unridden_sighting";
     case InboxRefusal::kReplayed: return "replayed";
+    case InboxRefusal::kKeyTaken: return "key_taken";
   }
   return "?";
 }
@@ -118,7 +119,14 @@ LockstepInbox::Offer LockstepInbox::OfferMap(const MapMessage& map) {
   Held& h = held_[{robot, map.incarnation}];
   const MapKey key{map.tick, robot, map.incarnation, static_cast<int>(map.kind), map.version};
   auto slot = h.ticks.find(map.tick);
-  if (slot != h.ticks.end() && slot->second.maps.contains(key)) return {};  // a duplicate: kept once
+  if (slot != h.ticks.end()) {
+    const auto kept = slot->second.maps.find(key);
+    if (kept != slot->second.maps.end()) {
+      if (SameMap(kept->second, map)) return {};  // a duplicate: kept once
+      Refuse(InboxRefusal::kKeyTaken);
+      return {InboxRefusal::kKeyTaken};
+    }
+  }
   if (Replayed(map, &h)) {
     Refuse(InboxRefusal::kReplayed);
     return {InboxRefusal::kReplayed};
@@ -216,6 +224,14 @@ LockstepInbox::Due LockstepInbox::TakeBefore(std::uint32_t tick) {
   out.sightings.reserve(sightings.size());
   for (auto& [k, s] : sightings) out.sightings.push_back(std::move(s));
   return out;
+}
+
+bool LockstepInbox::SameMap(const MapMessage& a, const MapMessage& b) {
+  // (Not the sightings: they are kept apart from their map, each once by its own key.)
+  return a.stamp == b.stamp && a.origin_stamp == b.origin_stamp && a.payload == b.payload &&
+         a.submaps_held == b.submaps_held && a.submaps == b.submaps &&
+         a.open_submap == b.open_submap && a.open_submap_signature == b.open_submap_signature &&
+         a.placements == b.placements && a.open_relayed == b.open_relayed;
 }
 
 bool LockstepInbox::Replayed(const MapMessage& map, const Held* held) const {

@@ -38,7 +38,9 @@
 //   payload may be genuine after a forger's high version (the exchange refuses the stale one),
 //   and refusing those would let one forged version silence a robot.
 // Every refusal is counted by reason. Duplicates (a late reader gets a writer's history) are
-// kept once and not counted.
+// kept once and not counted; another map under a key held is not kept, and counted
+// (key_taken): only a forger makes two maps of one key, and which one came first decides which
+// is kept (in a plain run the forger's, when it came first; docs/SECURITY.md).
 //
 // Pure: no DDS, clocks or threads; the caller hands in the facts (the ticks' peer lists, the
 // run's robots) and applies what it takes out.
@@ -68,8 +70,10 @@ enum class InboxRefusal : std::uint8_t {
   kPublisherFull,     // beyond maps_per_tick for its tick and publisher: counted for the barrier, not kept
   kUnridden,          // a sighting on its own topic: in lockstep agents' sightings ride on their maps
   kReplayed,          // a copy of a map its publisher sent for an earlier tick (its kind, version, payload)
+  kKeyTaken,          // another map under a map key held (tick, robot, incarnation, kind, version): the first
+                      // that came is kept (a forger's, before the robot's own; or the robot's, before a forger's)
 };
-inline constexpr int kInboxRefusalCount = 8;
+inline constexpr int kInboxRefusalCount = 9;
 
 std::string_view ToString(InboxRefusal r);
 
@@ -155,6 +159,9 @@ class LockstepInbox {
   // Whether a map copies one its publisher sent for an earlier tick, taken out or held in
   // `held` (when given).
   bool Replayed(const MapMessage& map, const Held* held) const;
+  // Whether two maps under one key are the same message (a writer's history delivers it again),
+  // their riding sightings aside.
+  static bool SameMap(const MapMessage& a, const MapMessage& b);
 
   bool Listed(RobotId robot, std::uint32_t incarnation) const { return listed_.contains({robot, incarnation}); }
   // Room for one more incarnation of `robot` (displacing one the latest tick does not list);

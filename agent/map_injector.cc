@@ -49,6 +49,7 @@ void MapInjector::OnMap(const MapMessage& m) {
       std::find(robots_.begin(), robots_.end(), m.robot_id) == robots_.end()) {
     return;
   }
+  ++maps_heard_[m.robot_id];
   for (const SubmapBlob& blob : m.submaps) {
     SubmapDecodeResult s = DecodeSubmap(blob.bytes);
     if (!s.ok() || s.submap.id.robot != m.robot_id || s.submap.id.incarnation != m.incarnation) continue;
@@ -63,6 +64,13 @@ void MapInjector::OnMap(const MapMessage& m) {
   MapDecodeResult d = DecodeMap(m.payload);
   if (!d.ok()) return;
   heard_[m.robot_id] = {m, std::move(d.map)};
+}
+
+std::map<RobotId, MapInjector::HeardFrom> MapInjector::heard_from() const {
+  std::map<RobotId, HeardFrom> out;
+  for (const auto& [robot, n] : maps_heard_) out[robot].maps = n;
+  for (const auto& [robot, s] : last_closed_) out[robot].closed_submap = true;
+  return out;
 }
 
 void MapInjector::OnStatus(const AgentStatus& s) {

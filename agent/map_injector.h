@@ -123,6 +123,13 @@ class MapInjector {
   const std::map<std::string, std::map<RobotId, int>>& sent() const { return sent_; }
   // Honest maps the faulty peers sent before turning bad.
   int honest_sent() const { return honest_sent_; }
+  // Per robot: its local maps heard, and whether one of its closed submaps was (what the
+  // submap cases need before they can send).
+  struct HeardFrom {
+    int maps = 0;
+    bool closed_submap = false;
+  };
+  std::map<RobotId, HeardFrom> heard_from() const;
   RobotId unknown_id() const { return unknown_id_; }
   const std::vector<std::string>& cases() const { return cases_; }
 
@@ -147,7 +154,8 @@ class MapInjector {
   RobotId unknown_id_;
   std::mt19937_64 rng_;
   std::map<RobotId, Heard> heard_;  // each robot's newest well-formed local map of its own
-  std::set<RobotId> aligned_;       // robots some agent reported aligned
+  std::map<RobotId, int> maps_heard_;
+  std::set<RobotId> aligned_;  // robots some agent reported aligned
   std::set<MsgKey> injected_;
   std::map<std::string, std::map<RobotId, int>> sent_;
   std::size_t tick_ = 0;

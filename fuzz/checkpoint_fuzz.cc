@@ -16,6 +16,7 @@
 #include "common/map/landmark_map.h"
 #include "common/map/map_limits.h"
 #include "common/map/submap_codec.h"
+#include "common/map/submap_origin.h"
 #include "fuzz/fuzz_check.h"
 
 namespace mapmesh {
@@ -77,10 +78,13 @@ void CheckSnapshot(const IncarnationSnapshot& s, const io::CheckpointLimits& lim
 
 // The documented validation of the submaps: within the limit, each decodes and keeps the submap
 // limits, closes by the run's end, is not the resuming incarnation's, and no identity repeats.
-void CheckSubmaps(const std::vector<std::vector<std::uint8_t>>& submaps, const io::CheckpointLimits& limits) {
+// A signature, when there is one, holds 1 to kMaxSubmapSignatureBytes bytes.
+void CheckSubmaps(const std::vector<SubmapBlob>& submaps, const io::CheckpointLimits& limits) {
   MAPMESH_FUZZ_CHECK(submaps.size() <= limits.max_submaps);
   std::set<SubmapId> ids;
-  for (const std::vector<std::uint8_t>& bytes : submaps) {
+  for (const SubmapBlob& blob : submaps) {
+    const std::vector<std::uint8_t>& bytes = blob.bytes;
+    MAPMESH_FUZZ_CHECK(blob.signature.size() <= kMaxSubmapSignatureBytes);
     const SubmapDecodeResult d = DecodeSubmap(bytes);
     MAPMESH_FUZZ_CHECK(d.ok());
     MAPMESH_FUZZ_CHECK(EncodeSubmap(d.submap) == bytes);

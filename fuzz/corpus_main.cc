@@ -328,6 +328,9 @@ void CheckpointSeeds(const fs::path& dir, const fs::path& source_dir) {
     held.submaps.push_back(EncodeSubmap(s));
   }
   add("submaps", io::CheckpointToJson(held).dump());
+  // ... and signed, as a secure run's (issue R3): a 64-byte signature on one of them.
+  held.submaps[2].signature = std::vector<std::uint8_t>(64, 0x5a);
+  add("signed-submaps", io::CheckpointToJson(held).dump());
 
   // Bad cases, one per reason.
   const auto variant = [&](const std::string& what, auto change) {

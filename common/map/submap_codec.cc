@@ -50,6 +50,12 @@ std::string_view ToString(SubmapDecodeError e) {
   return "unknown";
 }
 
+namespace {
+// A diagonal entry of L: positive and a normal f32 (issue R3: a denormal one, below 1.2e-38, was
+// taken; its covariance is singular in any arithmetic that follows).
+bool PositiveNormal(float v) { return v > 0.0f && std::isnormal(v); }
+}  // namespace
+
 bool WireSubmap::SetCovariance(const Eigen::MatrixXd& p) {
   if (p.rows() != p.cols() || !p.allFinite() || (p - p.transpose()).cwiseAbs().maxCoeff() > 1e-9 * p.norm()) {
     return false;
@@ -59,7 +65,10 @@ bool WireSubmap::SetCovariance(const Eigen::MatrixXd& p) {
   Eigen::MatrixXd f = llt.matrixL();
   // As the wire holds it; a diagonal entry that rounds to 0 in f32 would not be accepted.
   f = f.cast<float>().cast<double>();
-  if ((f.diagonal().array() <= 0.0).any() || !f.allFinite()) return false;
+  if (!f.allFinite()) return false;
+  for (Eigen::Index r = 0; r < f.rows(); ++r) {
+    if (!PositiveNormal(static_cast<float>(f(r, r)))) return false;
+  }
   l = std::move(f);
   return true;
 }
@@ -85,7 +94,7 @@ std::vector<std::uint8_t> EncodeSubmap(const WireSubmap& s, SubmapDecodeError* e
   if (!DistinctKeys(s.keys)) return fail(SubmapDecodeError::kDuplicateId);
   if (!InBounds(s.x)) return fail(SubmapDecodeError::kOutOfBounds);
   for (Eigen::Index r = 0; r < m; ++r) {
-    if (!(static_cast<float>(s.l(r, r)) > 0.0f)) return fail(SubmapDecodeError::kBadCovariance);
+    if (!PositiveNormal(static_cast<float>(s.l(r, r)))) return fail(SubmapDecodeError::kBadCovariance);
     for (Eigen::Index c = 0; c <= r; ++c) {
       if (!std::isfinite(static_cast<float>(s.l(r, c)))) return fail(SubmapDecodeError::kNonFinite);
     }
@@ -151,7 +160,9 @@ SubmapDecodeResult DecodeSubmap(std::span<const std::uint8_t> payload) {
   if (!s.x.allFinite() || !s.l.allFinite()) return fail(SubmapDecodeError::kNonFinite);
   if (!DistinctKeys(s.keys)) return fail(SubmapDecodeError::kDuplicateId);
   if (!InBounds(s.x)) return fail(SubmapDecodeError::kOutOfBounds);
-  if ((s.l.diagonal().array() <= 0.0).any()) return fail(SubmapDecodeError::kBadCovariance);
+  for (Eigen::Index r = 0; r < s.l.rows(); ++r) {
+    if (!PositiveNormal(static_cast<float>(s.l(r, r)))) return fail(SubmapDecodeError::kBadCovariance);
+  }
   return out;
 }
 

@@ -69,7 +69,7 @@ enum class SubmapDecodeError {
   kUnknownVersion,  //
   kBadHeader,       // unknown flags, or stamps not finite or closing before opening
   kNonFinite,       // a NaN or inf in x or L
-  kBadCovariance,   // L's diagonal not positive (the covariance would not be positive definite)
+  kBadCovariance,   // L's diagonal not positive, or denormal (the covariance would not be positive definite)
   kDuplicateId,     // one landmark id twice
   kOutOfBounds,     // a coordinate beyond kSubmapCodecMaxCoordinateM
 };

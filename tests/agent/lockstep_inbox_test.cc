@@ -273,6 +273,35 @@ TEST(LockstepInbox, ACopyOfAnEarlierTicksMapIsRefusedAndNeverWaitedFor) {
   EXPECT_EQ(late.TakeBefore(10).maps.size(), 1u);
 }
 
+// Issue R3: a second, different map under a key held (tick, robot, incarnation, kind, version)
+// was dropped as a duplicate, in no count. Only a forger makes one: counted (key_taken), not
+// kept, not counted for the barrier; the first stays. The same message again is a duplicate.
+TEST(LockstepInbox, AnotherMapUnderAKeyHeldIsCountedAndNotKept) {
+  LockstepInbox in = Inbox();
+  in.OnTick(5, Peers({{1, 1}, {2, 1}}));
+  in.TakeBefore(5);
+  const MapMessage first = Map(2, 1, 6);
+  EXPECT_FALSE(Offer(in, first));
+  EXPECT_FALSE(Offer(in, first));  // delivered again (a writer's history)
+  for (int change = 0; change < 3; ++change) {
+    MapMessage other = first;
+    if (change == 0) other.payload.push_back(1);
+    if (change == 1) other.submaps.push_back(std::vector<std::uint8_t>{1, 2});
+    if (change == 2) other.open_submap_signature = {7};
+    EXPECT_EQ(Offer(in, other), InboxRefusal::kKeyTaken) << change;
+  }
+  EXPECT_EQ(Refused(in, InboxRefusal::kKeyTaken), 3u);
+  ExchangeTick deliver6;
+  deliver6.index = 6;
+  deliver6.peers = {{2, 1, 2}};
+  EXPECT_EQ(in.Missing(deliver6), (std::vector<TickPeer>{{2, 1, 1}}));  // only the first counted
+  in.OnTick(7, Peers({{1, 1}, {2, 1}}));
+  const auto out = in.TakeBefore(7);
+  ASSERT_EQ(out.maps.size(), 1u);
+  EXPECT_EQ(out.maps[0].payload, first.payload);
+  EXPECT_TRUE(out.maps[0].submaps.empty());
+}
+
 // Over seeded streams: three genuine peers publish two maps a tick (with riders), in a random
 // order of arrival that a tick never crosses, while a forger floods under robot 4's name (any
 // incarnation, tick and riders), under robots not in the run, and under robots 2 and 3 with

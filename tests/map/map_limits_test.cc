@@ -35,6 +35,18 @@ TEST(MapLimits, EachLimitIsItsOwnReason) {
   LandmarkMap m = Grid(3, 1.0, 0.1);
   m.landmarks[1].cov(1, 1) = 4.01;
   EXPECT_EQ(CheckMapLimits(m, limits), MapLimitViolation::kCovarianceTooLarge);
+  // Issue R3: a landmark more certain than min_sigma_m (1e-30 m made it outweigh every other
+  // map), along any direction: a thin ellipse whose axes are each within the bound too.
+  limits.min_sigma_m = 1e-3;
+  m = Grid(3, 1.0, 0.1);
+  m.landmarks[2].cov = 1e-60 * Eigen::Matrix2d::Identity();
+  EXPECT_EQ(CheckMapLimits(m, limits), MapLimitViolation::kCovarianceTooSmall);
+  m.landmarks[2].cov << 0.01, 0.01 - 1e-9, 0.01 - 1e-9, 0.01;  // sigma 0.1 m along x and y, 2e-5 m across
+  EXPECT_EQ(CheckMapLimits(m, limits), MapLimitViolation::kCovarianceTooSmall);
+  m.landmarks[2].cov << 0.01, 0.0099, 0.0099, 0.01;  // 7 mm across
+  EXPECT_EQ(CheckMapLimits(m, limits), MapLimitViolation::kNone);
+  EXPECT_EQ(ToString(MapLimitViolation::kCovarianceTooSmall), "covariance_too_small");
+  EXPECT_EQ(MapLimits{}.min_sigma_m, 1e-6);
   // Size first: a huge map is refused before any of its landmarks is looked at.
   EXPECT_EQ(CheckMapLimits(Grid(20, 50.0, 9.0), limits), MapLimitViolation::kTooManyLandmarks);
   EXPECT_EQ(ToString(MapLimitViolation::kOutOfWorld), "out_of_world");
@@ -68,6 +80,16 @@ TEST(MapLimits, ASubmapIsHeldToTheSameLimits) {
   EXPECT_EQ(CheckSubmapLimits(vague, limits), MapLimitViolation::kCovarianceTooLarge);
   limits.max_landmarks = 1;
   EXPECT_EQ(CheckSubmapLimits(vague, limits), MapLimitViolation::kTooManyLandmarks);
+  // A landmark's marginal more certain than min_sigma_m (issue R3: a factor of 1e-30 I was
+  // taken); the end pose is not held to it (a robot that stood still knows where it is).
+  limits.max_landmarks = 2;
+  WireSubmap sure = s;
+  ASSERT_TRUE(sure.SetCovariance(1e-30 * Eigen::MatrixXd::Identity(7, 7)));
+  EXPECT_EQ(CheckSubmapLimits(sure, limits), MapLimitViolation::kCovarianceTooSmall);
+  Eigen::MatrixXd still = Eigen::MatrixXd::Identity(7, 7);
+  still.topLeftCorner(3, 3) = 1e-20 * Eigen::Matrix3d::Identity();
+  ASSERT_TRUE(sure.SetCovariance(still));
+  EXPECT_EQ(CheckSubmapLimits(sure, limits), MapLimitViolation::kNone);
 }
 
 }  // namespace

@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 
 namespace mapmesh {
@@ -92,6 +94,9 @@ TEST(SubmapCodec, EncoderRefusesWhatTheDecoderWould) {
   s.l(3, 3) = 0.0;
   EXPECT_EQ(refused(s), SubmapDecodeError::kBadCovariance);
   s = good;
+  s.l(3, 3) = 1e-40;  // a denormal f32
+  EXPECT_EQ(refused(s), SubmapDecodeError::kBadCovariance);
+  s = good;
   s.l(1, 4) = 0.1;  // above the diagonal
   EXPECT_EQ(refused(s), SubmapDecodeError::kBadCovariance);
   s = good;
@@ -136,6 +141,14 @@ TEST(SubmapCodec, DecoderRefusesMalformedPayloadsAndSurvivesByteFlips) {
   const std::size_t l_at = kSubmapCodecHeaderBytes + 4 * 5 + 8 * 13;
   std::memcpy(b.data() + l_at, &minus_one, 4);
   EXPECT_EQ(decode(b), SubmapDecodeError::kBadCovariance);
+  // ... or to a denormal f32 (issue R3: taken before; its covariance is singular).
+  const float denormal = 1e-40f;
+  ASSERT_FALSE(std::isnormal(denormal));
+  std::memcpy(b.data() + l_at, &denormal, 4);
+  EXPECT_EQ(decode(b), SubmapDecodeError::kBadCovariance);
+  const float smallest_normal = std::numeric_limits<float>::min();
+  std::memcpy(b.data() + l_at, &smallest_normal, 4);
+  EXPECT_TRUE(DecodeSubmap(b).ok());
   for (int trial = 0; trial < 2000; ++trial) {
     b = bytes;
     const std::size_t at = rng() % b.size();
