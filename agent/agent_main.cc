@@ -298,10 +298,12 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"duplicates", sc.duplicates},
               {"conflicts", sc.conflicts},
               {"full", sc.full},
+              {"chain_full", sc.chain_full},
               {"sent", sc.sent},
               {"bytes_sent", sc.bytes_sent},
               {"sent_again", sc.sent_again},
               {"held_back", sc.held_back},
+              {"debt_paid", sc.debt_paid},
               {"open_own_bytes_sent", s.open_submap_bytes_sent},
               {"open_held", node.submaps().open().size()},
               {"open_taken", sc.open_taken},
@@ -607,8 +609,8 @@ int Run(int argc, char** argv) {
       warned_left_out = true;
     }
     if (submaps_left_out > 0 && !warned_submaps_left_out) {
-      spdlog::warn("checkpoint: {} of the peers' submaps held are left out (a checkpoint holds {} at most)",
-                   submaps_left_out, io::CheckpointLimits{}.max_submaps);
+      spdlog::warn("checkpoint: {} of the submaps held are left out (a checkpoint holds {} at most, {} MiB)",
+                   submaps_left_out, io::CheckpointLimits{}.max_submaps, io::CheckpointLimits{}.max_submap_bytes >> 20);
       warned_submaps_left_out = true;
     }
   };

@@ -20,6 +20,10 @@ constexpr std::size_t kMapMessageFixedBytes = 4 + 1 + 4 + 4 + 8 + 8 + 4;  // key
 constexpr std::size_t kSightingWireBytes = 4 + 4 + 1 + 4 + 4 + 8 + 3 * 8 + 6 * 8 + 4 * 8;
 constexpr std::size_t kChainPlacementWireBytes = 4 + 4 + 3 * 8;
 
+// A submap closes this many landmarks short of what agent.max_submap_bytes holds: its size is
+// checked before a scan, which may add a few landmarks.
+constexpr std::uint32_t kSubmapCloseMargin = 16;
+
 }  // namespace
 
 std::unique_ptr<LocalMapper> MakeLocalMapper(const AgentOptions& options, const FilterNoise& noise,
@@ -32,7 +36,13 @@ std::unique_ptr<LocalMapper> MakeLocalMapper(const AgentOptions& options, const 
     return std::make_unique<DeadReckoningMapper>(o);
   }
   if (options.slam.filter == SlamMethod::kCekfSubmaps) {
-    return std::make_unique<SubmapSlam>(noise, options.slam.ForSensor(sensor));
+    // A submap closes before it outgrows what peers take (agent.max_submap_bytes), with room
+    // for the new landmarks of the scan after the check (kSubmapCloseMargin).
+    LocalSlamOptions o = options.slam.ForSensor(sensor);
+    const std::uint32_t within = SubmapLandmarksWithin(options.exchange.submaps.max_submap_bytes);
+    const int cap = static_cast<int>(within > kSubmapCloseMargin ? within - kSubmapCloseMargin : 1);
+    o.submaps.landmarks = o.submaps.landmarks > 0 ? std::min(o.submaps.landmarks, cap) : cap;
+    return std::make_unique<SubmapSlam>(noise, o);
   }
   return std::make_unique<LocalSlam>(noise, options.slam.ForSensor(sensor));
 }
@@ -81,6 +91,7 @@ std::string_view ToString(SubmapRefusal r) {
     case SubmapRefusal::kUnsigned: return "unsigned";
     case SubmapRefusal::kUnknownSigner: return "unknown_signer";
     case SubmapRefusal::kForgedSignature: return "forged_signature";
+    case SubmapRefusal::kTooLarge: return "too_large";
   }
   return "unknown";
 }
@@ -473,8 +484,15 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
   };
   // Open submaps: the publisher's own, and silent robots' it relays. The latest of each robot
   // incarnation is kept (an older one arriving late changes nothing); never one of ours.
+  // Longer than any submap a real chain makes: refused before it is decoded (issue R3).
+  const auto too_large = [&](const std::vector<std::uint8_t>& bytes) {
+    if (bytes.size() <= options_.exchange.submaps.max_submap_bytes) return false;
+    refuse(SubmapRefusal::kTooLarge);
+    return true;
+  };
   const auto take_open = [&](const std::vector<std::uint8_t>& bytes, std::span<const std::uint8_t> signature,
                              bool relayed) {
+    if (too_large(bytes)) return;
     const SubmapDecodeResult d = DecodeSubmap(bytes);
     // The signature is checked once per version kept (the same bytes again change nothing).
     const auto fresh = [&] {
@@ -518,6 +536,7 @@ void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
       continue;
     }
     const SubmapBlob& blob = msg.submaps[i];
+    if (too_large(blob.bytes)) continue;
     const SubmapDecodeResult d = DecodeSubmap(blob.bytes);
     if (!d.ok()) {
       ++stats_.submaps_rejected[static_cast<int>(d.error)];
@@ -685,12 +704,19 @@ AgentCheckpoint AgentNode::Checkpoint(std::size_t* left_out, std::size_t* submap
   c.earlier.erase(c.earlier.begin(), c.earlier.begin() + static_cast<std::ptrdiff_t>(extra));
   if (left_out != nullptr) *left_out = extra;
   // The closed submaps held, the own robot's first (its chains are what only it may lack after
-  // a restart), as many as the loader accepts.
+  // a restart), as many as the loader accepts, in count and in bytes (issue R3: a checkpoint
+  // past the loader's file limit could not be resumed from).
   std::vector<SubmapId> ids = submaps_.book().Ids();
   std::stable_partition(ids.begin(), ids.end(), [this](const SubmapId& id) { return id.robot == self_; });
-  const std::size_t submap_cap = io::CheckpointLimits{}.max_submaps;
-  if (submaps_left_out != nullptr) *submaps_left_out = ids.size() > submap_cap ? ids.size() - submap_cap : 0;
-  if (ids.size() > submap_cap) ids.resize(submap_cap);
+  const io::CheckpointLimits limits;
+  std::size_t kept = 0, bytes = 0;
+  for (; kept < ids.size() && kept < limits.max_submaps; ++kept) {
+    const SubmapBlob* b = submaps_.book().Blob(ids[kept]);
+    if (bytes + b->bytes.size() + b->signature.size() > limits.max_submap_bytes) break;
+    bytes += b->bytes.size() + b->signature.size();
+  }
+  if (submaps_left_out != nullptr) *submaps_left_out = ids.size() - kept;
+  ids.resize(kept);
   std::sort(ids.begin(), ids.end());
   c.submaps.reserve(ids.size());
   for (const SubmapId& id : ids) c.submaps.push_back(*submaps_.book().Blob(id));

@@ -101,8 +101,9 @@ enum class SubmapRefusal {
   kUnsigned,
   kUnknownSigner,    // ... no certificate of the run's for the robot it claims, ...
   kForgedSignature,  // ... or a signature that is not that robot's over its bytes
+  kTooLarge,         // longer than agent.max_submap_bytes (refused unread; issue R3)
 };
-inline constexpr int kSubmapRefusalCount = 15;
+inline constexpr int kSubmapRefusalCount = 16;
 std::string_view ToString(SubmapRefusal r);
 // A local map carries at most this many closed submaps, and as many relayed open ones (the first
 // are taken, the rest refused).

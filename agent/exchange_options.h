@@ -148,6 +148,16 @@ struct ExchangeOptions {
     int held = static_cast<int>(submaps.max_held);
     r.GetInRange("max_submaps_held", held, 1, limits::kMaxSubmapsHeld);
     submaps.max_held = static_cast<std::size_t>(held);
+    // Byte bounds (issue R3): a submap, a chain and all of them.
+    int submap_bytes = static_cast<int>(submaps.max_submap_bytes);
+    r.GetInRange("max_submap_bytes", submap_bytes, limits::kMinSubmapBytes, limits::kMaxSubmapBytes);
+    submaps.max_submap_bytes = static_cast<std::size_t>(submap_bytes);
+    int chain_bytes = static_cast<int>(submaps.max_chain_bytes);
+    r.GetInRange("max_chain_bytes", chain_bytes, limits::kMinSubmapBytes, limits::kMaxSubmapBytesHeld);
+    submaps.max_chain_bytes = static_cast<std::size_t>(chain_bytes);
+    int held_bytes = static_cast<int>(submaps.max_bytes_held);
+    r.GetInRange("max_submap_bytes_held", held_bytes, limits::kMinSubmapBytes, limits::kMaxSubmapBytesHeld);
+    submaps.max_bytes_held = static_cast<std::size_t>(held_bytes);
   }
 };
 

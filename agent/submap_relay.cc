@@ -18,7 +18,10 @@ void SubmapRelay::CloseOpen(const SubmapId& id) {
 SubmapRelay::Offer SubmapRelay::AddOwn(const WireSubmap& submap, std::span<const std::uint8_t> bytes,
                                        std::span<const std::uint8_t> signature) {
   switch (book_.Add(submap, bytes, signature)) {
-    case SubmapBook::Offer::kNew: ++counters_.own; return Offer::kNew;
+    case SubmapBook::Offer::kNew:
+      ++counters_.own;
+      own_bytes_ += bytes.size();
+      return Offer::kNew;
     case SubmapBook::Offer::kDuplicate: return Offer::kDuplicate;
     case SubmapBook::Offer::kConflict: ++counters_.conflicts; return Offer::kConflict;
   }
@@ -27,9 +30,15 @@ SubmapRelay::Offer SubmapRelay::AddOwn(const WireSubmap& submap, std::span<const
 
 SubmapRelay::Offer SubmapRelay::Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now,
                                     std::span<const std::uint8_t> signature) {
-  if (book_.Find(submap.id) == nullptr && book_.size() >= options_.max_held) {
-    ++counters_.full;
-    return Offer::kFull;
+  if (book_.Find(submap.id) == nullptr) {
+    if (book_.size() >= options_.max_held || book_.bytes() - own_bytes_ + bytes.size() > options_.max_bytes_held) {
+      ++counters_.full;
+      return Offer::kFull;
+    }
+    if (book_.ChainBytes(submap.id.robot, submap.id.incarnation) + bytes.size() > options_.max_chain_bytes) {
+      ++counters_.chain_full;
+      return Offer::kFull;
+    }
   }
   switch (book_.Add(submap, bytes, signature)) {
     case SubmapBook::Offer::kNew:
@@ -140,14 +149,14 @@ std::vector<const SubmapBlob*> SubmapRelay::DueOpen(const std::set<RobotId>& in_
            std::tie(b->id.index, b->id.robot, b->id.incarnation);
   });
   std::vector<const SubmapBlob*> out;
-  std::size_t bytes = spent;
+  std::size_t bytes = spent + paid_;
+  const bool whole = bytes == 0;
   for (const WireSubmap* s : due) {
     OpenHeld& h = open_held_.at({s->id.robot, s->id.incarnation});
-    if ((spent > 0 || !out.empty()) && bytes + h.blob.bytes.size() > options_.send_bytes) {
+    if (!Spend(h.blob.bytes.size(), bytes, whole && out.empty())) {
       ++counters_.held_back;
       continue;
     }
-    bytes += h.blob.bytes.size();
     out.push_back(&h.blob);
     h.sent_at = now;
     ++counters_.open_relayed;
@@ -156,7 +165,21 @@ std::vector<const SubmapBlob*> SubmapRelay::DueOpen(const std::set<RobotId>& in_
   return out;
 }
 
+bool SubmapRelay::Spend(std::size_t size, std::size_t& spent, bool first) {
+  if (!first && spent + size > options_.send_bytes) return false;
+  spent += size;
+  if (spent > options_.send_bytes) {  // only the first: the rest of its bytes a debt
+    debt_ += spent - options_.send_bytes;
+    spent = options_.send_bytes;
+  }
+  return true;
+}
+
 std::vector<const SubmapBlob*> SubmapRelay::Due(const std::set<RobotId>& in_range, double now) {
+  // A publication pays what earlier ones took beyond their budget first.
+  paid_ = std::min(debt_, options_.send_bytes);
+  debt_ -= paid_;
+  counters_.debt_paid += paid_;
   std::vector<const Advertised*> listening;
   for (const auto& [key, a] : adverts_) {
     if (in_range.contains(key.robot) && now - a.at <= options_.advert_max_age_s) listening.push_back(&a);
@@ -180,14 +203,13 @@ std::vector<const SubmapBlob*> SubmapRelay::Due(const std::set<RobotId>& in_rang
     return std::tie(a.index, a.robot, a.incarnation) < std::tie(b.index, b.robot, b.incarnation);
   });
   std::vector<const SubmapBlob*> out;
-  std::size_t bytes = 0;
+  std::size_t bytes = paid_;
   for (const SubmapId& id : due) {
     const SubmapBlob* b = book_.Blob(id);
-    if (!out.empty() && bytes + b->bytes.size() > options_.send_bytes) {
+    if (!Spend(b->bytes.size(), bytes, paid_ == 0 && out.empty())) {
       ++counters_.held_back;
       continue;
     }
-    bytes += b->bytes.size();
     out.push_back(b);
     auto [it, first] = sent_at_.try_emplace(id, now);
     if (!first) {

@@ -41,11 +41,15 @@
 namespace mapmesh {
 
 struct SubmapRelayOptions {
-  std::size_t send_bytes = 65536;    // agent.submap_send_bytes: submap bytes per publication (the first one due
-                                     // always goes, whatever its size)
-  double resend_after_s = 0.0;       // agent.submap_resend_after_s: a submap sent goes again no sooner (0: 3 map
-                                     // periods, a round trip of advertisements and one to spare)
-  std::size_t max_held = 20000;      // agent.max_submaps_held: submaps held at most (own ones always)
+  std::size_t send_bytes = 65536;         // agent.submap_send_bytes: submap bytes per publication (the first one due
+                                          // goes whatever its size; what it takes beyond is paid by the next ones)
+  double resend_after_s = 0.0;            // agent.submap_resend_after_s: a submap sent goes again no sooner (0: 3 map
+                                          // periods, a round trip of advertisements and one to spare)
+  std::size_t max_held = 20000;           // agent.max_submaps_held: submaps held at most (own ones always)
+  std::size_t max_submap_bytes = 262144;  // agent.max_submap_bytes: a peer's submap longer is refused unread (the
+                                          // agent's node; 178 landmarks, twice the densest shipped world's)
+  std::size_t max_bytes_held = std::size_t{96} << 20;   // agent.max_submap_bytes_held: peers' closed submaps' bytes
+  std::size_t max_chain_bytes = std::size_t{32} << 20;  // agent.max_chain_bytes: ... of one robot incarnation's
   double advert_max_age_s = 0.0;     // a peer's advertisement counts this long after it arrived (0: 3 map periods)
   double open_silent_after_s = 0.0;  // an open submap unchanged this long is relayed (0: agent.silent_after_s)
   std::size_t max_open = 0;  // open submaps kept at most (the agent's: robots x agent.max_incarnations; 0: max_held)
@@ -62,7 +66,10 @@ class SubmapRelay {
   // otherwise), which the relay sends on with them.
   Offer AddOwn(const WireSubmap& submap, std::span<const std::uint8_t> bytes,
                std::span<const std::uint8_t> signature = {});
-  // A decoded, validated submap received from a peer (or relayed by one) at scenario time now.
+  // A decoded, validated submap received from a peer (or relayed by one) at scenario time now:
+  // kFull when max_held submaps are held, or it would take the peers' submaps beyond
+  // max_bytes_held or its chain beyond max_chain_bytes (issue R3: bounded in bytes, not only
+  // in count).
   Offer Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes, double now,
             std::span<const std::uint8_t> signature = {});
   // A submap the agent held before a restart (its checkpoint): it enters as held (max_held
@@ -108,11 +115,13 @@ class SubmapRelay {
     std::uint32_t restored = 0;            // submaps entered from the checkpoint (Restore)
     std::uint32_t duplicates = 0;          // ... held already
     std::uint32_t conflicts = 0;           // ... a different submap under a held identity (refused)
-    std::uint32_t full = 0;                // ... refused, max_held reached
+    std::uint32_t full = 0;                // ... refused, max_held or max_bytes_held reached
+    std::uint32_t chain_full = 0;          // ... refused, their chain at max_chain_bytes
     std::uint32_t sent = 0;                // submaps sent (own and relayed, each time)
     std::uint64_t bytes_sent = 0;          // ... their bytes
     std::uint32_t sent_again = 0;          // ... of which sent before (to a peer come into range since, or lost)
     std::uint32_t held_back = 0;           // due ones left for a later publication (send_bytes)
+    std::uint64_t debt_paid = 0;           // bytes of later publications' budgets paid for a submap beyond one's
     std::uint32_t open_taken = 0;          // open submaps kept (AddOpen: each later version)
     std::uint32_t open_gaps = 0;           // relayed open submaps refused: not continuing the chain held (kGap)
     std::uint32_t open_relayed = 0;        // silent robots' open submaps sent (DueOpen, each time)
@@ -144,6 +153,12 @@ class SubmapRelay {
   std::map<PeerKey, WireSubmap> open_;     // the open submaps kept ...
   std::map<PeerKey, OpenHeld> open_held_;  // ... their bytes and times
   Counters counters_;
+  std::size_t own_bytes_ = 0;  // the own closed submaps' bytes in book_ (not bounded)
+  std::size_t debt_ = 0;       // bytes sent beyond a publication's budget, not yet paid
+  std::size_t paid_ = 0;       // ... of which the latest Due paid
+  // Spends `size` bytes of a publication whose budget had `spent` used (first: nothing sent in
+  // it yet and its budget whole): whether it goes; beyond the budget becomes debt.
+  bool Spend(std::size_t size, std::size_t& spent, bool first);
 };
 
 }  // namespace mapmesh

@@ -21,6 +21,10 @@ inline constexpr int kMaxAlignmentsPerUpdate = 1000;  // agent.max_alignments_pe
 inline constexpr int kMaxRelayComparisonsPerUpdate = 1000000;  // agent.max_relay_comparisons_per_update
 inline constexpr int kMaxSubmapSendBytes = 64 << 20;           // agent.submap_send_bytes
 inline constexpr int kMaxSubmapsHeld = 1000000;                // agent.max_submaps_held
+inline constexpr int kMinSubmapBytes = 4096;                   // agent.max_submap_bytes, max_chain_bytes, ...
+inline constexpr int kMaxSubmapBytes = 2 << 20;                // ... (the codec's largest submap is 2.0 MB)
+inline constexpr int kMaxSubmapBytesHeld = 128 << 20;          // agent.max_chain_bytes, max_submap_bytes_held:
+                                                               // what a checkpoint can keep (io::CheckpointLimits)
 inline constexpr std::size_t kMaxCsvBytes = 64u << 20;         // landmarks.csv file size
 inline constexpr std::size_t kMaxScenarioBytes = 16u << 20;    // the scenario file itself
 // Values (scalars, lists, mappings) in the scenario file, counted by a streaming pass before the

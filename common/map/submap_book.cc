@@ -20,7 +20,13 @@ SubmapBook::Offer SubmapBook::Add(const WireSubmap& submap, std::span<const std:
   held_.emplace(submap.id,
                 Entry{submap, SubmapBlob{{bytes.begin(), bytes.end()}, {signature.begin(), signature.end()}}});
   bytes_ += bytes.size();
+  chain_bytes_[{submap.id.robot, submap.id.incarnation}] += bytes.size();
   return Offer::kNew;
+}
+
+std::size_t SubmapBook::ChainBytes(RobotId robot, std::uint32_t incarnation) const {
+  const auto it = chain_bytes_.find({robot, incarnation});
+  return it == chain_bytes_.end() ? 0 : it->second;
 }
 
 const WireSubmap* SubmapBook::Find(const SubmapId& id) const {

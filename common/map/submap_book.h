@@ -38,6 +38,8 @@ class SubmapBook {
 
   std::size_t size() const { return held_.size(); }
   std::size_t bytes() const { return bytes_; }
+  // The bytes held of one robot incarnation's submaps.
+  std::size_t ChainBytes(RobotId robot, std::uint32_t incarnation) const;
   int duplicates() const { return duplicates_; }
   int conflicts() const { return conflicts_; }
   // Every submap held, in identity order (robot, incarnation, index).
@@ -66,6 +68,7 @@ class SubmapBook {
   };
   std::map<SubmapId, Entry> held_;
   std::size_t bytes_ = 0;
+  std::map<std::pair<RobotId, std::uint32_t>, std::size_t> chain_bytes_;
   int duplicates_ = 0;
   int conflicts_ = 0;
 };

@@ -78,6 +78,13 @@ std::size_t SubmapPayloadBytes(std::uint32_t landmarks) {
   return kSubmapCodecHeaderBytes + 4 * static_cast<std::size_t>(landmarks) + 8 * m + 4 * (m * (m + 1) / 2);
 }
 
+std::uint32_t SubmapLandmarksWithin(std::size_t bytes) {
+  if (SubmapPayloadBytes(0) > bytes) return 0;
+  std::uint32_t n = 0;
+  while (n < kSubmapCodecMaxLandmarks && SubmapPayloadBytes(n + 1) <= bytes) ++n;
+  return n;
+}
+
 std::vector<std::uint8_t> EncodeSubmap(const WireSubmap& s, SubmapDecodeError* error) {
   auto fail = [error](SubmapDecodeError e) {
     if (error != nullptr) *error = e;

@@ -79,6 +79,9 @@ std::string_view ToString(SubmapDecodeError e);
 
 // The bytes a submap of `landmarks` landmarks takes.
 std::size_t SubmapPayloadBytes(std::uint32_t landmarks);
+// The most landmarks a submap of at most `bytes` bytes holds (0 when not even an empty one fits;
+// at most kSubmapCodecMaxLandmarks).
+std::uint32_t SubmapLandmarksWithin(std::size_t bytes);
 
 // Encodes a submap; fails (empty, the reason in *error when given) when the sizes disagree, the
 // ids repeat, a value is not finite, l is not lower triangular with a positive diagonal, a

@@ -504,6 +504,63 @@ TEST(AgentNodeLimits, RefusesItsOwnRobotsSubmapsFromOthersAndRidersOfMapsNotTake
   EXPECT_EQ(node.submaps().book().size(), 1u);
 }
 
+// Issue R3: submaps bounded in bytes. A peer's closed or open submap longer than
+// agent.max_submap_bytes is refused unread (too_large) and nothing of it is held; one within
+// is taken. The agent's own submaps close before they outgrow that bound.
+TEST(AgentNodeLimits, RefusesSubmapsLongerThanTheByteLimitAndClosesItsOwnWithin) {
+  Scenario sc = JoiningTrio();
+  sc.agent.exchange.submaps.max_submap_bytes = SubmapPayloadBytes(3);
+  Capture out;
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
+  node.OnLinks({0.0, {{1, 2}}});
+  const auto submap = [](RobotId robot, std::uint32_t index, int landmarks) {
+    WireSubmap s;
+    s.id = {robot, 1, index};
+    for (int i = 0; i < landmarks; ++i) s.keys.push_back(static_cast<std::uint32_t>(i));
+    s.x = Eigen::VectorXd::Zero(3 + 2 * landmarks);
+    EXPECT_TRUE(s.SetCovariance(0.01 * Eigen::MatrixXd::Identity(3 + 2 * landmarks, 3 + 2 * landmarks)));
+    return EncodeSubmap(s);
+  };
+  LandmarkMap map;
+  map.landmarks.push_back({0, -1, {1.0, 2.0}, 0.01 * Eigen::Matrix2d::Identity()});
+  MapMessage m = PeerMap(2, EncodeMap(map));
+  m.incarnation = 1;
+  m.stamp = 0.0;
+  m.submaps = {submap(3, 0, 3), submap(3, 1, 4)};  // within, one landmark beyond
+  m.open_submap = submap(2, 0, 4);
+  m.open_relayed = {submap(3, 2, 4)};
+  node.OnMap(m);
+  EXPECT_EQ(node.stats().maps_received, 1u);
+  EXPECT_EQ(node.stats().submaps_refused[static_cast<int>(SubmapRefusal::kTooLarge)], 3u);
+  EXPECT_EQ(node.submaps().book().Ids(), (std::vector<SubmapId>{{3, 1, 0}}));
+  EXPECT_TRUE(node.submaps().open().empty());
+
+  // The own mapper closes a submap 16 landmarks short of the bound: with room for 20, at 4.
+  std::string yaml = "version: 1\nworld: {landmarks: {list: [";
+  for (int i = 0; i < 40; ++i)
+    yaml += (i ? ", [" : "[") + std::to_string(2 + i % 20) + ", " + (i < 20 ? "3" : "-3") + "]";
+  yaml += "]}}\nrobots:\n  list:\n    - {id: 1, start: [0, 0, 0]}\n";
+  yaml += "feeder: {pace: realtime}\nagent: {slam: cekf_submaps, fusion: joining, submap_distance_m: 0,";
+  yaml += " max_submap_bytes: " + std::to_string(SubmapPayloadBytes(20)) + "}\n";
+  const Scenario dense = ParseScenario(yaml, "dense.yaml");
+  const std::unique_ptr<LocalMapper> mapper = MakeLocalMapper(dense, 1);
+  std::vector<Observation> obs;
+  for (int i = 0; i < 40; ++i) {
+    const Eigen::Vector2d p(2 + i % 20, i < 20 ? 3 : -3);
+    obs.push_back({p.norm(), std::atan2(p.y(), p.x()), i, ObservationKind::kLandmark});
+  }
+  // Each scan sees two landmarks it has not seen yet, the robot at rest.
+  for (int k = 0; k < 10; ++k) {
+    mapper->Predict({0.0, 0.0}, 0.1);
+    mapper->Observe({obs.begin() + 2 * k, obs.begin() + 2 * k + 2}, 0.1 * (k + 1));
+  }
+  ASSERT_GT(mapper->SubmapsClosed(), 0u);
+  const std::optional<WireSubmap> first = mapper->ClosedSubmap(0, {1, 1, 0});
+  ASSERT_TRUE(first.has_value());
+  EXPECT_EQ(first->keys.size(), 4u);
+  EXPECT_LE(EncodeSubmap(*first).size(), SubmapPayloadBytes(20));
+}
+
 // A stand-in for the secure runs' signatures (transport::SubmapSigner): robot r's signature
 // over bytes is {r, their sum mod 256}; robots 1 to 3 have certificates, others none.
 class FakeOrigin final : public SubmapOrigin {

@@ -150,6 +150,70 @@ TEST(SubmapRelay, TheBudgetTakesTheLowestIndicesFirst) {
   EXPECT_EQ(Ids(tight.Due({2}, 0.0)), (std::vector<SubmapId>{{1, 1, 0}}));
 }
 
+// Issue R3: the budget is the link's. A submap larger than send_bytes goes alone when a
+// publication's budget is whole, and the next publications pay what it took beyond before they
+// send anything (open submaps relayed included); over any run of publications no more than
+// send_bytes each go, plus one submap.
+TEST(SubmapRelay, ASubmapBeyondTheBudgetIsPaidForByTheNextPublications) {
+  SubmapRelayOptions o = Options();
+  const std::size_t small = SubmapPayloadBytes(2), big = SubmapPayloadBytes(30);
+  o.send_bytes = 2 * small;
+  SubmapRelay r(o);
+  AddOwn(r, Submap(1, 1, 0, 30));
+  AddOwn(r, Submap(1, 1, 1));
+  AddOwn(r, Submap(1, 1, 2));
+  r.OnAdvert({2, 1}, std::vector<SubmapChain>{}, 0.0);
+  EXPECT_EQ(Ids(r.Due({2}, 0.0)), (std::vector<SubmapId>{{1, 1, 0}}));
+  const std::size_t owed = big - o.send_bytes, publications = (owed + o.send_bytes - 1) / o.send_bytes;
+  std::size_t sent = big;
+  int k = 1;
+  for (; k <= static_cast<int>(publications); ++k) {
+    const double now = 0.1 * k;
+    EXPECT_TRUE(r.Due({2}, now).empty()) << k;
+    EXPECT_TRUE(r.DueOpen({2}, now).empty()) << k;
+  }
+  EXPECT_EQ(r.counters().debt_paid, owed);
+  // Paid: the remainder of the last paying publication's budget went unused; now both go.
+  const std::vector<const SubmapBlob*> next = r.Due({2}, 0.1 * k);
+  EXPECT_EQ(Ids(next), (std::vector<SubmapId>{{1, 1, 1}, {1, 1, 2}}));
+  for (const SubmapBlob* b : next) sent += b->bytes.size();
+  EXPECT_LE(sent, static_cast<std::size_t>(k + 1) * o.send_bytes + big);
+  EXPECT_GT(r.counters().held_back, 0u);
+  // Within the budget nothing is owed: a publication sends what fits and the next starts whole.
+  SubmapRelay plain(Options());
+  AddOwn(plain, Submap(1, 1, 0, 30));
+  plain.OnAdvert({2, 1}, std::vector<SubmapChain>{}, 0.0);
+  EXPECT_EQ(plain.Due({2}, 0.0).size(), 1u);
+  EXPECT_EQ(plain.counters().debt_paid, 0u);
+}
+
+// Issue R3: the book is bounded in bytes, a chain at max_chain_bytes and the peers' submaps
+// at max_bytes_held in all (the agent's own and a checkpoint's restored always enter).
+TEST(SubmapRelay, TheBookIsBoundedInBytesPerChainAndInAll) {
+  SubmapRelayOptions o = Options();
+  const std::size_t one = SubmapPayloadBytes(2);
+  o.max_chain_bytes = 2 * one;
+  o.max_bytes_held = 3 * one;
+  SubmapRelay r(o);
+  for (std::uint32_t i = 0; i < 3; ++i) AddOwn(r, Submap(1, 1, i));  // own: not counted against either
+  const auto add = [&](RobotId robot, std::uint32_t index) {
+    const WireSubmap s = Submap(robot, 1, index);
+    return r.Add(s, EncodeSubmap(s), 0.0);
+  };
+  EXPECT_EQ(add(3, 0), SubmapRelay::Offer::kNew);
+  EXPECT_EQ(add(3, 1), SubmapRelay::Offer::kNew);
+  EXPECT_EQ(add(3, 2), SubmapRelay::Offer::kFull);  // its chain is full
+  EXPECT_EQ(r.counters().chain_full, 1u);
+  EXPECT_EQ(add(4, 0), SubmapRelay::Offer::kNew);
+  EXPECT_EQ(add(5, 0), SubmapRelay::Offer::kFull);  // all of them are
+  EXPECT_EQ(r.counters().full, 1u);
+  EXPECT_EQ(add(3, 0), SubmapRelay::Offer::kDuplicate);  // held ones still recognised
+  const WireSubmap restored = Submap(5, 1, 0);
+  EXPECT_EQ(r.Restore(restored, EncodeSubmap(restored)), SubmapRelay::Offer::kNew);
+  EXPECT_EQ(r.book().ChainBytes(3, 1), 2 * one);
+  EXPECT_EQ(r.book().bytes(), 7 * one);
+}
+
 // Each identity enters once; a different submap under a held identity is refused and counted;
 // beyond max_held a peer's new submap is refused, the agent's own never.
 TEST(SubmapRelay, EachIdentityOnceAndTheBookIsBounded) {

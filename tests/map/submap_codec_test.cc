@@ -160,6 +160,25 @@ TEST(SubmapCodec, DecoderRefusesMalformedPayloadsAndSurvivesByteFlips) {
   }
 }
 
+// The most landmarks within a byte bound: the largest n whose submap fits (agent.max_submap_bytes;
+// its default, 256 KiB, holds 178), 0 below an empty submap, the codec's limit above its size.
+TEST(SubmapCodec, LandmarksWithinABoundAreTheMostThatFit) {
+  for (std::size_t bytes : {SubmapPayloadBytes(0), std::size_t{4096}, std::size_t{65536}, std::size_t{262144}}) {
+    const std::uint32_t n = SubmapLandmarksWithin(bytes);
+    EXPECT_LE(SubmapPayloadBytes(n), bytes) << bytes;
+    EXPECT_GT(SubmapPayloadBytes(n + 1), bytes) << bytes;
+  }
+  EXPECT_EQ(SubmapLandmarksWithin(262144), 178u);
+  EXPECT_EQ(SubmapLandmarksWithin(SubmapPayloadBytes(0) - 1), 0u);
+  EXPECT_EQ(SubmapLandmarksWithin(SIZE_MAX), kSubmapCodecMaxLandmarks);
+  WireSubmap s;
+  s.id = {1, 1, 0};
+  for (std::uint32_t i = 0; i < SubmapLandmarksWithin(65536); ++i) s.keys.push_back(i);
+  s.x = Eigen::VectorXd::Zero(3 + 2 * static_cast<Eigen::Index>(s.keys.size()));
+  ASSERT_TRUE(s.SetCovariance(Eigen::MatrixXd::Identity(s.x.size(), s.x.size())));
+  EXPECT_LE(EncodeSubmap(s).size(), 65536u);
+}
+
 // The digest that names a submap in the records is FNV-1a 64 (the published test vectors).
 TEST(SubmapCodec, DigestIsFnv1a64) {
   const std::vector<std::uint8_t> empty, a = {'a'}, foobar = {'f', 'o', 'o', 'b', 'a', 'r'};
