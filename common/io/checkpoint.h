@@ -57,8 +57,9 @@ struct CheckpointLimits {
   std::size_t max_earlier = 64;                 // earlier incarnations in all, nested or not
   std::size_t max_landmarks = 100000;           // per map (as the wire codec's limit)
   std::size_t max_submaps = 20000;              // closed submaps held (agent.max_submaps_held's default) ...
-  // ... and their bytes with their signatures (base64 in the file: 171 MB of the 256 MB; the
-  // agent keeps no more, its own chains first; agent.max_submap_bytes_held is below it)
+  // The writer's bound, not checked when reading (max_file_bytes bounds that): the agent writes
+  // at most this many submap bytes with their signatures, its own chains first (base64 in the
+  // file: 171 MB of the 256 MB; agent.max_submap_bytes_held is below it).
   std::uint64_t max_submap_bytes = 128ull << 20;
   MapLimits submap_limits;                                       // each submap's, as a peer's (agent.peer_limits)
   double max_abs_coordinate_m = 1e5;                             // m, world bound on every landmark coordinate
