@@ -667,6 +667,13 @@ void AgentNode::Resume(const AgentCheckpoint& c) {
   };
   add(c);
   for (const IncarnationSnapshot& e : c.earlier) add(e);
+  // The peers' frames it had placed: weighed on the maps once this session's frame is the one
+  // they are in (PeerBook::UseCarriedIn), not searched for again (issue R3).
+  std::vector<PeerAlignment> peers;
+  for (const PeerAlignment& a : c.peers) {
+    if (InRun(a.robot)) peers.push_back(a);
+  }
+  exchange_.AddCarried(std::move(peers));
   for (const SubmapBlob& blob : c.submaps) {
     const std::vector<std::uint8_t>& bytes = blob.bytes;
     const SubmapDecodeResult d = DecodeSubmap(bytes);
@@ -688,6 +695,8 @@ AgentCheckpoint AgentNode::Checkpoint(std::size_t* left_out, std::size_t* submap
   c.processed_until = sync_.processed_until();
   c.local = mapper_->Map();
   c.global = exchange_.global().map;
+  c.peers = exchange_.Alignments(c.origin_stamp);
+  if (c.peers.size() > io::CheckpointLimits{}.max_peers) c.peers.resize(io::CheckpointLimits{}.max_peers);
   for (const auto& e : exchange_.UnalignedOwnCheckpoints()) {
     IncarnationSnapshot old;
     old.robot = self_;

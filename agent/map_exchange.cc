@@ -104,6 +104,7 @@ void MapExchange::OnRendezvous(const PeerKey& key, const RendezvousFit& fit) {
   r.transform = fit.transform;
   r.cov = fit.cov;
   it->second.rendezvous = r;
+  it->second.continuity_prior = false;  // a fit of the sightings replaces a prior it was waiting on
   ++it->second.counters.rendezvous_fits;
 }
 
@@ -311,6 +312,7 @@ int MapExchange::PlaceOwnCheckpointsAt(double origin_stamp, const LandmarkMap& o
   // Into the global map at once: a checkpoint written before the next update carries the
   // global map as its record of them (they are no longer unaligned).
   if (placed > 0) Build(own_local);
+  book_.UseCarriedIn(origin_stamp);
   return placed;
 }
 

@@ -61,6 +61,11 @@ class MapExchange {
     book_.AddOwnCheckpoint(incarnation, origin_stamp, std::move(local), std::move(global));
   }
 
+  // Peers' frames an earlier incarnation had placed (its checkpoint): PeerBook::AddCarried.
+  void AddCarried(std::vector<PeerAlignment> carried) { book_.AddCarried(std::move(carried)); }
+  // What a new checkpoint carries on of the peers' frames (PeerBook::Alignments).
+  std::vector<PeerAlignment> Alignments(double frame_stamp) const { return book_.Alignments(frame_stamp); }
+
   // The submaps the fusion back-end may use from now on (fusion_backend.h): the book must
   // outlive the exchange's use of it.
   void SetSubmapInputs(SubmapInputs inputs) { submap_inputs_ = std::move(inputs); }
@@ -71,7 +76,8 @@ class MapExchange {
   // origin_stamp, as this one's did: the feeder replayed the robot's stream to this incarnation
   // from the start, so that frame is ours (nothing to search for, nothing to verify), each with
   // its global map (what it had fused of others). Returns how many it placed; the global map
-  // takes them at once, so that a checkpoint written before the next Update carries them.
+  // takes them at once, so that a checkpoint written before the next Update carries them. The
+  // peers' frames carried in that frame (AddCarried) wait to be weighed from then on.
   int PlaceOwnCheckpointsAt(double origin_stamp, const LandmarkMap& own_local, double now);
 
   // How many Updates ran: alignments and the global maps change only in one (and when earlier

@@ -40,24 +40,84 @@ PeerBook::Receipt PeerBook::OnPeerMap(RobotId robot, std::uint32_t incarnation, 
   // feeder replayed its stream to it): the same frame. The earlier one's transform waits to be
   // weighed like a rendezvous fit, verified on the maps before it is used, instead of a search
   // from nothing on every restart (which found a false 92 degrees in a restart storm).
-  if (!p.Aligned() && !p.rendezvous) {
-    for (const auto& [k, q] : peers_) {
-      if (k.robot != robot || k.incarnation >= incarnation || !q.Aligned() || q.origin_stamp != origin_stamp) continue;
-      AlignmentResult prior;
-      prior.verdict = AlignmentVerdict::kAccepted;
-      prior.transform = q.to_own;
-      prior.cov = q.to_own_cov;
-      p.rendezvous = prior;
-      p.continuity_prior = true;
-      break;
-    }
-  }
+  SeedContinuityPrior(p);
   p.last_heard = now;
   p.changed = true;
   p.stale = false;  // heard again: it speaks for itself
   p.superseded_by.reset();
   if (p.stage == PeerStage::kSuperseded) p.stage = PeerStage::kAligned;
   return Receipt::kAccepted;
+}
+
+void PeerBook::SeedContinuityPrior(PeerState& p) const {
+  if (p.Aligned() || p.rendezvous || p.own_checkpoint) return;
+  const auto seed = [&p](const Pose2& transform, const Eigen::Matrix3d& cov) {
+    AlignmentResult prior;
+    prior.verdict = AlignmentVerdict::kAccepted;
+    prior.transform = transform;
+    prior.cov = cov;
+    p.rendezvous = prior;
+    p.continuity_prior = true;
+  };
+  for (const auto& [k, q] : peers_) {
+    if (k.robot != p.key.robot || k.incarnation >= p.key.incarnation || !q.Aligned() ||
+        q.origin_stamp != p.origin_stamp) {
+      continue;
+    }
+    seed(q.to_own, q.to_own_cov);
+    return;
+  }
+  if (!carried_frame_) return;
+  // The newest carried incarnation of the robot, up to p's, in p's frame.
+  const PeerAlignment* best = nullptr;
+  for (const PeerAlignment& a : carried_) {
+    if (a.frame_stamp != *carried_frame_ || a.robot != p.key.robot || a.incarnation > p.key.incarnation ||
+        a.origin_stamp != p.origin_stamp) {
+      continue;
+    }
+    if (best == nullptr || a.incarnation > best->incarnation) best = &a;
+  }
+  if (best != nullptr) seed(best->to_own, best->cov);
+}
+
+void PeerBook::AddCarried(std::vector<PeerAlignment> carried) {
+  for (PeerAlignment& a : carried) {
+    if (a.robot == self_) continue;
+    const auto same = [&a](const PeerAlignment& b) { return b.robot == a.robot && b.incarnation == a.incarnation; };
+    if (std::none_of(carried_.begin(), carried_.end(), same)) carried_.push_back(a);
+  }
+}
+
+int PeerBook::UseCarriedIn(double frame_stamp) {
+  carried_frame_ = frame_stamp;
+  int waiting = 0;
+  for (auto& [key, p] : peers_) {
+    const bool had = p.rendezvous.has_value();
+    SeedContinuityPrior(p);
+    waiting += !had && p.rendezvous.has_value();
+  }
+  return waiting;
+}
+
+std::vector<PeerAlignment> PeerBook::Alignments(double frame_stamp) const {
+  std::vector<PeerAlignment> out;
+  for (const auto& [key, p] : peers_) {
+    if (p.own_checkpoint || !p.Aligned()) continue;
+    PeerAlignment a;
+    a.robot = key.robot;
+    a.incarnation = key.incarnation;
+    a.origin_stamp = p.origin_stamp;
+    a.frame_stamp = frame_stamp;
+    a.to_own = p.to_own;
+    a.cov = 0.5 * (p.to_own_cov + p.to_own_cov.transpose());
+    out.push_back(a);
+  }
+  const std::size_t placed = out.size();
+  for (const PeerAlignment& a : carried_) {
+    const auto same = [&a](const PeerAlignment& b) { return b.robot == a.robot && b.incarnation == a.incarnation; };
+    if (std::none_of(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(placed), same)) out.push_back(a);
+  }
+  return out;
 }
 
 bool PeerBook::MakeRoomFor(RobotId robot, double now) {
@@ -133,6 +193,7 @@ std::vector<PeerFacts> PeerBook::Facts(double now) const {
     f.silent = p.Silent(now, options_.SilentAfterS());
     f.changed = p.changed;
     f.rendezvous_waiting = p.rendezvous.has_value();
+    f.continuity_waiting = p.rendezvous.has_value() && p.continuity_prior;
     f.last_attempt = p.last_attempt;
     f.last_refine = p.last_refine;
     f.map_size = p.Map().size();

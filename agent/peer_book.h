@@ -6,12 +6,14 @@
 // fusion: MapExchange does, on the states it holds. Pure; time is the agent's scenario time.
 
 #include <cstdint>
+#include <optional>
 #include <set>
 #include <vector>
 
 #include "agent/exchange_options.h"
 #include "agent/peer_schedule.h"
 #include "agent/peer_state.h"
+#include "common/io/checkpoint.h"
 
 namespace mapmesh {
 
@@ -33,6 +35,19 @@ class PeerBook {
   void SetLive(const std::set<PeerKey>& live, double now);
   // An earlier incarnation of this agent, from its checkpoint: frozen, aligned like any peer.
   void AddOwnCheckpoint(std::uint32_t incarnation, double origin_stamp, LandmarkMap local, LandmarkMap global);
+
+  // Peers' frames an earlier incarnation of this agent had placed (its checkpoint, issue R3), each
+  // in the agent's frame that began at its frame_stamp. Kept until UseCarriedIn names that frame
+  // as this session's; from then on a peer incarnation of the robot whose frame began where the
+  // carried one's did, and that is not aligned, waits to be weighed on the maps at the carried
+  // transform (like a later incarnation of an aligned peer: OnPeerMap), instead of a search.
+  void AddCarried(std::vector<PeerAlignment> carried);
+  // This session's frame began at frame_stamp (an own checkpoint was placed by continuity): the
+  // carried alignments in that frame apply. Returns how many peers now wait to weigh one.
+  int UseCarriedIn(double frame_stamp);
+  // What a new checkpoint carries on: every aligned peer's frame in this session's (frame_stamp),
+  // and each carried alignment whose peer incarnation is not aligned now.
+  std::vector<PeerAlignment> Alignments(double frame_stamp) const;
 
   PeerStates& states() { return peers_; }
   const PeerStates& states() const { return peers_; }
@@ -66,10 +81,15 @@ class PeerBook {
   // A later incarnation of p's robot began at p's origin stamp (the feeder replayed the same
   // stream to it, so its map grows into a superset of p's) and holds at least as many landmarks.
   bool CarriedByLater(const PeerState& p) const;
+  // p waits to weigh a transform of its frame already known: an aligned earlier incarnation's
+  // of the same robot and frame, or a carried one in this session's frame.
+  void SeedContinuityPrior(PeerState& p) const;
 
   RobotId self_;
   ExchangeOptions options_;
   PeerStates peers_;
+  std::vector<PeerAlignment> carried_;
+  std::optional<double> carried_frame_;  // this session's frame, once an own checkpoint is placed in it
 };
 
 }  // namespace mapmesh

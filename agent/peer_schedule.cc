@@ -96,7 +96,7 @@ PeerSchedule PlanTurns(const std::vector<PeerFacts>& facts, std::size_t own_size
     if (!f->has_map) continue;
     const bool relay_turn = s.relay_turns.count(f->key) > 0;
     if (!f->aligned) {
-      if (f->rendezvous_waiting && o.ByRendezvous()) {
+      if (f->rendezvous_waiting && (o.ByRendezvous() || f->continuity_waiting)) {
         if (rendezvous_budget > 0) {
           --rendezvous_budget;
           s.turns.push_back({f->key, TurnKind::kRendezvous});

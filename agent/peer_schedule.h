@@ -52,7 +52,9 @@ struct PeerFacts {
   bool stale = false;                  // its writer is gone
   bool silent = false;                 // stale, an own checkpoint, or no map for silent_after_s
   bool changed = false;                // a map arrived since its last attempt or verification
-  bool rendezvous_waiting = false;     // a rendezvous fit of its frame waits to be weighed
+  bool rendezvous_waiting = false;     // a rendezvous fit of its frame waits to be weighed ...
+  bool continuity_waiting = false;     // ... or a transform of its frame known already (the same frame as an
+                                       // aligned one's): weighed whatever align_by says
   bool carried = false;                // a later incarnation in its frame (the same stream, replayed) holds
                                        // at least as many landmarks: searching this one adds nothing
   double last_attempt = -1e300;        // its last full alignment

@@ -3,13 +3,16 @@
 // caught here), a refusal is one line naming the file, and an accepted checkpoint satisfies
 // the documented validation (its submaps' too) and round-trips through CheckpointToJson.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <set>
 #include <string>
 #include <string_view>
 #include <unordered_set>
+#include <utility>
 
+#include <Eigen/Eigenvalues>
 #include <nlohmann/json.hpp>
 
 #include "common/io/checkpoint.h"
@@ -46,6 +49,15 @@ bool SameCheckpoint(const AgentCheckpoint& a, const AgentCheckpoint& b) {
   if (!SameSnapshot(a, b) || a.earlier.size() != b.earlier.size() || a.submaps != b.submaps) return false;
   for (std::size_t i = 0; i < a.earlier.size(); ++i) {
     if (!SameSnapshot(a.earlier[i], b.earlier[i])) return false;
+  }
+  if (a.peers.size() != b.peers.size()) return false;
+  for (std::size_t i = 0; i < a.peers.size(); ++i) {
+    const PeerAlignment &x = a.peers[i], &y = b.peers[i];
+    if (x.robot != y.robot || x.incarnation != y.incarnation || x.origin_stamp != y.origin_stamp ||
+        x.frame_stamp != y.frame_stamp || x.to_own.x != y.to_own.x || x.to_own.y != y.to_own.y ||
+        x.to_own.theta != y.to_own.theta || x.cov != y.cov) {
+      return false;
+    }
   }
   return true;
 }
@@ -95,6 +107,28 @@ void CheckSubmaps(const std::vector<SubmapBlob>& submaps, const io::CheckpointLi
   }
 }
 
+// The documented validation of the peers' frames: within the limit, another robot's, once per
+// incarnation, finite, within the world bound (theta within 4 rad), stamps >= 0, a symmetric
+// covariance with no eigenvalue below -1e-12 of its largest entry (or of 1).
+void CheckPeers(const std::vector<PeerAlignment>& peers, const io::CheckpointLimits& limits) {
+  MAPMESH_FUZZ_CHECK(peers.size() <= limits.max_peers);
+  std::set<std::pair<RobotId, std::uint32_t>> keys;
+  for (const PeerAlignment& a : peers) {
+    MAPMESH_FUZZ_CHECK(a.robot != kRobot);
+    MAPMESH_FUZZ_CHECK(keys.insert({a.robot, a.incarnation}).second);
+    MAPMESH_FUZZ_CHECK(std::isfinite(a.origin_stamp) && a.origin_stamp >= 0 && a.origin_stamp <= limits.max_stamp_s);
+    MAPMESH_FUZZ_CHECK(std::isfinite(a.frame_stamp) && a.frame_stamp >= 0 && a.frame_stamp <= limits.max_stamp_s);
+    MAPMESH_FUZZ_CHECK(std::abs(a.to_own.x) <= limits.max_abs_coordinate_m);
+    MAPMESH_FUZZ_CHECK(std::abs(a.to_own.y) <= limits.max_abs_coordinate_m);
+    MAPMESH_FUZZ_CHECK(std::abs(a.to_own.theta) <= 4.0);
+    MAPMESH_FUZZ_CHECK(a.cov.allFinite());
+    const double scale = std::max(1.0, a.cov.cwiseAbs().maxCoeff());
+    MAPMESH_FUZZ_CHECK((a.cov - a.cov.transpose()).cwiseAbs().maxCoeff() <= 1e-12 * scale);
+    MAPMESH_FUZZ_CHECK(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(a.cov).eigenvalues().minCoeff() >=
+                       -1e-12 * scale);
+  }
+}
+
 void FuzzOne(std::string_view text, const io::CheckpointLimits& limits) {
   const io::CheckpointLoad load = io::ParseCheckpoint(text, kName, kRobot, kIncarnation, limits);
   MAPMESH_FUZZ_CHECK(!load.missing);
@@ -112,6 +146,7 @@ void FuzzOne(std::string_view text, const io::CheckpointLimits& limits) {
   MAPMESH_FUZZ_CHECK(c.earlier.size() <= limits.max_earlier);
   for (const IncarnationSnapshot& e : c.earlier) CheckSnapshot(e, limits, &incarnations);
   CheckSubmaps(c.submaps, limits);
+  CheckPeers(c.peers, limits);
 
   // What a checkpoint writes, it reads back unchanged.
   const std::string written = io::CheckpointToJson(c).dump();
@@ -132,6 +167,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   small.max_landmarks = 4;
   small.max_abs_coordinate_m = 100.0;
   small.max_submaps = 2;
+  small.max_peers = 2;
   small.submap_limits.world_radius_m = 100.0;
   mapmesh::FuzzOne(text, small);
   return 0;

@@ -331,6 +331,19 @@ void CheckpointSeeds(const fs::path& dir, const fs::path& source_dir) {
   // ... and signed, as a secure run's (issue R3): a 64-byte signature on one of them.
   held.submaps[2].signature = std::vector<std::uint8_t>(64, 0x5a);
   add("signed-submaps", io::CheckpointToJson(held).dump());
+  // ... with the peers' frames it had placed (issue R3).
+  AgentCheckpoint placed = c;
+  for (std::uint32_t i = 0; i < 3; ++i) {
+    PeerAlignment a;
+    a.robot = 2 + i % 2;
+    a.incarnation = 1 + i;
+    a.origin_stamp = 0.5 * i;
+    a.frame_stamp = 0.25;
+    a.to_own = {10.0 * i - 5.0, 3.0, 0.4 * i - 1.0};
+    a.cov << 0.01, 0.002, 0.0, 0.002, 0.02, 0.0, 0.0, 0.0, 0.001;
+    placed.peers.push_back(a);
+  }
+  add("peers", io::CheckpointToJson(placed).dump());
 
   // Bad cases, one per reason.
   const auto variant = [&](const std::string& what, auto change) {
@@ -359,6 +372,19 @@ void CheckpointSeeds(const fs::path& dir, const fs::path& source_dir) {
   variant("missing-landmarks", [](json& j) { j["local"].erase("landmarks"); });
   variant("earlier-object", [](json& j) { j["earlier"] = json::object(); });
   variant("earlier-entry-array", [](json& j) { j["earlier"][0] = json::array(); });
+  const auto peer_variant = [&](const std::string& what, auto change) {
+    json j = io::CheckpointToJson(placed);
+    change(j["peers"][1]);
+    add(what, j.dump());
+  };
+  peer_variant("peer-own-robot", [](json& p) { p["robot"] = kRobot; });
+  peer_variant("peer-repeated", [](json& p) {
+    p["incarnation"] = 1;
+    p["robot"] = 2;
+  });
+  peer_variant("peer-nan-theta", [](json& p) { p["theta"] = nullptr; });
+  peer_variant("peer-asymmetric-cov", [](json& p) { p["cov"][1] = 1.0; });
+  peer_variant("peer-short-cov", [](json& p) { p["cov"] = {1.0, 0.0, 1.0}; });
   const std::string text = flat.dump();
   add("truncated", text.substr(0, text.size() / 2));
   add("not-json", "checkpoint");

@@ -11,6 +11,7 @@
 #include <unordered_set>
 #include <utility>
 
+#include <Eigen/Eigenvalues>
 #include <nlohmann/json.hpp>
 
 #include "common/io/base64.h"
@@ -98,7 +99,7 @@ class Validator {
       out->earlier.push_back(std::move(s));
       if (!PushEarlier(*p.entry, p.where, out->earlier.size(), &stack)) return false;
     }
-    return Submaps(doc, &out->submaps);
+    return Submaps(doc, &out->submaps) && Peers(doc, &out->peers);
   }
 
   bool Fail(std::string what) {
@@ -217,6 +218,69 @@ class Validator {
         return Fail(at + " repeats the identity " + name + " of submaps[" + std::to_string(first->second) + "]");
       blob.bytes = std::move(*bytes);
       out->push_back(std::move(blob));
+    }
+    return true;
+  }
+
+  // The top level's "peers" (optional, issue R3): the peers' frames as the agent had placed them.
+  bool Peers(const json& doc, std::vector<PeerAlignment>* out) {
+    const auto it = doc.find("peers");
+    if (it == doc.end()) return true;
+    if (!it->is_array()) return Fail("peers is " + TypeOf(*it) + ", expected an array");
+    if (it->size() > limits_.max_peers) {
+      return Fail("peers holds " + std::to_string(it->size()) + " alignments, more than the limit of " +
+                  std::to_string(limits_.max_peers));
+    }
+    std::map<std::pair<std::uint64_t, std::uint64_t>, std::size_t> seen;
+    out->reserve(it->size());
+    for (std::size_t i = 0; i < it->size(); ++i) {
+      const json& e = (*it)[i];
+      const std::string at = "peers[" + std::to_string(i) + "]";
+      if (!e.is_object()) return Fail(at + " is " + TypeOf(e) + ", expected an object");
+      PeerAlignment a;
+      std::uint64_t robot = 0, incarnation = 0;
+      if (!Unsigned(e, "robot", at, &robot) || !Unsigned(e, "incarnation", at, &incarnation)) return false;
+      if (robot > std::numeric_limits<RobotId>::max() || incarnation > std::numeric_limits<std::uint32_t>::max()) {
+        return Fail(at + " names robot " + std::to_string(robot) + " incarnation " + std::to_string(incarnation) +
+                    ", beyond 32 bits");
+      }
+      if (robot == robot_) return Fail(at + " is of robot " + std::to_string(robot) + ", the agent's own");
+      const auto [first, fresh] = seen.emplace(std::pair{robot, incarnation}, i);
+      if (!fresh) {
+        return Fail(at + " repeats robot " + std::to_string(robot) + " incarnation " + std::to_string(incarnation) +
+                    " of peers[" + std::to_string(first->second) + "]");
+      }
+      a.robot = static_cast<RobotId>(robot);
+      a.incarnation = static_cast<std::uint32_t>(incarnation);
+      if (!Stamp(e, "origin_stamp", at, &a.origin_stamp) || !Stamp(e, "frame_stamp", at, &a.frame_stamp)) return false;
+      double pose[3];
+      for (int k = 0; k < 3; ++k) {
+        const char* key = k == 0 ? "x" : k == 1 ? "y" : "theta";
+        const json* v = Member(e, key, at);
+        if (v == nullptr || !Finite(*v, Where(at, key), &pose[k])) return false;
+        const double bound = k < 2 ? limits_.max_abs_coordinate_m : 4.0;  // theta: wrapped, in [-pi, pi]
+        if (std::abs(pose[k]) > bound) {
+          return Fail(Where(at, key) + " is " + Num(pose[k]) +
+                      (k < 2 ? " m, beyond the world bound of " + Num(bound) + " m"
+                             : " rad, expected an angle wrapped to [-pi, pi]"));
+        }
+      }
+      a.to_own = Pose2{pose[0], pose[1], pose[2]};
+      const json* c = Member(e, "cov", at);
+      if (c == nullptr) return false;
+      if (!c->is_array() || c->size() != 9) {
+        return Fail(at + ".cov is " + TypeOf(*c) + ", expected an array of 9 numbers (3 x 3, row by row)");
+      }
+      for (int k = 0; k < 9; ++k) {
+        if (!Finite((*c)[k], at + ".cov[" + std::to_string(k) + "]", &a.cov(k / 3, k % 3))) return false;
+      }
+      const double scale = std::max(1.0, a.cov.cwiseAbs().maxCoeff());
+      const bool symmetric = (a.cov - a.cov.transpose()).cwiseAbs().maxCoeff() <= 1e-12 * scale;
+      if (!symmetric ||
+          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(a.cov).eigenvalues().minCoeff() < -1e-12 * scale) {
+        return Fail(at + ".cov is not symmetric positive semi-definite");
+      }
+      out->push_back(a);
     }
     return true;
   }
@@ -392,6 +456,20 @@ nlohmann::json CheckpointToJson(const AgentCheckpoint& c) {
     }
   }
   j["submaps"] = std::move(submaps);
+  nlohmann::json peers = nlohmann::json::array();
+  for (const PeerAlignment& a : c.peers) {
+    nlohmann::json cov = nlohmann::json::array();
+    for (int k = 0; k < 9; ++k) cov.push_back(a.cov(k / 3, k % 3));
+    peers.push_back({{"robot", a.robot},
+                     {"incarnation", a.incarnation},
+                     {"origin_stamp", a.origin_stamp},
+                     {"frame_stamp", a.frame_stamp},
+                     {"x", a.to_own.x},
+                     {"y", a.to_own.y},
+                     {"theta", a.to_own.theta},
+                     {"cov", std::move(cov)}});
+  }
+  j["peers"] = std::move(peers);
   return j;
 }
 

@@ -5,8 +5,9 @@
 // or recurses on any file.
 //
 // Format: {"robot", "incarnation", "origin_stamp", "processed_until", "local": MAP,
-// "global": MAP, "earlier": [{the same keys but "earlier" and "submaps"}...], "submaps":
-// [SUBMAP...]} with MAP as in run_files.h and SUBMAP a closed submap's bytes as they travel
+// "global": MAP, "earlier": [{the same keys but "earlier", "submaps" and "peers"}...], "submaps":
+// [SUBMAP...], "peers": [{"robot", "incarnation", "origin_stamp", "frame_stamp", "x", "y",
+// "theta", "cov": [9 numbers, row by row]}...]} with MAP as in run_files.h and SUBMAP a closed submap's bytes as they travel
 // (submap_codec.h) in base64, or in a secure run {"submap": those, "signature": its origin's
 // signature in base64} (submap_origin.h; checked when the agent resumes). Older files nest earlier[] inside earlier entries; the loader
 // flattens them in document order (an entry, then what it nests). Files without "submaps"
@@ -21,6 +22,9 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <Eigen/Core>
+
+#include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
 #include "common/map/map_limits.h"
 #include "common/types/messages.h"
@@ -36,6 +40,19 @@ struct IncarnationSnapshot {
   LandmarkMap local, global;     // in that incarnation's frame
 };
 
+// A peer incarnation's frame as an incarnation of the agent had placed it (issue R3): in the
+// agent's frame that began at frame_stamp. A later incarnation whose frame began there too (the
+// feeder replayed the robot's stream from the same start: continuity) is in that frame, so the
+// transform holds for it as it is.
+struct PeerAlignment {
+  RobotId robot = 0;
+  std::uint32_t incarnation = 0;
+  double origin_stamp = 0.0;  // s, when the peer's frame was fixed
+  double frame_stamp = 0.0;   // s, when the agent's frame it is in was fixed
+  Pose2 to_own;               // the peer's frame in the agent's
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+};
+
 // What an agent saves to survive a kill: enough to re-merge everything it knew, through the
 // same alignment path, after a restart (the restarted process starts a new map frame).
 struct AgentCheckpoint : IncarnationSnapshot {
@@ -46,6 +63,9 @@ struct AgentCheckpoint : IncarnationSnapshot {
   // relays and joins them as before, whether or not a peer kept them.
   // With the signatures they came with (secure runs; empty otherwise).
   std::vector<SubmapBlob> submaps;
+  // The peers' frames it had placed, and those an earlier incarnation had that it did not place
+  // again (issue R3: a restarted agent weighs them on the maps instead of searching afresh).
+  std::vector<PeerAlignment> peers;
 };
 
 namespace io {
@@ -57,6 +77,7 @@ struct CheckpointLimits {
   std::size_t max_earlier = 64;                 // earlier incarnations in all, nested or not
   std::size_t max_landmarks = 100000;           // per map (as the wire codec's limit)
   std::size_t max_submaps = 20000;              // closed submaps held (agent.max_submaps_held's default) ...
+  std::size_t max_peers = 65536;                // peer alignments (robots x agent.max_incarnations, with room)
   // The writer's bound, not checked when reading (max_file_bytes bounds that): the agent writes
   // at most this many submap bytes with their signatures, its own chains first (base64 in the
   // file: 171 MB of the 256 MB; agent.max_submap_bytes_held is below it).
@@ -87,7 +108,9 @@ nlohmann::json CheckpointToJson(const AgentCheckpoint& checkpoint);
 // unique id in its map, a finite mean within limits.max_abs_coordinate_m and a finite,
 // symmetric PSD covariance; every submap decodes (submap_codec.h: finite, positive definite),
 // keeps limits.submap_limits, closes within limits.max_stamp_s, repeats no identity and is not
-// the resuming incarnation's; and the limits hold. Never throws, never aborts; work and stack
+// the resuming incarnation's; every peer alignment is another robot's, once per incarnation,
+// finite, within limits.max_abs_coordinate_m, with stamps as above and a symmetric PSD
+// covariance; and the limits hold. Never throws, never aborts; work and stack
 // are bounded by the text's size, not its nesting.
 CheckpointLoad ParseCheckpoint(std::string_view text, std::string_view name, RobotId robot, std::uint32_t incarnation,
                                const CheckpointLimits& limits = {});

@@ -150,5 +150,68 @@ TEST(PeerBook, ALaterIncarnationInTheSameFrameCarriesAnEarlierOnceItHoldsAsMuch)
   EXPECT_FALSE(carried(2));
 }
 
+// A checkpoint's peers' frames (issue R3): nothing waits on them until this session's frame is
+// the one they were placed in; then each peer incarnation of the same robot and frame that is
+// not aligned waits to weigh the newest one, up to its incarnation, whatever align_by says; a
+// new checkpoint carries on those not placed again, and the aligned peers' own.
+TEST(PeerBook, CarriedAlignmentsWaitForTheirFrameThenSeedTheSameFramesPeers) {
+  ExchangeOptions o;
+  o.align_by = AlignBy::kOverlap;
+  PeerBook book(1, o);
+  PeerAlignment a;
+  a.robot = 2;
+  a.incarnation = 1;
+  a.origin_stamp = 0.5;
+  a.frame_stamp = 0.2;
+  a.to_own = {4.0, -2.0, 0.3};
+  a.cov = 1e-3 * Eigen::Matrix3d::Identity();
+  PeerAlignment newer = a;
+  newer.incarnation = 2;
+  newer.to_own = {4.5, -2.0, 0.3};
+  PeerAlignment elsewhere = a;  // robot 3, in a frame this session is not in
+  elsewhere.robot = 3;
+  elsewhere.frame_stamp = 9.0;
+  PeerAlignment own = a;  // never the agent's own robot
+  own.robot = 1;
+  book.AddCarried({a, newer, elsewhere, own});
+  const auto waiting = [&](PeerKey key) {
+    for (const PeerFacts& f : book.Facts(10.0))
+      if (f.key == key) return f.continuity_waiting && f.rendezvous_waiting;
+    return false;
+  };
+  book.OnPeerMap(2, 2, MapKind::kLocal, 1, 0.5, MapOf(5), 1.0);
+  EXPECT_FALSE(waiting({2, 2}));  // the frame is not known to be this session's yet
+  EXPECT_EQ(book.UseCarriedIn(0.2), 1);
+  EXPECT_TRUE(waiting({2, 2}));
+  ASSERT_TRUE(book.states().at({2, 2}).rendezvous.has_value());
+  EXPECT_EQ(book.states().at({2, 2}).rendezvous->transform.x, 4.5);  // the newest up to its incarnation
+  // A later incarnation of the robot in the same frame takes it as it arrives; one in another
+  // frame (its stream was not kept) does not, nor another robot's in a frame not ours.
+  book.OnPeerMap(2, 4, MapKind::kLocal, 1, 0.5, MapOf(5), 2.0);
+  book.OnPeerMap(2, 5, MapKind::kLocal, 1, 7.0, MapOf(5), 2.0);
+  book.OnPeerMap(3, 1, MapKind::kLocal, 1, 0.5, MapOf(5), 2.0);
+  EXPECT_TRUE(waiting({2, 4}));
+  EXPECT_FALSE(waiting({2, 5}));
+  EXPECT_FALSE(waiting({3, 1}));
+  // Nothing aligned yet: a new checkpoint carries every one on (none of the own robot).
+  std::vector<PeerAlignment> kept = book.Alignments(0.2);
+  ASSERT_EQ(kept.size(), 3u);
+  EXPECT_EQ(kept[0].incarnation, 1u);
+  EXPECT_EQ(kept[2].robot, 3u);
+  PeerState& p = book.states().at({2, 2});
+  p.stage = PeerStage::kAligned;
+  p.to_own = {4.6, -2.1, 0.31};
+  p.to_own_cov = 2e-3 * Eigen::Matrix3d::Identity();
+  kept = book.Alignments(0.7);
+  ASSERT_EQ(kept.size(), 3u);
+  EXPECT_EQ(kept[0].robot, 2u);  // the aligned one first, in this session's frame
+  EXPECT_EQ(kept[0].incarnation, 2u);
+  EXPECT_EQ(kept[0].frame_stamp, 0.7);
+  EXPECT_EQ(kept[0].to_own.x, 4.6);
+  EXPECT_EQ(kept[1].incarnation, 1u);  // the carried ones not aligned now, in theirs
+  EXPECT_EQ(kept[1].frame_stamp, 0.2);
+  EXPECT_EQ(kept[2].robot, 3u);
+}
+
 }  // namespace
 }  // namespace mapmesh

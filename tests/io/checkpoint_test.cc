@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 
 #include "common/io/base64.h"
@@ -51,6 +52,17 @@ AgentCheckpoint Checkpoint() {
   static_cast<IncarnationSnapshot&>(c) = Snapshot(4, 3);
   c.earlier = {Snapshot(2, 2), Snapshot(1, 1)};
   c.submaps = {SubmapBytes(kRobot, 2, 0), SubmapBytes(kRobot, 4, 0), SubmapBytes(kRobot, 4, 1), SubmapBytes(5, 1, 0)};
+  PeerAlignment a;
+  a.robot = 5;
+  a.incarnation = 2;
+  a.origin_stamp = 0.25;
+  a.frame_stamp = 0.4;
+  a.to_own = {3.5, -1.25, 0.7};
+  a.cov << 0.01, 0.001, 0.0, 0.001, 0.02, 0.0003, 0.0, 0.0003, 0.004;
+  c.peers = {a};
+  a.incarnation = 3;
+  a.to_own = {-40.0, 12.0, -3.1};
+  c.peers.push_back(a);
   return c;
 }
 
@@ -101,15 +113,69 @@ TEST(Checkpoint, RoundTripsWithEarlierIncarnations) {
   ExpectSame(r.checkpoint->earlier[0], c.earlier[0]);
   ExpectSame(r.checkpoint->earlier[1], c.earlier[1]);
   EXPECT_EQ(r.checkpoint->submaps, c.submaps);  // byte for byte
+  ASSERT_EQ(r.checkpoint->peers.size(), c.peers.size());
+  for (std::size_t i = 0; i < c.peers.size(); ++i) {
+    const PeerAlignment &got = r.checkpoint->peers[i], &want = c.peers[i];
+    EXPECT_EQ(got.robot, want.robot);
+    EXPECT_EQ(got.incarnation, want.incarnation);
+    EXPECT_EQ(got.origin_stamp, want.origin_stamp);
+    EXPECT_EQ(got.frame_stamp, want.frame_stamp);
+    EXPECT_EQ(got.to_own.x, want.to_own.x);
+    EXPECT_EQ(got.to_own.y, want.to_own.y);
+    EXPECT_EQ(got.to_own.theta, want.to_own.theta);
+    EXPECT_EQ(got.cov, want.cov);
+  }
+}
+
+// The peers' frames the agent had placed (issue R3): each another robot's, once per incarnation,
+// finite and within bounds, with a symmetric PSD covariance; files without them hold none.
+TEST(Checkpoint, PeerAlignmentsAreValidatedAndNamed) {
+  const json good = CheckpointToJson(Checkpoint());
+  json none = good;
+  none.erase("peers");
+  const CheckpointLoad r = Parse(none.dump());
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_TRUE(r.checkpoint->peers.empty());
+  const auto with = [&](const std::function<void(json&)>& edit) {
+    json doc = good;
+    edit(doc["peers"][1]);
+    return Refusal(doc);
+  };
+  EXPECT_EQ(with([](json& p) { p["robot"] = kRobot; }), Reason("peers[1] is of robot 3, the agent's own"));
+  EXPECT_EQ(with([](json& p) { p["incarnation"] = 2; }), Reason("peers[1] repeats robot 5 incarnation 2 of peers[0]"));
+  EXPECT_EQ(with([](json& p) { p["x"] = nullptr; }),
+            Reason("peers[1].x is null, expected a finite number (NaN and inf are written as null)"));
+  EXPECT_EQ(with([](json& p) { p["y"] = 2e5; }), Reason("peers[1].y is 200000 m, beyond the world bound of 100000 m"));
+  EXPECT_EQ(with([](json& p) { p["theta"] = 7.0; }),
+            Reason("peers[1].theta is 7 rad, expected an angle wrapped to [-pi, pi]"));
+  EXPECT_EQ(with([](json& p) { p["frame_stamp"] = -1.0; }), Reason("peers[1].frame_stamp is -1, expected >= 0"));
+  EXPECT_EQ(with([](json& p) { p.erase("origin_stamp"); }), Reason("peers[1].origin_stamp is missing"));
+  EXPECT_EQ(with([](json& p) {
+              p["cov"] = json::array({1, 2, 3});
+            }),
+            Reason("peers[1].cov is an array of 3, expected an array of 9 numbers (3 x 3, row by row)"));
+  EXPECT_EQ(with([](json& p) { p["cov"][1] = 0.5; }), Reason("peers[1].cov is not symmetric positive semi-definite"));
+  EXPECT_EQ(with([](json& p) {
+              p["cov"] = json::array({1, 0, 0, 0, -1, 0, 0, 0, 1});
+            }),
+            Reason("peers[1].cov is not symmetric positive semi-definite"));
+  EXPECT_EQ(with([](json& p) { p["robot"] = 1ull << 33; }),
+            Reason("peers[1] names robot 8589934592 incarnation 3, beyond 32 bits"));
+  json doc = good;
+  doc["peers"] = json::object();
+  EXPECT_EQ(Refusal(doc), Reason("peers is an object, expected an array"));
+  CheckpointLimits one;
+  one.max_peers = 1;
+  EXPECT_EQ(Refusal(good, one), Reason("peers holds 2 alignments, more than the limit of 1"));
 }
 
 TEST(Checkpoint, NestedEarlierIsFlattenedInDocumentOrderAndWrittenFlat) {
   // An older writer's file: 4 { earlier: [2 { earlier: [1] }, 3] }.
-  json one = CheckpointToJson(AgentCheckpoint{Snapshot(1, 1), {}, {}});
-  json two = CheckpointToJson(AgentCheckpoint{Snapshot(2, 2), {}, {}});
+  json one = CheckpointToJson(AgentCheckpoint{Snapshot(1, 1), {}, {}, {}});
+  json two = CheckpointToJson(AgentCheckpoint{Snapshot(2, 2), {}, {}, {}});
   two["earlier"] = json::array({one});
-  json three = CheckpointToJson(AgentCheckpoint{Snapshot(3, 0), {}, {}});
-  json four = CheckpointToJson(AgentCheckpoint{Snapshot(4, 3), {}, {}});
+  json three = CheckpointToJson(AgentCheckpoint{Snapshot(3, 0), {}, {}, {}});
+  json four = CheckpointToJson(AgentCheckpoint{Snapshot(4, 3), {}, {}, {}});
   four["earlier"] = json::array({two, three});
   const CheckpointLoad r = Parse(four.dump());
   ASSERT_TRUE(r.ok()) << r.error;
@@ -152,10 +218,10 @@ TEST(Checkpoint, WrongRobotAtTheTopAndInAnyEarlierEntry) {
   c.earlier[2].robot = 5;
   EXPECT_EQ(Refusal(CheckpointToJson(c)), Reason("earlier[2].robot is 5, expected 3"));
   // Nested: the path names where it is in the file.
-  json inner = CheckpointToJson(AgentCheckpoint{Snapshot(1, 1), {}, {}});
+  json inner = CheckpointToJson(AgentCheckpoint{Snapshot(1, 1), {}, {}, {}});
   inner["robot"] = 4294967299ull;  // 3 + 2^32: must not wrap to 3
-  json doc = CheckpointToJson(AgentCheckpoint{Snapshot(4, 1), {}, {}});
-  doc["earlier"] = json::array({CheckpointToJson(AgentCheckpoint{Snapshot(2, 1), {}, {}})});
+  json doc = CheckpointToJson(AgentCheckpoint{Snapshot(4, 1), {}, {}, {}});
+  doc["earlier"] = json::array({CheckpointToJson(AgentCheckpoint{Snapshot(2, 1), {}, {}, {}})});
   doc["earlier"][0]["earlier"] = json::array({inner});
   EXPECT_EQ(Refusal(doc), Reason("earlier[0].earlier[0].robot is 4294967299, expected 3"));
 }
@@ -273,7 +339,7 @@ TEST(Checkpoint, EarlierNestedOneHundredThousandDeepIsRefused) {
 
 // Just past the limit, nested or flat: refused by counting, with the place named.
 TEST(Checkpoint, MoreThanTheLimitOfEarlierIncarnationsIsRefused) {
-  const auto entry = [](std::uint32_t inc) { return CheckpointToJson(AgentCheckpoint{Snapshot(inc, 0), {}, {}}); };
+  const auto entry = [](std::uint32_t inc) { return CheckpointToJson(AgentCheckpoint{Snapshot(inc, 0), {}, {}, {}}); };
   json doc = entry(1000);
   json* at = &doc;
   std::string path;
