@@ -19,6 +19,7 @@
 #include "common/io/checkpoint.h"
 #include "common/io/run_files.h"
 #include "common/map/wire_bytes.h"
+#include "common/transport/oversize_counter.h"
 #include "common/transport/session.h"
 #include "common/transport/shutdown.h"
 #include "common/transport/submap_signer.h"
@@ -37,7 +38,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MapperStats, offered, associated, initialised
                                    unidentified, out_of_range, invalid, failed_updates, diverged)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(AgentStats, maps_sent, bytes_sent, maps_received, bytes_received, maps_out_of_range,
                                    maps_lost, maps_over_bandwidth, maps_unknown_sender, maps_stale_version,
-                                   maps_encode_failed, maps_encode_trimmed, links_refused)
+                                   maps_encode_failed, maps_encode_trimmed, maps_beyond_sample_size, links_refused)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerReport, own_checkpoint, origin_stamp, local_landmarks, global_landmarks, aligned,
                                    ever_aligned, aligned_since, dropped, stale, stale_since, frozen, silent, last_heard,
                                    relayed, relay_conflicts, refuted, refuted_by, replaced, superseded, refuted_answers,
@@ -151,16 +152,18 @@ class InputWatch {
     if (now < next_) return;
     const AgentStats& s = node.stats();
     const SyncStats y = node.sync_stats();
-    const std::map<std::string, std::uint64_t> counts = {{"peer maps refused", s.MapsRefused()},
-                                                         {"peer maps malformed", s.MapsRejected()},
-                                                         {"link tables refused", s.links_refused},
-                                                         {"odometry implausible", y.odom_implausible},
-                                                         {"scans implausible", y.scans_implausible},
-                                                         {"odometry lost", y.odometry_lost},
-                                                         {"scans lost", y.scans_lost},
-                                                         {"odometry out of sequence", y.odom_out_of_sequence},
-                                                         {"scans out of sequence", y.scans_out_of_sequence},
-                                                         {"own maps not encodable", s.maps_encode_failed}};
+    const std::map<std::string, std::uint64_t> counts = {
+        {"peer maps refused", s.MapsRefused()},
+        {"peer maps malformed", s.MapsRejected()},
+        {"link tables refused", s.links_refused},
+        {"odometry implausible", y.odom_implausible},
+        {"scans implausible", y.scans_implausible},
+        {"odometry lost", y.odometry_lost},
+        {"scans lost", y.scans_lost},
+        {"odometry out of sequence", y.odom_out_of_sequence},
+        {"scans out of sequence", y.scans_out_of_sequence},
+        {"own maps not encodable", s.maps_encode_failed},
+        {"own maps beyond the sample size", s.maps_beyond_sample_size}};
     std::string what;
     for (const auto& [name, n] : counts) {
       const std::uint64_t before = last_.count(name) ? last_[name] : 0;
@@ -186,6 +189,8 @@ class InputWatch {
 // Link tables and ticks not from the run's feeder (FeederSource), by topic.
 struct SenderRefusals {
   std::map<RobotId, std::uint64_t> maps, sightings;
+  const tp::OversizeCounter* oversize = nullptr;  // samples the transport dropped for their size
+  std::size_t max_sample_bytes = 0;               // ... beyond this (AgentNode::MaxSampleBytes)
   bool warned = false;
   tp::FeederSource links, ticks;
   bool feeder_warned = false;
@@ -340,6 +345,9 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"rest", node.exchange().piecewise().rest}}},
             {"impersonations_refused", {{"maps", ByRobot(refusals.maps)}, {"sightings", ByRobot(refusals.sightings)}}},
             {"not_from_feeder", {{"links", refusals.links.refused()}, {"ticks", refusals.ticks.refused()}}},
+            {"transport_oversize",
+             {{"dropped", refusals.oversize ? refusals.oversize->received() : 0},
+              {"max_sample_bytes", refusals.max_sample_bytes}}},
             {"outputs",
              {{"write_failures", health.write_failures},
               {"stopped_at", health.stopped_at ? json(*health.stopped_at) : json()},
@@ -446,7 +454,13 @@ int Run(int argc, char** argv) {
     checkpoint = std::move(loaded_checkpoint.checkpoint);
   }
 
-  tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig());
+  const AgentRun run = AgentRunFor(scenario, self);
+  // A sample longer than any the run's agents send is dropped by the transport before it costs
+  // memory (issue R3: a hostile 4 MB map took 23 MB of an agent's 16 MB before the inbox refused it).
+  const std::size_t max_sample_bytes = AgentNode::MaxSampleBytes(scenario.agent, run);
+  const tp::OversizeCounter oversize;  // before the session: Cyclone's drops counted from the start
+  tp::Session session(po.domain, po.dds_config, app::DefaultDdsConfig(), max_sample_bytes);
+  spdlog::info("samples beyond {} bytes dropped by the transport (Cyclone MaxSampleSize)", max_sample_bytes);
   const tp::Participant& p = session.participant();
   tp::Reader<Odometry> odom(p, tp::OdomTopic(self), tp::SensorQos());
   tp::Reader<Scan> scans(p, tp::ScanTopic(self), tp::SensorQos());
@@ -455,7 +469,6 @@ int Run(int argc, char** argv) {
   // In lockstep the maps are exchanged at the feeder's ticks (messages.h ExchangeTick),
   // reliably, and sightings ride on them; in real time maps and sightings go out as the agent
   // goes, on topics of their own.
-  const AgentRun run = AgentRunFor(scenario, self);
   const bool lockstep = run.exchange_ticks;
   tp::Reader<MapMessage> maps(
       p, tp::kMapTopic,
@@ -519,6 +532,8 @@ int Run(int argc, char** argv) {
   std::uint64_t peer_events_at = 0;  // the exchange's update they were taken at
   InputWatch input_watch;
   SenderRefusals refusals;
+  refusals.oversize = &oversize;
+  refusals.max_sample_bytes = max_sample_bytes;
   OutputHealth health;
   auto speaks_for = [&](tp::WriterPartitions& writers, dds_instance_handle_t publication, RobotId robot,
                         std::map<RobotId, std::uint64_t>& refused) {

@@ -6,6 +6,9 @@
 #include <utility>
 
 #include "common/check.h"
+#include "common/map/map_codec.h"
+#include "common/map/submap_codec.h"
+#include "common/map/submap_origin.h"
 #include "common/slam/dead_reckoning_mapper.h"
 #include "common/slam/local_slam.h"
 #include "common/slam/submap_slam.h"
@@ -155,7 +158,33 @@ AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId s
                    options.rendezvous.period_s);
                return o;
              }()),
-      next_checkpoint_s_(options.checkpoint_period_s) {}
+      next_checkpoint_s_(options.checkpoint_period_s) {
+  max_sample_bytes_ = MaxSampleBytes(options, run);
+}
+
+std::size_t AgentNode::MaxSampleBytes(const AgentOptions& options, const AgentRun& run) {
+  const SubmapRelayOptions& sub = options.exchange.submaps;
+  const std::size_t robots = run.robots.size();
+  // Blobs: each with its length fields and a signature; as many as the budget holds of the
+  // smallest submap, and one beyond it.
+  const std::size_t blobs = std::min(kMaxSubmapsPerMap, sub.send_bytes / SubmapPayloadBytes(0) + 1);
+  const std::size_t blob_overhead = blobs * (8 + kMaxSubmapSignatureBytes);
+  const std::size_t sightings = LockstepInboxOptions::SightingsPerMap(
+      robots, std::max(options.exchange.map_publish_period_s, options.rendezvous.window_s),
+      options.rendezvous.period_s);
+  const std::size_t map = kMapMessageFixedBytes + kMapCodecHeaderBytes +
+                          kMapCodecLandmarkBytes * options.peer_limits.max_landmarks +   // the payload
+                          20 + 20 * SubmapRelay::kMaxChains +                            // the chains held
+                          2 * (sub.send_bytes + sub.max_submap_bytes + blob_overhead) +  // closed, open relayed
+                          sub.max_submap_bytes + kMaxSubmapSignatureBytes +              // its own open one
+                          4 +
+                          kChainPlacementWireBytes * robots *
+                              static_cast<std::size_t>(options.exchange.max_incarnations) +
+                          4 + kSightingWireBytes * sightings;
+  const std::size_t tick = 64 + 8 * robots * (robots > 0 ? robots - 1 : 0) / 2 +
+                           12 * robots;  // every pair linked, every peer
+  return std::max({map, tick, kMinSampleBytes}) + kSampleSlackBytes;
+}
 
 void AgentNode::OnOdometry(const Odometry& odom) { sync_.OnOdometry(odom); }
 
@@ -350,6 +379,12 @@ bool AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t vers
           msg.placements.push_back(c);
       }
     }
+  }
+  // Beyond what every agent of the run takes (MaxSampleBytes: their settings are its own), the
+  // transport would refuse to write it: not sent, counted (the wire's bound is not the codec's).
+  if (WireBytes(msg) + riders.size() * kSightingWireBytes > max_sample_bytes_) {
+    ++stats_.maps_beyond_sample_size;
+    return false;
   }
   ++stats_.maps_sent;
   stats_.bytes_sent += WireBytes(msg);

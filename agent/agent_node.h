@@ -108,6 +108,10 @@ std::string_view ToString(SubmapRefusal r);
 // A local map carries at most this many closed submaps, and as many relayed open ones (the first
 // are taken, the rest refused).
 inline constexpr std::size_t kMaxSubmapsPerMap = 1024;
+// AgentNode::MaxSampleBytes: no bound below this (a scan or a small run's table must never meet
+// it), and room above the sum for CDR's alignment and headers.
+inline constexpr std::size_t kMinSampleBytes = 1u << 20;
+inline constexpr std::size_t kSampleSlackBytes = 64u << 10;
 
 // Counters of the maps the agent sent, received, dropped or rejected, and why.
 struct AgentStats {
@@ -124,11 +128,12 @@ struct AgentStats {
   std::array<std::uint32_t, kMapRefusalCount> maps_refused{};  // by MapRefusal
   std::uint32_t maps_encode_failed = 0;                        // own maps that could not be encoded (never sent) ...
   MapDecodeError last_encode_error = MapDecodeError::kOk;      // ... the last time, why
-  std::uint32_t maps_encode_trimmed = 0;     // own maps sent without landmarks beyond the codec's bound
-  std::uint32_t links_refused = 0;           // link tables with implausible stamps
-  std::uint64_t landmarks_sent = 0;          // over all maps sent
-  std::uint64_t payload_bytes_sent = 0;      // their encoded payloads
-  std::uint64_t open_submap_bytes_sent = 0;  // the own open submaps riding on them (fusion joining)
+  std::uint32_t maps_encode_trimmed = 0;      // own maps sent without landmarks beyond the codec's bound
+  std::uint32_t maps_beyond_sample_size = 0;  // own maps longer than MaxSampleBytes (the transport drops them)
+  std::uint32_t links_refused = 0;            // link tables with implausible stamps
+  std::uint64_t landmarks_sent = 0;           // over all maps sent
+  std::uint64_t payload_bytes_sent = 0;       // their encoded payloads
+  std::uint64_t open_submap_bytes_sent = 0;   // the own open submaps riding on them (fusion joining)
   std::map<RobotId, std::uint32_t> maps_received_from;
   // per robot: the latest stamp of a map taken from it, or end of an open submap of it taken
   // (its publisher's or relayed): its data up to then
@@ -155,6 +160,15 @@ class AgentNode : private SensorSync::Sink {
  public:
   AgentNode(const AgentOptions& options, const AgentRun& run, RobotId self, std::uint32_t incarnation,
             AgentOutput& out);
+
+  // The largest sample, serialised, that an agent of these options sends or takes in this run
+  // (issue R3): a map message at the peers' limits (a payload of agent.max_peer_landmarks, the
+  // chains held, a publication's submap budget with one submap beyond it for the closed ones and
+  // again for the silent robots' open ones, its own open submap, signatures, placements and the
+  // sightings a peer's inbox takes), or an exchange tick with every pair linked; at least
+  // kMinSampleBytes, and kSampleSlackBytes more. agent_main gives it to Cyclone (MaxSampleSize),
+  // which drops a larger sample unread, on either side, with a warning.
+  static std::size_t MaxSampleBytes(const AgentOptions& options, const AgentRun& run);
 
   void OnOdometry(const Odometry& odom);
   void OnScan(const Scan& scan);
@@ -262,6 +276,7 @@ class AgentNode : private SensorSync::Sink {
   // map's bound.
   bool PlausiblePlacement(const ChainPlacement& c, RobotId publisher, std::uint32_t incarnation) const;
   std::size_t MaxPlacements() const;  // the run's robots times the incarnations kept of each
+  std::size_t max_sample_bytes_ = 0;  // MaxSampleBytes
   // The scenario time as far as this agent can tell: its own progress, or the link table's
   // when that is ahead (before the first odometry of a restarted agent).
   double Clock() const;

@@ -69,7 +69,8 @@ int Run(int argc, char** argv) {
       "forged_submaps (a robot's next submaps, landmarks moved, on a stale copy of another's map), ghost_incarnation "
       "(a robot's submap under an incarnation never run, and one opened at -1e9 s, on the same carrier), forged_relay "
       "(forged_submaps' forgeries on the next robot's next map key, sent before its own; under DDS Security signed "
-      "with the injector's identity). "
+      "with the injector's identity), huge_submaps (valid 500-landmark submaps, 2 MB each, two per message, under a "
+      "robot's identity at new indices, on forged_relay's carrier). "
       "scripts/swarm run --inject CASES starts it alongside a run.");
   app::ProcessOptions po;
   std::string cases_text = "all", report_path;

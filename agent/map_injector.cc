@@ -15,9 +15,10 @@ namespace mapmesh {
 std::vector<std::string> AllInjectCases() {
   std::vector<std::string> cases;
   for (int i = 0; i < kPayloadFaultCount; ++i) cases.emplace_back(ToString(static_cast<PayloadFault>(i)));
-  for (const char* c : {kInjectStaleVersion, kInjectUnknownSender, kInjectShuffled, kInjectOdometryStamp,
-                        kInjectFarReading, kInjectLinksStamp, kInjectLinksAhead, kInjectVersionJump, kInjectHugeMap,
-                        kInjectTickFlood, kInjectForgedSubmaps, kInjectGhostIncarnation, kInjectForgedRelay}) {
+  for (const char* c :
+       {kInjectStaleVersion, kInjectUnknownSender, kInjectShuffled, kInjectOdometryStamp, kInjectFarReading,
+        kInjectLinksStamp, kInjectLinksAhead, kInjectVersionJump, kInjectHugeMap, kInjectTickFlood,
+        kInjectForgedSubmaps, kInjectGhostIncarnation, kInjectForgedRelay, kInjectHugeSubmaps}) {
     cases.emplace_back(c);
   }
   return cases;
@@ -190,6 +191,17 @@ std::optional<InjectedMessage> MapInjector::MakeHostile(const std::string& c, Ro
     }
     return Carry(target, std::move(submaps), c == kInjectForgedRelay);
   }
+  if (c == kInjectHugeSubmaps) {
+    const auto last = last_closed_.find(target);
+    if (last == last_closed_.end()) return std::nullopt;
+    std::uint32_t& index = huge_index_.try_emplace(target, last->second.id.index + kInjectHugeSubmapsFrom)
+                               .first->second;
+    std::vector<std::vector<std::uint8_t>> submaps;
+    for (std::uint32_t k = 0; k < kInjectHugeSubmapCount; ++k) submaps.push_back(HugeSubmap(last->second, index + k));
+    std::optional<InjectedMessage> m = Carry(target, std::move(submaps), /*ahead=*/true);
+    if (m) index += kInjectHugeSubmapCount;  // new identities each time
+    return m;
+  }
   // huge_map
   if (huge_turns_++ % kInjectHugeEvery != 0) return std::nullopt;
   if (huge_payload_.empty()) huge_payload_ = EncodeMap(RandomMap(static_cast<int>(kMapCodecMaxLandmarks)));
@@ -225,6 +237,30 @@ std::optional<InjectedMessage> MapInjector::Carry(RobotId robot, std::vector<std
   return m;
 }
 
+std::vector<std::uint8_t> MapInjector::HugeSubmap(const WireSubmap& like, std::uint32_t index) {
+  const Eigen::Index near = (like.x.size() - 3) / 2;
+  std::uniform_real_distribution<double> spread(-2.0, 2.0), wide(-20.0, 20.0);
+  WireSubmap s;
+  s.id = like.id;
+  s.id.index = index;
+  s.opened_s = like.opened_s;
+  s.closed_s = like.closed_s;
+  const Eigen::Index n = kSubmapCodecMaxLandmarks;
+  s.x = Eigen::VectorXd::Zero(3 + 2 * n);
+  s.x.head(3) = like.x.head(3);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    s.keys.push_back(static_cast<std::uint32_t>(1000000 + i));
+    const Eigen::Index j = 3 + 2 * (near > 0 ? i % near : 0);
+    s.x(3 + 2 * i) = near > 0 ? like.x(j) + spread(rng_) : wide(rng_);
+    s.x(4 + 2 * i) = near > 0 ? like.x(j + 1) + spread(rng_) : wide(rng_);
+  }
+  const bool set = s.SetCovariance(0.01 * Eigen::MatrixXd::Identity(s.x.size(), s.x.size()));
+  MAPMESH_CHECK(set, "a diagonal covariance is positive definite");
+  std::vector<std::uint8_t> bytes = EncodeSubmap(s);
+  MAPMESH_CHECK(!bytes.empty(), "huge_submaps made a submap its codec refuses");
+  return bytes;
+}
+
 LandmarkMap MapInjector::RandomMap(int n) {
   std::uniform_real_distribution<double> u(0.0, 50.0);
   LandmarkMap m;
@@ -241,7 +277,7 @@ LandmarkMap MapInjector::RandomMap(int n) {
 std::optional<InjectedMessage> MapInjector::Make(const std::string& c, RobotId sender) {
   if (c == kInjectOdometryStamp || c == kInjectFarReading || c == kInjectLinksStamp || c == kInjectLinksAhead ||
       c == kInjectVersionJump || c == kInjectHugeMap || c == kInjectTickFlood || c == kInjectForgedSubmaps ||
-      c == kInjectGhostIncarnation || c == kInjectForgedRelay) {
+      c == kInjectGhostIncarnation || c == kInjectForgedRelay || c == kInjectHugeSubmaps) {
     return MakeHostile(c, sender);
   }
   MapMessage m;

@@ -50,7 +50,12 @@
 //                            has not used yet (its latest local map two versions and two ticks on,
 //                            there before the robot's own: first arrival wins, and agents take it),
 //                            as a relay holding that robot's credentials would send them (issue
-//                            R3: under DDS Security the injector signs them with its own identity).
+//                            R3: under DDS Security the injector signs them with its own identity);
+//   huge_submaps             valid submaps of kSubmapCodecMaxLandmarks landmarks (2 MB each) under the
+//                            robot's identity at new indices from its latest closed submap's +
+//                            kInjectHugeSubmapsFrom on, kInjectHugeSubmapCount per message, on
+//                            forged_relay's carrier (a key agents take, so that what rides on it
+//                            is read): the byte budgets of issue R3 must refuse them.
 
 #include <cstdint>
 #include <functional>
@@ -89,6 +94,9 @@ inline constexpr std::uint32_t kInjectForgedSubmapCount = 5;
 inline constexpr const char* kInjectGhostIncarnation = "ghost_incarnation";
 inline constexpr std::uint32_t kInjectGhostIncarnationId = 77;
 inline constexpr const char* kInjectForgedRelay = "forged_relay";
+inline constexpr const char* kInjectHugeSubmaps = "huge_submaps";
+inline constexpr std::uint32_t kInjectHugeSubmapCount = 2;
+inline constexpr std::uint32_t kInjectHugeSubmapsFrom = 1000;
 inline constexpr std::uint32_t kInjectFarReadingSeq = 999999u;
 // The incarnation the faulty peer of the shuffled case claims (real agents count from 1).
 inline constexpr std::uint32_t kInjectFaultyIncarnation = 3000000000u;
@@ -168,8 +176,12 @@ class MapInjector {
   int huge_turns_ = 0;
   std::vector<std::uint8_t> flood_payload_;  // made once
   std::uint32_t flood_version_ = 0;
-  std::map<RobotId, std::uint32_t> flood_far_;  // per robot: its far-ahead maps so far
-  std::map<RobotId, WireSubmap> last_closed_;   // each robot's latest closed submap of its own, as heard
+  std::map<RobotId, std::uint32_t> flood_far_;   // per robot: its far-ahead maps so far
+  std::map<RobotId, WireSubmap> last_closed_;    // each robot's latest closed submap of its own, as heard
+  std::map<RobotId, std::uint32_t> huge_index_;  // per robot: the next index huge_submaps uses
+  // A valid submap of kSubmapCodecMaxLandmarks landmarks under `like`'s robot, incarnation and
+  // stamps, at `index`: its landmarks spread 2 m about `like`'s (or 20 m about its origin).
+  std::vector<std::uint8_t> HugeSubmap(const WireSubmap& like, std::uint32_t index);
   // A copy of the local map of the robot after `robot` in the run, at the tick after it, carrying
   // `submaps` (forged_submaps, ghost_incarnation); nothing while either is unknown.
   // The next robot's latest local map carrying `submaps` (signed with sign_, if set), under the

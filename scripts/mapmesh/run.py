@@ -752,6 +752,9 @@ class SwarmRun:
                 "scans_implausible": stats.get("scans_implausible"),
                 "links_refused": stats.get("links_refused"),
                 "not_from_feeder": stats.get("not_from_feeder"),
+                # Samples its transport dropped unread for their size, and own maps not sent for it.
+                "transport_oversize": stats.get("transport_oversize"),
+                "maps_beyond_sample_size": stats.get("maps_beyond_sample_size"),
                 "maps_refused": stats.get("maps_refused", {}),
                 # Lockstep: peers' messages the inbox refused on arrival, by reason (docs/OUTPUTS.md).
                 "inbox_refused": stats.get("inbox_refused", {}),

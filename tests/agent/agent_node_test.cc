@@ -507,6 +507,30 @@ TEST(AgentNodeLimits, RefusesItsOwnRobotsSubmapsFromOthersAndRidersOfMapsNotTake
 // Issue R3: submaps bounded in bytes. A peer's closed or open submap longer than
 // agent.max_submap_bytes is refused unread (too_large) and nothing of it is held; one within
 // is taken. The agent's own submaps close before they outgrow that bound.
+// The transport's bound on a sample (Cyclone's MaxSampleSize, issue R3): with the defaults, a
+// little above a map at the peers' limits with a publication's submaps (1.5 MB), below the 4 MB
+// of two 500-landmark submaps; it grows with what the settings let a publisher send, and with the
+// link table of a large run.
+TEST(AgentNodeLimits, TheSampleBoundFollowsWhatThePublishersMaySend) {
+  Scenario sc = JoiningTrio();
+  const AgentRun run = AgentRunFor(sc, 1);
+  const std::size_t bound = AgentNode::MaxSampleBytes(sc.agent, run);
+  const std::size_t peer_map = kMapCodecLandmarkBytes * sc.agent.peer_limits.max_landmarks;
+  const auto& sub = sc.agent.exchange.submaps;
+  EXPECT_GE(bound, peer_map + 3 * sub.max_submap_bytes + 2 * sub.send_bytes);
+  EXPECT_LT(bound, 2 * SubmapPayloadBytes(kSubmapCodecMaxLandmarks));
+  Scenario more = sc;
+  more.agent.exchange.submaps.send_bytes = 16u << 20;
+  EXPECT_GE(AgentNode::MaxSampleBytes(more.agent, run), 32u << 20);
+  more = sc;
+  more.agent.peer_limits.max_landmarks = 100000;
+  EXPECT_GE(AgentNode::MaxSampleBytes(more.agent, run) - bound, 90000 * kMapCodecLandmarkBytes);
+  AgentRun large = run;
+  large.robots.clear();
+  for (RobotId r = 1; r <= 2000; ++r) large.robots.push_back(r);
+  EXPECT_GE(AgentNode::MaxSampleBytes(sc.agent, large), 8u * 2000 * 1999 / 2);
+}
+
 TEST(AgentNodeLimits, RefusesSubmapsLongerThanTheByteLimitAndClosesItsOwnWithin) {
   Scenario sc = JoiningTrio();
   sc.agent.exchange.submaps.max_submap_bytes = SubmapPayloadBytes(3);

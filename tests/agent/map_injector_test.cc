@@ -45,7 +45,7 @@ std::optional<MapMessage> NextMap(MapInjector& inj) {
 
 TEST(InjectCases, ParsesAllAListAndRefusesUnknownOnes) {
   EXPECT_EQ(ParseInjectCases("all"), AllInjectCases());
-  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 13));
+  EXPECT_EQ(AllInjectCases().size(), static_cast<std::size_t>(kPayloadFaultCount + 14));
   EXPECT_EQ(ParseInjectCases("shuffled,truncated,shuffled"), (std::vector<std::string>{"shuffled", "truncated"}));
   EXPECT_FALSE(ParseInjectCases("shuffle").has_value());
   EXPECT_FALSE(ParseInjectCases("").has_value());
@@ -247,6 +247,55 @@ TEST(MapInjector, ForgedSubmapsRideOnAStaleCopyOfTheNextRobotsMap) {
       EXPECT_EQ(rode[1].opened_s, -1e9);
     }
   }
+}
+
+// huge_submaps: nothing before the robot's closed submap and the next robot's map are heard;
+// then two valid submaps of the codec's most landmarks (2 MB each) under the robot's identity at
+// new indices 1000 past its latest closed one, on forged_relay's carrier, new indices each time.
+TEST(MapInjector, HugeSubmapsAreValidNewAndRideOnAKeyAgentsTake) {
+  MapInjector inj({2, 3}, {"huge_submaps"}, 99, 5);
+  WireSubmap own;
+  own.id = {2, 7, 4};
+  own.opened_s = 10.0;
+  own.closed_s = 20.0;
+  own.keys = {5, 6};
+  own.x = Eigen::VectorXd::Zero(7);
+  own.x.tail(4) << 1.0, 2.0, 3.0, 4.0;
+  ASSERT_TRUE(own.SetCovariance(0.01 * Eigen::MatrixXd::Identity(7, 7)));
+  MapMessage from2 = RobotMap(2, 3, 10);
+  from2.submaps = {EncodeSubmap(own)};
+  inj.OnMap(from2);
+  EXPECT_FALSE(NextMap(inj).has_value());  // no carrier yet
+  MapMessage from3 = RobotMap(3, 8, 10);
+  from3.tick = 40;
+  inj.OnMap(from3);
+  std::set<SubmapId> seen;
+  for (int turn = 0; turn < 2; ++turn) {
+    std::optional<MapMessage> m = NextMap(inj);
+    ASSERT_TRUE(m.has_value());
+    EXPECT_EQ(m->robot_id, 3u);
+    EXPECT_EQ(m->version, 10u);
+    EXPECT_EQ(m->tick, 42u);
+    ASSERT_EQ(m->submaps.size(), kInjectHugeSubmapCount);
+    for (const SubmapBlob& blob : m->submaps) {
+      EXPECT_EQ(blob.bytes.size(), SubmapPayloadBytes(kSubmapCodecMaxLandmarks));
+      EXPECT_GT(blob.bytes.size(), 2000000u);
+      const SubmapDecodeResult d = DecodeSubmap(blob.bytes);
+      ASSERT_TRUE(d.ok());
+      EXPECT_EQ(d.submap.id.robot, 2u);
+      EXPECT_EQ(d.submap.id.incarnation, 7u);
+      EXPECT_GE(d.submap.id.index, 4u + kInjectHugeSubmapsFrom);
+      EXPECT_TRUE(seen.insert(d.submap.id).second);
+      EXPECT_EQ(d.submap.opened_s, 10.0);
+      EXPECT_EQ(d.submap.closed_s, 20.0);
+      for (Eigen::Index j = 3; j < d.submap.x.size(); j += 2) {  // 2 m about one of own's landmarks
+        const double to5 = std::hypot(d.submap.x(j) - 1.0, d.submap.x(j + 1) - 2.0);
+        const double to6 = std::hypot(d.submap.x(j) - 3.0, d.submap.x(j + 1) - 4.0);
+        EXPECT_LE(std::min(to5, to6), std::sqrt(8.0) + 1e-6);
+      }
+    }
+  }
+  EXPECT_EQ(inj.sent().at("huge_submaps").at(3), 2);
 }
 
 // The hostile cases: forged odometry, a far reading at the time the agent reported, a links

@@ -180,6 +180,45 @@ class ForgedSubmapsTest(FaultRunCase):
         # ghost submaps" (4.15-4.43 s summed against 4.22 s).
 
 
+class HugeSubmapsTest(FaultRunCase):
+    # R3: large valid submaps took an agent out of the run, bounded by count, not bytes (100 of
+    # 500 landmarks, 2 MB each: 881 MB RSS at the agent in range, 360-403 MB relayed by each of
+    # the others). mapmesh-inject huge_submaps sends two such submaps under a robot's identity at
+    # new indices on a map key agents take (forged_relay's carrier), one every 1.5 s of scenario
+    # time. With the build before (1470085) the lockstep inbox refused each carrier (it came after
+    # the robot's own map of that key: `past_tick`, `key_taken`), but only once the transport had
+    # taken and decoded it: every agent's RSS 38-45 MB against 16 MB in the clean run (2.4 x).
+    # Now an agent's transport drops any sample beyond what the run's agents can send
+    # (AgentNode::MaxSampleBytes, 2.9 MB with these settings; Cyclone's MaxSampleSize) before it
+    # is reassembled, counted in stats.json `transport_oversize`. Huge submaps that fit in a
+    # sample are refused unread by agent.max_submap_bytes (AgentNodeLimits).
+    JOINING = ["--set", "agent.slam=cekf_submaps", "--set", "agent.fusion=joining"]
+
+    def test_huge_valid_submaps_are_dropped_unread_and_change_nothing(self):
+        base = self.out
+        clean = self.run_ok(PARK4, *self.JOINING, out=base.parent / "clean")
+        huge = self.run_ok(PARK4, *self.JOINING, "--inject", "huge_submaps", "--inject-sim-period", "1.5",
+                           out=base.parent / "huge")
+        summary = self.summary()
+        self.assertEqual(summary["injector_exit_code"], 0)
+        sent = summary["injected"]["cases"]["huge_submaps"]["sent"]
+        self.assertGreater(sent, 5)
+        for rid, a in huge.items():
+            with self.subTest(agent=rid):
+                c = clean[rid]
+                self.assertEqual(a["exit_code"], 0)
+                st = json.loads((self.out / f"agent_{rid}" / "stats.json").read_text())
+                was = json.loads((base.parent / "clean" / f"agent_{rid}" / "stats.json").read_text())
+                self.assertGreater(st["transport_oversize"]["dropped"], 0, st["transport_oversize"])
+                self.assertEqual(was["transport_oversize"]["dropped"], 0)
+                self.assertEqual(st["maps_beyond_sample_size"], 0)
+                self.assertEqual(st["submaps"]["held"], was["submaps"]["held"])
+                self.assertLessEqual(a["max_rss_mb"], 1.2 * c["max_rss_mb"], (a, c))
+        self.assert_same_maps(self.out, base.parent / "clean")
+        # CPU: measured, not asserted (TickFloodTest says why): 1.05-1.08 x the clean run's per
+        # agent on an idle host (docs/EXPERIMENTS.md "Huge submaps").
+
+
 def storm(robot, kills=12, first=10, every=15, back_after=3):
     """--kill/--restart arguments: `robot` killed `kills` times, every `every` s from `first`,
     each time restarted `back_after` s later."""

@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "common/transport/domain_lease.h"
+#include "common/transport/oversize_counter.h"
 #include "common/transport/session.h"
 #include "common/transport/shutdown.h"
 #include "common/transport/topics.h"
@@ -379,6 +380,55 @@ TEST_F(TransportTest, GuardConditionWakesTheWaitSet) {
   EXPECT_EQ(tags[0], 42);
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
   EXPECT_TRUE(g.Triggered());
+}
+
+// A session's max_sample_bytes is Cyclone's MaxSampleSize on top of the config: a larger sample
+// goes nowhere (the writer refuses it, as a reader drops one from a writer without the bound:
+// ddsi_receive.c drop_oversize), a smaller one as before.
+TEST(Transport, SamplesBeyondTheSessionsMaxSampleSizeAreDropped) {
+  DomainLease lease;
+  Session session(lease.id(), kConfig, kConfig, 64 * 1024);
+  Writer<MapMessage> w(session.participant(), kMapTopic, LockstepMapQos(1.0));
+  Reader<MapMessage> r(session.participant(), kMapTopic, LockstepMapQos(1.0));
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (w.raw().MatchedReaders() == 0 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_GT(w.raw().MatchedReaders(), 0u);
+  MapMessage m;
+  m.robot_id = 4;
+  m.incarnation = 1;
+  m.version = 1;
+  m.payload = std::vector<std::uint8_t>(100 * 1024, 7);
+  EXPECT_THROW(w.Write(m), DdsError);  // Cyclone refuses to write it (and warns)
+  m.version = 2;
+  m.payload = std::vector<std::uint8_t>(1024, 7);
+  w.Write(m);
+  // Reliable and in order: had the large one gone out, it would come first.
+  std::vector<MapMessage> got;
+  WaitSet ws(session.participant());
+  ws.AttachReader(r.raw(), 1);
+  while (got.empty() && std::chrono::steady_clock::now() < deadline + std::chrono::seconds(5)) {
+    ws.Wait(0.1);
+    for (auto& sample : r.Take()) {
+      if (sample.valid) got.push_back(sample.value);
+    }
+  }
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].version, 2u);
+}
+
+// What the agent counts of Cyclone's warnings: a received sample dropped for its size, not one
+// its own writer refused.
+TEST(Transport, OversizeCounterCountsOnlyReceivedSamplesDropped) {
+  EXPECT_TRUE(OversizeCounter::IsReceivedOversizeDrop(
+      "recvMC: dropping oversize (4048576 > 2886287) sample 1 from remote writer 1107db8:7e089443:3681e8aa:1802 "
+      "mapmesh/map/mapmesh::msg::MapMessage"));
+  EXPECT_FALSE(OversizeCounter::IsReceivedOversizeDrop(
+      "dropping oversize (102472 > 65536) sample from local writer 1108838:acc78f67:d75f69f5:202 mapmesh/map"));
+  EXPECT_FALSE(OversizeCounter::IsReceivedOversizeDrop("some other warning from remote writer"));
+  const OversizeCounter counter;
+  EXPECT_EQ(counter.received(), 0u);
 }
 
 TEST(Transport, ErrorsCarryTheCallAndCycloneReason) {
