@@ -187,6 +187,19 @@ TEST(MapInjector, TheTickFloodTakesTurnsOfClaimedSenderAndTick) {
   EXPECT_EQ(inj.sent().at("tick_flood").at(2), 4);
 }
 
+// Robot 2's closed submap 4 of incarnation 7: landmarks 5 at (1, 2) and 6 at (3, 4).
+WireSubmap ClosedSubmapOf2() {
+  WireSubmap own;
+  own.id = {2, 7, 4};
+  own.opened_s = 10.0;
+  own.closed_s = 20.0;
+  own.keys = {5, 6};
+  own.x = Eigen::VectorXd::Zero(7);
+  own.x.tail(4) << 1.0, 2.0, 3.0, 4.0;
+  EXPECT_TRUE(own.SetCovariance(0.01 * Eigen::MatrixXd::Identity(7, 7)));
+  return own;
+}
+
 // forged_submaps and ghost_incarnation: nothing before the robot's closed submap and the next
 // robot's map are heard; then the robot's submap under its next indices, landmarks moved 3-15
 // m (forged_submaps), or under incarnations 77 and 78, the second opened at -1e9 s (ghost),
@@ -199,14 +212,7 @@ TEST(MapInjector, ForgedSubmapsRideOnAStaleCopyOfTheNextRobotsMap) {
     MapInjector inj({2, 3}, {c}, 99, 5);
     const bool relay = c == "forged_relay";
     if (relay) inj.SignWith([](std::span<const std::uint8_t> b) { return std::vector<std::uint8_t>{9, b[0]}; });
-    WireSubmap own;
-    own.id = {2, 7, 4};
-    own.opened_s = 10.0;
-    own.closed_s = 20.0;
-    own.keys = {5, 6};
-    own.x = Eigen::VectorXd::Zero(7);
-    own.x.tail(4) << 1.0, 2.0, 3.0, 4.0;
-    ASSERT_TRUE(own.SetCovariance(0.01 * Eigen::MatrixXd::Identity(7, 7)));
+    const WireSubmap own = ClosedSubmapOf2();
     MapMessage from2 = RobotMap(2, 3, 10);
     from2.submaps = {EncodeSubmap(own)};
     inj.OnMap(from2);
@@ -254,16 +260,8 @@ TEST(MapInjector, ForgedSubmapsRideOnAStaleCopyOfTheNextRobotsMap) {
 // new indices 1000 past its latest closed one, on forged_relay's carrier, new indices each time.
 TEST(MapInjector, HugeSubmapsAreValidNewAndRideOnAKeyAgentsTake) {
   MapInjector inj({2, 3}, {"huge_submaps"}, 99, 5);
-  WireSubmap own;
-  own.id = {2, 7, 4};
-  own.opened_s = 10.0;
-  own.closed_s = 20.0;
-  own.keys = {5, 6};
-  own.x = Eigen::VectorXd::Zero(7);
-  own.x.tail(4) << 1.0, 2.0, 3.0, 4.0;
-  ASSERT_TRUE(own.SetCovariance(0.01 * Eigen::MatrixXd::Identity(7, 7)));
   MapMessage from2 = RobotMap(2, 3, 10);
-  from2.submaps = {EncodeSubmap(own)};
+  from2.submaps = {EncodeSubmap(ClosedSubmapOf2())};
   inj.OnMap(from2);
   EXPECT_FALSE(NextMap(inj).has_value());  // no carrier yet
   MapMessage from3 = RobotMap(3, 8, 10);
