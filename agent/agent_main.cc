@@ -581,7 +581,10 @@ int Run(int argc, char** argv) {
       }
     }
     for (const auto& s : maps.Take()) {
-      if (s.valid && speaks_for(map_writers, s.publication, s.value.robot_id, refusals.maps)) node.OnMap(s.value);
+      if (s.valid && speaks_for(map_writers, s.publication, s.value.robot_id, refusals.maps)) {
+        const std::string* guid = map_writers.GuidOf(s.publication);  // known: speaks_for found the writer
+        node.OnMap(s.value, guid ? *guid : std::string());
+      }
       // A peer's writer is gone: an invalid sample carries that, or the state of its last
       // sample when that was still unread.
       if (!s.alive && node.OnPeerLiveliness(s.value.robot_id, false)) {

@@ -73,6 +73,7 @@ std::string_view ToString(MapRefusal r) {
     case MapRefusal::kCovarianceTooSmall: return "covariance_too_small";
     case MapRefusal::kVersionJump: return "version_jump";
     case MapRefusal::kTooManyIncarnations: return "too_many_incarnations";
+    case MapRefusal::kOtherWriter: return "other_writer";
   }
   return "unknown";
 }
@@ -407,12 +408,17 @@ void AgentNode::OnLinks(const RadioLinks& links) {
 
 double AgentNode::Clock() const { return std::max(sync_.processed_until(), gate_.links_stamp()); }
 
-void AgentNode::OnMap(const MapMessage& msg) {
+void AgentNode::OnMap(const MapMessage& msg, const std::string& writer) {
   // Our own publications echo back; an earlier incarnation of ours comes from the checkpoint.
   if (msg.robot_id == self_) return;
+  // Another writer than the robot incarnation's (its riders with it): refused before it is kept.
+  if (!writers_.Admits(msg.robot_id, msg.incarnation, writer)) {
+    ++stats_.maps_refused[static_cast<int>(MapRefusal::kOtherWriter)];
+    return;
+  }
   // Lockstep: into the inbox, with its riders (each must be the publisher's, of the map's tick).
   if (exchange_ticks_) {
-    stats_.sightings_implausible += inbox_.OfferMap(msg).foreign_riders;
+    stats_.sightings_implausible += inbox_.OfferMap(msg, writer).foreign_riders;
     return;
   }
   // Sightings riding on the map are the publisher's own, or refused.
@@ -423,19 +429,28 @@ void AgentNode::OnMap(const MapMessage& msg) {
       OnSighting(s);
     }
   }
-  ProcessMap(msg);
+  ProcessMap(msg, writer);
 }
 
-void AgentNode::ProcessMap(const MapMessage& msg) {
+void AgentNode::ProcessMap(const MapMessage& msg, const std::string& writer) {
   if (!InRun(msg.robot_id)) {
     ++stats_.maps_unknown_sender;
     return;
   }
   const double now = Clock();
   auto refuse = [this](MapRefusal r) { ++stats_.maps_refused[static_cast<int>(r)]; };
+  // Kept in the inbox before the robot incarnation's first map was taken, from another writer;
+  // else the first map with a plausible stamp binds its writer, whether or not the radio lets
+  // it through (the writer is a fact of the transport, not of range).
+  if (!writers_.Admits(msg.robot_id, msg.incarnation, writer)) {
+    stats_.submaps_refused[static_cast<int>(SubmapRefusal::kOnRefusedMap)] += static_cast<std::uint32_t>(
+        msg.submaps.size() + msg.open_relayed.size() + (msg.open_submap.empty() ? 0 : 1));
+    return refuse(MapRefusal::kOtherWriter);
+  }
   if (!std::isfinite(msg.stamp) || !std::isfinite(msg.origin_stamp) || msg.stamp > now + options_.max_stamp_jump_s) {
     return refuse(MapRefusal::kImplausibleStamp);
   }
+  writers_.Bind(msg.robot_id, msg.incarnation, writer);
   switch (gate_.Admit(msg.robot_id, WireBytes(msg), msg.stamp)) {
     case GateVerdict::kOutOfRange: ++stats_.maps_out_of_range; return;
     case GateVerdict::kLost: ++stats_.maps_lost; return;
@@ -678,7 +693,7 @@ void AgentNode::ApplyInbox(std::uint32_t tick) {
   // those of ticks before this incarnation's first (a late reader gets them from the writers'
   // history) are not for it (the inbox drops them).
   LockstepInbox::Due due = inbox_.TakeBefore(tick);
-  for (const MapMessage& m : due.maps) ProcessMap(m);
+  for (std::size_t i = 0; i < due.maps.size(); ++i) ProcessMap(due.maps[i], due.writers[i]);
   if (!options_.exchange.ByRendezvous()) return;
   for (const Sighting& s : due.sightings) ProcessSighting(s);
 }

@@ -19,6 +19,7 @@
 #include "agent/map_exchange.h"
 #include "agent/radio_gate.h"
 #include "agent/rendezvous_tracker.h"
+#include "agent/robot_writers.h"
 #include "agent/sensor_sync.h"
 #include "agent/submap_relay.h"
 #include "common/geometry/pose_track.h"
@@ -74,8 +75,10 @@ enum class MapRefusal {
   kCovarianceTooSmall,    // ... or more certain than agent.min_landmark_sigma_m (issue R3)
   kVersionJump,           // a version further ahead than the peer could have published
   kTooManyIncarnations,   // a new map frame of a robot that has max_incarnations kept already
+  kOtherWriter,           // from a DDS writer other than the one a map of that robot incarnation was taken from
+                          // (issue R3: someone writing as the robot; RobotWriters)
 };
-inline constexpr int kMapRefusalCount = 7;
+inline constexpr int kMapRefusalCount = 8;
 std::string_view ToString(MapRefusal r);
 
 // Why a well-formed submap riding on a peer's local map (closed, or with fusion joining open)
@@ -174,8 +177,10 @@ class AgentNode : private SensorSync::Sink {
   void OnScan(const Scan& scan);
   void OnLinks(const RadioLinks& links);
   // A peer's map (and the sightings riding on it: each must be the map publisher's, of the
-  // map's tick, else it is refused as implausible).
-  void OnMap(const MapMessage& msg);
+  // map's tick, else it is refused as implausible). `writer`: the GUID of the DDS writer it
+  // came from (empty: unknown); once a map of a robot incarnation is taken, one from another
+  // writer is refused (RobotWriters, MapRefusal::kOtherWriter), on arrival and when applied.
+  void OnMap(const MapMessage& msg, const std::string& writer = {});
   // A peer's robot sighting or answer (rendezvous): through the radio gate to the tracker.
   void OnSighting(const Sighting& msg);
   // A peer's map writer came back (alive) or went away (liveliness lost or disposed).
@@ -257,7 +262,7 @@ class AgentNode : private SensorSync::Sink {
   bool Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version, std::uint32_t tick,
                std::vector<Sighting>& riders);
   // A peer's map or sighting through the gates into the exchange (at once, or at a tick).
-  void ProcessMap(const MapMessage& msg);
+  void ProcessMap(const MapMessage& msg, const std::string& writer);
   // The submaps and advertisement riding on a peer's local map that passed the gate, at `now`.
   void ProcessSubmaps(const MapMessage& msg, double now);
   // Own submaps closed since the last call into the relay's book.
@@ -310,6 +315,7 @@ class AgentNode : private SensorSync::Sink {
   // The robot incarnations heard themselves: the agent's own (this one and its checkpoint's),
   // those its ticks listed, the publishers of the maps it took. Only these supersede a chain.
   std::set<std::pair<RobotId, std::uint32_t>> heard_;
+  RobotWriters writers_;  // which writer speaks for each robot incarnation
   // joining: each peer incarnation's chain placements from its latest local map (a later version
   // replaces them), and that map's version
   std::map<PeerKey, std::vector<ChainPlacement>> peers_placements_;

@@ -69,7 +69,7 @@ int Run(int argc, char** argv) {
       "forged_submaps (a robot's next submaps, landmarks moved, on a stale copy of another's map), ghost_incarnation "
       "(a robot's submap under an incarnation never run, and one opened at -1e9 s, on the same carrier), forged_relay "
       "(forged_submaps' forgeries on the next robot's next map key, sent before its own; under DDS Security signed "
-      "with the injector's identity), huge_submaps (valid 500-landmark submaps, 2 MB each, two per message, under a "
+      "with the injector's identity, and with --inject-identity agentN carried on a map claiming robot N), huge_submaps (valid 500-landmark submaps, 2 MB each, two per message, under a "
       "robot's identity at new indices, on forged_relay's carrier). "
       "scripts/swarm run --inject CASES starts it alongside a run.");
   app::ProcessOptions po;
@@ -174,6 +174,8 @@ int Run(int argc, char** argv) {
     if (r.id != as_robot) robots.push_back(r.id);  // an impersonator claims only the others
   }
   MapInjector injector(robots, *cases, unknown_id, seed.value_or(loaded->seed));
+  if (as_robot) injector.ActAs(static_cast<RobotId>(as_robot));
+  tp::Reader<ExchangeTick> ticks(p, tp::kTickTopic, tp::FeederTopicReader(tp::TickQos()));
   // Under DDS Security its forged submaps carry its own identity's signature (issue R3).
   std::unique_ptr<tp::SubmapSigner> signer;
   if (session.security()) {
@@ -203,6 +205,9 @@ int Run(int argc, char** argv) {
     waitset.Wait(sim_due > 0 ? 0.0 : std::max(0.0, std::chrono::duration<double>(next - Clock::now()).count()));
     for (const auto& s : maps.Take()) {
       if (s.valid) injector.OnMap(s.value);
+    }
+    for (const auto& s : ticks.Take()) {
+      if (s.valid) injector.OnTick(s.value);
     }
     for (const auto& s : status.Take()) {
       if (!s.valid) continue;

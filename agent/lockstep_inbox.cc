@@ -94,7 +94,7 @@ void LockstepInbox::DropOldest(Held& h) {
   Refuse(InboxRefusal::kPastTick);
 }
 
-LockstepInbox::Offer LockstepInbox::OfferMap(const MapMessage& map) {
+LockstepInbox::Offer LockstepInbox::OfferMap(const MapMessage& map, const std::string& writer) {
   const RobotId robot = map.robot_id;
   // The gates, in order; the first that fails is counted.
   std::optional<InboxRefusal> refusal;
@@ -122,7 +122,7 @@ LockstepInbox::Offer LockstepInbox::OfferMap(const MapMessage& map) {
   if (slot != h.ticks.end()) {
     const auto kept = slot->second.maps.find(key);
     if (kept != slot->second.maps.end()) {
-      if (SameMap(kept->second, map)) return {};  // a duplicate: kept once
+      if (SameMap(kept->second.map, map)) return {};  // a duplicate: kept once
       Refuse(InboxRefusal::kKeyTaken);
       return {InboxRefusal::kKeyTaken};
     }
@@ -168,13 +168,14 @@ LockstepInbox::Offer LockstepInbox::OfferMap(const MapMessage& map) {
                         r.other, r.other_incarnation};
     s.sightings.emplace(k, r);
   }
-  MapMessage kept = map;
-  kept.sightings.clear();
+  Kept kept{map, writer};
+  kept.map.sightings.clear();
   s.maps.emplace(key, std::move(kept));
   // Copies of it kept for later ticks (they came first) are taken back, and not waited for.
   for (auto later = std::next(slot); later != h.ticks.end(); ++later) {
     for (auto m = later->second.maps.begin(); m != later->second.maps.end();) {
-      if (m->second.kind == map.kind && m->second.version == map.version && m->second.payload == map.payload) {
+      const MapMessage& copy = m->second.map;
+      if (copy.kind == map.kind && copy.version == map.version && copy.payload == map.payload) {
         later->second.counted -= std::min(later->second.counted, 1u);
         Refuse(InboxRefusal::kReplayed);
         m = later->second.maps.erase(m);
@@ -194,7 +195,7 @@ LockstepInbox::Due LockstepInbox::TakeBefore(std::uint32_t tick) {
     for (auto& [pub, h] : held_) h.arrivals.clear();  // from here on the rooms are kept by tick
   }
   applied_ = std::max(applied_, tick);
-  std::map<MapKey, MapMessage> maps;
+  std::map<MapKey, Kept> maps;
   std::map<SightingKey, Sighting> sightings;
   for (auto pub = held_.begin(); pub != held_.end();) {
     Held& h = pub->second;
@@ -211,7 +212,9 @@ LockstepInbox::Due LockstepInbox::TakeBefore(std::uint32_t tick) {
   }
   Due out;
   out.maps.reserve(maps.size());
-  for (auto& [k, m] : maps) {  // in tick order: a replayed copy that came before its original goes here
+  out.writers.reserve(maps.size());
+  for (auto& [k, kept] : maps) {  // in tick order: a replayed copy that came before its original goes here
+    MapMessage& m = kept.map;
     if (Replayed(m, nullptr)) {
       Refuse(InboxRefusal::kReplayed);
       continue;
@@ -220,6 +223,7 @@ LockstepInbox::Due LockstepInbox::TakeBefore(std::uint32_t tick) {
     taken.emplace_back(m.version, wire::Fnv1a64(m.payload));
     if (taken.size() > kTakenKept) taken.pop_front();
     out.maps.push_back(std::move(m));
+    out.writers.push_back(std::move(kept.writer));
   }
   out.sightings.reserve(sightings.size());
   for (auto& [k, s] : sightings) out.sightings.push_back(std::move(s));
@@ -243,7 +247,8 @@ bool LockstepInbox::Replayed(const MapMessage& map, const Held* held) const {
   if (held == nullptr) return false;
   for (const auto& [tick, slot] : held->ticks) {
     if (tick >= map.tick) break;
-    for (const auto& [key, m] : slot.maps) {
+    for (const auto& [key, kept] : slot.maps) {
+      const MapMessage& m = kept.map;
       if (m.kind == map.kind && m.version == map.version && m.payload == map.payload) return true;
     }
   }

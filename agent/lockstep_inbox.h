@@ -28,7 +28,8 @@
 //   again) or counted: a map it refused for room is never waited for. A genuine publisher never
 //   fills its room, so its maps are all kept. (Under one robot's name a forger can still put its
 //   maps where that robot's would be, and make a tick pass before that robot's came: that is
-//   what authenticated origins are for.)
+//   why the agent refuses, before they are offered here, maps of a robot incarnation from
+//   another writer than its maps were taken from; RobotWriters.)
 // - a map its publisher sent for an earlier tick (the same kind, version and payload), copied
 //   under a later tick, is replayed (issue R3: such a copy carried forged submaps in where the
 //   radio gate had dropped the original): refused, and never counted for the barrier, so it
@@ -40,7 +41,8 @@
 // Every refusal is counted by reason. Duplicates (a late reader gets a writer's history) are
 // kept once and not counted; another map under a key held is not kept, and counted
 // (key_taken): only a forger makes two maps of one key, and which one came first decides which
-// is kept (in a plain run the forger's, when it came first; docs/SECURITY.md).
+// is kept (the forger's, when it came before the robot's first map was taken; after that the
+// agent refuses it before it gets here: RobotWriters, docs/SECURITY.md).
 //
 // Pure: no DDS, clocks or threads; the caller hands in the facts (the ticks' peer lists, the
 // run's robots) and applies what it takes out.
@@ -51,6 +53,7 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <string>
 #include <string_view>
 #include <tuple>
 #include <vector>
@@ -103,12 +106,13 @@ class LockstepInbox {
 
   // A peer's map with the sightings riding on it: kept (refused nullopt, also for a duplicate)
   // or refused. A rider that is not the publisher's, of the map's tick, is dropped and counted
-  // in `foreign_riders` (the map is kept).
+  // in `foreign_riders` (the map is kept). `writer` (the DDS writer's GUID, empty when unknown)
+  // is kept with it and handed out with it (RobotWriters: the caller judges it).
   struct Offer {
     std::optional<InboxRefusal> refused;
     std::uint32_t foreign_riders = 0;
   };
-  Offer OfferMap(const MapMessage& map);
+  Offer OfferMap(const MapMessage& map, const std::string& writer = {});
   // A sighting on its own topic: always refused (kUnridden), counted.
   void OfferUnridden();
 
@@ -118,6 +122,7 @@ class LockstepInbox {
   // tick taken at are dropped (kPastTick). From here on, maps of ticks before `tick` are past.
   struct Due {
     std::vector<MapMessage> maps;
+    std::vector<std::string> writers;  // each map's writer, as offered
     std::vector<Sighting> sightings;
   };
   Due TakeBefore(std::uint32_t tick);
@@ -139,9 +144,13 @@ class LockstepInbox {
   using MapKey = std::tuple<std::uint32_t, RobotId, std::uint32_t, int, std::uint32_t>;
   using SightingKey = std::tuple<std::uint32_t, RobotId, std::uint32_t, double, int, RobotId, std::uint32_t>;
   using Publisher = std::pair<RobotId, std::uint32_t>;
+  struct Kept {  // a map kept, and the writer it came from
+    MapMessage map;
+    std::string writer;
+  };
   struct Slot {                 // one publisher's messages of one tick
     std::uint32_t counted = 0;  // distinct maps taken or counted (the barrier's)
-    std::map<MapKey, MapMessage> maps;
+    std::map<MapKey, Kept> maps;
     std::map<SightingKey, Sighting> sightings;
   };
   struct Held {                           // one publisher incarnation's

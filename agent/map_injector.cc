@@ -79,6 +79,11 @@ void MapInjector::OnStatus(const AgentStatus& s) {
   processed_until_[s.robot_id] = std::max(processed_until_[s.robot_id], s.processed_until);
 }
 
+void MapInjector::OnTick(const ExchangeTick& t) {
+  listed_.clear();
+  for (const TickPeer& p : t.peers) listed_[p.robot] = p.incarnation;
+}
+
 std::optional<InjectedMessage> MapInjector::Next() {
   const std::size_t slots = cases_.size() * robots_.size();
   for (std::size_t k = 0; k < slots; ++k) {
@@ -218,10 +223,18 @@ std::optional<InjectedMessage> MapInjector::MakeHostile(const std::string& c, Ro
 std::optional<InjectedMessage> MapInjector::Carry(RobotId robot, std::vector<std::vector<std::uint8_t>> submaps,
                                                   bool ahead) const {
   const auto at = std::find(robots_.begin(), robots_.end(), robot);
-  const RobotId carrier = std::next(at) == robots_.end() ? robots_.front() : *std::next(at);
-  const auto it = heard_.find(carrier);
-  if (carrier == robot || it == heard_.end()) return std::nullopt;
+  RobotId carrier = std::next(at) == robots_.end() ? robots_.front() : *std::next(at);
+  if (ahead && act_as_) carrier = *act_as_;
+  auto it = heard_.find(carrier);
+  const auto listed = listed_.find(carrier);
+  const bool as_relay = ahead && act_as_ && it == heard_.end();
+  if (as_relay) it = heard_.find(robot);  // the forged robot's own latest, under the relay's id
+  if (carrier == robot || it == heard_.end() || (as_relay && listed == listed_.end())) return std::nullopt;
   MapMessage m = it->second.msg;  // the carrier's latest: its version taken already, so stale
+  if (as_relay) {
+    m.robot_id = carrier;
+    m.incarnation = listed->second;
+  }
   // Ahead: two ticks and versions on, so that it is there before the robot's own of that tick.
   if (m.tick != 0) m.tick += ahead ? 2 : 1;
   if (ahead) m.version += 2;

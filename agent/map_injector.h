@@ -117,6 +117,14 @@ class MapInjector {
   // A map seen on the map topic (the injector's own messages included; they are ignored).
   void OnMap(const MapMessage& m);
   void OnStatus(const AgentStatus& s);
+  // A lockstep tick: the incarnations it lists (what a carrier of a robot not heard claims).
+  void OnTick(const ExchangeTick& t);
+  // Under robot N's credentials (--inject-identity agentN): forged_relay and huge_submaps ride
+  // on a map claiming N, the relay it is (issue R3: the secure forgery from a real agent's
+  // credentials). N's own maps may not reach it (a participant of N's identity is not matched
+  // with N's), so that carrier is the forged robot's latest map under N's id and the
+  // incarnation the latest tick lists for N, two ticks and versions on.
+  void ActAs(RobotId robot) { act_as_ = robot; }
   // Secure runs: the forged submaps go out signed with the injector's own identity (a robot's
   // real key makes a signature its peers can check, and refuse as not the claimed robot's).
   void SignWith(std::function<std::vector<std::uint8_t>(std::span<const std::uint8_t>)> sign) {
@@ -179,13 +187,16 @@ class MapInjector {
   std::map<RobotId, std::uint32_t> flood_far_;   // per robot: its far-ahead maps so far
   std::map<RobotId, WireSubmap> last_closed_;    // each robot's latest closed submap of its own, as heard
   std::map<RobotId, std::uint32_t> huge_index_;  // per robot: the next index huge_submaps uses
+  std::optional<RobotId> act_as_;                // ActAs
+  std::map<RobotId, std::uint32_t> listed_;      // the incarnation the latest tick lists, per robot
   // A valid submap of kSubmapCodecMaxLandmarks landmarks under `like`'s robot, incarnation and
   // stamps, at `index`: its landmarks spread 2 m about `like`'s (or 20 m about its origin).
   std::vector<std::uint8_t> HugeSubmap(const WireSubmap& like, std::uint32_t index);
   // A copy of the local map of the robot after `robot` in the run, at the tick after it, carrying
   // `submaps` (forged_submaps, ghost_incarnation); nothing while either is unknown.
   // The next robot's latest local map carrying `submaps` (signed with sign_, if set), under the
-  // next tick: with `ahead`, two ticks and two versions on.
+  // next tick: with `ahead`, two ticks and two versions on. Under ActAs, with `ahead`, the map
+  // claims that robot (see ActAs).
   std::optional<InjectedMessage> Carry(RobotId robot, std::vector<std::vector<std::uint8_t>> submaps,
                                        bool ahead = false) const;
 };

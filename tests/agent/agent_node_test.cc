@@ -829,6 +829,63 @@ TEST_F(LockstepTest, PeersMapsWaitForTheNextTickAndDeliveryWaitsForEveryListedMe
   EXPECT_EQ(node_.stats().maps_stale_version, 0u);
 }
 
+// Issue R3 (forged_relay): a map claiming a robot incarnation from another DDS writer than the
+// one its maps were taken from is refused on arrival, before it can take the robot's map key
+// for a tick, and the robot's own map of that tick is then taken. One kept before the robot's
+// first map was taken is refused when applied, its riders with it.
+TEST_F(LockstepTest, AMapFromAnotherWriterThanTheRobotsIsRefusedAndTakesNoKey) {
+  node_.OnLinks({0.0, {{1, 2}}});
+  const LandmarkMap peer = Points({{1, 2}, {3, 1}}), moved = Points({{9, 2}, {3, 7}});
+  const auto refused = [&] { return node_.stats().maps_refused[static_cast<int>(MapRefusal::kOtherWriter)]; };
+  ASSERT_TRUE(node_.OnTick(Tick(1, TickPhase::kExchange, both_)));
+  // Before robot 2's first map is taken, both are kept: the forger's at tick 2, 2's own at 1.
+  MapMessage early = TaggedMap(2, 1, MapKind::kLocal, 3, 2, moved);
+  early.submaps = {OneLandmarkSubmap(2, 0, 0.0, 0.0)};
+  node_.OnMap(early, "forger");
+  node_.OnMap(TaggedMap(2, 1, MapKind::kLocal, 1, 1, peer), "robot2");
+  ASSERT_TRUE(node_.OnTick(Tick(2, TickPhase::kExchange, both_)));  // takes 2's tick-1 map: bound
+  EXPECT_EQ(node_.stats().maps_received, 1u);
+  EXPECT_EQ(refused(), 0u);
+  // The forger writes robot 2's next key (tick 2, version 2) before robot 2 does: refused.
+  node_.OnMap(TaggedMap(2, 1, MapKind::kLocal, 2, 2, moved), "forger");
+  EXPECT_EQ(refused(), 1u);
+  node_.OnMap(TaggedMap(2, 1, MapKind::kLocal, 2, 2, peer), "robot2");
+  EXPECT_EQ(node_.inbox_refused()[static_cast<std::size_t>(InboxRefusal::kKeyTaken)], 0u);
+  ASSERT_TRUE(node_.OnTick(Tick(3, TickPhase::kExchange, both_)));
+  // Robot 2's tick-2 map taken; the forger's kept before the binding refused when applied.
+  EXPECT_EQ(node_.stats().maps_received, 2u);
+  EXPECT_EQ(refused(), 2u);
+  EXPECT_EQ(node_.stats().submaps_refused[static_cast<int>(SubmapRefusal::kOnRefusedMap)], 1u);
+  EXPECT_TRUE(node_.submaps().book().Ids().empty());
+  const auto received = node_.exchange().ReceivedMaps();
+  ASSERT_EQ(received.size(), 1u);
+  ASSERT_NE(received[0].local, nullptr);
+  EXPECT_EQ(received[0].local->landmarks.at(0).mean, peer.landmarks.at(0).mean);
+  // A restarted robot 2 (a new incarnation) speaks from its new writer.
+  node_.OnMap(TaggedMap(2, 2, MapKind::kLocal, 1, 3, peer), "robot2-restarted");
+  EXPECT_EQ(refused(), 2u);
+}
+
+TEST(AgentNodeLimits, InRealTimeAMapFromAnotherWriterThanTheRobotsIsRefused) {
+  Scenario sc = TwoRobots();
+  Capture out;
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
+  node.OnLinks({0.0, {{1, 2}}});
+  LandmarkMap m;
+  m.landmarks.push_back({0, -1, {1.0, 2.0}, 0.01 * Eigen::Matrix2d::Identity()});
+  MapMessage first = PeerMap(2, EncodeMap(m));
+  first.incarnation = 1;
+  node.OnMap(first, "robot2");
+  MapMessage next = first;
+  next.version = 2;
+  node.OnMap(next, "forger");
+  EXPECT_EQ(node.stats().maps_refused[static_cast<int>(MapRefusal::kOtherWriter)], 1u);
+  node.OnMap(next, "");  // an unknown writer is not judged
+  node.OnMap(next, "robot2");
+  EXPECT_EQ(node.stats().maps_received, 2u);
+  EXPECT_EQ(node.stats().maps_stale_version, 1u);
+}
+
 // Rendezvous in lockstep: the agent's sightings ride on its tick's local map (no message of
 // their own), and a peer's reach its tracker at the next tick; one riding on another robot's
 // map, or of another tick, is refused.

@@ -255,6 +255,38 @@ TEST(MapInjector, ForgedSubmapsRideOnAStaleCopyOfTheNextRobotsMap) {
   }
 }
 
+// Under robot 3's credentials (ActAs) the forgeries of robot 2 ride on a map claiming robot 3,
+// the relay it is: robot 3's own maps are not heard, so the carrier is robot 2's latest under
+// robot 3's id and the incarnation the latest tick lists for it, two ticks and versions on;
+// nothing before a tick lists robot 3.
+TEST(MapInjector, ForgedRelayUnderARobotsCredentialsClaimsThatRobot) {
+  MapInjector inj({2, 4}, {"forged_relay"}, 99, 5);  // robot 3 (itself) is not among those it claims
+  inj.ActAs(3);
+  MapMessage from2 = RobotMap(2, 3, 10);
+  from2.tick = 40;
+  from2.submaps = {EncodeSubmap(ClosedSubmapOf2())};
+  inj.OnMap(from2);
+  EXPECT_FALSE(NextMap(inj).has_value());  // no tick yet: robot 3's incarnation unknown
+  ExchangeTick t;
+  t.index = 40;
+  t.peers = {{2, 7, 0}, {3, 5, 0}, {4, 1, 0}};
+  inj.OnTick(t);
+  std::optional<MapMessage> m;
+  for (int k = 0; k < 2 && !m; ++k) m = NextMap(inj);  // (robot 4's slot has nothing to forge)
+  ASSERT_TRUE(m.has_value());
+  EXPECT_EQ(m->robot_id, 3u);
+  EXPECT_EQ(m->incarnation, 5u);
+  EXPECT_EQ(m->version, 5u);
+  EXPECT_EQ(m->tick, 42u);
+  EXPECT_EQ(m->payload, from2.payload);
+  ASSERT_EQ(m->submaps.size(), kInjectForgedSubmapCount);
+  for (const SubmapBlob& blob : m->submaps) {
+    const SubmapDecodeResult d = DecodeSubmap(blob.bytes);
+    ASSERT_TRUE(d.ok());
+    EXPECT_EQ(d.submap.id.robot, 2u);
+  }
+}
+
 // huge_submaps: nothing before the robot's closed submap and the next robot's map are heard;
 // then two valid submaps of the codec's most landmarks (2 MB each) under the robot's identity at
 // new indices 1000 past its latest closed one, on forged_relay's carrier, new indices each time.

@@ -82,8 +82,12 @@ class HostileInputTest(FaultRunCase):
                 self.assertGreater(stats["observations"]["out_of_range"], 0)
                 # (links_stamp's table comes from the injector, not the feeder: refused unread)
                 self.assertGreater(stats["not_from_feeder"]["links"], 0)
-                self.assertGreater(stats["maps_refused"]["version_jump"], 0)
-                self.assertGreater(stats["maps_rejected"]["out_of_bounds"], 0)
+                # version_jump's and out_of_bounds' maps claim the robots' own incarnations from
+                # another writer than theirs: refused before they are read (issue R3,
+                # agent/robot_writers.h). The gates behind, for a writer that is the robot's own,
+                # are AgentNodeLimits' and the map decoder's (map_codec_test, scripts/fuzz).
+                self.assertGreater(stats["maps_refused"]["other_writer"], 0)
+                self.assertEqual(stats["maps_refused"]["version_jump"], 0)
                 self.assertEqual(stats["maps_encode_failed"], 0)
                 # The far reading's scan is numbered 999999: the loss count stays exact (R2).
                 self.assertGreater(stats["scans_out_of_sequence"], 0)
@@ -127,9 +131,13 @@ class TickFloodTest(FaultRunCase):
         for rid, a in flooded.items():
             with self.subTest(agent=rid):
                 refused = a["inbox_refused"]
-                for reason in ("unknown_robot", "far_tick", "too_many_sightings"):
-                    self.assertGreater(refused[reason], 0, refused)
+                self.assertGreater(refused["unknown_robot"], 0, refused)
                 self.assertEqual(refused["incarnation"], 0, refused)
+                # The far ticks and the flooded sightings under the run's robots' names come from
+                # another writer than each robot's: refused before the inbox looks at them (the
+                # inbox's own gates, far_tick and too_many_sightings, for a forger that spoke before
+                # the robot did: lockstep_inbox_test).
+                self.assertGreater(a["maps_refused"]["other_writer"], 0, a["maps_refused"])
                 self.assertLessEqual(a["max_rss_mb"], 1.2 * clean[rid]["max_rss_mb"], (a, clean[rid]))
         # The same run, byte for byte (lockstep).
         self.assert_same_maps(self.out, base.parent / "clean")
@@ -154,8 +162,14 @@ class ForgedSubmapsTest(FaultRunCase):
     # of the agent's own robot only from itself, one opened before the run never, and only an
     # incarnation heard supersedes (agent_node_test, submap_book_test, lockstep_inbox_test):
     # the run is the clean run.
+    # forged_relay: the same forgeries on the next robot's next map key, written before the
+    # robot's own (first arrival won the key). With the build before (094009b) every agent kept
+    # the forger's, refused the robot's own (`key_taken` 81-90) and held the forgeries
+    # (`conflicts` 152-215): 71 of 200 files differed from the clean run. Now a map claiming a
+    # robot incarnation from another DDS writer than its maps came from is refused on arrival
+    # (`maps_refused.other_writer`, agent/robot_writers.h), the copies above with it.
     JOINING = ["--set", "agent.slam=cekf_submaps", "--set", "agent.fusion=joining"]
-    CASES = "forged_submaps,ghost_incarnation"
+    CASES = "forged_submaps,ghost_incarnation,forged_relay"
 
     def test_forged_and_ghost_submaps_are_refused_counted_and_change_nothing(self):
         base = self.out
@@ -170,7 +184,8 @@ class ForgedSubmapsTest(FaultRunCase):
             with self.subTest(agent=rid):
                 st = json.loads((self.out / f"agent_{rid}" / "stats.json").read_text())
                 held = json.loads((base.parent / "clean" / f"agent_{rid}" / "stats.json").read_text())["submaps"]
-                self.assertGreater(st["inbox_refused"]["replayed"], 0, st["inbox_refused"])
+                self.assertGreater(st["maps_refused"]["other_writer"], 0, st["maps_refused"])
+                self.assertEqual(st["inbox_refused"]["key_taken"], 0, st["inbox_refused"])
                 self.assertEqual(st["submaps"]["conflicts"], 0, st["submaps"])
                 self.assertEqual(st["submaps"]["chains"], held["chains"])  # every digest the clean run's
                 self.assertEqual(a["exit_code"], 0)

@@ -260,5 +260,40 @@ class RogueTest(SecureRunCase):
         self.assert_maps_as_clean(agents, clean)
 
 
+class ForgedRelayTest(SecureRunCase):
+    # R3: under --secure, from agent 3's real credentials, forgeries of robot 2's submaps relayed
+    # as robot 2's left agent 2's global map 13.95 m off. mapmesh-inject forged_relay
+    # --inject-identity agent3 carries them (signed with agent 3's key) on a map claiming robot 3,
+    # the relay its credentials make it, in robot 3's partition, at robot 3's next map key before
+    # robot 3 writes it. Measured with the writer check turned off: agents 1, 2 and 4 kept the
+    # forger's map and refused robot 3's own (`key_taken` 111 each), refused the forgeries by
+    # signature (`forged_signature` 145-205) and saw robot 3 less: 57 of 200 files differed from
+    # the clean run. Now robot 3's maps are taken from robot 3's writer only (other_writer).
+    JOINING = ["--set", "agent.slam=cekf_submaps", "--set", "agent.fusion=joining", "--no-reference"]
+
+    def test_a_relay_with_a_robots_credentials_cannot_take_its_place_nor_forge_anothers(self):
+        self.run_ok("clean", "--secure", *self.JOINING)
+        agents = self.run_ok("relay", "--secure", *self.JOINING, "--inject", "forged_relay", "--inject-sim-period",
+                             "1.5", "--inject-identity", "agent3")
+        summary = self.summary()
+        self.assertEqual(summary["injector_exit_code"], 0)
+        sent = summary["injected"]["cases"]["forged_relay"]
+        self.assertGreater(sent["sent"], 10)
+        self.assertEqual(list(sent["by_sender"]), ["3"])  # every carrier claims robot 3
+        clean = {a["id"]: a for a in json.loads((self.out.parent / "clean" / "summary.json").read_text())["agents"]}
+        for rid, a in agents.items():
+            with self.subTest(agent=rid):
+                self.assertEqual(a["exit_code"], 0)
+                st = self.stats(rid)
+                self.assertEqual(st["impersonations_refused"], {"maps": {}, "sightings": {}})  # its own partition
+                self.assertEqual(st["inbox_refused"]["key_taken"], 0, st["inbox_refused"])
+                # Agent 3 never hears a participant of its own identity (as the injector never hears
+                # it); every other agent refuses each carrier.
+                if rid != 3:
+                    self.assertGreater(st["maps_refused"]["other_writer"], 10, st["maps_refused"])
+                self.assertLessEqual(a["max_rss_mb"], 1.2 * clean[rid]["max_rss_mb"], (a, clean[rid]))
+        self.assert_same_maps(self.out, self.out.parent / "clean")
+
+
 if __name__ == "__main__":
     unittest.main()
