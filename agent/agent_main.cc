@@ -302,6 +302,8 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"restored", sc.restored},
               {"duplicates", sc.duplicates},
               {"conflicts", sc.conflicts},
+              {"owner_conflicts", sc.owner_conflicts},
+              {"ahead_of_owner", sc.ahead_of_owner},
               {"full", sc.full},
               {"chain_full", sc.chain_full},
               {"sent", sc.sent},

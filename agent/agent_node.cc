@@ -59,6 +59,7 @@ std::size_t WireBytes(const MapMessage& msg) {
     for (const auto& b : msg.submaps) bytes += 8 + b.bytes.size() + b.signature.size();
     for (const auto& b : msg.open_relayed) bytes += 8 + b.bytes.size() + b.signature.size();
   }
+  if (!msg.own_submap_digests.empty()) bytes += 4 + 8 * msg.own_submap_digests.size();
   // The placements' length, and robot, incarnation and pose for each.
   if (!msg.placements.empty()) bytes += 4 + kChainPlacementWireBytes * msg.placements.size();
   return bytes;
@@ -361,6 +362,7 @@ bool AgentNode::Publish(MapKind kind, const LandmarkMap& map, std::uint32_t vers
       if (r != self_ && gate_.InRange(r)) in_range.insert(r);
     }
     msg.submaps_held = submaps_.Advert();
+    msg.own_submap_digests = submaps_.OwnDigests({self_, incarnation_});
     std::size_t spent = 0;  // one send_bytes budget for the closed and the open submaps relayed
     for (const SubmapBlob* b : submaps_.Due(in_range, sync_.processed_until())) {
       msg.submaps.push_back(*b);
@@ -506,6 +508,16 @@ void AgentNode::ProcessMap(const MapMessage& msg, const std::string& writer) {
 
 void AgentNode::ProcessSubmaps(const MapMessage& msg, double now) {
   submaps_.OnAdvert({msg.robot_id, msg.incarnation}, msg.submaps_held, now);
+  // The owner's word on its own chain (issue R3): this map is the robot's own (its writer's),
+  // so copies held that disagree with it go, and the owner's come instead. An advertisement
+  // cut at its chain limit may leave the owner's chain out: then it says nothing.
+  const auto own = std::find_if(msg.submaps_held.begin(), msg.submaps_held.end(), [&](const SubmapChain& c) {
+    return c.robot == msg.robot_id && c.incarnation == msg.incarnation;
+  });
+  if (own != msg.submaps_held.end() || msg.submaps_held.size() < SubmapRelay::kMaxChains) {
+    submaps_.OnOwnerAdvert({msg.robot_id, msg.incarnation}, own != msg.submaps_held.end() ? own->count : 0,
+                           msg.own_submap_digests);
+  }
   auto refuse = [this](SubmapRefusal r) { ++stats_.submaps_refused[static_cast<int>(r)]; };
   // The robot, the stamp and the limits, for every submap taken (a peer's open one too).
   auto admissible = [&](const WireSubmap& s) {

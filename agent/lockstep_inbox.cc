@@ -233,9 +233,9 @@ LockstepInbox::Due LockstepInbox::TakeBefore(std::uint32_t tick) {
 bool LockstepInbox::SameMap(const MapMessage& a, const MapMessage& b) {
   // (Not the sightings: they are kept apart from their map, each once by its own key.)
   return a.stamp == b.stamp && a.origin_stamp == b.origin_stamp && a.payload == b.payload &&
-         a.submaps_held == b.submaps_held && a.submaps == b.submaps && a.open_submap == b.open_submap &&
-         a.open_submap_signature == b.open_submap_signature && a.placements == b.placements &&
-         a.open_relayed == b.open_relayed;
+         a.submaps_held == b.submaps_held && a.own_submap_digests == b.own_submap_digests && a.submaps == b.submaps &&
+         a.open_submap == b.open_submap && a.open_submap_signature == b.open_submap_signature &&
+         a.placements == b.placements && a.open_relayed == b.open_relayed;
 }
 
 bool LockstepInbox::Replayed(const MapMessage& map, const Held* held) const {

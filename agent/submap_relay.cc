@@ -1,5 +1,7 @@
 #include "agent/submap_relay.h"
 
+#include "common/map/submap_digest.h"
+
 #include <algorithm>
 #include <limits>
 #include <tuple>
@@ -21,6 +23,7 @@ SubmapRelay::Offer SubmapRelay::AddOwn(const WireSubmap& submap, std::span<const
     case SubmapBook::Offer::kNew:
       ++counters_.own;
       own_bytes_ += bytes.size();
+      digests_[submap.id] = SubmapDigest(bytes);
       return Offer::kNew;
     case SubmapBook::Offer::kDuplicate: return Offer::kDuplicate;
     case SubmapBook::Offer::kConflict: ++counters_.conflicts; return Offer::kConflict;
@@ -40,10 +43,19 @@ SubmapRelay::Offer SubmapRelay::Add(const WireSubmap& submap, std::span<const st
       return Offer::kFull;
     }
   }
+  const std::uint64_t digest = SubmapDigest(bytes);
+  if (const auto owner = owner_digests_.find({submap.id.robot, submap.id.incarnation}); owner != owner_digests_.end()) {
+    const auto said = owner->second.find(submap.id.index);
+    if (said != owner->second.end() && said->second != digest) {
+      ++counters_.owner_conflicts;
+      return Offer::kConflict;
+    }
+  }
   switch (book_.Add(submap, bytes, signature)) {
     case SubmapBook::Offer::kNew:
       ++counters_.received_new;
       heard_at_[submap.id] = now;
+      digests_[submap.id] = digest;
       CloseOpen(submap.id);
       return Offer::kNew;
     case SubmapBook::Offer::kDuplicate:
@@ -58,7 +70,10 @@ SubmapRelay::Offer SubmapRelay::Add(const WireSubmap& submap, std::span<const st
 SubmapRelay::Offer SubmapRelay::Restore(const WireSubmap& submap, std::span<const std::uint8_t> bytes,
                                         std::span<const std::uint8_t> signature) {
   switch (book_.Add(submap, bytes, signature)) {
-    case SubmapBook::Offer::kNew: ++counters_.restored; return Offer::kNew;
+    case SubmapBook::Offer::kNew:
+      ++counters_.restored;
+      digests_[submap.id] = SubmapDigest(bytes);
+      return Offer::kNew;
     case SubmapBook::Offer::kDuplicate: ++counters_.duplicates; return Offer::kDuplicate;
     case SubmapBook::Offer::kConflict: ++counters_.conflicts; return Offer::kConflict;
   }
@@ -74,6 +89,45 @@ void SubmapRelay::OnAdvert(const PeerKey& from, std::span<const SubmapChain> hel
     a.count[{held[i].robot, held[i].incarnation}] = held[i].count;
     if (held[i].open_until > 0) a.open_until[{held[i].robot, held[i].incarnation}] = held[i].open_until;
   }
+}
+
+void SubmapRelay::Drop(const SubmapId& id) {
+  book_.Remove(id);
+  digests_.erase(id);
+  heard_at_.erase(id);
+  sent_at_.erase(id);
+}
+
+std::size_t SubmapRelay::OnOwnerAdvert(const PeerKey& owner, std::uint32_t count,
+                                       std::span<const std::uint64_t> digests) {
+  if (digests.size() > count) return 0;
+  std::map<std::uint32_t, std::uint64_t>& said = owner_digests_[owner];
+  const std::uint32_t from = count - static_cast<std::uint32_t>(digests.size());
+  for (std::uint32_t i = 0; i < digests.size(); ++i) said[from + i] = digests[i];
+  // Only the latest kOwnDigests are kept: an older index stays as the owner last said it.
+  while (said.size() > kOwnDigests) said.erase(said.begin());
+  std::vector<SubmapId> drop;
+  for (auto it = digests_.lower_bound({owner.robot, owner.incarnation, from});
+       it != digests_.end() && it->first.robot == owner.robot && it->first.incarnation == owner.incarnation; ++it) {
+    if (it->first.index >= count) {
+      ++counters_.ahead_of_owner;
+      drop.push_back(it->first);
+    } else if (it->second != digests[it->first.index - from]) {
+      ++counters_.owner_conflicts;
+      drop.push_back(it->first);
+    }
+  }
+  for (const SubmapId& id : drop) Drop(id);
+  return drop.size();
+}
+
+std::vector<std::uint64_t> SubmapRelay::OwnDigests(const PeerKey& own) const {
+  const std::uint32_t n = book_.ChainLength(own.robot, own.incarnation);
+  const std::uint32_t from = n > kOwnDigests ? n - static_cast<std::uint32_t>(kOwnDigests) : 0;
+  std::vector<std::uint64_t> out;
+  out.reserve(n - from);
+  for (std::uint32_t i = from; i < n; ++i) out.push_back(digests_.at({own.robot, own.incarnation, i}));
+  return out;
 }
 
 std::vector<SubmapChain> SubmapRelay::Advert() const {

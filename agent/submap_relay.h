@@ -79,6 +79,19 @@ class SubmapRelay {
   // A peer's advertisement, received at scenario time now; replaces its earlier one. Chains
   // beyond max_chains are ignored.
   void OnAdvert(const PeerKey& from, std::span<const SubmapChain> held, double now);
+  // Its owner's word on its own chain (issue R3), from a local map taken from the owner itself
+  // (its writer, in range): the chain's count and the digests of its latest closed submaps
+  // (indices count - digests.size() .. count - 1; SubmapDigest). A held copy of one of those
+  // indices that disagrees is dropped (owner_conflicts), and so is one at or beyond count
+  // (ahead_of_owner: the owner has not closed it; in lockstep no relay is ahead of the owner's
+  // advertisement, which comes with the submap). A peer's advertisement then shows it lacking
+  // and the owner's comes; a later copy that disagrees with a digest the owner advertised is
+  // refused (Add: kConflict, owner_conflicts). More digests than count: ignored. Returns the
+  // submaps dropped.
+  std::size_t OnOwnerAdvert(const PeerKey& owner, std::uint32_t count, std::span<const std::uint64_t> digests);
+  // The digests of a robot incarnation's latest closed submaps held without a gap from index 0,
+  // at most kOwnDigests (what its owner advertises: MapMessage::own_submap_digests).
+  std::vector<std::uint64_t> OwnDigests(const PeerKey& own) const;
   // The chains to advertise (SubmapBook::Chains, with open_until where an open submap is held
   // beyond the chain's closed ones; a chain of which only an open submap is held has count 0,
   // advertised only where max_chains leaves room), at most max_chains.
@@ -115,6 +128,8 @@ class SubmapRelay {
     std::uint32_t restored = 0;            // submaps entered from the checkpoint (Restore)
     std::uint32_t duplicates = 0;          // ... held already
     std::uint32_t conflicts = 0;           // ... a different submap under a held identity (refused)
+    std::uint32_t owner_conflicts = 0;     // held or offered copies that disagreed with their owner's digest (dropped)
+    std::uint32_t ahead_of_owner = 0;      // held copies at indices their owner had not closed (dropped)
     std::uint32_t full = 0;                // ... refused, max_held or max_bytes_held reached
     std::uint32_t chain_full = 0;          // ... refused, their chain at max_chain_bytes
     std::uint32_t sent = 0;                // submaps sent (own and relayed, each time)
@@ -131,6 +146,9 @@ class SubmapRelay {
 
   // Advertisements carry at most this many chains (a robot incarnation per chain).
   static constexpr std::size_t kMaxChains = 4096;
+  // An owner advertises the digests of at most this many of its latest closed submaps (8 bytes
+  // each): a copy older than that is not checked against its owner.
+  static constexpr std::size_t kOwnDigests = 64;
 
  private:
   struct Advertised {
@@ -148,8 +166,14 @@ class SubmapRelay {
   SubmapRelayOptions options_;
   SubmapBook book_;
   std::map<PeerKey, Advertised> adverts_;
-  std::map<SubmapId, double> sent_at_;     // scenario time each submap was last sent ...
-  std::map<SubmapId, double> heard_at_;    // ... and last received from a peer
+  std::map<SubmapId, double> sent_at_;         // scenario time each submap was last sent ...
+  std::map<SubmapId, double> heard_at_;        // ... and last received from a peer
+  std::map<SubmapId, std::uint64_t> digests_;  // each held submap's SubmapDigest
+  // Per robot incarnation: its owner's latest advertisement (count, and the digests from index
+  // count - size), and the digest of each index it advertised.
+  std::map<PeerKey, std::map<std::uint32_t, std::uint64_t>> owner_digests_;
+  // Drops a held submap and what is kept about it.
+  void Drop(const SubmapId& id);
   std::map<PeerKey, WireSubmap> open_;     // the open submaps kept ...
   std::map<PeerKey, OpenHeld> open_held_;  // ... their bytes and times
   Counters counters_;

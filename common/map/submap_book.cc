@@ -24,6 +24,18 @@ SubmapBook::Offer SubmapBook::Add(const WireSubmap& submap, std::span<const std:
   return Offer::kNew;
 }
 
+bool SubmapBook::Remove(const SubmapId& id) {
+  const auto it = held_.find(id);
+  if (it == held_.end()) return false;
+  const std::size_t n = it->second.blob.bytes.size();
+  bytes_ -= n;
+  const auto chain = chain_bytes_.find({id.robot, id.incarnation});
+  chain->second -= n;
+  if (chain->second == 0) chain_bytes_.erase(chain);
+  held_.erase(it);
+  return true;
+}
+
 std::size_t SubmapBook::ChainBytes(RobotId robot, std::uint32_t incarnation) const {
   const auto it = chain_bytes_.find({robot, incarnation});
   return it == chain_bytes_.end() ? 0 : it->second;

@@ -27,6 +27,9 @@ class SubmapBook {
   Offer Add(const WireSubmap& submap, std::span<const std::uint8_t> bytes,
             std::span<const std::uint8_t> signature = {});
 
+  // Drops a held submap (issue R3: a copy its owner disowned); false when none is held.
+  bool Remove(const SubmapId& id);
+
   const WireSubmap* Find(const SubmapId& id) const;
   // The bytes a held submap came in (what a relay sends on); null when not held.
   const std::vector<std::uint8_t>* Bytes(const SubmapId& id) const;

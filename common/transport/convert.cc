@@ -98,6 +98,10 @@ mapmesh_msg_MapMessage ToMsg(const MapMessage& v, MsgScratch& scratch) {
   m.submaps_held._length = m.submaps_held._maximum;
   m.submaps_held._buffer = scratch.chains.data();
   m.submaps_held._release = false;
+  m.own_submap_digests._maximum = static_cast<std::uint32_t>(v.own_submap_digests.size());
+  m.own_submap_digests._length = m.own_submap_digests._maximum;
+  m.own_submap_digests._buffer = const_cast<std::uint64_t*>(v.own_submap_digests.data());
+  m.own_submap_digests._release = false;
   // Both blob sequences borrow from one scratch vector, sized first so that it never moves.
   scratch.blobs.clear();
   scratch.blobs.reserve(v.submaps.size() + v.open_relayed.size());
@@ -150,6 +154,10 @@ MapMessage FromMsg(const mapmesh_msg_MapMessage& m) {
   for (std::uint32_t i = 0; i < m.submaps_held._length; ++i) {
     const mapmesh_msg_SubmapChain& c = m.submaps_held._buffer[i];
     v.submaps_held.push_back({c.robot, c.incarnation, c.count, c.open_until});
+  }
+  if (m.own_submap_digests._length > 0) {
+    v.own_submap_digests.assign(m.own_submap_digests._buffer,
+                                m.own_submap_digests._buffer + m.own_submap_digests._length);
   }
   const auto copy = [](const dds_sequence_octet& from) {
     return from._length == 0 ? std::vector<std::uint8_t>{}

@@ -152,6 +152,10 @@ struct MapMessage {
   // closed submaps it sends (its own or relayed, each the bytes of common/map/submap_codec.h).
   std::vector<SubmapChain> submaps_held;
   std::vector<SubmapBlob> submaps;
+  // The digests (common/map/submap_digest.h) of the publisher's own closed submaps of this
+  // incarnation, the latest of them: indices count - size .. count - 1, where count is its own
+  // chain's in submaps_held (issue R3: a holder hearing the owner drops a copy that disagrees).
+  std::vector<std::uint64_t> own_submap_digests;
   // With fusion joining: the publisher's open submap as it stands (the submap codec; its index
   // is the count of the publisher's closed ones, its closed_s the map's stamp). It changes at
   // every publication until it closes; a receiver keeps the latest.

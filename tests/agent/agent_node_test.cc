@@ -9,6 +9,7 @@
 
 #include "common/config/scenario.h"
 #include "common/io/checkpoint.h"
+#include "common/map/submap_digest.h"
 #include "tests/testing/small_submap.h"
 
 namespace mapmesh {
@@ -504,6 +505,40 @@ TEST(AgentNodeLimits, RefusesItsOwnRobotsSubmapsFromOthersAndRidersOfMapsNotTake
   EXPECT_EQ(node.submaps().book().size(), 1u);
 }
 
+// Issue R3: a relay (robot 3, from its own writer: a plain run cannot refuse it) brings robot
+// 2's chain with index 1 forged and an index 5 robot 2 never closed. Robot 2's own map
+// advertises its chain (count 2) and the digests of both: the forged copy and the one ahead
+// are dropped, counted, and robot 2's genuine index 1 is taken when it comes.
+TEST(AgentNodeLimits, AnOwnersDigestsDisownTheForgeriesARelayBrought) {
+  Scenario sc = JoiningTrio();
+  Capture out;
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
+  node.OnLinks({0.0, {{1, 2}, {1, 3}}});
+  LandmarkMap map;
+  map.landmarks.push_back({0, -1, {1.0, 2.0}, 0.01 * Eigen::Matrix2d::Identity()});
+  const std::vector<std::uint8_t> g0 = OneLandmarkSubmap(2, 0, 0.0, 0.1), g1 = OneLandmarkSubmap(2, 1, 0.1, 0.2);
+  MapMessage relay = PeerMap(3, EncodeMap(map));
+  relay.incarnation = 1;
+  relay.stamp = 0.0;
+  relay.submaps = {g0, OneLandmarkSubmap(2, 1, 0.1, 0.25), OneLandmarkSubmap(2, 5, 0.1, 0.2)};
+  node.OnMap(relay, "w3");
+  EXPECT_EQ(node.submaps().book().ChainLength(2, 1), 2u);
+  MapMessage owner = PeerMap(2, EncodeMap(map));
+  owner.incarnation = 1;
+  owner.stamp = 0.0;
+  owner.submaps_held = {{2, 1, 2}};
+  owner.own_submap_digests = {SubmapDigest(g0), SubmapDigest(g1)};
+  node.OnMap(owner, "w2");
+  EXPECT_EQ(node.submaps().counters().owner_conflicts, 1u);
+  EXPECT_EQ(node.submaps().counters().ahead_of_owner, 1u);
+  EXPECT_EQ(node.submaps().book().Ids(), (std::vector<SubmapId>{{2, 1, 0}}));
+  owner.version = 2;
+  owner.submaps = {g1};
+  node.OnMap(owner, "w2");
+  EXPECT_EQ(node.submaps().book().ChainLength(2, 1), 2u);
+  EXPECT_EQ(*node.submaps().book().Bytes({2, 1, 1}), g1);
+}
+
 // Issue R3: submaps bounded in bytes. A peer's closed or open submap longer than
 // agent.max_submap_bytes is refused unread (too_large) and nothing of it is held; one within
 // is taken. The agent's own submaps close before they outgrow that bound.
@@ -630,6 +665,7 @@ TEST(AgentNodeLimits, SecureRunsTakeOnlySubmapsSignedByTheRobotTheyClaim) {
   MapMessage m = PeerMap(2, EncodeMap(map));
   m.incarnation = 1;
   m.stamp = 0.0;
+  m.submaps_held = {{2, 1, 1}};  // its own chain (an owner's word on it: SubmapRelay::OnOwnerAdvert)
   m.submaps = {signed_by(3, OneLandmarkSubmap(3, 0, 0.0, 0.0)),  // relayed, 3's own signature
                signed_by(2, OneLandmarkSubmap(3, 1, 0.0, 0.0)),  // 3's index signed by the relay
                OneLandmarkSubmap(3, 2, 0.0, 0.0),                // unsigned
@@ -667,8 +703,8 @@ TEST(AgentNodeLimits, SecureRunsTakeOnlySubmapsSignedByTheRobotTheyClaim) {
   m.version = 3;
   m.stamp = 0.5;
   m.submaps.clear();
-  m.submaps_held.clear();
-  node.OnMap(m);  // robot 2's advertisement since: it holds nothing
+  m.submaps_held = {{2, 1, 1}};
+  node.OnMap(m);  // robot 2's advertisement since: it holds its own chain only
   for (int k = 6; k <= 25; ++k) step(k);
   int relayed = 0, open_signed = 0;
   for (const MapMessage& sent : out.maps) {

@@ -1,5 +1,7 @@
 #include "agent/submap_relay.h"
 
+#include "common/map/submap_digest.h"
+
 #include <gtest/gtest.h>
 
 #include <random>
@@ -86,6 +88,47 @@ TEST(SubmapRelay, SendsOnlyWhatAPeerInRangeLacks) {
   EXPECT_TRUE(r.Due({2}, 20.0).empty());
   EXPECT_EQ(r.counters().sent, 2u);
   EXPECT_EQ(r.counters().sent_again, 0u);
+}
+
+// Issue R3: a robot's owner advertises the digests of its own chain's latest closed submaps. A
+// relay's forged copy of an index the owner advertised is dropped when the owner is heard
+// (owner_conflicts), so is one of an index the owner has not closed (ahead_of_owner); the
+// advertisement then lacks them, and the owner's genuine ones are taken. A forged copy offered
+// later, against a digest the owner advertised, is refused.
+TEST(SubmapRelay, TheOwnersDigestsDisownForgedCopies) {
+  SubmapRelay owner(Options()), holder(Options());
+  const std::vector<WireSubmap> genuine = {Submap(2, 1, 0, 2, 1.0), Submap(2, 1, 1, 2, 1.0)};
+  for (const WireSubmap& s : genuine) AddOwn(owner, s);
+  const std::vector<std::uint64_t> digests = owner.OwnDigests({2, 1});
+  ASSERT_EQ(digests.size(), 2u);
+  EXPECT_EQ(digests[1], SubmapDigest(EncodeSubmap(genuine[1])));
+  EXPECT_TRUE(owner.OwnDigests({3, 1}).empty());
+  // A relay brought index 0 genuine, index 1 forged, and index 2 (which robot 2 never closed).
+  const WireSubmap forged1 = Submap(2, 1, 1, 2, 7.0), forged2 = Submap(2, 1, 2, 2, 7.0);
+  for (const WireSubmap* s : {&genuine[0], &forged1, &forged2})
+    EXPECT_EQ(holder.Add(*s, EncodeSubmap(*s), 5.0), SubmapRelay::Offer::kNew);
+  EXPECT_EQ(holder.book().ChainLength(2, 1), 3u);
+  // Robot 2's own map: count 2, the digests of both.
+  EXPECT_EQ(holder.OnOwnerAdvert({2, 1}, 2, digests), 2u);
+  EXPECT_EQ(holder.counters().owner_conflicts, 1u);
+  EXPECT_EQ(holder.counters().ahead_of_owner, 1u);
+  EXPECT_EQ(holder.book().Ids(), (std::vector<SubmapId>{{2, 1, 0}}));
+  EXPECT_EQ(holder.Advert(), (std::vector<SubmapChain>{{2, 1, 1}}));  // what the owner then sends
+  EXPECT_EQ(holder.book().bytes(), EncodeSubmap(genuine[0]).size());
+  // The forgery again from a relay: refused against the owner's digest; the owner's is taken.
+  EXPECT_EQ(holder.Add(forged1, EncodeSubmap(forged1), 6.0), SubmapRelay::Offer::kConflict);
+  EXPECT_EQ(holder.counters().owner_conflicts, 2u);
+  EXPECT_EQ(holder.Add(genuine[1], EncodeSubmap(genuine[1]), 6.0), SubmapRelay::Offer::kNew);
+  // The owner's word again changes nothing; more digests than its count say nothing.
+  EXPECT_EQ(holder.OnOwnerAdvert({2, 1}, 2, digests), 0u);
+  EXPECT_EQ(holder.OnOwnerAdvert({2, 1}, 1, digests), 0u);
+  EXPECT_EQ(holder.book().ChainLength(2, 1), 2u);
+  // Digests of the latest only (kOwnDigests); an owner's chain longer than that advertises those.
+  SubmapRelay long_owner(Options());
+  for (std::uint32_t i = 0; i < SubmapRelay::kOwnDigests + 3; ++i) AddOwn(long_owner, Submap(5, 1, i));
+  const std::vector<std::uint64_t> latest = long_owner.OwnDigests({5, 1});
+  ASSERT_EQ(latest.size(), SubmapRelay::kOwnDigests);
+  EXPECT_EQ(latest.back(), SubmapDigest(EncodeSubmap(Submap(5, 1, SubmapRelay::kOwnDigests + 2))));
 }
 
 // A submap sent and still lacked (lost on the way) goes again after resend_after_s, not before.

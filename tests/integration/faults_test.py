@@ -183,11 +183,15 @@ class ForgedSubmapsTest(FaultRunCase):
         for rid, a in forged.items():
             with self.subTest(agent=rid):
                 st = json.loads((self.out / f"agent_{rid}" / "stats.json").read_text())
-                held = json.loads((base.parent / "clean" / f"agent_{rid}" / "stats.json").read_text())["submaps"]
+                held = json.loads((base.parent / "clean" / f"agent_{rid}" / "stats.json").read_text())
                 self.assertGreater(st["maps_refused"]["other_writer"], 0, st["maps_refused"])
                 self.assertEqual(st["inbox_refused"]["key_taken"], 0, st["inbox_refused"])
                 self.assertEqual(st["submaps"]["conflicts"], 0, st["submaps"])
-                self.assertEqual(st["submaps"]["chains"], held["chains"])  # every digest the clean run's
+                self.assertEqual(st["submaps"]["chains"], held["submaps"]["chains"])  # every digest the clean run's
+                # Owners' digests (every local map carries its own chain's): no genuine copy disowned.
+                for run in (st, held):
+                    self.assertEqual(run["submaps"]["owner_conflicts"], 0, run["submaps"])
+                    self.assertEqual(run["submaps"]["ahead_of_owner"], 0, run["submaps"])
                 self.assertEqual(a["exit_code"], 0)
                 self.assertLessEqual(a["max_rss_mb"], 1.2 * clean[rid]["max_rss_mb"], (a, clean[rid]))
         self.assert_same_maps(self.out, base.parent / "clean")

@@ -212,6 +212,7 @@ TEST_F(TransportTest, ALocalMapCarriesSubmapsAndTheChainsHeld) {
   m.version = 3;
   m.payload = {1, 2};
   m.submaps_held = {{4, 1, 7, 0.0}, {9, 2, 0, 12.25}, {12, 3, 4000000000u, 1e6}};
+  m.own_submap_digests = {0x0123456789abcdefULL, 0, ~0ULL};
   m.submaps = {{{0x4d, 0x53, 1, 0, 255}, {}}, {{}, {1}}, {std::vector<std::uint8_t>(9000, 0xa5), {9, 8, 7}}};
   m.open_submap = {7, 6, 5, 4};
   m.open_submap_signature = std::vector<std::uint8_t>(72, 0x30);
@@ -221,6 +222,7 @@ TEST_F(TransportTest, ALocalMapCarriesSubmapsAndTheChainsHeld) {
   const auto got = TakeN(r, 1);
   ASSERT_EQ(got.size(), 1u);
   EXPECT_EQ(got[0].submaps_held, m.submaps_held);
+  EXPECT_EQ(got[0].own_submap_digests, m.own_submap_digests);
   EXPECT_EQ(got[0].submaps, m.submaps);
   EXPECT_EQ(got[0].open_submap, m.open_submap);
   EXPECT_EQ(got[0].open_submap_signature, m.open_submap_signature);
