@@ -303,6 +303,7 @@ std::optional<InjectedMessage> MapInjector::Make(const std::string& c, RobotId s
     m.origin_stamp = h->msg.origin_stamp;
   }
   if (const std::optional<PayloadFault> f = PayloadFaultFromString(c)) {
+    m.incarnation = kInjectPayloadIncarnation;
     m.kind = MapKind::kGlobal;
     m.payload = CorruptPayload(EncodeMap(RandomMap(8)), *f);
     return m;

@@ -4,7 +4,7 @@
 // to the agents' statuses, and makes bad map messages, going through the chosen cases and, for
 // each case, through the run's robots as claimed senders:
 //   truncated .. out_of_bounds  a payload corrupted so that decoding must refuse it (map_faults.h),
-//                            sent as the sender's GLOBAL map;
+//                            sent as the sender's GLOBAL map under kInjectPayloadIncarnation;
 //   stale_version            a copy of the sender's latest local map under an older version;
 //   unknown_sender           a well-formed random map from a robot id that is not in the run;
 //   shuffled                 a faulty peer: a further incarnation of the sender
@@ -100,6 +100,10 @@ inline constexpr std::uint32_t kInjectHugeSubmapsFrom = 1000;
 inline constexpr std::uint32_t kInjectFarReadingSeq = 999999u;
 // The incarnation the faulty peer of the shuffled case claims (real agents count from 1).
 inline constexpr std::uint32_t kInjectFaultyIncarnation = 3000000000u;
+// The incarnation the corrupted payloads claim: one no real agent runs, so that no writer is
+// bound to it and they reach the decoder (under a robot's own incarnation another writer's map
+// is refused unread: agent/robot_writers.h). In lockstep no tick lists it: the inbox drops them.
+inline constexpr std::uint32_t kInjectPayloadIncarnation = 3000000002u;
 
 // One injected message: a map, or forged sensor data or links.
 using InjectedMessage = std::variant<MapMessage, Odometry, Scan, RadioLinks>;

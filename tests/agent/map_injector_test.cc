@@ -69,6 +69,7 @@ TEST(MapInjector, BeforeHearingAnyMapOnlyMalformedAndForeignMapsAreMade) {
     } else {
       EXPECT_TRUE(m->robot_id == 1 || m->robot_id == 2);
       EXPECT_EQ(m->kind, MapKind::kGlobal);
+      EXPECT_EQ(m->incarnation, kInjectPayloadIncarnation);  // no writer is bound to it: decoded
       EXPECT_FALSE(d.ok());
       ++made[std::string(ToString(d.error))];
     }

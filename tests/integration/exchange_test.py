@@ -320,7 +320,10 @@ class ExchangeTest(SwarmCase):
                 unknown = str(injected["unknown_id"])
                 self.assertLessEqual(stats["maps_unknown_sender"], cases["unknown_sender"]["sent"]
                                      + cases["tick_flood"]["by_sender"].get(unknown, 0))
-                self.assertGreaterEqual(stats["maps_stale_version"], 1)
+                # stale_version's copies claim the robot's own incarnation from the injector's
+                # writer: refused unread (other_writer, issue R3) once a map of the robot was taken,
+                # else stale (the gate itself: MapExchange's unit tests).
+                self.assertGreaterEqual(stats["maps_stale_version"] + stats["maps_refused"]["other_writer"], 1)
                 # The faulty peer was aligned on its honest maps, and its shuffled maps failed
                 # verification and dropped it.
                 self.assertGreater(cases["shuffled"]["by_sender"].get(str(other), 0), 0)

@@ -82,10 +82,11 @@ class HostileInputTest(FaultRunCase):
                 self.assertGreater(stats["observations"]["out_of_range"], 0)
                 # (links_stamp's table comes from the injector, not the feeder: refused unread)
                 self.assertGreater(stats["not_from_feeder"]["links"], 0)
-                # version_jump's and out_of_bounds' maps claim the robots' own incarnations from
-                # another writer than theirs: refused before they are read (issue R3,
-                # agent/robot_writers.h). The gates behind, for a writer that is the robot's own,
-                # are AgentNodeLimits' and the map decoder's (map_codec_test, scripts/fuzz).
+                # version_jump's maps claim the robots' own incarnations from another writer than
+                # theirs: refused before they are read (issue R3, agent/robot_writers.h; the gate
+                # behind, for a writer that is the robot's own, is AgentNodeLimits'). out_of_bounds
+                # claims an incarnation of its own, which no tick lists: dropped by the inbox (in
+                # real time, decoded and rejected: exchange_test).
                 self.assertGreater(stats["maps_refused"]["other_writer"], 0)
                 self.assertEqual(stats["maps_refused"]["version_jump"], 0)
                 self.assertEqual(stats["maps_encode_failed"], 0)
