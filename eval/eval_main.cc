@@ -395,6 +395,14 @@ int Run(int argc, char** argv) {
             entry[kind]["reached_rmse_aligned_m"] = within;
           }
           if (within.is_number() && aligned.evaluated) entry["gap_to_reached"] = aligned.rmse_m / within.get<double>();
+          // How much of what reached the agent its map holds (issue J2): the landmarks of the
+          // optimum of what reached it (every one a robot whose data reached it saw by then).
+          const BatchReferenceMap* of = reached && reached->central ? &*reached->central
+                                        : batch->central            ? &*batch->central
+                                                                    : nullptr;
+          const std::optional<double> c = of && aligned.evaluated ? CoverageOf(of->map, aligned.truth_matched)
+                                                                  : std::nullopt;
+          entry[kind]["coverage_reached"] = c ? json(*c) : json();
         }
       }
       if (reference) {

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <set>
 #include <tuple>
 
 #include "common/geometry/rigid_fit.h"
@@ -193,6 +194,18 @@ LandmarkMap RestrictToTruth(const LandmarkMap& map, const std::vector<int>& trut
     if (std::binary_search(truth_indices.begin(), truth_indices.end(), l.signature)) out.landmarks.push_back(l);
   }
   return out;
+}
+
+std::optional<double> CoverageOf(const LandmarkMap& reference, const std::vector<int>& truth_matched) {
+  std::set<std::int32_t> signatures;
+  for (const Landmark& l : reference.landmarks) {
+    if (l.signature >= 0) signatures.insert(l.signature);
+  }
+  if (signatures.empty()) return std::nullopt;
+  const auto held = std::count_if(signatures.begin(), signatures.end(), [&](std::int32_t s) {
+    return std::binary_search(truth_matched.begin(), truth_matched.end(), s);
+  });
+  return static_cast<double>(held) / static_cast<double>(signatures.size());
 }
 
 OriginSigning SignByOrigins(LandmarkMap& map, const std::vector<std::vector<LocalLandmark>>& origins,

@@ -113,4 +113,10 @@ OriginSigning SignByOrigins(LandmarkMap& map, const std::vector<std::vector<Loca
 // signatures are the true landmarks' indices) on the landmarks another map holds.
 LandmarkMap RestrictToTruth(const LandmarkMap& map, const std::vector<int>& truth_indices);
 
+// The share of a reference map's landmarks (signatures: the true landmarks' indices) among
+// truth_matched (increasing, MapQuality::truth_matched): with the optimum of what reached an
+// agent, the coverage of what reached it (issue J2: every landmark that a robot whose data
+// reached the agent saw before it did). nullopt when the reference has no signed landmark.
+std::optional<double> CoverageOf(const LandmarkMap& reference, const std::vector<int>& truth_matched);
+
 }  // namespace mapmesh

@@ -69,6 +69,9 @@ COLUMNS = [
            plot=("global mean NEES", "mean NEES (2 expected)")),
     Column("global.coverage", table="cov_global", table_format=".2f", html="global coverage", csv="coverage_global",
            plot=("global coverage", "share of the seen true landmarks")),
+    # ... and of what reached the agent: the landmarks of the optimum of the data that reached it
+    # (every one a robot whose data reached it saw by then; with the reference only).
+    Column("global.coverage_reached", csv="coverage_reached"),
     # Each map against its limit on the same landmarks (docs/EXPERIMENTS.md "The limit"): the RMSE
     # after a rigid fit over that of the centralized batch optimum with what the agents know of
     # the starts, none (global map), or of the robot's own batch optimum (local map); 1 is the limit.
@@ -106,6 +109,7 @@ TABLE_COLUMNS = [c for c in COLUMNS if c.table]
 HTML_COLUMNS = [c for c in COLUMNS if c.html]
 # sweep.csv: the swept parameters (one column each), "seed", these agent columns in this order, then the run's "wall_s".
 SWEEP_COLUMNS = [BY_KEY[k] for k in ("id", "alive_at_end", "local.landmarks", "global.landmarks", "global.coverage",
+                                     "global.coverage_reached",
                                      "global.nees_mean", "global.rmse_aligned_m", "global.rmse_m",
                                      "local.rmse_aligned_m", "local.rmse_m", "local.nees_mean",
                                      "global.central_rmse_aligned_m", "gap_to_central",

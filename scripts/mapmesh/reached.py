@@ -59,12 +59,15 @@ def closed_until(stats, checkpoint):
     return latest
 
 
-def reached_until(agents, end_s, slack_s, restarted=()):
+def reached_until(agents, end_s, slack_s, restarted=(), maps_relay=True):
     """agents: {id: (stats, checkpoint)} (either may be None). Per agent, {robot: t} for every
     other robot of the run whose data reached it only up to t < end_s - slack_s (the rest reached
     it whole); an empty dict when everything did. A `restarted` peer's maps also carry what its
     earlier incarnations held, which its last process's stats do not count: all that reached it
-    by the time of its map is taken to have reached us with it."""
+    by the time of its map is taken to have reached us with it. maps_relay: whether a peer's maps
+    carry other robots' data (its global map, with agent.fusion ci); a joining agent publishes
+    its local map only, and what it relays of others are their submaps, which the holder counts
+    itself (closed ones held, open ones in data_until)."""
     heard = {a: last_heard(stats) for a, (stats, _) in agents.items()}
     closed = {a: closed_until(stats, checkpoint) for a, (stats, checkpoint) in agents.items()}
     until = {}
@@ -74,7 +77,7 @@ def reached_until(agents, end_s, slack_s, restarted=()):
             if r == a:
                 continue
             t = max(heard[a].get(r, 0.0), closed[a].get(r, 0.0))
-            for p, at in heard[a].items():  # r's data in p's maps, as p last had it when we last heard p
+            for p, at in heard[a].items() if maps_relay else ():  # r's data in p's maps, as p last had it
                 if p != r:
                     t = max(t, at if p in restarted else min(at, heard.get(p, {}).get(r, 0.0)))
             if t < end_s - slack_s:

@@ -654,7 +654,9 @@ class SwarmRun:
         period = self.info.get("resolved", {}).get("agent.map_publish_period_s")
         period = float(period) if isinstance(period, (int, float)) else 1.0
         restarted = {rid for rid, slot in self.agents.items() if slot.restarted_at}
-        until = reached_until(agents, float(self.info["duration"]), 2.0 * period, restarted)
+        # A joining agent's maps carry its own data only (its global map stays off the wire).
+        joining = self.info.get("resolved", {}).get("agent.fusion") == "joining"
+        until = reached_until(agents, float(self.info["duration"]), 2.0 * period, restarted, maps_relay=not joining)
         for rid, slot in self.agents.items():
             # A restarted agent holds what its earlier incarnations took (its checkpoint), which
             # its last process's stats do not count: its limit stays the whole run's.

@@ -193,6 +193,10 @@ class ExchangeTest(SwarmCase):
             self.assertEqual(reached["until"], until)
             self.assertLess(reached["central"]["observations"], whole["central"]["observations"])
             self.assertIsNotNone(joined[rid]["gap_to_reached"])
+            # ... and every landmark of that optimum is in its global map (issue J2's figure,
+            # measured 1.0 for both; agent 3, whose robot 1 data reached only to 24 s, 0.81).
+            self.assertGreaterEqual(joined[rid]["global"]["coverage_reached"], 0.97)
+        self.assertEqual(joined[3]["reached_until"], {"1": 24.0, "2": 86.0})  # its peers' maps carry their own data
 
     def test_joining_a_restarted_agent_keeps_its_earlier_chain_and_joins_it_once(self):
         # park4 with every robot out of range of the others (1 m): agent 3's first incarnation

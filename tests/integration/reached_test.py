@@ -49,6 +49,12 @@ class ReachedTest(unittest.TestCase):
         self.assertEqual(until[2], {3: 88.0})
         # Agent 3: robot 2 until 88 s; robot 1 through robot 2's maps, as 2 had it at 88 s.
         self.assertEqual(until[3], {1: 88.0, 2: 88.0})
+        # With fusion joining a peer's maps carry its own data only: robot 3 reaches agent 1 through
+        # the submaps it holds, robot 1 never reached agent 3.
+        joining = reached_until(agents, 130.0, 4.0, maps_relay=False)
+        self.assertEqual(joining[1], {3: 67.5})
+        self.assertEqual(joining[2], {3: 88.0})
+        self.assertEqual(joining[3], {1: 0.0, 2: 88.0})
 
     def test_everything_reached_and_closed_submaps_count(self):
         agents = {

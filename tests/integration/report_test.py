@@ -54,8 +54,9 @@ SUMMARY_HEADERS = ["agent", "alive", "exit", "restarts", "local landmarks", "loc
                    "trajectory ATE after rigid fit (m)", "trajectory RPE over 1 s (m)", "peers aligned",
                    "maps received", "bytes sent", "bytes / landmark", "CPU (s)", "max RSS (MB)"]
 # sweep.csv as `swarm sweep` writes it, after the swept parameter.
-SWEEP_HEADER = ["seed", "agent", "alive", "lm_local", "lm_global", "coverage_global", "nees_global",
-                "rmse_global_aligned_m", "rmse_global_m", "rmse_local_aligned_m", "rmse_local_m", "nees_local",
+SWEEP_HEADER = ["seed", "agent", "alive", "lm_local", "lm_global", "coverage_global", "coverage_reached",
+                "nees_global", "rmse_global_aligned_m", "rmse_global_m", "rmse_local_aligned_m", "rmse_local_m",
+                "nees_local",
                 "rmse_central_same_m", "gap_to_central", "rmse_central_known_starts_same_m",
                 "gap_to_central_known_starts", "gap_to_own_batch", "peers_aligned", "bytes_sent", "wall_s"]
 DASH = "\u2013"
@@ -452,8 +453,10 @@ def make_fake_sweep(d, param="radio.range_m"):
                 share = min(1.0, value / 60)
                 nees = "" if value == 0 and agent == 2 else round(rng.uniform(1, 3 + 5 * share), 4)  # an empty cell
                 out.append({param: value, "seed": seed, "agent": agent, "alive": 1, "lm_local": 40,
-                            "lm_global": 90, "coverage_global": round(0.3 + 0.6 * share + rng.uniform(-0.05, 0.05), 4),
-                            "nees_global": nees, "rmse_global_aligned_m": round(rng.uniform(0.03, 0.1 + share), 4),
+                            "lm_global": 90,
+                            "coverage_global": round(0.3 + 0.6 * share + rng.uniform(-0.05, 0.05), 4),
+                            "coverage_reached": 1.0, "nees_global": nees,
+                            "rmse_global_aligned_m": round(rng.uniform(0.03, 0.1 + share), 4),
                             "rmse_global_m": round(rng.uniform(0.1, 0.3 + share), 4), "rmse_local_aligned_m": 0.05,
                             "rmse_local_m": 0.2, "nees_local": 1.9, "rmse_central_same_m": 0.03,
                             "gap_to_central": round(rng.uniform(1.0, 2 + 3 * share), 4),

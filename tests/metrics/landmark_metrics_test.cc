@@ -219,3 +219,21 @@ TEST(SignByOrigins, ScoresAPeersLandmarkAgainstWhatItsRobotMeasured) {
 
 }  // namespace
 }  // namespace mapmesh
+
+namespace mapmesh {
+namespace {
+
+// Issue J2's coverage of what reached an agent: the share of a reference's signed landmarks the
+// map holds; unsigned reference landmarks and repeats count once or not at all.
+TEST(CoverageOf, TheShareOfTheReferencesLandmarksTheMapHolds) {
+  LandmarkMap reference;
+  for (std::int32_t s : {3, 5, 8, 8, 13, -1})
+    reference.landmarks.push_back({0, s, {0.0, 0.0}, Eigen::Matrix2d::Identity()});
+  EXPECT_DOUBLE_EQ(*CoverageOf(reference, {1, 3, 8}), 0.5);  // 3 and 8 of {3, 5, 8, 13}
+  EXPECT_DOUBLE_EQ(*CoverageOf(reference, {3, 5, 8, 13, 20}), 1.0);
+  EXPECT_DOUBLE_EQ(*CoverageOf(reference, {}), 0.0);
+  EXPECT_FALSE(CoverageOf(LandmarkMap{}, {1, 2}).has_value());
+}
+
+}  // namespace
+}  // namespace mapmesh
