@@ -441,12 +441,17 @@ void AgentNode::ProcessMap(const MapMessage& msg, const std::string& writer) {
   }
   const double now = Clock();
   auto refuse = [this](MapRefusal r) { ++stats_.maps_refused[static_cast<int>(r)]; };
+  // What rides on a map is taken only with the map (issue R3: a stale copy of a peer's map
+  // carried forged submaps and placements in, and its older advertisement replaced the newer).
+  const auto refuse_riders = [&] {
+    const std::size_t riders = msg.submaps.size() + msg.open_relayed.size() + (msg.open_submap.empty() ? 0 : 1);
+    stats_.submaps_refused[static_cast<int>(SubmapRefusal::kOnRefusedMap)] += static_cast<std::uint32_t>(riders);
+  };
   // Kept in the inbox before the robot incarnation's first map was taken, from another writer;
   // else the first map with a plausible stamp binds its writer, whether or not the radio lets
   // it through (the writer is a fact of the transport, not of range).
   if (!writers_.Admits(msg.robot_id, msg.incarnation, writer)) {
-    stats_.submaps_refused[static_cast<int>(SubmapRefusal::kOnRefusedMap)] += static_cast<std::uint32_t>(
-        msg.submaps.size() + msg.open_relayed.size() + (msg.open_submap.empty() ? 0 : 1));
+    refuse_riders();
     return refuse(MapRefusal::kOtherWriter);
   }
   if (!std::isfinite(msg.stamp) || !std::isfinite(msg.origin_stamp) || msg.stamp > now + options_.max_stamp_jump_s) {
@@ -460,12 +465,6 @@ void AgentNode::ProcessMap(const MapMessage& msg, const std::string& writer) {
     case GateVerdict::kPass: break;
   }
   stats_.bytes_received += WireBytes(msg);
-  // What rides on a map is taken only with the map (issue R3: a stale copy of a peer's map
-  // carried forged submaps and placements in, and its older advertisement replaced the newer).
-  const auto refuse_riders = [&] {
-    const std::size_t riders = msg.submaps.size() + msg.open_relayed.size() + (msg.open_submap.empty() ? 0 : 1);
-    stats_.submaps_refused[static_cast<int>(SubmapRefusal::kOnRefusedMap)] += static_cast<std::uint32_t>(riders);
-  };
   // A map larger than we will align is refused before it is decoded (kept within the codec's
   // own limit, so that a malformed count is still reported as such).
   if (const auto n = MapPayloadCount(msg.payload);
