@@ -105,8 +105,17 @@ class JoiningFusion : public FusionBackend {
         for (const auto& [key, s] : *submaps.peers_open) open.push_back(&s);
       }
       superseded_ = submaps.book->Superseded(open, submaps.heard);
+      std::set<std::pair<RobotId, std::uint32_t>> held;
+      for (const WireSubmap* o : open) {
+        if (o != nullptr) held.insert({o->id.robot, o->id.incarnation});
+      }
+      for (const SubmapChain& c : submaps.book->Chains()) {
+        if (c.count > 0) held.insert({c.robot, c.incarnation});
+      }
+      report_.chains_held = static_cast<int>(held.size());
       report_.superseded_chains = static_cast<int>(superseded_.size());
       std::vector<MapSource> inputs = direct;
+      ExtendByChains(submaps, &inputs);
       PlaceRelayedChains(own_local, submaps, &inputs);
       const GlobalMap associated = BuildGlobalMap(own_local, self_, inputs, association_, incarnation_, &memo_);
       b.global = JoinChains(associated, inputs, submaps);
@@ -212,6 +221,58 @@ class JoiningFusion : public FusionBackend {
     return out;
   }
 
+  // The latest open submap taken of a chain (null for none).
+  static const WireSubmap* OpenOf(const SubmapInputs& submaps, const std::pair<RobotId, std::uint32_t>& chain) {
+    if (submaps.peers_open == nullptr) return nullptr;
+    const auto o = submaps.peers_open->find({chain.first, chain.second});
+    return o == submaps.peers_open->end() ? nullptr : &o->second;
+  }
+
+  // A one-hop peer's map as its chain holds it, where the chain has gone on past the map: a peer
+  // that fell silent (out of range, or gone) keeps the last map taken from it, while its later
+  // submaps still reach the agent through relays. Their landmarks would be joined but in no
+  // association group, and so in no global landmark: the map is rebuilt from the chain (its
+  // closed submaps, then the open one where it continues them, as a relayed chain's), in the
+  // same frame, with any landmark of the last map the chain lacks kept. A map that holds every
+  // landmark of its chain is used as it is.
+  void ExtendByChains(const SubmapInputs& submaps, std::vector<MapSource>* inputs) {
+    const SubmapBook& book = *submaps.book;
+    report_.chains_extended = 0;
+    for (MapSource& s : *inputs) {
+      const std::pair key{s.robot, s.incarnation};
+      if (superseded_.contains(key)) continue;
+      std::vector<std::uint32_t> ids;
+      ids.reserve(s.map.size());
+      for (const Landmark& l : s.map.landmarks) ids.push_back(l.id);
+      std::sort(ids.begin(), ids.end());
+      const auto beyond = [&](const WireSubmap& w) {
+        return std::any_of(w.keys.begin(), w.keys.end(),
+                           [&](std::uint32_t k) { return !std::binary_search(ids.begin(), ids.end(), k); });
+      };
+      std::vector<const WireSubmap*> chain;
+      bool past = false;
+      for (std::uint32_t i = 0; i < book.ChainLength(s.robot, s.incarnation); ++i) {
+        chain.push_back(book.Find({s.robot, s.incarnation, i}));
+        past = past || beyond(*chain.back());
+      }
+      const WireSubmap* open = OpenOf(submaps, key);
+      if (open != nullptr && open->id.index == chain.size()) past = past || beyond(*open);
+      if (!past) continue;
+      ChainMap& m = direct_chains_.try_emplace(key, options_.chain_join).first->second;
+      m.Extend(chain);
+      if (m.broken() || m.joined() != chain.size()) continue;
+      LandmarkMap rebuilt = m.MapWith(open);
+      std::vector<std::uint32_t> held;
+      for (const Landmark& l : rebuilt.landmarks) held.push_back(l.id);
+      std::sort(held.begin(), held.end());
+      for (const Landmark& l : s.map.landmarks) {
+        if (!std::binary_search(held.begin(), held.end(), l.id)) rebuilt.landmarks.push_back(l);
+      }
+      s.map = std::move(rebuilt);
+      ++report_.chains_extended;
+    }
+  }
+
   // A chain held only through relays: its map rebuilt from its submaps, and where it lies.
   struct Relayed {
     explicit Relayed(const JoinerOptions& o) : map(o) {}
@@ -282,11 +343,7 @@ class JoiningFusion : public FusionBackend {
       const Pose2 at = last != last_frames_.end() && !last->second.empty() ? last->second.front() : *r.to_own;
       // Its landmarks as the join holds them: the open submap relayed to us too, where it
       // continues the chain (JoinChains joins it).
-      const WireSubmap* open = nullptr;
-      if (submaps.peers_open != nullptr) {
-        const auto o = submaps.peers_open->find({c.robot, c.incarnation});
-        if (o != submaps.peers_open->end()) open = &o->second;
-      }
+      const WireSubmap* open = OpenOf(submaps, {c.robot, c.incarnation});
       inputs->push_back(MapSource{c.robot, c.incarnation, r.map.MapWith(open), at, r.to_own_cov, false});
       target.reset();
     }
@@ -362,6 +419,8 @@ class JoiningFusion : public FusionBackend {
   AssociationMemo memo_;
   JoiningReport report_;
   std::map<std::pair<RobotId, std::uint32_t>, Relayed> relayed_;
+  std::map<std::pair<RobotId, std::uint32_t>, ChainMap>
+      direct_chains_;                                       // one-hop peers' maps past their last (ExtendByChains)
   std::set<std::pair<RobotId, std::uint32_t>> superseded_;  // at the last build (SubmapBook::Superseded)
   SubmapInformation information_;  // the submaps' information matrices, from one solve to the next
   // The last solve's frames and landmarks (by key) per chain: where the next one starts.

@@ -49,6 +49,7 @@ struct SubmapInputs {
 // What the joining back-end's last solve on submap chains did (all zero before one).
 struct JoiningReport {
   int solves = 0;         // solves on submap chains so far
+  int chains_held = 0;    // robot incarnations of which the agent held submaps at the last build (own included)
   int chains = 0;         // chains offered at the last (own, then each aligned peer's) ...
   int chains_joined = 0;  // ... and joined (tied to the others by enough landmarks)
   int submaps = 0;        // submaps joined
@@ -77,6 +78,10 @@ struct JoiningReport {
   // Chains left out at the last build: a later incarnation of their robot maps their time again
   // (SubmapBook::Superseded).
   int superseded_chains = 0;
+  // One-hop peers' maps rebuilt from their chains at the last build: the chain held (closed
+  // submaps relayed after the peer fell silent, or its open submap) had landmarks the last map
+  // taken from the peer did not.
+  int chains_extended = 0;
 };
 
 class FusionBackend {

@@ -473,5 +473,44 @@ TEST_F(FusionBackendRelayed, ARelayedChainsOpenSubmapJoinsWhereItContinuesTheCha
   EXPECT_EQ(Robot3Landmarks(g).first, closed2.first);
 }
 
+// Robot 2 fell silent after its first two submaps: the last map we took from it holds only
+// their landmarks, while its third and fourth submaps reached us through relays. Its map is
+// rebuilt from the chain held, so that every landmark the four saw is in our global map, once,
+// where it is; a map that holds its whole chain is used as it is.
+TEST_F(FusionBackendRelayed, APeersLaterSubmapsRelayedAfterItFellSilentAreInTheMap) {
+  SubmapBook book;
+  for (const auto* s : {&s1, &s2}) {
+    for (const WireSubmap& x : *s) book.Add(x, EncodeSubmap(x));
+  }
+  const std::vector<MapSource> silent = {
+      {2, 1, Rebuilt({s2[0], s2[1]}), start1.Inverse() * start2, 1e-6 * Eigen::Matrix3d::Identity()}};
+  const FusionBackend::Built b = MakeFusionBackend(1, 1, o, 42)
+                                     ->Build(own, silent, silent, {&book, nullptr, nullptr, 0.0});
+  EXPECT_EQ(b.joining.chains_extended, 1);
+  EXPECT_EQ(b.joining.chains_held, 2);
+  EXPECT_EQ(b.joining.chains_joined, 2);
+  std::set<int> seen;
+  for (const auto* t : {&t1, &t2}) {
+    for (const auto& v : t->seen) seen.insert(v.begin(), v.end());
+  }
+  ASSERT_GT(seen.size(), own.size() + silent[0].map.size() - 5);  // the later submaps saw landmarks of their own
+  EXPECT_EQ(b.global.map.size(), seen.size());
+  std::set<int> held;
+  for (std::size_t g = 0; g < b.global.map.size(); ++g) {
+    const LandmarkOrigin& first = b.global.origins[g].front();
+    held.insert(static_cast<int>(first.id));  // keys are the world's indices
+    const Eigen::Vector2d truth = start1.TransformTo(w.landmarks[first.id]);
+    const Landmark& l = b.global.map.landmarks[g];
+    EXPECT_LT((l.mean - truth).dot(l.cov.ldlt().solve(l.mean - truth)), 18.4)  // chi-square 2 dof, 99.99 %
+        << "robot " << first.robot << " key " << first.id;
+  }
+  EXPECT_EQ(held, seen);
+  // Robot 2's whole chain in its map: nothing to rebuild, the same landmarks.
+  const FusionBackend::Built whole = MakeFusionBackend(1, 1, o, 42)
+                                         ->Build(own, direct, direct, {&book, nullptr, nullptr, 0.0});
+  EXPECT_EQ(whole.joining.chains_extended, 0);
+  EXPECT_EQ(whole.global.map.size(), seen.size());
+}
+
 }  // namespace
 }  // namespace mapmesh
