@@ -1,5 +1,6 @@
 #include "agent/fusion_backend.h"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <optional>
 #include <random>
@@ -13,6 +14,7 @@
 #include "common/merge/map_joining.h"
 #include "common/merge/submap_network.h"
 #include "common/merge/submap_placement.h"
+#include "common/metrics/chi2.h"
 
 namespace mapmesh {
 namespace {
@@ -138,8 +140,7 @@ class JoiningFusion : public FusionBackend {
   // one) in the own frame, and each source's (an aligned peer's or a placed relayed chain's
   // closed submaps, then the latest open one taken, the publisher's or relayed, where it
   // continues them) from where the source lies, the association
-  // from the CI build's groups. Each landmark a chain holds gets the
-  // joint estimate; one no chain holds keeps the CI build's.
+  // from the CI build's groups (JoinedMap: the map it makes).
   GlobalMap JoinChains(const GlobalMap& associated, const std::vector<MapSource>& sources,
                        const SubmapInputs& submaps) {
     const SubmapBook& book = *submaps.book;
@@ -211,12 +212,60 @@ class JoiningFusion : public FusionBackend {
     report_.rechecks += r.rechecked ? 1 : 0;
     ++report_.solves;
     if (!r.solved) return associated;
+    return JoinedMap(associated, r, chains, association_.gate_probability);
+  }
+
+  // The global map of a solved join: each association group a joined chain holds as the join
+  // estimated it, its origins the references the join merged (and those of sources it did not
+  // join); each of the join's landmarks no group names (a pairing the submaps contradicted split
+  // it off its group, or it is in no map the association had) appended, so that what the join
+  // dropped from a group is not lost from the map, unless the association's gate would pair it
+  // with a landmark of the map (the join says they differ, the gate that they may be one: one
+  // copy, not two); the rest as the CI build has them.
+  static GlobalMap JoinedMap(const GlobalMap& associated, const NetworkResult& r, const std::vector<ChainInput>& chains,
+                             double gate_probability) {
+    std::set<std::pair<RobotId, std::uint32_t>> joined;
+    for (std::size_t i = 0; i < chains.size(); ++i) {
+      if (r.joined[i]) joined.insert({chains[i].robot, chains[i].incarnation});
+    }
+    const auto origins_of = [](const NetworkLandmark& l) {
+      std::vector<LandmarkOrigin> o;
+      for (const LandmarkRef& ref : l.refs) o.push_back({ref.robot, ref.incarnation, ref.key, false});
+      return o;
+    };
     GlobalMap out = associated;
+    std::vector<bool> placed(r.landmarks.size(), false);
     for (std::size_t g = 0; g < out.map.landmarks.size(); ++g) {
-      const NetworkLandmark* l = r.OfGroup(static_cast<int>(g));
-      if (l == nullptr) continue;
-      out.map.landmarks[g].mean = l->mean;
-      out.map.landmarks[g].cov = l->cov;
+      const int at = g < r.of_group.size() ? r.of_group[g] : -1;
+      if (at < 0) continue;
+      const NetworkLandmark& l = r.landmarks[static_cast<std::size_t>(at)];
+      placed[static_cast<std::size_t>(at)] = true;
+      out.map.landmarks[g].mean = l.mean;
+      out.map.landmarks[g].cov = l.cov;
+      std::vector<LandmarkOrigin> origins = origins_of(l);
+      for (const LandmarkOrigin& o : associated.origins[g]) {
+        if (o.relayed || !joined.contains({o.robot, o.incarnation})) origins.push_back(o);
+      }
+      out.origins[g] = std::move(origins);
+    }
+    const std::size_t grouped = out.map.landmarks.size();
+    const double gate = Chi2Quantile(gate_probability, 2);
+    const auto near_one = [&](const NetworkLandmark& x) {
+      for (std::size_t g = 0; g < grouped; ++g) {
+        const Landmark& y = out.map.landmarks[g];
+        const Eigen::Vector2d d = x.mean - y.mean;
+        if (d.dot((x.cov + y.cov).ldlt().solve(d)) < gate) return true;
+      }
+      return false;
+    };
+    for (std::size_t i = 0; i < r.landmarks.size(); ++i) {
+      if (placed[i] || near_one(r.landmarks[i])) continue;
+      Landmark l;
+      l.id = static_cast<std::uint32_t>(out.map.landmarks.size());
+      l.mean = r.landmarks[i].mean;
+      l.cov = r.landmarks[i].cov;
+      out.map.landmarks.push_back(l);
+      out.origins.push_back(origins_of(r.landmarks[i]));
     }
     return out;
   }

@@ -176,6 +176,37 @@ TEST_F(FusionBackendTest, JoiningOnSubmapChainsTakesTheChainsEstimates) {
   EXPECT_GT((Fused(maps.global, 4).mean - Eigen::Vector2d(12.0, 4.0)).norm(), 1e-3);
 }
 
+// Robot 2's map puts its landmark 8 where our landmark 2 is (a wrong pairing the association
+// cannot tell), while its submap has it where it is. The join drops the pairing the submaps
+// contradict, and both landmarks stay in the map: each where it is, its origins those the join
+// merged (so no global landmark names two trees).
+TEST_F(FusionBackendTest, JoiningKeepsBothLandmarksOfAPairingTheSubmapsContradict) {
+  ExchangeOptions o;
+  o.global.method = FusionMethod::kJoining;
+  SubmapBook book;
+  const WireSubmap theirs = ExactSubmap(2, 0, 3, 9, frame2);  // landmarks 3-8 (their ids 0-5)
+  book.Add(theirs, EncodeSubmap(theirs));
+  const WireSubmap ours = ExactSubmap(1, 0, 0, 6, Pose2{});
+  LandmarkMap lying = two;
+  lying.landmarks[5].mean = frame2.Inverse().Apply(own.landmarks[2].mean);  // "8" where our 2 is
+  const std::vector<MapSource> sources = {Source(2, lying, frame2)};
+  const FusionBackend::Built b = MakeFusionBackend(1, 1, o, 1)->Build(own, sources, sources, {&book, &ours, nullptr});
+  ASSERT_TRUE(b.joining.solved);
+  EXPECT_GE(b.joining.ties_dropped, 1);
+  ASSERT_EQ(b.global.map.size(), 9u);  // 0-8, each once
+  std::set<int> trees;
+  for (std::size_t g = 0; g < b.global.map.size(); ++g) {
+    std::set<int> named;
+    for (const LandmarkOrigin& x : b.global.origins[g]) named.insert(x.robot == 1 ? int(x.id) : int(x.id) + 3);
+    ASSERT_EQ(named.size(), 1u) << "global landmark " << g << " names trees " << ::testing::PrintToString(named);
+    const int i = *named.begin();
+    trees.insert(i);
+    const Eigen::Vector2d truth(3.0 * i, (i % 3) * 4.0 + (i % 2) * 1.5);
+    EXPECT_LT((b.global.map.landmarks[g].mean - truth).norm(), 1e-6) << "tree " << i;
+  }
+  EXPECT_EQ(trees.size(), 9u);
+}
+
 // A restarted robot whose new incarnation maps the time of its earlier one again (a lockstep
 // restart replays its stream) has its earlier chain left out: the same measurements twice would
 // be joined as independent. An incarnation that begins after the earlier one ended adds to it.
