@@ -270,6 +270,30 @@ class JoiningFusion : public FusionBackend {
     return out;
   }
 
+  // The chains of which the agent holds closed submaps, and those of which it holds only an
+  // open submap that begins them (a robot heard through others before its first submap
+  // closed), in (robot, incarnation) order.
+  static std::vector<SubmapChain> HeldChains(const SubmapInputs& submaps) {
+    std::vector<SubmapChain> held;
+    for (const SubmapChain& c : submaps.book->Chains()) {
+      if (c.count > 0) held.push_back(c);
+    }
+    const std::size_t closed = held.size();
+    if (submaps.peers_open != nullptr) {
+      for (const auto& [key, open] : *submaps.peers_open) {
+        const bool has_closed = std::any_of(held.begin(), held.begin() + static_cast<std::ptrdiff_t>(closed),
+                                            [&](const SubmapChain& c) {
+                                              return PeerKey{c.robot, c.incarnation} == key;
+                                            });
+        if (!has_closed && open.id.index == 0) held.push_back({open.id.robot, open.id.incarnation, 0});
+      }
+    }
+    std::sort(held.begin(), held.end(), [](const SubmapChain& a, const SubmapChain& b) {
+      return std::pair{a.robot, a.incarnation} < std::pair{b.robot, b.incarnation};
+    });
+    return held;
+  }
+
   // The latest open submap taken of a chain (null for none).
   static const WireSubmap* OpenOf(const SubmapInputs& submaps, const std::pair<RobotId, std::uint32_t>& chain) {
     if (submaps.peers_open == nullptr) return nullptr;
@@ -358,17 +382,16 @@ class JoiningFusion : public FusionBackend {
     const std::size_t direct = inputs->size();
     report_.relayed_chains = report_.relayed_placed = 0;
     std::optional<LandmarkMap> target;  // the own and placed maps, built when an unplaced chain needs it
-    for (const SubmapChain& c : book.Chains()) {
-      if (c.count == 0 || heard.count({c.robot, c.incarnation}) != 0 ||
-          superseded_.contains({c.robot, c.incarnation})) {
-        continue;
-      }
+    for (const SubmapChain& c : HeldChains(submaps)) {
+      if (heard.count({c.robot, c.incarnation}) != 0 || superseded_.contains({c.robot, c.incarnation})) continue;
       ++report_.relayed_chains;
       Relayed& r = relayed_.try_emplace({c.robot, c.incarnation}, options_.chain_join).first->second;
       std::vector<const WireSubmap*> chain;
       for (std::uint32_t i = 0; i < c.count; ++i) chain.push_back(book.Find({c.robot, c.incarnation, i}));
       r.map.Extend(chain);
-      const LandmarkMap& theirs = r.map.map();  // aligned and verified on its closed submaps
+      // Aligned and verified on its closed submaps (the open one of a robot heard through others
+      // changes as it is relayed again), or on its open one where it holds none.
+      const LandmarkMap& theirs = c.count > 0 ? r.map.map() : r.map.MapWith(OpenOf(submaps, {c.robot, c.incarnation}));
       if (!r.to_own && theirs.size() >= 3) {
         const std::vector<Offer> offers = Offers({c.robot, c.incarnation}, std::span(inputs->data(), direct),
                                                  submaps.peers_placements);
@@ -380,9 +403,9 @@ class JoiningFusion : public FusionBackend {
         if (due || new_offer) {
           r.offered_by.clear();
           for (const Offer& o : offers) r.offered_by.insert(o.by);
-          if (!PlaceByOffer(r, offers, *target) && due) {
+          if (!PlaceByOffer(r, theirs, offers, *target) && due) {
             r.tried.tried_at = submaps.now;
-            Align(c, r, *target);
+            Align(c, r, theirs, *target);
           }
         }
       }
@@ -421,9 +444,10 @@ class JoiningFusion : public FusionBackend {
   }
 
   // Places the chain at the first offer the maps verify; false when none does.
-  bool PlaceByOffer(Relayed& r, const std::vector<Offer>& offers, const LandmarkMap& target) {
+  bool PlaceByOffer(Relayed& r, const LandmarkMap& theirs, const std::vector<Offer>& offers,
+                    const LandmarkMap& target) {
     for (const Offer& o : offers) {
-      const AlignmentResult a = VerifyAlignment(target, r.map.map(), o.to_own, options_.align);
+      const AlignmentResult a = VerifyAlignment(target, theirs, o.to_own, options_.align);
       if (!a.accepted()) {
         ++report_.placements_refused;
         continue;
@@ -436,8 +460,7 @@ class JoiningFusion : public FusionBackend {
     return false;
   }
 
-  void Align(const SubmapChain& c, Relayed& r, const LandmarkMap& target) {
-    const LandmarkMap& theirs = r.map.map();
+  void Align(const SubmapChain& c, Relayed& r, const LandmarkMap& theirs, const LandmarkMap& target) {
     r.tried.tried_size = theirs.size();
     r.tried.tried_target = target.size();
     std::mt19937_64 rng(seed_ ^ (std::uint64_t{c.robot} * 0x9e3779b97f4a7c15ULL) ^

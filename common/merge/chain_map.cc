@@ -23,7 +23,7 @@ std::size_t ChainMap::Extend(std::span<const WireSubmap* const> chain) {
 }
 
 const LandmarkMap& ChainMap::MapWith(const WireSubmap* open) {
-  if (open == nullptr || broken_ || joiner_.submaps() == 0 || open->id.index != joiner_.submaps()) return map_;
+  if (open == nullptr || broken_ || open->id.index != joiner_.submaps()) return map_;
   if (with_open_ && with_open_->joined == joiner_.submaps() && with_open_->index == open->id.index &&
       with_open_->closed_s == open->closed_s) {
     return with_open_->map;

@@ -32,9 +32,9 @@ class ChainMap {
   // The joined map (empty before the first submap).
   const LandmarkMap& map() const { return map_; }
   // The joined map with the chain's open submap `open` after the submaps joined (as
-  // SubmapSlam::Map gives it with its open submap); map() when open is null, does not continue
-  // the chain (its index is not joined(), or none is), the chain is broken or the joiner
-  // refuses it. The last one is kept: the same open submap (identity and closed_s: one version
+  // SubmapSlam::Map gives it with its open submap; with none joined, the open one's map alone);
+  // map() when open is null, does not continue the chain (its index is not joined()), the chain
+  // is broken or the joiner refuses it. The last one is kept: the same open submap (identity and closed_s: one version
   // of it) on the same chain is not solved again.
   const LandmarkMap& MapWith(const WireSubmap* open);
 

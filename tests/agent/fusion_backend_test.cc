@@ -504,6 +504,25 @@ TEST_F(FusionBackendRelayed, ARelayedChainsOpenSubmapJoinsWhereItContinuesTheCha
   EXPECT_EQ(Robot3Landmarks(g).first, closed2.first);
 }
 
+// Robot 3's first submap was still open when robot 2 last relayed it to us: a chain held by its
+// open submap alone is placed (here where robot 2's join put it) and joined like any other.
+TEST_F(FusionBackendRelayed, AChainHeldOnlyByItsFirstOpenSubmapIsPlacedAndJoined) {
+  const std::map<PeerKey, std::vector<ChainPlacement>> offered = {{{2, 1}, BuildRobot2().placements}};
+  const std::map<PeerKey, WireSubmap> open = {{{3, 1}, s3[0]}};
+  const FusionBackend::Built b = BuildOffered(offered, &open, 0);
+  EXPECT_EQ(b.joining.chains_held, 3);
+  EXPECT_EQ(b.joining.relayed_chains, 1);
+  EXPECT_EQ(b.joining.relayed_placed, 1);
+  EXPECT_EQ(b.joining.chains_joined, 3);
+  EXPECT_EQ(b.joining.submaps, static_cast<int>(s1.size() + s2.size()) + 1);
+  const auto [n, worst] = Robot3Landmarks(b);
+  EXPECT_EQ(n, static_cast<int>(s3[0].keys.size()));
+  EXPECT_LT(worst, 18.4);  // chi-square 2 dof, 99.99 %
+  // Its second submap open while the first is not held: nothing of robot 3's.
+  const std::map<PeerKey, WireSubmap> gap = {{{3, 1}, s3[1]}};
+  EXPECT_FALSE(HoldsRobot3(BuildOffered(offered, &gap, 0)));
+}
+
 // Robot 2 fell silent after its first two submaps: the last map we took from it holds only
 // their landmarks, while its third and fourth submaps reached us through relays. Its map is
 // rebuilt from the chain held, so that every landmark the four saw is in our global map, once,

@@ -158,8 +158,17 @@ TEST(ChainMap, AnOpenSubmapJoinsAfterTheClosedOnesWithoutChangingTheChain) {
   bad.closed_s += 2.0;  // a later version of it, malformed
   EXPECT_EQ(&four.MapWith(&bad), &four.map());
   EXPECT_FALSE(four.broken());
-  ChainMap none;
-  EXPECT_EQ(&none.MapWith(all[0]), &none.map());
+  // With none closed, the chain's first submap open: its map alone, as once closed.
+  ChainMap none, first;
+  first.Extend(std::span(all.data(), 1));
+  const LandmarkMap& alone = none.MapWith(all[0]);
+  ASSERT_EQ(alone.size(), first.map().size());
+  ASSERT_GT(alone.size(), 0u);
+  for (std::size_t i = 0; i < alone.size(); ++i) {
+    EXPECT_EQ(alone.landmarks[i].id, first.map().landmarks[i].id);
+    EXPECT_LT((alone.landmarks[i].mean - first.map().landmarks[i].mean).norm(), 1e-9);
+  }
+  EXPECT_EQ(&none.MapWith(all[1]), &none.map());  // not the chain's first
 }
 
 }  // namespace
