@@ -28,7 +28,8 @@ double RobustKernel::Weight(double s) const {
   return 1.0;
 }
 
-BlockNormalEquations::BlockNormalEquations(std::vector<int> sizes) : sizes_(std::move(sizes)) {
+BlockNormalEquations::BlockNormalEquations(std::vector<int> sizes, Factorisation factorisation)
+    : sizes_(std::move(sizes)), factorisation_(factorisation) {
   offsets_.reserve(sizes_.size());
   for (int s : sizes_) {
     MAPMESH_CHECK(s >= 1 && s <= 6, "variable sizes are 1-6");
@@ -174,8 +175,47 @@ void BlockNormalEquations::Finalize() {
   }
   outer[dim_] = at;
   MAPMESH_CHECK(at == nonzeros && h_.isCompressed());
-  if (dim_ > 0) llt_.analyzePattern(h_);
+  factor_entries_ = SymbolicFactorEntries(layout);
+  const double triangle = 0.5 * static_cast<double>(dim_) * static_cast<double>(dim_ + 1);
+  dense_ = factorisation_ == Factorisation::kDense ||
+           (factorisation_ == Factorisation::kAuto &&
+            static_cast<double>(factor_entries_) >= kDenseFillShare * triangle);
+  if (dense_) {
+    dense_h_ = Eigen::MatrixXd::Zero(dim_, dim_);
+  } else if (dim_ > 0) {
+    llt_.analyzePattern(h_);
+  }
   finalized_ = true;
+}
+
+Eigen::Index BlockNormalEquations::SymbolicFactorEntries(const std::vector<int>& layout) const {
+  // Per variable (by its place in the layout): the later variables its column of L reaches.
+  // Eliminating a variable joins its later neighbours into a clique, which its parent in the
+  // elimination tree (the first of them) inherits.
+  const auto n = layout.size();
+  std::vector<int> place(n);
+  for (std::size_t k = 0; k < n; ++k) place[static_cast<std::size_t>(layout[k])] = static_cast<int>(k);
+  std::vector<std::vector<int>> later(n);
+  for (const Block& blk : blocks_) {
+    if (blk.a == blk.b) continue;
+    const int pa = place[static_cast<std::size_t>(blk.a)], pb = place[static_cast<std::size_t>(blk.b)];
+    later[static_cast<std::size_t>(std::min(pa, pb))].push_back(std::max(pa, pb));
+  }
+  Eigen::Index entries = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    std::vector<int>& l = later[k];
+    std::sort(l.begin(), l.end());
+    l.erase(std::unique(l.begin(), l.end()), l.end());
+    const Eigen::Index s = size(layout[k]);
+    Eigen::Index rows = 0;
+    for (int j : l) rows += size(layout[static_cast<std::size_t>(j)]);
+    entries += s * (s + 1) / 2 + s * rows;
+    if (l.empty()) continue;
+    std::vector<int>& parent = later[static_cast<std::size_t>(l.front())];
+    parent.insert(parent.end(), l.begin() + 1, l.end());
+    std::vector<int>().swap(l);
+  }
+  return entries;
 }
 
 void BlockNormalEquations::SetZero() {
@@ -228,50 +268,83 @@ void BlockNormalEquations::Assemble(double lambda) {
 bool BlockNormalEquations::Factorise(double lambda) {
   MAPMESH_CHECK(finalized_, "Finalize before solving");
   Assemble(lambda);
-  llt_.factorize(h_);
-  factor_is_undamped_ = lambda == 0.0 && llt_.info() == Eigen::Success;
-  return llt_.info() == Eigen::Success;
+  bool ok = false;
+  if (dense_) {
+    // h_'s upper triangle, column by column, into the dense matrix's lower one (its upper part
+    // is unread).
+    for (int col = 0; col < dim_; ++col) {
+      for (Eigen::SparseMatrix<double>::InnerIterator it(h_, col); it; ++it) dense_h_(col, it.row()) = it.value();
+    }
+    dense_llt_.compute(dense_h_);
+    ok = dense_llt_.info() == Eigen::Success;
+  } else {
+    llt_.factorize(h_);
+    ok = llt_.info() == Eigen::Success;
+  }
+  factor_is_undamped_ = lambda == 0.0 && ok;
+  return ok;
 }
 
 bool BlockNormalEquations::Solve(double lambda, Eigen::VectorXd* dx) {
   if (!Factorise(lambda)) return false;
-  *dx = llt_.solve(-g_);
+  *dx = dense_ ? Eigen::VectorXd(dense_llt_.solve(-g_)) : Eigen::VectorXd(llt_.solve(-g_));
   return dx->allFinite();
+}
+
+void BlockNormalEquations::SolveUnitColumns(const std::vector<int>& vars, Eigen::MatrixXd* y) const {
+  y->setZero();
+  int col = 0;
+  int first_row = dim_;  // the first row any of the unit columns has a one in
+  for (int v : vars) {
+    for (int i = 0; i < size(v); ++i) (*y)(offset(v) + i, col + i) = 1.0;
+    first_row = std::min(first_row, offset(v));
+    col += size(v);
+  }
+  if (dense_) {
+    // L is lower triangular: rows above the first one stay zero, so only the trailing block is solved.
+    const int rows = dim_ - first_row;
+    dense_llt_.matrixLLT()
+        .bottomRightCorner(rows, rows)
+        .triangularView<Eigen::Lower>()
+        .solveInPlace(y->bottomRows(rows));
+  } else {
+    llt_.matrixL().solveInPlace(*y);
+  }
 }
 
 std::vector<Eigen::MatrixXd> BlockNormalEquations::Marginals(const std::vector<int>& vars) {
   std::vector<Eigen::MatrixXd> out;
   if (vars.empty()) return out;
   if (!factor_is_undamped_ && !Factorise(0.0)) return out;
-  out.reserve(vars.size());
+  out.resize(vars.size());
   // With H = L L^T (H already in its fill-reducing layout), H^-1 = L^-T L^-1, so the block of
-  // variables i and j is (L^-1 E_i)^T (L^-1 E_j): a forward substitution alone, which skips the zeros above each
-  // unit column (most of them, the fill of a column being what the elimination reaches from it).
-  // A batch of variables at a time, to bound the dense right-hand side.
+  // variables i and j is (L^-1 E_i)^T (L^-1 E_j): a forward substitution alone. A batch of
+  // variables at a time, to bound the dense right-hand side, taken in the order of their
+  // offsets: L^-1 E is zero above a batch's first unit row, which the dense path skips.
+  std::vector<std::size_t> by_offset(vars.size());
+  for (std::size_t i = 0; i < vars.size(); ++i) by_offset[i] = i;
+  std::stable_sort(by_offset.begin(), by_offset.end(),
+                   [&](std::size_t a, std::size_t b) { return offset(vars[a]) < offset(vars[b]); });
   constexpr std::size_t kBatchColumns = 64;
   Eigen::MatrixXd y(dim_, static_cast<Eigen::Index>(kBatchColumns));  // reused: no allocation per batch
   std::size_t first = 0;
+  std::vector<int> batch_vars;
   while (first < vars.size()) {
     std::size_t last = first;
     int cols = 0;
-    while (last < vars.size() && (cols == 0 || cols + size(vars[last]) <= static_cast<int>(kBatchColumns))) {
-      cols += size(vars[last]);
+    batch_vars.clear();
+    while (last < vars.size() && (cols == 0 || cols + size(vars[by_offset[last]]) <= static_cast<int>(kBatchColumns))) {
+      cols += size(vars[by_offset[last]]);
+      batch_vars.push_back(vars[by_offset[last]]);
       ++last;
     }
-    if (cols > y.cols()) y.resize(dim_, cols);
-    auto batch = y.leftCols(cols);
-    batch.setZero();
+    if (cols != y.cols()) y.resize(dim_, cols);
+    SolveUnitColumns(batch_vars, &y);
     int col = 0;
     for (std::size_t k = first; k < last; ++k) {
-      for (int i = 0; i < size(vars[k]); ++i) batch(offset(vars[k]) + i, col + i) = 1.0;
-      col += size(vars[k]);
-    }
-    llt_.matrixL().solveInPlace(batch);
-    col = 0;
-    for (std::size_t k = first; k < last; ++k) {
-      const int s = size(vars[k]);
-      const Eigen::MatrixXd b = batch.middleCols(col, s).transpose() * batch.middleCols(col, s);
-      out.push_back(0.5 * (b + b.transpose()));
+      const int s = size(vars[by_offset[k]]);
+      const Eigen::MatrixXd b = y.middleCols(col, s).transpose() * y.middleCols(col, s);
+      out[by_offset[k]] = 0.5 * (b + b.transpose());
       col += s;
     }
     first = last;
@@ -285,13 +358,8 @@ Eigen::MatrixXd BlockNormalEquations::JointMarginal(const std::vector<int>& vars
   int cols = 0;
   for (int v : vars) cols += size(v);
   // As Marginals: Y = L^-1 E, and the covariance of the chosen variables is Y^T Y.
-  Eigen::MatrixXd y = Eigen::MatrixXd::Zero(dim_, cols);
-  int col = 0;
-  for (int v : vars) {
-    for (int i = 0; i < size(v); ++i) y(offset(v) + i, col + i) = 1.0;
-    col += size(v);
-  }
-  llt_.matrixL().solveInPlace(y);
+  Eigen::MatrixXd y(dim_, cols);
+  SolveUnitColumns(vars, &y);
   const Eigen::MatrixXd cov = y.transpose() * y;
   return 0.5 * (cov + cov.transpose());
 }

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <tuple>
 
 #include <Eigen/Dense>
 #include <random>
@@ -78,22 +80,12 @@ LinearProblem RandomLinearProblem(std::uint64_t seed) {
   return p;
 }
 
-class LinearSystemTest : public ::testing::TestWithParam<std::uint64_t> {};
-
-// The block accumulation, the damped solve and the marginals equal a dense computation of
-// H = sum w J^T J, g = sum w J^T r, whatever the variables' order within a factor.
-TEST_P(LinearSystemTest, SolveAndMarginalsMatchTheDenseSystem) {
-  const LinearProblem p = RandomLinearProblem(GetParam());
-  BlockNormalEquations eq(p.sizes);
-  std::vector<int> handles;
-  for (const auto& f : p.factors) handles.push_back(eq.Couple(f.vars));
-  eq.Finalize();
+// The dense H = sum w J^T J and g = sum w J^T r of the problem, in eq's layout of the variables.
+void DenseSystem(const LinearProblem& p, const BlockNormalEquations& eq, Eigen::MatrixXd* h, Eigen::VectorXd* g) {
   const int n = eq.dim();
-  Eigen::MatrixXd h = Eigen::MatrixXd::Zero(n, n);
-  Eigen::VectorXd g = Eigen::VectorXd::Zero(n);
-  for (std::size_t k = 0; k < p.factors.size(); ++k) {
-    const auto& f = p.factors[k];
-    eq.Add(handles[k], f.j, f.r, f.w);
+  *h = Eigen::MatrixXd::Zero(n, n);
+  *g = Eigen::VectorXd::Zero(n);
+  for (const auto& f : p.factors) {
     // The factor's Jacobian spread over the whole state.
     Eigen::MatrixXd full = Eigen::MatrixXd::Zero(f.j.rows(), n);
     int col = 0;
@@ -101,9 +93,34 @@ TEST_P(LinearSystemTest, SolveAndMarginalsMatchTheDenseSystem) {
       full.middleCols(eq.offset(v), eq.size(v)) = f.j.middleCols(col, eq.size(v));
       col += eq.size(v);
     }
-    h += f.w * full.transpose() * full;
-    g += f.w * full.transpose() * f.r;
+    *h += f.w * full.transpose() * full;
+    *g += f.w * full.transpose() * f.r;
   }
+}
+
+// A seed, and the factorisation forced (or chosen: kAuto).
+class LinearSystemTest : public ::testing::TestWithParam<std::tuple<std::uint64_t, Factorisation>> {
+ protected:
+  std::uint64_t seed() const { return std::get<0>(GetParam()); }
+  Factorisation factorisation() const { return std::get<1>(GetParam()); }
+};
+
+// The block accumulation, the damped solve and the marginals equal a dense computation of
+// H = sum w J^T J, g = sum w J^T r, whatever the variables' order within a factor, and whether
+// the factorisation is sparse or dense.
+TEST_P(LinearSystemTest, SolveAndMarginalsMatchTheDenseSystem) {
+  const LinearProblem p = RandomLinearProblem(seed());
+  BlockNormalEquations eq(p.sizes, factorisation());
+  std::vector<int> handles;
+  for (const auto& f : p.factors) handles.push_back(eq.Couple(f.vars));
+  eq.Finalize();
+  for (std::size_t k = 0; k < p.factors.size(); ++k) {
+    const auto& f = p.factors[k];
+    eq.Add(handles[k], f.j, f.r, f.w);
+  }
+  Eigen::MatrixXd h;
+  Eigen::VectorXd g;
+  DenseSystem(p, eq, &h, &g);
   EXPECT_LT((eq.gradient() - g).cwiseAbs().maxCoeff(), 1e-12);
   for (double lambda : {0.0, 0.1, 3.0}) {
     Eigen::VectorXd dx;
@@ -156,8 +173,8 @@ TEST_P(LinearSystemTest, SolveAndMarginalsMatchTheDenseSystem) {
 // A factor in information form (a dense prior from marginalisation) adds exactly what the same
 // factor as a Jacobian and residual adds: h = w J^T J and g = w J^T r, in the coupling's order.
 TEST_P(LinearSystemTest, InformationFormEqualsTheFactorItCameFrom) {
-  const LinearProblem p = RandomLinearProblem(GetParam());
-  BlockNormalEquations by_factor(p.sizes), by_information(p.sizes);
+  const LinearProblem p = RandomLinearProblem(seed());
+  BlockNormalEquations by_factor(p.sizes, factorisation()), by_information(p.sizes, factorisation());
   std::vector<int> handles;
   for (const auto& f : p.factors) {
     handles.push_back(by_factor.Couple(f.vars));
@@ -177,7 +194,62 @@ TEST_P(LinearSystemTest, InformationFormEqualsTheFactorItCameFrom) {
   EXPECT_LT((a - b).cwiseAbs().maxCoeff(), 1e-9);
 }
 
-INSTANTIATE_TEST_SUITE_P(Seeds, LinearSystemTest, ::testing::Range<std::uint64_t>(1, 21));
+// The symbolic count of the factor's entries is the Cholesky factor's block structure: a dense
+// factorisation of H in the layout, whose random values leave no accidental zero block, has
+// non-zeros in exactly the blocks it counts (each block whole, a diagonal one its lower
+// triangle). kAuto factorises densely exactly when that count reaches kDenseFillShare of the
+// triangle.
+TEST_P(LinearSystemTest, SymbolicFactorEntriesAreTheFactorsNonZeros) {
+  const LinearProblem p = RandomLinearProblem(seed());
+  BlockNormalEquations eq(p.sizes, factorisation());
+  for (const auto& f : p.factors) eq.Couple(f.vars);
+  eq.Finalize();
+  const int n = eq.dim();
+  Eigen::MatrixXd h;
+  Eigen::VectorXd g;
+  DenseSystem(p, eq, &h, &g);
+  const Eigen::MatrixXd l = h.llt().matrixL();
+  Eigen::Index nonzeros = 0;
+  for (int a = 0; a < eq.variables(); ++a) {
+    for (int b = 0; b < eq.variables(); ++b) {
+      if (eq.offset(b) > eq.offset(a)) continue;  // the blocks on and below the diagonal
+      const int sa = eq.size(a), sb = eq.size(b);
+      if (a == b) {
+        nonzeros += sa * (sa + 1) / 2;
+      } else if (l.block(eq.offset(a), eq.offset(b), sa, sb).cwiseAbs().maxCoeff() > 1e-13) {
+        nonzeros += sa * sb;
+      }
+    }
+  }
+  EXPECT_EQ(eq.factor_entries(), nonzeros);
+  const bool dense_enough = static_cast<double>(nonzeros) >= kDenseFillShare * 0.5 * n * (n + 1);
+  switch (factorisation()) {
+    case Factorisation::kAuto: EXPECT_EQ(eq.dense(), dense_enough); break;
+    case Factorisation::kSparse: EXPECT_FALSE(eq.dense()); break;
+    case Factorisation::kDense: EXPECT_TRUE(eq.dense()); break;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Seeds, LinearSystemTest,
+    ::testing::Combine(::testing::Range<std::uint64_t>(1, 21),
+                       ::testing::Values(Factorisation::kAuto, Factorisation::kSparse, Factorisation::kDense)));
+
+// kAuto: a chain of variables (each coupled to the next: no fill) is factorised sparsely, one
+// factor over every variable densely.
+TEST(BlockNormalEquations, AutoFactorisesAChainSparselyAndACliqueDensely) {
+  const std::vector<int> sizes(40, 2);
+  BlockNormalEquations chain(sizes), clique(sizes);
+  for (int v = 0; v + 1 < 40; ++v) chain.Couple({v, v + 1});
+  std::vector<int> all(40);
+  for (int v = 0; v < 40; ++v) all[static_cast<std::size_t>(v)] = v;
+  clique.Couple(all);
+  chain.Finalize();
+  clique.Finalize();
+  EXPECT_FALSE(chain.dense());
+  EXPECT_TRUE(clique.dense());
+  EXPECT_EQ(clique.factor_entries(), 80 * 81 / 2);
+}
 
 TEST(BlockNormalEquations, ASingularSystemIsReportedNotSolved) {
   BlockNormalEquations eq({2, 2});
