@@ -144,15 +144,19 @@ class JoiningFusion : public FusionBackend {
   GlobalMap JoinChains(const GlobalMap& associated, const std::vector<MapSource>& sources,
                        const SubmapInputs& submaps) {
     const SubmapBook& book = *submaps.book;
+    // Per chain: the closed submaps its summary stands for, where one enters (ChainOf).
+    std::map<std::pair<RobotId, std::uint32_t>, std::uint32_t> summarised;
     auto chain = [&](RobotId robot, std::uint32_t incarnation, const Pose2& origin) {
-      ChainInput c{robot, incarnation, {}, origin, {}, {}};
-      const std::uint32_t n = book.ChainLength(robot, incarnation);
-      for (std::uint32_t i = 0; i < n; ++i) c.submaps.push_back(book.Find({robot, incarnation, i}));
-      return c;
+      return ChainOf(book, robot, incarnation, origin, &summarised[{robot, incarnation}]);
     };
     std::vector<ChainInput> chains = {chain(self_, incarnation_, Pose2{})};
     std::vector<bool> ends_open = {false};  // per chain: whether its last submap is an open one
-    if (submaps.own_open && submaps.own_open->id.index == chains[0].submaps.size()) {
+    // Submaps in a chain's list: a summary stands for summarised of them.
+    const auto entered = [&](const ChainInput& c) {
+      const std::uint32_t s = summarised[{c.robot, c.incarnation}];
+      return c.submaps.size() + (s == 0 ? 0 : s - 1);
+    };
+    if (submaps.own_open && submaps.own_open->id.index == entered(chains[0])) {
       chains[0].submaps.push_back(submaps.own_open);  // it continues the chain (none is missing before it)
       ends_open[0] = true;
     }
@@ -162,7 +166,7 @@ class JoiningFusion : public FusionBackend {
       bool open_last = false;
       if (submaps.peers_open != nullptr) {
         const auto open = submaps.peers_open->find({s.robot, s.incarnation});
-        if (open != submaps.peers_open->end() && open->second.id.index == c.submaps.size()) {
+        if (open != submaps.peers_open->end() && open->second.id.index == entered(c)) {
           c.submaps.push_back(&open->second);
           open_last = true;
         }
@@ -181,13 +185,20 @@ class JoiningFusion : public FusionBackend {
     // to the next.
     for (ChainInput& c : chains) {
       const auto it = last_frames_.find({c.robot, c.incarnation});
-      if (it != last_frames_.end()) c.start_frames = it->second;
+      if (it != last_frames_.end()) {
+        const auto then = last_summarised_.find({c.robot, c.incarnation});
+        c.start_frames = Renumbered(it->second, then == last_summarised_.end() ? 0 : then->second,
+                                    summarised[{c.robot, c.incarnation}]);
+      }
       const auto l = last_landmarks_.find({c.robot, c.incarnation});
       if (l != last_landmarks_.end()) c.start_landmarks = l->second;
     }
-    const NetworkResult r = JoinSubmapNetwork(chains, groups, {}, &information_);
+    NetworkOptions network;
+    network.calibrate_sigmas = options_.join_calibrate_sigmas;
+    const NetworkResult r = JoinSubmapNetwork(chains, groups, network, &information_);
     if (r.solved) {
       last_frames_.clear();
+      last_summarised_ = summarised;
       for (std::size_t i = 0; i < chains.size(); ++i) {
         if (!r.joined[i]) continue;
         std::vector<Pose2>& frames = last_frames_[{chains[i].robot, chains[i].incarnation}] = r.frames[i];
@@ -203,16 +214,71 @@ class JoiningFusion : public FusionBackend {
     report_.chains = static_cast<int>(chains.size());
     report_.chains_joined = static_cast<int>(std::count(r.joined.begin(), r.joined.end(), true));
     report_.submaps = r.submaps;
+    report_.submaps_summarised = 0;
+    for (std::size_t i = 0; i < chains.size(); ++i) {
+      const std::uint32_t s = summarised[{chains[i].robot, chains[i].incarnation}];
+      if (!r.joined[i] || s == 0) continue;
+      report_.submaps += static_cast<int>(s) - 1;  // the summary counted once
+      report_.submaps_summarised += static_cast<int>(s);
+    }
     report_.iterations = r.iterations;
     report_.converged = r.converged;
     report_.solved = r.solved;
     report_.ties = r.ties;
     report_.ties_dropped = r.ties_dropped;
     report_.first_passes += r.first_pass ? 1 : 0;
+    report_.calibrated_solves += r.calibrations > 0 ? 1 : 0;
+    report_.chains_calibrated = static_cast<int>(std::count_if(r.variance_factors.begin(), r.variance_factors.end(),
+                                                               [](double f) { return f > 1.0; }));
+    report_.worst_variance_factor = r.variance_factors.empty()
+                                        ? 1.0
+                                        : *std::max_element(r.variance_factors.begin(), r.variance_factors.end());
     report_.rechecks += r.rechecked ? 1 : 0;
     ++report_.solves;
     if (!r.solved) return associated;
     return JoinedMap(associated, r, chains, association_.gate_probability);
+  }
+
+  // A chain's input: its closed submaps as held (the open one is the caller's), all but the last
+  // network_window of them as one summary (their chain's own join: ChainMap::Summary) where
+  // two or more would be, so that a join's size is bounded by the map's, not by the run's
+  // length; *summarised: the submaps the summary stands for (0: none).
+  ChainInput ChainOf(const SubmapBook& book, RobotId robot, std::uint32_t incarnation, const Pose2& origin,
+                     std::uint32_t* summarised) {
+    ChainInput c{robot, incarnation, {}, origin, {}, {}};
+    const std::uint32_t n = book.ChainLength(robot, incarnation);
+    std::vector<const WireSubmap*> closed;
+    for (std::uint32_t i = 0; i < n; ++i) closed.push_back(book.Find({robot, incarnation, i}));
+    const auto window = static_cast<std::uint32_t>(options_.network_window);
+    *summarised = 0;
+    const auto kept = summaries_.find({robot, incarnation});
+    if (kept != summaries_.end() && kept->second.joined() + window > n) summaries_.erase(kept);  // the chain shrank
+    if (n >= window + 2) {
+      ChainMap& m = summaries_.try_emplace({robot, incarnation}, options_.chain_join).first->second;
+      m.Extend(std::span(closed).first(n - window));
+      const WireSubmap* summary = m.joined() > 1 ? m.Summary(*closed[m.joined() - 1]) : nullptr;
+      if (summary != nullptr) {
+        c.submaps.push_back(summary);
+        *summarised = static_cast<std::uint32_t>(m.joined());
+      }
+    }
+    c.submaps.insert(c.submaps.end(), closed.begin() + *summarised, closed.end());
+    return c;
+  }
+
+  // A chain's frames as a solve left them, with a summary of its first `then` submaps (0: none),
+  // renumbered for one of its first `now`: frame j > 0 is X_{j + s - 1} with a summary of s > 0
+  // submaps, else X_j (the frames within a summary are not in the list). Its first frame alone
+  // when the summary shrank.
+  static std::vector<Pose2> Renumbered(const std::vector<Pose2>& frames, std::uint32_t then, std::uint32_t now) {
+    if (frames.empty()) return {};
+    const auto base = [](std::uint32_t s) { return s == 0 ? 0u : s - 1; };
+    if (now < then) return {frames.front()};
+    const std::size_t gone = base(now) - base(then);
+    std::vector<Pose2> out = {frames.front()};
+    if (frames.size() > gone + 1)
+      out.insert(out.end(), frames.begin() + 1 + static_cast<std::ptrdiff_t>(gone), frames.end());
+    return out;
   }
 
   // The global map of a solved join: each association group a joined chain holds as the join
@@ -497,6 +563,9 @@ class JoiningFusion : public FusionBackend {
   SubmapInformation information_;  // the submaps' information matrices, from one solve to the next
   // The last solve's frames and landmarks (by key) per chain: where the next one starts.
   std::map<std::pair<RobotId, std::uint32_t>, std::vector<Pose2>> last_frames_;
+  std::map<std::pair<RobotId, std::uint32_t>, std::uint32_t> last_summarised_;  // ... and its summaries' sizes
+  // Per chain: its closed submaps but the last network_window joined, whose summary enters the join.
+  std::map<std::pair<RobotId, std::uint32_t>, ChainMap> summaries_;
   std::map<std::pair<RobotId, std::uint32_t>, std::map<std::uint32_t, Eigen::Vector2d>> last_landmarks_;
 };
 

@@ -48,12 +48,13 @@ struct SubmapInputs {
 
 // What the joining back-end's last solve on submap chains did (all zero before one).
 struct JoiningReport {
-  int solves = 0;         // solves on submap chains so far
-  int chains_held = 0;    // robot incarnations of which the agent held submaps at the last build (own included)
-  int chains = 0;         // chains offered at the last (own, then each aligned peer's) ...
-  int chains_joined = 0;  // ... and joined (tied to the others by enough landmarks)
-  int submaps = 0;        // submaps joined
-  int iterations = 0;     // Levenberg-Marquardt iterations, both passes
+  int solves = 0;              // solves on submap chains so far
+  int chains_held = 0;         // robot incarnations of which the agent held submaps at the last build (own included)
+  int chains = 0;              // chains offered at the last (own, then each aligned peer's) ...
+  int chains_joined = 0;       // ... and joined (tied to the others by enough landmarks)
+  int submaps = 0;             // submaps joined ...
+  int submaps_summarised = 0;  // ... among them those that entered as their chain's summary (agent.join_network_window)
+  int iterations = 0;          // Levenberg-Marquardt iterations, both passes
   bool converged = false;
   bool solved = false;
   int ties = 0;          // pairings of landmarks across chains offered by the association ...
@@ -63,6 +64,12 @@ struct JoiningReport {
   // judged on the frames left a submap's residual too large.
   int first_passes = 0;
   int rechecks = 0;
+  // Solves so far whose chains' information was calibrated by their residuals
+  // (agent.join_calibrate_sigmas), and at the last one the chains whose information was divided
+  // by a variance factor above 1, and the largest factor.
+  int calibrated_solves = 0;
+  int chains_calibrated = 0;
+  double worst_variance_factor = 1.0;
   // Chains held only through relays (no map of their robot aligned): held at the last build,
   // placed (an alignment confirmed by a later one) and among them offered to the join; and the
   // alignments of their rebuilt maps tried so far, and refused as disagreeing with the one

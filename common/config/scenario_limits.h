@@ -17,6 +17,7 @@ inline constexpr int kMaxTotalWaypoints = 1000000;    // all robots' waypoints t
 inline constexpr int kMaxParkPaths = 20;              // generator.paths
 inline constexpr int kMaxScanEverySteps = 100000;     // sensor.scan_every_steps
 inline constexpr int kMaxDropAfterFailures = 1000;    // agent.drop_after_failures
+inline constexpr int kMaxJoinNetworkWindow = 100000;  // agent.join_network_window
 inline constexpr int kMaxAlignmentsPerUpdate = 1000;  // agent.max_alignments_per_update, max_relay_checks_per_update
 inline constexpr int kMaxRelayComparisonsPerUpdate = 1000000;  // agent.max_relay_comparisons_per_update
 inline constexpr int kMaxSubmapSendBytes = 64 << 20;           // agent.submap_send_bytes

@@ -38,6 +38,15 @@ class ChainMap {
   // of it) on the same chain is not solved again.
   const LandmarkMap& MapWith(const WireSubmap* open);
 
+  // The submaps joined as one submap (issue J2: a network join's old submaps summarised): in
+  // the chain's first frame, the end pose of the last one joined (the next one's frame) and
+  // every landmark's mean as joined, with their joint covariance, named by `last` (the last
+  // submap joined) with kSummaryIndexBit set in its index. The join of a network that takes
+  // it in place of those submaps is theirs to the linearisation within the chain (each chain's
+  // submaps are independent of every other's). Null before a submap is joined, when the chain
+  // is broken, or when the covariance cannot be written. Kept until another submap is joined.
+  const WireSubmap* Summary(const WireSubmap& last);
+
  private:
   SubmapJoiner joiner_;
   LandmarkMap map_;
@@ -49,6 +58,12 @@ class ChainMap {
     LandmarkMap map;
   };
   std::optional<WithOpen> with_open_;
+  std::optional<WireSubmap> summary_;  // of the first summary_joined_ submaps
+  std::size_t summary_joined_ = 0;
 };
+
+// A summary's id: the last submap's it stands for, with this bit in the index (no chain holds
+// 2^31 submaps), so that it is never taken for that submap.
+inline constexpr std::uint32_t kSummaryIndexBit = 0x80000000u;
 
 }  // namespace mapmesh

@@ -47,6 +47,32 @@ class Network : public LeastSquaresProblem {
   const Eigen::Vector2d& At(int slot) const { return slots[static_cast<std::size_t>(slot)]; }
   std::vector<int> factor_handles, tie_handles;
   std::vector<int> sizes;  // the variables' sizes: frames (but the fixed origin), then slots
+  // Per chain taken: the weight of its submaps' information (1 / its variance factor).
+  std::vector<double> weight;
+  double WeightOf(const Factor& f) const { return weight.empty() ? 1.0 : weight[static_cast<std::size_t>(f.chain)]; }
+
+  // Per chain taken: the chi-square of its submaps' residuals at the current state under
+  // their information as given (weights aside), and their redundancy: the residuals' count
+  // less the chain's share of the variables (its frames, and of each landmark 2 / the number
+  // of submaps that hold it).
+  void ChainChiSquares(std::vector<double>* chi2, std::vector<double>* redundancy) const {
+    chi2->assign(frames.size(), 0.0);
+    redundancy->assign(frames.size(), 0.0);
+    std::vector<int> holders(slots.size(), 0);
+    for (const Factor& f : factors) {
+      for (int g : f.slots) ++holders[static_cast<std::size_t>(g)];
+    }
+    for (const Factor& f : factors) {
+      const auto c = static_cast<std::size_t>(f.chain);
+      const Eigen::VectorXd e = Error(f, nullptr);
+      (*chi2)[c] += e.dot(*f.info * e);
+      (*redundancy)[c] += static_cast<double>(e.size());
+      for (int g : f.slots) (*redundancy)[c] -= 2.0 / holders[static_cast<std::size_t>(g)];
+    }
+    for (std::size_t c = 0; c < frames.size(); ++c) {
+      for (int v : frame_var[c]) (*redundancy)[c] -= v >= 0 ? 3.0 : 0.0;
+    }
+  }
 
   // The largest excess of a submap's chi-square over its mean at the current state, in its
   // standard deviations: max over factors of (e^T P^-1 e - m) / sqrt(2 m), m = the size of e.
@@ -67,8 +93,13 @@ class Network : public LeastSquaresProblem {
     for (std::size_t i = 0; i < factors.size(); ++i) {
       const Factor& f = factors[i];
       const Eigen::VectorXd e = Error(f, &j);
-      cost += 0.5 * e.dot(*f.info * e);
+      const double w = WeightOf(f);
+      cost += 0.5 * w * e.dot(*f.info * e);
       SubmapNormalEquations(j, *f.info, e, &h, &g);
+      if (w != 1.0) {
+        h *= w;
+        g *= w;
+      }
       // Rows and columns of a fixed origin (the first chain's frame 0, or one held) are dropped.
       const bool fixed = frame_var[static_cast<std::size_t>(f.chain)][static_cast<std::size_t>(f.index)] < 0;
       if (fixed) {
@@ -91,7 +122,7 @@ class Network : public LeastSquaresProblem {
     double cost = 0.0;
     for (const Factor& f : factors) {
       const Eigen::VectorXd e = Error(f, nullptr);
-      cost += 0.5 * e.dot(*f.info * e);
+      cost += 0.5 * WeightOf(f) * e.dot(*f.info * e);
     }
     for (const Tie& t : ties) cost += 0.5 * kernel.Rho(TieResidual(t).squaredNorm());
     return cost;
@@ -238,10 +269,11 @@ Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>&
              const std::map<LandmarkRef, int>& slot_of, std::size_t slot_count, const std::vector<Tie>& ties,
              double tie_sigma, const RobustKernel& kernel, const std::vector<std::vector<Pose2>>* start_frames,
              const std::map<int, Eigen::Vector2d>* start_slots, int max_iterations, SubmapInformation& information,
-             std::unique_ptr<BlockNormalEquations>* eq_out) {
+             std::unique_ptr<BlockNormalEquations>* eq_out, const std::vector<double>* weights = nullptr) {
   Solved s;
   s.net = Place(chains, order, slot_of, slot_count, ties, start_frames, start_slots, information);
   Network& net = s.net;
+  if (weights != nullptr) net.weight = *weights;
   net.tie_sigma = tie_sigma;
   net.kernel = kernel;
   *eq_out = std::make_unique<BlockNormalEquations>(net.sizes);
@@ -500,6 +532,37 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     // A join judged on the start frames stands unless a submap's residual says a pairing is wrong.
     if (first_pass || second.net.WorstExcess() <= options.recheck_sigmas) break;
   }
+  // Each chain's information calibrated by its residuals (a variance factor per chain,
+  // estimated as variance components are: chi-square over redundancy, reweighted until none is
+  // beyond what chance gives it): a chain whose sensors err beyond their model weighs less.
+  int calibrations = 0;
+  std::vector<double> factors(order.size(), 1.0);
+  if (options.calibrate_sigmas > 0) {
+    std::vector<double> weights(order.size(), 1.0);
+    for (int round = 0; round < options.max_calibrations; ++round) {
+      std::vector<double> chi2, redundancy;
+      second.net.ChainChiSquares(&chi2, &redundancy);
+      bool beyond = false;
+      for (std::size_t c = 0; c < order.size(); ++c) {
+        if (redundancy[c] < 1.0) continue;
+        const double s = weights[c] * chi2[c] / redundancy[c];  // under the weights of this solve
+        if (s <= 1.0 + options.calibrate_sigmas * std::sqrt(2.0 / redundancy[c])) continue;
+        weights[c] /= s;
+        beyond = true;
+      }
+      if (!beyond) break;
+      std::vector<std::vector<Pose2>> frames = second.net.frames;
+      std::map<int, Eigen::Vector2d> start;
+      for (int slot : second.net.held) start[slot] = second.net.At(slot);
+      second = Solve(chains, order, landmark_of, refs.size(), {}, 1.0, RobustKernel{}, &frames, &start,
+                     options.max_iterations, info, &eq, &weights);
+      ++calibrations;
+    }
+    for (std::size_t c = 0; c < order.size(); ++c) factors[c] = 1.0 / weights[c];
+  }
+  out.calibrations = calibrations;
+  out.variance_factors.assign(chains.size(), 1.0);
+  for (std::size_t i = 0; i < order.size(); ++i) out.variance_factors[order[i]] = factors[i];
   info.Sweep();
   out.iterations = first.report.iterations + second.report.iterations;
   out.converged = second.report.converged;

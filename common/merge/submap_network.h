@@ -97,6 +97,14 @@ struct NetworkOptions {
   // a wrong pairing of two trees 1.5 m apart, with landmarks known to 5 cm, adds about 900 to
   // a submap's chi-square of mean about 60: some 75 deviations.
   double recheck_sigmas = 10.0;
+  // After the exact join, each chain's variance factor: the chi-square of its submaps'
+  // residuals over their redundancy (the residuals' count less the chain's share of the
+  // variables). A chain whose factor exceeds 1 by more than this many of its standard deviations
+  // (sqrt(2 / redundancy)) has its information divided by it and the join is solved again, at
+  // most max_calibrations times (0: never). Submaps whose model is right stay within it and
+  // cost nothing; a robot whose camera errs beyond its covariance (MRCLAM) weighs less.
+  double calibrate_sigmas = 0.0;
+  int max_calibrations = 3;
 };
 
 struct NetworkLandmark {
@@ -122,6 +130,10 @@ struct NetworkResult {
   int ties_dropped = 0;    // ... and dropped (by the first pass, or on the start frames)
   bool first_pass = true;  // false: the pairings were judged on the start frames
   bool rechecked = false;  // judged on the start frames, refused by its residuals, and run with the first pass
+  // Per input chain: the variance factor its information was divided by (1 where none, or left
+  // out), and the solves the calibration added (NetworkOptions::calibrate_sigmas).
+  std::vector<double> variance_factors;
+  int calibrations = 0;
 
   // The landmark of a caller group, or null.
   const NetworkLandmark* OfGroup(int group) const {

@@ -176,6 +176,50 @@ TEST_F(FusionBackendTest, JoiningOnSubmapChainsTakesTheChainsEstimates) {
   EXPECT_GT((Fused(maps.global, 4).mean - Eigen::Vector2d(12.0, 4.0)).norm(), 1e-3);
 }
 
+// agent.join_network_window: each chain's closed submaps but the last `window` enter the join as
+// one summary (their chain's own join), and the join is the same: noise-free chains give the
+// world exactly either way, with every submap counted once, also when a later build's summary
+// stands for more submaps than the last one's (the frames it started from are renumbered).
+TEST_F(FusionBackendTest, JoiningWithANetworkWindowSummarisesOldSubmapsToTheSameMap) {
+  const Pose2 step{1.0, 0.5, 0.1};  // ExactSubmap's end pose
+  std::vector<WireSubmap> closed;
+  Pose2 ours_at, theirs_at = frame2;
+  for (std::uint32_t k = 0; k < 4; ++k) {
+    closed.push_back(ExactSubmap(1, k, 0, 6, ours_at));
+    closed.push_back(ExactSubmap(2, k, 3, 9, theirs_at));
+    ours_at = ours_at * step;
+    theirs_at = theirs_at * step;
+  }
+  const std::vector<MapSource> sources = {Source(2, two, frame2)};
+  for (int window : {limits::kMaxJoinNetworkWindow, 1, 0}) {
+    ExchangeOptions o;
+    o.global.method = FusionMethod::kJoining;
+    o.network_window = window;
+    const std::unique_ptr<FusionBackend> backend = MakeFusionBackend(1, 1, o, 1);
+    SubmapBook book;
+    for (std::size_t i = 0; i < 4; ++i) book.Add(closed[i], EncodeSubmap(closed[i]));  // two of each chain
+    const WireSubmap first_open = closed[4];                                           // our submap 2, still open
+    ASSERT_TRUE(backend->Build(own, sources, sources, SubmapInputs{&book, &first_open, nullptr}).joining.solved);
+    for (std::size_t i = 4; i < 6; ++i) book.Add(closed[i], EncodeSubmap(closed[i]));
+    const WireSubmap& open = closed[6];  // our submap 3
+    const FusionBackend::Built b = backend->Build(own, sources, sources, SubmapInputs{&book, &open, nullptr});
+    ASSERT_TRUE(b.joining.solved) << window;
+    EXPECT_EQ(b.joining.chains_joined, 2) << window;
+    EXPECT_EQ(b.joining.submaps, 7) << window;
+    EXPECT_EQ(b.joining.ties_dropped, 0) << window;  // judged on the frames the last build solved
+    EXPECT_EQ(b.joining.first_passes, 1) << window;  // the first build's only
+    EXPECT_EQ(b.joining.iterations, 1) << window;    // started at the solution: its frames renumbered right
+    EXPECT_EQ(b.joining.submaps_summarised, window == 0 ? 6 : window == 1 ? 4 : 0) << window;
+    ASSERT_EQ(b.global.map.size(), 9u) << window;
+    for (std::size_t g = 0; g < b.global.map.size(); ++g) {
+      const LandmarkOrigin& first = b.global.origins[g].front();
+      const int i = first.robot == 1 ? static_cast<int>(first.id) : static_cast<int>(first.id) + 3;
+      const Eigen::Vector2d truth(3.0 * i, (i % 3) * 4.0 + (i % 2) * 1.5);
+      EXPECT_LT((b.global.map.landmarks[g].mean - truth).norm(), 1e-6) << "window " << window << ", landmark " << i;
+    }
+  }
+}
+
 // Robot 2's map puts its landmark 8 where our landmark 2 is (a wrong pairing the association
 // cannot tell), while its submap has it where it is. The join drops the pairing the submaps
 // contradict, and both landmarks stay in the map: each where it is, its origins those the join
