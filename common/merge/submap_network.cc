@@ -536,9 +536,8 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
   // estimated as variance components are: chi-square over redundancy, reweighted until none is
   // beyond what chance gives it): a chain whose sensors err beyond their model weighs less.
   int calibrations = 0;
-  std::vector<double> factors(order.size(), 1.0);
+  std::vector<double> weights(order.size(), 1.0);  // per chain in order: 1 / its variance factor
   if (options.calibrate_sigmas > 0) {
-    std::vector<double> weights(order.size(), 1.0);
     for (int round = 0; round < options.max_calibrations; ++round) {
       std::vector<double> chi2, redundancy;
       second.net.ChainChiSquares(&chi2, &redundancy);
@@ -558,11 +557,10 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
                      options.max_iterations, info, &eq, &weights);
       ++calibrations;
     }
-    for (std::size_t c = 0; c < order.size(); ++c) factors[c] = 1.0 / weights[c];
   }
   out.calibrations = calibrations;
   out.variance_factors.assign(chains.size(), 1.0);
-  for (std::size_t i = 0; i < order.size(); ++i) out.variance_factors[order[i]] = factors[i];
+  for (std::size_t i = 0; i < order.size(); ++i) out.variance_factors[order[i]] = 1.0 / weights[i];
   info.Sweep();
   out.iterations = first.report.iterations + second.report.iterations;
   out.converged = second.report.converged;
