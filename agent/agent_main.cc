@@ -335,6 +335,7 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"ties", node.exchange().joining().ties},
               {"ties_dropped", node.exchange().joining().ties_dropped},
               {"first_passes", node.exchange().joining().first_passes},
+              {"placed_alone", node.exchange().joining().placed_alone},
               {"rechecks", node.exchange().joining().rechecks},
               {"relayed_chains", node.exchange().joining().relayed_chains},
               {"relayed_placed", node.exchange().joining().relayed_placed},

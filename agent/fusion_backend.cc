@@ -227,6 +227,7 @@ class JoiningFusion : public FusionBackend {
     report_.ties = r.ties;
     report_.ties_dropped = r.ties_dropped;
     report_.first_passes += r.first_pass ? 1 : 0;
+    report_.placed_alone += r.placed_alone > 0 ? 1 : 0;
     report_.calibrated_solves += r.calibrations > 0 ? 1 : 0;
     report_.chains_calibrated = static_cast<int>(std::count_if(r.variance_factors.begin(), r.variance_factors.end(),
                                                                [](double f) { return f > 1.0; }));

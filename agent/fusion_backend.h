@@ -63,6 +63,9 @@ struct JoiningReport {
   // frames: submap_network.h), and among them those run again with it because the pairings
   // judged on the frames left a submap's residual too large.
   int first_passes = 0;
+  // Solves so far that placed chains new to the join alone against the others' frames first
+  // (submap_network.h), and so judged the pairings on frames without a first pass.
+  int placed_alone = 0;
   int rechecks = 0;
   // Solves so far whose chains' information was calibrated by their residuals
   // (agent.join_calibrate_sigmas), and at the last one the chains whose information was divided

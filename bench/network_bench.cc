@@ -4,11 +4,13 @@
 // split into two robots' chains that share their landmarks) with the submaps' information
 // matrices kept from the last join (as the agent does) against computed afresh; and a join
 // started from the last one's frames and landmarks with its pairings judged on those frames
-// (as the agent does since J1's sixth session) against the same start with the first pass.
+// (as the agent does since J1's sixth session) against the same start with the first pass; and
+// 4 to 48 chains, one of them new: placed alone, or by the first pass over all of them.
 
 #include <benchmark/benchmark.h>
 
 #include <Eigen/LU>
+#include <algorithm>
 
 #include "bench/joiner_problem.h"
 #include "common/merge/submap_network.h"
@@ -126,6 +128,64 @@ BENCHMARK(BM_JoinSubmapNetworkOnTheLastFrames)->Unit(benchmark::kMillisecond);
 // The baseline: the same start, the first pass at every join.
 void BM_JoinSubmapNetworkFirstPassEveryJoin(benchmark::State& state) { JoinFromTheLastJoin(state, false); }
 BENCHMARK(BM_JoinSubmapNetworkFirstPassEveryJoin)->Unit(benchmark::kMillisecond);
+
+// Many robots' chains that share the landmarks, as a joining agent holds them in a swarm (48
+// chains of 199 submaps at 64 agents on park4): chain c is 4 consecutive submaps of the shared
+// problem from submap 2c mod 46, its start 0.1 m and 0.01 rad off; the landmarks paired by key.
+// Every chain starts from the last join's frames and landmarks but the last one, which enters
+// anew (a chain just aligned): placed alone against the others' frames, then the pairings
+// judged on the frames, against the baseline: the first pass over every chain, whose cost grew
+// with the chains (a 64-agent park4 run took over 20 minutes).
+void JoinManyChains(benchmark::State& state, bool place_alone) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  const std::vector<SubmapEstimate> s = bench::MakeJoinerSubmaps();
+  std::vector<std::vector<WireSubmap>> wire(n);
+  std::map<LandmarkRef, int> groups;
+  std::vector<ChainInput> chains;
+  for (std::size_t c = 0; c < n; ++c) {
+    const std::size_t first = (2 * c) % (s.size() - 4);
+    const auto robot = static_cast<RobotId>(c + 1);
+    Pose2 start;
+    for (std::size_t k = 0; k < first; ++k) start = start * Pose2{s[k].x(0), s[k].x(1), s[k].x(2)};
+    for (std::size_t k = 0; k < 4; ++k) {
+      wire[c].push_back(*ToWire(s[first + k], {robot, 1, static_cast<std::uint32_t>(k)}, 0.0, 1.0));
+      for (std::uint32_t key : s[first + k].keys) groups[{robot, 1, key}] = static_cast<int>(key);
+    }
+    ChainInput in{robot, 1, {}, c == 0 ? Pose2{} : start * Pose2{0.1, -0.1, 0.01}, {}, {}};
+    for (const WireSubmap& w : wire[c]) in.submaps.push_back(&w);
+    chains.push_back(in);
+  }
+  NetworkOptions o;
+  o.place_new_chains_alone = place_alone;
+  SubmapInformation kept;
+  NetworkResult r;
+  {  // every chain from the last join, but the last one
+    const NetworkResult last = JoinSubmapNetwork(chains, groups, o, &kept);
+    for (std::size_t c = 0; c < chains.size(); ++c) chains[c].start_frames = last.frames[c];
+    for (const NetworkLandmark& l : last.landmarks) {
+      for (const LandmarkRef& ref : l.refs) chains[ref.robot - 1].start_landmarks[ref.key] = l.mean;
+    }
+    chains.back().start_frames.clear();
+    chains.back().start_landmarks.clear();
+  }
+  for (auto _ : state) {
+    r = JoinSubmapNetwork(chains, groups, o, &kept);
+    benchmark::DoNotOptimize(r.landmarks.data());
+  }
+  state.counters["landmarks"] = static_cast<double>(r.landmarks.size());
+  state.counters["ties"] = r.ties;
+  state.counters["ties_dropped"] = r.ties_dropped;
+  state.counters["joined"] = static_cast<double>(std::count(r.joined.begin(), r.joined.end(), true));
+  state.counters["placed_alone"] = r.placed_alone;
+  state.counters["first_pass"] = r.first_pass;
+}
+
+void BM_JoinManyChainsOneNewPlacedAlone(benchmark::State& state) { JoinManyChains(state, true); }
+BENCHMARK(BM_JoinManyChainsOneNewPlacedAlone)->Arg(4)->Arg(16)->Arg(48)->Unit(benchmark::kMillisecond);
+
+// The baseline: the first pass over every chain.
+void BM_JoinManyChainsOneNewFirstPass(benchmark::State& state) { JoinManyChains(state, false); }
+BENCHMARK(BM_JoinManyChainsOneNewFirstPass)->Arg(4)->Arg(16)->Arg(48)->Unit(benchmark::kMillisecond);
 
 void BM_JoinSubmapNetworkKeptInformation(benchmark::State& state) { JoinTwoChains(state, true); }
 BENCHMARK(BM_JoinSubmapNetworkKeptInformation)->Unit(benchmark::kMillisecond);

@@ -36,6 +36,12 @@ class Network : public LeastSquaresProblem {
   std::vector<Tie> ties;
   double tie_sigma = 1.0;
   RobustKernel kernel;
+  // A placing pass's ties of held slots to fixed positions (under the tie's sigma and kernel),
+  // and a weak prior on each chain's first frame (chain index, where, and its sigmas in m and
+  // rad), so that a chain the ties hold too little stays solvable.
+  std::vector<std::pair<int, Eigen::Vector2d>> anchors;
+  std::vector<std::pair<int, Pose2>> origin_priors;
+  double origin_sigma_m = 1.0, origin_sigma_rad = 1.0;
   std::vector<std::vector<Pose2>> frames;   // per chain taken, its frames 0 .. K
   std::vector<std::vector<int>> frame_var;  // ... their variables (-1: fixed)
   // Per slot (of every reference's): its landmark position, and its variable (-1: a slot the
@@ -75,15 +81,35 @@ class Network : public LeastSquaresProblem {
   }
 
   // The largest excess of a submap's chi-square over its mean at the current state, in its
-  // standard deviations: max over factors of (e^T P^-1 e - m) / sqrt(2 m), m = the size of e.
-  double WorstExcess() const {
+  // standard deviations: max over factors of (w e^T P^-1 e - m) / sqrt(2 m), m = the size of
+  // e, w its chain's weight in `weights` (1 without).
+  double WorstExcess(const std::vector<double>* weights = nullptr) const {
     double worst = 0.0;
     for (const Factor& f : factors) {
       const Eigen::VectorXd e = Error(f, nullptr);
       const auto m = static_cast<double>(e.size());
-      worst = std::max(worst, (e.dot(*f.info * e) - m) / std::sqrt(2.0 * m));
+      const double w = weights == nullptr ? 1.0 : (*weights)[static_cast<std::size_t>(f.chain)];
+      worst = std::max(worst, (w * e.dot(*f.info * e) - m) / std::sqrt(2.0 * m));
     }
     return worst;
+  }
+
+  // One round of the calibration (NetworkOptions::calibrate_sigmas): each chain's variance
+  // factor under `weights` (per chain taken: 1 / the factor its information is divided by),
+  // and the weight of each whose factor exceeds 1 by more than `sigmas` of its standard
+  // deviations divided by it. Returns whether any was.
+  bool Calibrate(double sigmas, std::vector<double>* weights) const {
+    std::vector<double> chi2, redundancy;
+    ChainChiSquares(&chi2, &redundancy);
+    bool beyond = false;
+    for (std::size_t c = 0; c < weights->size(); ++c) {
+      if (redundancy[c] < 1.0) continue;
+      const double f = (*weights)[c] * chi2[c] / redundancy[c];
+      if (f <= 1.0 + sigmas * std::sqrt(2.0 / redundancy[c])) continue;
+      (*weights)[c] /= f;
+      beyond = true;
+    }
+    return beyond;
   }
 
   double Linearise(BlockNormalEquations& eq) override {
@@ -116,6 +142,19 @@ class Network : public LeastSquaresProblem {
       cost += 0.5 * kernel.Rho(s);
       eq.Add(tie_handles[i], jt, r, kernel.Weight(s));
     }
+    const Eigen::Matrix2d ja = Eigen::Matrix2d::Identity() / tie_sigma;
+    for (std::size_t i = 0; i < anchors.size(); ++i) {
+      const Eigen::Vector2d r = AnchorResidual(anchors[i]);
+      const double s = r.squaredNorm();
+      cost += 0.5 * kernel.Rho(s);
+      eq.Add(anchor_handles[i], ja, r, kernel.Weight(s));
+    }
+    const Eigen::Matrix3d jo = OriginWhitening();
+    for (std::size_t i = 0; i < origin_priors.size(); ++i) {
+      const Eigen::Vector3d r = OriginResidual(origin_priors[i]);
+      cost += 0.5 * r.squaredNorm();
+      eq.Add(origin_handles[i], jo, r);
+    }
     return cost;
   }
   double Cost() const override {
@@ -125,6 +164,8 @@ class Network : public LeastSquaresProblem {
       cost += 0.5 * WeightOf(f) * e.dot(*f.info * e);
     }
     for (const Tie& t : ties) cost += 0.5 * kernel.Rho(TieResidual(t).squaredNorm());
+    for (const auto& a : anchors) cost += 0.5 * kernel.Rho(AnchorResidual(a).squaredNorm());
+    for (const auto& o : origin_priors) cost += 0.5 * OriginResidual(o).squaredNorm();
     return cost;
   }
   void Step(const Eigen::VectorXd& dx) override {
@@ -155,6 +196,17 @@ class Network : public LeastSquaresProblem {
     for (int v = 0; v < eq.variables(); ++v) offsets_[static_cast<std::size_t>(v)] = eq.offset(v);
   }
   Eigen::Vector2d TieResidual(const Tie& t) const { return (At(t.a) - At(t.b)) / tie_sigma; }
+  Eigen::Vector2d AnchorResidual(const std::pair<int, Eigen::Vector2d>& a) const {
+    return (At(a.first) - a.second) / tie_sigma;
+  }
+  Eigen::Matrix3d OriginWhitening() const {
+    return Eigen::Vector3d(1.0 / origin_sigma_m, 1.0 / origin_sigma_m, 1.0 / origin_sigma_rad).asDiagonal();
+  }
+  Eigen::Vector3d OriginResidual(const std::pair<int, Pose2>& o) const {
+    const Pose2& p = frames[static_cast<std::size_t>(o.first)][0];
+    return OriginWhitening() * Eigen::Vector3d(p.x - o.second.x, p.y - o.second.y, WrapAngle(p.theta - o.second.theta));
+  }
+  std::vector<int> anchor_handles, origin_handles;
 
  private:
   // The error h - z and, if asked, its Jacobian dh/dx over [X_k, X_k+1, L...].
@@ -202,7 +254,7 @@ class Unions {
 Network Place(std::span<const ChainInput> chains, const std::vector<std::size_t>& order,
               const std::map<LandmarkRef, int>& slot_of, std::size_t slot_count, const std::vector<Tie>& ties,
               const std::vector<std::vector<Pose2>>* start_frames, const std::map<int, Eigen::Vector2d>* start_slots,
-              SubmapInformation& information) {
+              SubmapInformation& information, bool free_gauge = false) {
   Network net;
   std::vector<int>& sizes = net.sizes;
   net.slots.assign(slot_count, Eigen::Vector2d::Zero());
@@ -213,8 +265,10 @@ Network Place(std::span<const ChainInput> chains, const std::vector<std::size_t>
     // else composed along the submaps from the chain's origin.
     const std::vector<Pose2>& given = start_frames ? (*start_frames)[i] : c.start_frames;
     // The first chain's origin is the joined frame's; a chain whose origin is fixed stays at it.
-    const bool fixed = i == 0 || c.origin_fixed;
-    std::vector<Pose2> frames = {i == 0 ? Pose2{} : (given.empty() || c.origin_fixed ? c.origin : given[0])};
+    // (free_gauge: none is the joined frame's; a placing pass's chains are held by ties to fixed positions.)
+    const bool gauge = i == 0 && !free_gauge;
+    const bool fixed = gauge || c.origin_fixed;
+    std::vector<Pose2> frames = {gauge ? Pose2{} : (given.empty() || c.origin_fixed ? c.origin : given[0])};
     std::vector<int> vars = {fixed ? -1 : static_cast<int>(sizes.size())};
     if (!fixed) sizes.push_back(3);
     for (std::size_t k = 0; k < c.submaps.size(); ++k) {
@@ -258,6 +312,40 @@ Network Place(std::span<const ChainInput> chains, const std::vector<std::size_t>
   return net;
 }
 
+// Declares every factor of the network to eq (submaps, ties, anchors, origin priors), then
+// finalizes it and gives the network its variables' offsets.
+void CoupleAll(Network& net, BlockNormalEquations& eq) {
+  for (const Factor& f : net.factors) {
+    std::vector<int> vars;
+    const auto c = static_cast<std::size_t>(f.chain);
+    const auto k = static_cast<std::size_t>(f.index);
+    if (net.frame_var[c][k] >= 0) vars.push_back(net.frame_var[c][k]);
+    vars.push_back(net.frame_var[c][k + 1]);
+    for (int g : f.slots) vars.push_back(net.slot_var[static_cast<std::size_t>(g)]);
+    net.factor_handles.push_back(eq.Couple(vars));
+  }
+  const auto var = [&](int slot) { return net.slot_var[static_cast<std::size_t>(slot)]; };
+  for (const Tie& t : net.ties) net.tie_handles.push_back(eq.Couple({var(t.a), var(t.b)}));
+  for (const auto& a : net.anchors) net.anchor_handles.push_back(eq.Couple({var(a.first)}));
+  for (const auto& o : net.origin_priors) {
+    net.origin_handles.push_back(eq.Couple({net.frame_var[static_cast<std::size_t>(o.first)][0]}));
+  }
+  eq.Finalize();
+  net.SetOffsets(eq);
+}
+
+LevenbergMarquardtOptions JoinIterations(int max_iterations) {
+  LevenbergMarquardtOptions lm;
+  lm.max_iterations = max_iterations;
+  // Micrometres and a millionth of the cost are far below what a map can tell apart.
+  lm.step_tolerance = 1e-6;
+  lm.function_tolerance = 1e-6;
+  // Every join but a first one starts from the last join's state: once a step is accepted,
+  // the Gauss-Newton step tells when it is there.
+  lm.undamped_below = lm.initial_lambda;
+  return lm;
+}
+
 // One solve: the network Place gives, with the ties under `kernel` at tie_sigma. On return,
 // the network holds the solution and eq its normal equations.
 struct Solved {
@@ -278,31 +366,37 @@ Solved Solve(std::span<const ChainInput> chains, const std::vector<std::size_t>&
   net.kernel = kernel;
   *eq_out = std::make_unique<BlockNormalEquations>(net.sizes);
   BlockNormalEquations& eq = **eq_out;
-  for (const Factor& f : net.factors) {
-    std::vector<int> vars;
-    const auto c = static_cast<std::size_t>(f.chain);
-    const auto k = static_cast<std::size_t>(f.index);
-    if (net.frame_var[c][k] >= 0) vars.push_back(net.frame_var[c][k]);
-    vars.push_back(net.frame_var[c][k + 1]);
-    for (int g : f.slots) vars.push_back(net.slot_var[static_cast<std::size_t>(g)]);
-    net.factor_handles.push_back(eq.Couple(vars));
-  }
-  for (const Tie& t : net.ties) {
-    net.tie_handles.push_back(
-        eq.Couple({net.slot_var[static_cast<std::size_t>(t.a)], net.slot_var[static_cast<std::size_t>(t.b)]}));
-  }
-  eq.Finalize();
-  net.SetOffsets(eq);
-  LevenbergMarquardtOptions lm;
-  lm.max_iterations = max_iterations;
-  // Micrometres and a millionth of the cost are far below what a map can tell apart.
-  lm.step_tolerance = 1e-6;
-  lm.function_tolerance = 1e-6;
-  // Every join but a first one starts from the last join's state: once a step is accepted,
-  // the Gauss-Newton step tells when it is there.
-  lm.undamped_below = lm.initial_lambda;
-  s.report = MinimiseLevenbergMarquardt(net, eq, lm);
+  CoupleAll(net, eq);
+  s.report = MinimiseLevenbergMarquardt(net, eq, JoinIterations(max_iterations));
   return s;
+}
+
+// The placing pass: the chains of `fresh` (no previous solve's frames) solved alone, their
+// references tied under the first pass's kernel to each other (`among`) and to fixed positions
+// (`anchors`: where the chains that have frames hold the references they are paired with),
+// each chain's first frame weakly held where it starts (10 m, 1 rad: a chain the ties do not
+// hold stays where it was placed). Returns each fresh chain's frames as solved.
+std::vector<std::vector<Pose2>> PlaceAlone(std::span<const ChainInput> chains, const std::vector<std::size_t>& fresh,
+                                           const std::map<LandmarkRef, int>& slot_of, std::size_t slot_count,
+                                           const std::vector<Tie>& among,
+                                           const std::vector<std::pair<int, Eigen::Vector2d>>& anchors,
+                                           double tie_sigma, const RobustKernel& kernel, int max_iterations,
+                                           SubmapInformation& information) {
+  Network net = Place(chains, fresh, slot_of, slot_count, among, nullptr, nullptr, information, /*free_gauge=*/true);
+  net.tie_sigma = tie_sigma;
+  net.kernel = kernel;
+  for (const auto& a : anchors) {
+    if (net.Holds(a.first)) net.anchors.push_back(a);
+  }
+  for (std::size_t i = 0; i < fresh.size(); ++i) {
+    if (net.frame_var[i][0] >= 0) net.origin_priors.push_back({static_cast<int>(i), net.frames[i][0]});
+  }
+  net.origin_sigma_m = 10.0;
+  net.origin_sigma_rad = 1.0;
+  BlockNormalEquations eq(net.sizes);
+  CoupleAll(net, eq);
+  MinimiseLevenbergMarquardt(net, eq, JoinIterations(max_iterations));
+  return net.frames;
 }
 
 }  // namespace
@@ -413,6 +507,38 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
   const std::vector<std::size_t> first_order = enter(ties);
   SubmapInformation own_information;
   SubmapInformation& info = information != nullptr ? *information : own_information;
+  const RobustKernel first_kernel{RobustLoss::kCauchy, options.tie_cauchy};
+
+  // Chains that enter without a previous solve's frames (new ones) while the first has them:
+  // placed alone against the others' frames (the placing pass), so that every chain has frames
+  // and the pairings are judged on them, without a first pass over every chain (whose cost
+  // grows with the chains: 48 of them, seconds).
+  std::vector<ChainInput> with_frames;
+  if (options.judge_on_start_frames && options.place_new_chains_alone && !chains[0].start_frames.empty()) {
+    std::vector<std::size_t> known, fresh;
+    for (std::size_t c : first_order) (chains[c].start_frames.empty() ? fresh : known).push_back(c);
+    if (!fresh.empty()) {
+      std::vector<bool> is_fresh(chains.size(), false);
+      for (std::size_t c : fresh) is_fresh[c] = true;
+      const Network held = Place(chains, known, slot_of, refs.size(), {}, nullptr, nullptr, info);
+      std::vector<Tie> among;
+      std::vector<std::pair<int, Eigen::Vector2d>> anchors;
+      for (const Tie& t : ties) {
+        const bool fa = is_fresh[chain_of_slot[static_cast<std::size_t>(t.a)]];
+        const bool fb = is_fresh[chain_of_slot[static_cast<std::size_t>(t.b)]];
+        if (fa && fb) among.push_back(t);
+        if (fa && !fb && held.Holds(t.b)) anchors.push_back({t.a, held.At(t.b)});
+        if (fb && !fa && held.Holds(t.a)) anchors.push_back({t.b, held.At(t.a)});
+      }
+      const std::vector<std::vector<Pose2>> frames = PlaceAlone(chains, fresh, slot_of, refs.size(), among, anchors,
+                                                                options.tie_sigma_m, first_kernel,
+                                                                options.max_iterations, info);
+      with_frames.assign(chains.begin(), chains.end());
+      for (std::size_t i = 0; i < fresh.size(); ++i) with_frames[fresh[i]].start_frames = frames[i];
+      chains = with_frames;
+      out.placed_alone = static_cast<int>(fresh.size());
+    }
+  }
   // Whether the pairings may be judged on the start frames: every chain to enter has them.
   const bool on_start_frames = options.judge_on_start_frames &&
                                std::all_of(first_order.begin(), first_order.end(),
@@ -441,9 +567,8 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     // judged on: where the exact join starts.
     const bool first_pass = !on_start_frames || rechecking;
     if (first_pass) {
-      first = Solve(chains, first_order, slot_of, refs.size(), ties, options.tie_sigma_m,
-                    RobustKernel{RobustLoss::kCauchy, options.tie_cauchy}, nullptr, nullptr, options.max_iterations,
-                    info, &eq);
+      first = Solve(chains, first_order, slot_of, refs.size(), ties, options.tie_sigma_m, first_kernel, nullptr,
+                    nullptr, options.max_iterations, info, &eq);
     } else {
       first = Solved{Place(chains, first_order, slot_of, refs.size(), ties, nullptr, nullptr, info), {}};
     }
@@ -531,6 +656,18 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     out.rechecked = rechecking;
     // A join judged on the start frames stands unless a submap's residual says a pairing is wrong.
     if (first_pass || second.net.WorstExcess() <= options.recheck_sigmas) break;
+    // ... and with the calibration, unless its chain errs as a whole (every submap of it beyond
+    // its covariance: a sensor's bias, a chain the calibration weighs down below), which the
+    // first pass cannot mend and would meet at every join: the check is made again under the
+    // variance factors the residuals give. A wrong pairing stands out of its chain's factor
+    // (one submap's chi-square some 15 times its mean).
+    if (options.calibrate_sigmas > 0) {
+      std::vector<double> weights(order.size(), 1.0);
+      if (second.net.Calibrate(options.calibrate_sigmas, &weights) &&
+          second.net.WorstExcess(&weights) <= options.recheck_sigmas) {
+        break;
+      }
+    }
   }
   // Each chain's information calibrated by its residuals (a variance factor per chain,
   // estimated as variance components are: chi-square over redundancy, reweighted until none is
@@ -539,17 +676,7 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
   std::vector<double> weights(order.size(), 1.0);  // per chain in order: 1 / its variance factor
   if (options.calibrate_sigmas > 0) {
     for (int round = 0; round < options.max_calibrations; ++round) {
-      std::vector<double> chi2, redundancy;
-      second.net.ChainChiSquares(&chi2, &redundancy);
-      bool beyond = false;
-      for (std::size_t c = 0; c < order.size(); ++c) {
-        if (redundancy[c] < 1.0) continue;
-        const double s = weights[c] * chi2[c] / redundancy[c];  // under the weights of this solve
-        if (s <= 1.0 + options.calibrate_sigmas * std::sqrt(2.0 / redundancy[c])) continue;
-        weights[c] /= s;
-        beyond = true;
-      }
-      if (!beyond) break;
+      if (!second.net.Calibrate(options.calibrate_sigmas, &weights)) break;
       std::vector<std::vector<Pose2>> frames = second.net.frames;
       std::map<int, Eigen::Vector2d> start;
       for (int slot : second.net.held) start[slot] = second.net.At(slot);

@@ -88,6 +88,11 @@ struct NetworkOptions {
   double tie_sigma_m = 0.1;  // the first pass's ties: two paired positions equal within this ...
   double tie_cauchy = 2.0;   // ... under Cauchy's kernel of this scale (in tie sigmas)
   double keep_tie_m = 0.5;   // a pairing whose positions end further apart is dropped
+  // A chain that enters without start frames while the first chain has them is placed alone
+  // against the others' frames (its references tied to where they hold the references paired
+  // with them), and the pairings are judged on the frames (false: the first pass over every
+  // chain, the baseline).
+  bool place_new_chains_alone = true;
   // Judge the pairings on the chains' start frames when every chain to enter has them (false:
   // the first pass at every join) ...
   bool judge_on_start_frames = true;
@@ -129,6 +134,7 @@ struct NetworkResult {
   int ties = 0;            // pairings across chains offered ...
   int ties_dropped = 0;    // ... and dropped (by the first pass, or on the start frames)
   bool first_pass = true;  // false: the pairings were judged on the start frames
+  int placed_alone = 0;    // chains without start frames placed alone before the pairings were judged on frames
   bool rechecked = false;  // judged on the start frames, refused by its residuals, and run with the first pass
   // Per input chain: the variance factor its information was divided by (1 where none, or left
   // out), and the solves the calibration added (NetworkOptions::calibrate_sigmas).

@@ -225,6 +225,41 @@ TEST(SubmapNetwork, AChainThatErrsBeyondItsCovarianceIsCalibratedByItsResiduals)
   EXPECT_LE(consistent_calibrations, 4);  // at 3 sigmas, chance alone: a few in a hundred per chain
 }
 
+// A chain that errs as a whole (robot 2's errors three times its covariance: every submap far
+// beyond its chi-square) refuses a join judged on the start frames by its residuals, and the
+// first pass runs again at every join; with the calibration the check is made under the
+// variance factors, and the join judged on the frames stands (the first pass could not mend it).
+TEST(SubmapNetwork, AChainThatErrsAsAWholeDoesNotRunTheFirstPassAtEveryJoin) {
+  const TwoRobots t;
+  NetworkOptions calibrated;
+  calibrated.calibrate_sigmas = 3.0;
+  int rechecked_plain = 0, rechecked_calibrated = 0;
+  for (int run = 0; run < 10; ++run) {
+    std::mt19937_64 rng(900 + run);
+    const std::vector<WireSubmap> sa = MeasureAll(t.w, t.a, 1, rng);
+    std::vector<WireSubmap> sb = MeasureAll(t.w, t.b, 2, rng);
+    for (std::size_t k = 0; k < sb.size(); ++k) {
+      std::vector<Eigen::Vector2d> points;
+      for (int i : t.b.seen[k]) points.push_back(t.w.landmarks[static_cast<std::size_t>(i)]);
+      const Eigen::VectorXd h = PredictSubmap(t.b.frames[k], t.b.frames[k + 1], points);
+      sb[k].x = h + 3.0 * (sb[k].x - h);
+    }
+    std::vector<ChainInput> chains = {Chain(1, sa, Pose2{}), Chain(2, sb, t.b_origin * Pose2{1.0, -0.5, 0.1})};
+    for (const NetworkOptions& o : {NetworkOptions{}, calibrated}) {
+      std::vector<ChainInput> judged = chains;
+      const NetworkResult before = JoinSubmapNetwork(judged, t.groups, o);
+      ASSERT_TRUE(before.solved && before.joined[1]) << run;
+      for (std::size_t c = 0; c < judged.size(); ++c) judged[c].start_frames = before.frames[c];
+      const NetworkResult r = JoinSubmapNetwork(judged, t.groups, o);
+      ASSERT_TRUE(r.solved && r.joined[1]) << run;
+      (o.calibrate_sigmas > 0 ? rechecked_calibrated : rechecked_plain) += r.rechecked ? 1 : 0;
+      if (o.calibrate_sigmas > 0) EXPECT_GT(r.variance_factors[1], 4.0) << run;
+    }
+  }
+  EXPECT_EQ(rechecked_plain, 10);
+  EXPECT_EQ(rechecked_calibrated, 0);
+}
+
 // A chain whose origin is held stays exactly there, and the rest of the join moves to it: with the
 // true origin held the second chain's landmarks are no further from the truth than when it is
 // found (it knows more); a held origin off by 0.5 m pulls the join with it.
@@ -372,7 +407,36 @@ TEST(SubmapNetwork, PairingsAreJudgedOnAPreviousJoinsFrames) {
   EXPECT_TRUE(JoinSubmapNetwork(row.chains, row.wrong, every).first_pass);
   std::vector<ChainInput> one_unplaced = row.chains;
   one_unplaced[1].start_frames.clear();
-  EXPECT_TRUE(JoinSubmapNetwork(one_unplaced, row.wrong).first_pass);
+  NetworkOptions not_alone;
+  not_alone.place_new_chains_alone = false;
+  EXPECT_TRUE(JoinSubmapNetwork(one_unplaced, row.wrong, not_alone).first_pass);
+  EXPECT_EQ(JoinSubmapNetwork(one_unplaced, row.wrong, not_alone).placed_alone, 0);
+}
+
+// A chain new to the join (no start frames) while the first chain has them is placed alone
+// against the first's frames, from its alignment's placement, and the pairings are judged on
+// the frames: the four wrong pairings are dropped as the first pass drops them, and the join is
+// the first pass's. So is it when the new chain's placement is 1 m and 0.1 rad off (the ties'
+// Cauchy kernel lets go of the wrong pairings, the weak origin prior does not hold it there).
+TEST(SubmapNetwork, AChainNewToTheJoinIsPlacedAloneAgainstTheOthersFrames) {
+  SwappedRow row;
+  const NetworkResult before = JoinSubmapNetwork(row.chains, row.right);
+  ASSERT_TRUE(before.solved);
+  const NetworkResult expected = JoinSubmapNetwork(row.chains, row.wrong);  // the first pass
+  ASSERT_TRUE(expected.first_pass);
+  row.chains[0].start_frames = before.frames[0];
+  for (const Pose2& off : {Pose2{}, Pose2{1.0, -0.5, 0.1}}) {
+    std::vector<ChainInput> chains = row.chains;
+    chains[1].origin = chains[1].origin * off;
+    const NetworkResult r = JoinSubmapNetwork(chains, row.wrong);
+    ASSERT_TRUE(r.solved);
+    EXPECT_EQ(r.placed_alone, 1);
+    EXPECT_FALSE(r.first_pass);
+    EXPECT_FALSE(r.rechecked);
+    EXPECT_TRUE(r.joined[1]);
+    EXPECT_EQ(r.ties_dropped, 4);
+    EXPECT_GT(row.ExpectUnswappedAsIn(expected, r, 1e-5), 10);
+  }
 }
 
 // A join judged on the start frames whose residuals exceed the check is run again with the
