@@ -84,3 +84,38 @@ def reached_until(agents, end_s, slack_s, restarted=(), maps_relay=True):
                 mine[r] = t
         until[a] = mine
     return until
+
+
+def could_reach_until(trajectories, range_m, agent):
+    """What of the run's data could have reached `agent` by the run's end at best, over the radio
+    disc of `range_m` metres: per other robot, the latest time t such that a time-respecting path
+    of links (robots within range of each other at a common time step, any number of hops within
+    one step, data held while a robot carries it) leads from that robot at t to the agent by the
+    last step. `trajectories` is {robot: [(t, x, y), ...]} sampled at common times (truth.json's
+    robots). Returns {robot: t} for the robots whose data could not all reach it (a robot never
+    linked to the agent at all is at the first step's time, a lower bound); the others are left
+    out, as reached_until leaves them out. Instant delivery, no loss: a floor below which no
+    exchange can bring an agent's data, whatever it relays."""
+    positions = {r: {round(t, 6): (x, y) for t, x, y in samples} for r, samples in trajectories.items()}
+    times = sorted(set().union(*(p.keys() for p in positions.values())), reverse=True)
+    if agent not in positions or not times:
+        return {}
+    holders = {agent}  # robots that can still bring data to the agent by the end, going back in time
+    latest = {}
+    for t in times:
+        grown = True
+        while grown:
+            grown = False
+            for r, p in positions.items():
+                if r in holders or t not in p:
+                    continue
+                if any(t in positions[h] and _within(p[t], positions[h][t], range_m) for h in holders):
+                    holders.add(r)
+                    latest[r] = t
+                    grown = True
+    end = times[0]
+    return {r: latest.get(r, times[-1]) for r in positions if r != agent and latest.get(r) != end}
+
+
+def _within(a, b, range_m):
+    return (a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 <= range_m * range_m

@@ -11,7 +11,7 @@ import unittest
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
-from mapmesh.reached import reached_until, submap_closed  # noqa: E402
+from mapmesh.reached import could_reach_until, reached_until, submap_closed  # noqa: E402
 
 
 def submap(robot, index, closed_s):
@@ -83,6 +83,36 @@ class ReachedTest(unittest.TestCase):
         for bad in ["", "not base64!", base64.b64encode(b"MS\x01").decode(),
                     base64.b64encode(b"XX" + bytes(40)).decode(), None]:
             self.assertIsNone(submap_closed(bad), bad)
+
+
+def line(xs_at):
+    """Trajectories along the x axis: {robot: [(t, x, 0), ...]} from {robot: {t: x}}."""
+    return {r: [(t, x, 0.0) for t, x in sorted(at.items())] for r, at in xs_at.items()}
+
+
+class CouldReachTest(unittest.TestCase):
+    def test_a_relay_that_met_both_carries_the_data_it_holds(self):
+        # Robot 2 meets 1 at t = 1 and 3 at t = 2; 1 and 3 never meet (25 m disc). Robot 1's
+        # data up to t = 1 could reach agent 3 (through 2, which meets 3 after), nothing of it
+        # later; robot 2's up to t = 2. Agent 1 gets robot 3's data up to nothing: 3 meets 2
+        # only after 2 left 1, so its first step's time is the bound.
+        traj = line({1: {0: 0.0, 1: 0.0, 2: 0.0, 3: 0.0},
+                     2: {0: 100.0, 1: 20.0, 2: 80.0, 3: 200.0},
+                     3: {0: 300.0, 1: 300.0, 2: 100.0, 3: 400.0}})
+        self.assertEqual(could_reach_until(traj, 25.0, 3), {1: 1, 2: 2})
+        self.assertEqual(could_reach_until(traj, 25.0, 1), {2: 1, 3: 0})
+
+    def test_hops_within_one_step_and_everything_in_range_at_the_end(self):
+        # At the last step 1-2-3 stand 20 m apart in a line: every robot's data reaches every
+        # agent through the middle one (nothing is left out); before, they were apart.
+        traj = line({1: {0: 0.0, 5: 0.0}, 2: {0: 500.0, 5: 20.0}, 3: {0: 1000.0, 5: 40.0}})
+        for agent in (1, 2, 3):
+            self.assertEqual(could_reach_until(traj, 25.0, agent), {}, agent)
+        # With a 15 m disc nobody links: each other robot is bounded by the first step.
+        self.assertEqual(could_reach_until(traj, 15.0, 1), {2: 0, 3: 0})
+
+    def test_an_agent_not_in_the_trajectories_is_reached_by_nothing_to_say(self):
+        self.assertEqual(could_reach_until(line({1: {0: 0.0}}), 25.0, 9), {})
 
 
 if __name__ == "__main__":
