@@ -337,6 +337,8 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"first_passes", node.exchange().joining().first_passes},
               {"placed_alone", node.exchange().joining().placed_alone},
               {"rechecks", node.exchange().joining().rechecks},
+              {"rechecks_unchanged", node.exchange().joining().rechecks_unchanged},
+              {"rechecks_spared", node.exchange().joining().rechecks_spared},
               {"relayed_chains", node.exchange().joining().relayed_chains},
               {"relayed_placed", node.exchange().joining().relayed_placed},
               {"relayed_alignments", node.exchange().joining().relayed_alignments},

@@ -195,7 +195,7 @@ class JoiningFusion : public FusionBackend {
     }
     NetworkOptions network;
     network.calibrate_sigmas = options_.join_calibrate_sigmas;
-    const NetworkResult r = JoinSubmapNetwork(chains, groups, network, &information_);
+    const NetworkResult r = JoinSubmapNetwork(chains, groups, network, &information_, &recheck_memo_);
     if (r.solved) {
       last_frames_.clear();
       last_summarised_ = summarised;
@@ -235,6 +235,8 @@ class JoiningFusion : public FusionBackend {
                                         ? 1.0
                                         : *std::max_element(r.variance_factors.begin(), r.variance_factors.end());
     report_.rechecks += r.rechecked ? 1 : 0;
+    report_.rechecks_unchanged += r.recheck_unchanged ? 1 : 0;
+    report_.rechecks_spared += r.recheck_spared ? 1 : 0;
     ++report_.solves;
     if (!r.solved) return associated;
     return JoinedMap(associated, r, chains, association_.gate_probability);
@@ -562,6 +564,7 @@ class JoiningFusion : public FusionBackend {
       direct_chains_;                                       // one-hop peers' maps past their last (ExtendByChains)
   std::set<std::pair<RobotId, std::uint32_t>> superseded_;  // at the last build (SubmapBook::Superseded)
   SubmapInformation information_;  // the submaps' information matrices, from one solve to the next
+  RecheckMemo recheck_memo_;       // what the rechecks found the submaps' own, from one solve to the next
   // The last solve's frames and landmarks (by key) per chain: where the next one starts.
   std::map<std::pair<RobotId, std::uint32_t>, std::vector<Pose2>> last_frames_;
   std::map<std::pair<RobotId, std::uint32_t>, std::uint32_t> last_summarised_;  // ... and its summaries' sizes

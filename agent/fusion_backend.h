@@ -58,7 +58,7 @@ struct JoiningReport {
   bool converged = false;
   bool solved = false;
   int ties = 0;          // pairings of landmarks across chains offered by the association ...
-  int ties_dropped = 0;  // ... and not used (contradicted by the submaps, or redundant)
+  int ties_dropped = 0;  // ... and dropped: two chains joined keep their references apart (submap_network.h)
   // Solves so far that ran the first pass (the rest judged the pairings on the last solve's
   // frames: submap_network.h), and among them those run again with it because the pairings
   // judged on the frames left a submap's residual too large.
@@ -67,6 +67,11 @@ struct JoiningReport {
   // (submap_network.h), and so judged the pairings on frames without a first pass.
   int placed_alone = 0;
   int rechecks = 0;
+  // ... among them those whose first pass kept the pairings the frames had (the submaps' excess
+  // their own: remembered, RecheckMemo), and solves not rechecked since a submap beyond the
+  // check was within what an earlier such recheck found its own.
+  int rechecks_unchanged = 0;
+  int rechecks_spared = 0;
   // Solves so far whose chains' information was calibrated by their residuals
   // (agent.join_calibrate_sigmas), and at the last one the chains whose information was divided
   // by a variance factor above 1, and the largest factor.

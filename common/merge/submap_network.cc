@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <set>
@@ -16,6 +18,7 @@ namespace {
 // One submap as a factor: its measurement and information p^-1 (the submap's, not copied),
 // its chain and place in it, and the landmark slot of each of its landmarks.
 struct Factor {
+  SubmapId id;
   int chain = 0;
   int index = 0;  // k: it joins frames k and k + 1 of its chain
   Eigen::VectorXd z;
@@ -84,14 +87,20 @@ class Network : public LeastSquaresProblem {
   // standard deviations: max over factors of (w e^T P^-1 e - m) / sqrt(2 m), m = the size of
   // e, w its chain's weight in `weights` (1 without).
   double WorstExcess(const std::vector<double>* weights = nullptr) const {
-    double worst = 0.0;
+    const std::vector<double> x = Excesses(weights);
+    return x.empty() ? 0.0 : std::max(0.0, *std::max_element(x.begin(), x.end()));
+  }
+  // Per factor: (w e^T P^-1 e - m) / sqrt(2 m), as WorstExcess.
+  std::vector<double> Excesses(const std::vector<double>* weights = nullptr) const {
+    std::vector<double> out;
+    out.reserve(factors.size());
     for (const Factor& f : factors) {
       const Eigen::VectorXd e = Error(f, nullptr);
       const auto m = static_cast<double>(e.size());
       const double w = weights == nullptr ? 1.0 : (*weights)[static_cast<std::size_t>(f.chain)];
-      worst = std::max(worst, (w * e.dot(*f.info * e) - m) / std::sqrt(2.0 * m));
+      out.push_back((w * e.dot(*f.info * e) - m) / std::sqrt(2.0 * m));
     }
-    return worst;
+    return out;
   }
 
   // One round of the calibration (NetworkOptions::calibrate_sigmas): each chain's variance
@@ -274,6 +283,7 @@ Network Place(std::span<const ChainInput> chains, const std::vector<std::size_t>
     for (std::size_t k = 0; k < c.submaps.size(); ++k) {
       const WireSubmap& w = *c.submaps[k];
       Factor f;
+      f.id = w.id;
       f.chain = static_cast<int>(i);
       f.index = static_cast<int>(k);
       f.z = w.x;
@@ -425,8 +435,18 @@ void SubmapInformation::Sweep() {
   }
 }
 
+double RecheckMemo::Cleared(const SubmapId& id) const {
+  const auto it = cleared_.find(id);
+  return it == cleared_.end() ? -std::numeric_limits<double>::infinity() : it->second;
+}
+
+void RecheckMemo::KeepOnly(const std::set<SubmapId>& ids) {
+  for (auto it = cleared_.begin(); it != cleared_.end();)
+    it = ids.contains(it->first) ? std::next(it) : cleared_.erase(it);
+}
+
 NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::map<LandmarkRef, int>& groups,
-                                const NetworkOptions& options, SubmapInformation* information) {
+                                const NetworkOptions& options, SubmapInformation* information, RecheckMemo* memo) {
   NetworkResult out;
   out.joined.assign(chains.size(), false);
   out.frames.assign(chains.size(), {});
@@ -560,6 +580,10 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
   Solved first, second;
   std::vector<std::size_t> order;
   std::map<LandmarkRef, int> landmark_of;
+  // A join judged on the start frames and refused: its landmarks, and its submaps beyond the
+  // recheck with their excesses.
+  std::map<LandmarkRef, int> judged_landmarks;
+  std::vector<std::pair<SubmapId, double>> judged_excess;
   Unions unions;
   for (bool rechecking = false;; rechecking = true) {
     // The pairings judged: by the first pass (every reference its own landmark, the pairings
@@ -609,7 +633,6 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
       submaps_of_root.erase(root == ra ? rb : ra);
       used.push_back(t);
     }
-    out.ties_dropped = out.ties - static_cast<int>(used.size());
 
     // Second pass: the exact join, each union one landmark, from where the pairings were judged.
     order = enter(used);  // those of the first pass, or fewer
@@ -654,8 +677,35 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
                    options.max_iterations, info, &eq);
     out.first_pass = first_pass;
     out.rechecked = rechecking;
-    // A join judged on the start frames stands unless a submap's residual says a pairing is wrong.
-    if (first_pass || second.net.WorstExcess() <= options.recheck_sigmas) break;
+    if (rechecking) {
+      // The recheck kept the pairings the start frames had: the excesses were the submaps' own.
+      out.recheck_unchanged = landmark_of == judged_landmarks;
+      if (out.recheck_unchanged && memo != nullptr) {
+        for (const auto& [id, excess] : judged_excess) memo->Clear(id, excess);
+      }
+      break;
+    }
+    if (first_pass) break;
+    // A join judged on the start frames stands unless a submap's residual says a pairing is
+    // wrong: its excess beyond recheck_sigmas, and beyond what a recheck found its own.
+    const auto beyond = [&](const std::vector<double>& excess, std::vector<std::pair<SubmapId, double>>* list) {
+      bool any = false, spared = false;
+      for (std::size_t i = 0; i < excess.size(); ++i) {
+        if (excess[i] <= options.recheck_sigmas) continue;
+        const SubmapId& id = second.net.factors[i].id;
+        if (memo != nullptr && excess[i] <= memo->Cleared(id) + options.recheck_sigmas) {
+          spared = true;
+          continue;
+        }
+        any = true;
+        if (list != nullptr) list->push_back({id, excess[i]});
+      }
+      out.recheck_spared = out.recheck_spared || (spared && !any);
+      return any;
+    };
+    judged_excess.clear();
+    const std::vector<double> excess = second.net.Excesses();
+    if (!beyond(excess, nullptr)) break;
     // ... and with the calibration, unless its chain errs as a whole (every submap of it beyond
     // its covariance: a sensor's bias, a chain the calibration weighs down below), which the
     // first pass cannot mend and would meet at every join: the check is made again under the
@@ -663,11 +713,29 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     // (one submap's chi-square some 15 times its mean).
     if (options.calibrate_sigmas > 0) {
       std::vector<double> weights(order.size(), 1.0);
-      if (second.net.Calibrate(options.calibrate_sigmas, &weights) &&
-          second.net.WorstExcess(&weights) <= options.recheck_sigmas) {
+      if (second.net.Calibrate(options.calibrate_sigmas, &weights) && !beyond(second.net.Excesses(&weights), nullptr)) {
         break;
       }
     }
+    out.recheck_spared = false;
+    beyond(excess, &judged_excess);
+    judged_landmarks = landmark_of;
+  }
+  // The pairings between chains that entered whose two references the join keeps apart.
+  {
+    std::vector<bool> entered(chains.size(), false);
+    for (std::size_t c : order) entered[c] = true;
+    out.ties_dropped = 0;
+    for (const Tie& t : ties) {
+      const std::size_t ca = chain_of_slot[static_cast<std::size_t>(t.a)];
+      const std::size_t cb = chain_of_slot[static_cast<std::size_t>(t.b)];
+      if (entered[ca] && entered[cb] && unions.Find(t.a) != unions.Find(t.b)) ++out.ties_dropped;
+    }
+  }
+  if (memo != nullptr) {
+    std::set<SubmapId> ids;
+    for (const Factor& f : second.net.factors) ids.insert(f.id);
+    memo->KeepOnly(ids);
   }
   // Each chain's information calibrated by its residuals (a variance factor per chain,
   // estimated as variance components are: chi-square over redundancy, reweighted until none is

@@ -46,6 +46,7 @@
 #include <compare>
 #include <cstdint>
 #include <map>
+#include <set>
 #include <span>
 #include <vector>
 
@@ -128,14 +129,23 @@ struct NetworkResult {
   std::vector<std::vector<Pose2>> frames;  // per input chain: every frame as solved (empty if left out)
   int iterations = 0;
   bool converged = false;
-  bool solved = false;     // false: nothing could be solved (the first chain left out, or a singular system)
-  double cost = 0.0;       // 1/2 the sum of the squared whitened residuals at the solution
-  int submaps = 0;         // submaps joined
-  int ties = 0;            // pairings across chains offered ...
-  int ties_dropped = 0;    // ... and dropped (by the first pass, or on the start frames)
+  bool solved = false;  // false: nothing could be solved (the first chain left out, or a singular system)
+  double cost = 0.0;    // 1/2 the sum of the squared whitened residuals at the solution
+  int submaps = 0;      // submaps joined
+  int ties = 0;         // pairings across chains offered ...
+  // ... and dropped: between two chains that entered, their references kept as two landmarks
+  // (by the first pass, or on the start frames; a pairing that others of its group already
+  // imply is not dropped).
+  int ties_dropped = 0;
   bool first_pass = true;  // false: the pairings were judged on the start frames
   int placed_alone = 0;    // chains without start frames placed alone before the pairings were judged on frames
   bool rechecked = false;  // judged on the start frames, refused by its residuals, and run with the first pass
+  // ... whose first pass kept the very pairings the start frames had (its submaps' excesses
+  // then cleared in the memo).
+  bool recheck_unchanged = false;
+  // Judged on the start frames with a submap beyond recheck_sigmas whose excess the memo had
+  // cleared, so not rechecked.
+  bool recheck_spared = false;
   // Per input chain: the variance factor its information was divided by (1 where none, or left
   // out), and the solves the calibration added (NetworkOptions::calibrate_sigmas).
   std::vector<double> variance_factors;
@@ -169,12 +179,34 @@ class SubmapInformation {
   int computed_ = 0;
 };
 
+// What the rechecks learnt, kept from one join to the next (NetworkOptions::recheck_sigmas):
+// per submap, the excess of its chi-square (in its standard deviations) at which a recheck's
+// first pass kept exactly the pairings that the start frames had kept. Such an excess is the
+// submap's own (a sensor erring beyond its covariance, as MRCLAM's cameras do), not a wrong
+// pairing's, and a first pass cannot mend it: a later join judged on the start frames is
+// rechecked for that submap only once its excess exceeds this one by recheck_sigmas (a wrong
+// pairing adds some 75). Entries of submaps a join does not take are dropped at its end.
+class RecheckMemo {
+ public:
+  // The excess cleared for this submap, or -infinity.
+  double Cleared(const SubmapId& id) const;
+  void Clear(const SubmapId& id, double excess) { cleared_[id] = excess; }
+  // Keeps only the entries of these submaps.
+  void KeepOnly(const std::set<SubmapId>& ids);
+  std::size_t size() const { return cleared_.size(); }
+
+ private:
+  std::map<SubmapId, double> cleared_;
+};
+
 // Joins the chains (the first is the joined frame's: its origin is fixed, and it always enters
 // unless malformed). `groups` names the landmark group of each associated reference (ids from
 // 0); a reference it does not name is a landmark of its own. A group that one submap would
 // reach twice is split there.
-// With `information`, the submaps' information matrices come from it (and stay in it).
+// With `information`, the submaps' information matrices come from it (and stay in it); with
+// `memo`, what the rechecks learnt is read from and written to it.
 NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::map<LandmarkRef, int>& groups,
-                                const NetworkOptions& options = {}, SubmapInformation* information = nullptr);
+                                const NetworkOptions& options = {}, SubmapInformation* information = nullptr,
+                                RecheckMemo* memo = nullptr);
 
 }  // namespace mapmesh

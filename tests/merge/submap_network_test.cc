@@ -4,6 +4,7 @@
 
 #include <Eigen/Cholesky>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <set>
 
@@ -464,6 +465,58 @@ TEST(SubmapNetwork, AJoinItsResidualsRefuseRunsTheFirstPass) {
   EXPECT_EQ(r.ties_dropped, expected.ties_dropped);
   // With the default check these consistent submaps pass.
   EXPECT_FALSE(JoinSubmapNetwork(row.chains, row.wrong).rechecked);
+}
+
+// A submap whose errors lie far beyond its covariance (robot 2's second, three times its
+// errors: a sensor's fault, not a pairing's) refuses a join judged on the start frames, and the
+// recheck's first pass keeps the same pairings: the memo learns that excess as the submap's own,
+// and the next join on the same frames is not rechecked (the same join), while one without the
+// memo is. Should the submap's excess grow past what was learnt by the check's margin (its
+// errors five times), the join is rechecked again.
+TEST(SubmapNetwork, AnExcessARecheckFoundASubmapsOwnIsNotRecheckedAgain) {
+  SwappedRow row;
+  const auto erring = [&](double scale) {
+    std::vector<WireSubmap> sb = row.sb;
+    std::vector<Eigen::Vector2d> points;
+    for (int i : row.b.seen[1]) points.push_back(row.w.landmarks[static_cast<std::size_t>(i)]);
+    const Eigen::VectorXd h = PredictSubmap(row.b.frames[1], row.b.frames[2], points);
+    sb[1].x = h + scale * (sb[1].x - h);
+    return sb;
+  };
+  const std::vector<WireSubmap> three = erring(3.0), five = erring(5.0);
+  std::vector<ChainInput> chains = {row.chains[0], Chain(2, three, row.chains[1].origin)};
+  const NetworkResult before = JoinSubmapNetwork(chains, row.right);
+  ASSERT_TRUE(before.solved && before.joined[1]);
+  for (std::size_t c = 0; c < chains.size(); ++c) chains[c].start_frames = before.frames[c];
+  RecheckMemo memo;
+  const NetworkResult learnt = JoinSubmapNetwork(chains, row.right, {}, nullptr, &memo);
+  ASSERT_TRUE(learnt.solved);
+  EXPECT_TRUE(learnt.rechecked);
+  EXPECT_TRUE(learnt.recheck_unchanged);
+  EXPECT_FALSE(learnt.recheck_spared);
+  EXPECT_EQ(memo.Cleared(SubmapId{2, 1, 1}) > 10.0, true);
+  EXPECT_EQ(memo.Cleared(SubmapId{1, 1, 0}), -std::numeric_limits<double>::infinity());
+
+  const NetworkResult spared = JoinSubmapNetwork(chains, row.right, {}, nullptr, &memo);
+  ASSERT_TRUE(spared.solved);
+  EXPECT_FALSE(spared.rechecked);
+  EXPECT_FALSE(spared.first_pass);
+  EXPECT_TRUE(spared.recheck_spared);
+  EXPECT_EQ(spared.ties_dropped, learnt.ties_dropped);
+  ASSERT_EQ(spared.landmarks.size(), learnt.landmarks.size());
+  for (std::size_t i = 0; i < spared.landmarks.size(); ++i) {
+    EXPECT_LT((spared.landmarks[i].mean - learnt.landmarks[i].mean).norm(), 1e-5) << i;
+  }
+  EXPECT_TRUE(JoinSubmapNetwork(chains, row.right).rechecked);  // without the memo
+
+  std::vector<ChainInput> worse = {chains[0], Chain(2, five, chains[1].origin)};
+  worse[1].start_frames = chains[1].start_frames;
+  RecheckMemo kept = memo;
+  EXPECT_TRUE(JoinSubmapNetwork(worse, row.right, {}, nullptr, &kept).rechecked);
+  // A join that no longer takes a submap forgets what was learnt of it.
+  std::vector<ChainInput> alone = {chains[0]};
+  JoinSubmapNetwork(alone, row.right, {}, nullptr, &memo);
+  EXPECT_EQ(memo.size(), 0u);
 }
 
 // A chain that shares too few landmarks with those in is left out (and its landmarks with it);
