@@ -198,6 +198,25 @@ class ExchangeTest(SwarmCase):
             self.assertGreaterEqual(joined[rid]["global"]["coverage_reached"], 0.97)
         self.assertEqual(joined[3]["reached_until"], {"1": 24.0, "2": 86.0})  # its peers' maps carry their own data
 
+    def test_joining_the_park_seeds_whose_wrong_pairings_were_traced_fuses_no_two_trees(self):
+        # Issue J2 traced two wrong pairings of park4 joined (268adcd): seed 10's agent 3
+        # merged tree 181 with trees 16 and 79, seed 2's agent 4 trees 65 and 119 (12-22 % of
+        # the pairings across chains dropped in those runs). A pairing is kept only where the
+        # submaps agree with it, and the global map is made from the join: no landmark of any
+        # agent's global map names two trees (its origins, scored by the robots' identities),
+        # every chain is joined, and the pairings the join kept apart are counted.
+        for seed, traced in ((10, 3), (2, 4)):
+            with self.subTest(seed=seed):
+                agents = self.run_ok(SCENARIOS / "park4.yaml", "--set", f"seed={seed}", "--set",
+                                     "agent.slam=cekf_submaps", "--set", "agent.fusion=joining",
+                                     "--no-reference")
+                for rid, a in agents.items():
+                    self.assertEqual(a["global"]["identities_mixed"], 0, (rid, a["global"]))
+                j = json.loads((self.out / f"agent_{traced}" / "stats.json").read_text())["joining"]
+                self.assertEqual((j["chains"], j["chains_joined"]), (4, 4), j)
+                self.assertLessEqual(j["ties_dropped"], j["ties"], j)
+                self.assertGreaterEqual(agents[traced]["global"]["coverage"], 0.85)
+
     def test_joining_a_restarted_agent_keeps_its_earlier_chain_and_joins_it_once(self):
         # park4 with every robot out of range of the others (1 m): agent 3's first incarnation
         # closes a submap no peer ever hears. Killed at 60 s and restarted at 80 s, it holds
