@@ -324,6 +324,7 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"chains_held", node.exchange().joining().chains_held},
               {"chains", node.exchange().joining().chains},
               {"chains_joined", node.exchange().joining().chains_joined},
+              {"sources_by_ci", node.exchange().joining().sources_by_ci},
               {"submaps", node.exchange().joining().submaps},
               {"submaps_summarised", node.exchange().joining().submaps_summarised},
               {"calibrated_solves", node.exchange().joining().calibrated_solves},

@@ -213,6 +213,14 @@ class JoiningFusion : public FusionBackend {
     }
     report_.chains = static_cast<int>(chains.size());
     report_.chains_joined = static_cast<int>(std::count(r.joined.begin(), r.joined.end(), true));
+    // The sources the join leaves to the CI build: no submaps held, or a chain not joined.
+    std::set<std::pair<RobotId, std::uint32_t>> in_join;
+    for (std::size_t i = 0; i < chains.size(); ++i) {
+      if (r.solved && r.joined[i]) in_join.insert({chains[i].robot, chains[i].incarnation});
+    }
+    report_.sources_by_ci = static_cast<int>(std::count_if(sources.begin(), sources.end(), [&](const MapSource& s) {
+      return !superseded_.contains({s.robot, s.incarnation}) && !in_join.contains({s.robot, s.incarnation});
+    }));
     report_.submaps = r.submaps;
     report_.submaps_summarised = 0;
     for (std::size_t i = 0; i < chains.size(); ++i) {

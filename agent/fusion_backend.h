@@ -48,10 +48,13 @@ struct SubmapInputs {
 
 // What the joining back-end's last solve on submap chains did (all zero before one).
 struct JoiningReport {
-  int solves = 0;              // solves on submap chains so far
-  int chains_held = 0;         // robot incarnations of which the agent held submaps at the last build (own included)
-  int chains = 0;              // chains offered at the last (own, then each aligned peer's) ...
-  int chains_joined = 0;       // ... and joined (tied to the others by enough landmarks)
+  int solves = 0;         // solves on submap chains so far
+  int chains_held = 0;    // robot incarnations of which the agent held submaps at the last build (own included)
+  int chains = 0;         // chains offered at the last (own, then each aligned peer's) ...
+  int chains_joined = 0;  // ... and joined (tied to the others by enough landmarks)
+  // Sources (aligned peers' maps, placed relayed chains) at the last build whose landmarks the
+  // global map takes from the CI build: their chain not joined, or no submap of them held.
+  int sources_by_ci = 0;
   int submaps = 0;             // submaps joined ...
   int submaps_summarised = 0;  // ... among them those that entered as their chain's summary (agent.join_network_window)
   int iterations = 0;          // Levenberg-Marquardt iterations, both passes

@@ -169,6 +169,13 @@ TEST_F(FusionBackendTest, JoiningOnSubmapChainsTakesTheChainsEstimates) {
     ++exact;
   }
   EXPECT_EQ(exact, 8);
+  EXPECT_EQ(b.joining.sources_by_ci, 0);
+  // A third robot's aligned map, of which no submap is held, is the CI build's to fuse.
+  const std::vector<MapSource> with_three = {Source(2, two, frame2), Source(3, two, frame2)};
+  const FusionBackend::Built three = MakeFusionBackend(1, 1, o, 1)->Build(own, with_three, with_three, inputs);
+  EXPECT_TRUE(three.joining.solved);
+  EXPECT_EQ(three.joining.chains_joined, 2);
+  EXPECT_EQ(three.joining.sources_by_ci, 1);
   // Without submaps the same back-end joins the maps (noisy: not the truth).
   const FusionBackend::Built maps = MakeFusionBackend(1, 1, o, 1)
                                         ->Build(own, {Source(2, two, frame2)}, {Source(2, two, frame2)});
