@@ -15,16 +15,16 @@ from .run_error import RunError
 from .rundir import read_json
 
 # Keys whose values measure the host or the transport, not the run: wall-clock times and
-# timestamps, CPU time, memory, the sensor messages a lockstep feeder sent again (to a
-# participant back from a pause, when its lease lapsed during it, which depends on the host's
-# load: the feeder's sensor_messages_resent, and *_duplicate at the agent; what the agent received
-# in sequence and processed is compared), the lockstep inbox's maps of past ticks (how much of the
-# writers' history a restarted agent gets before its first tick depends on the host: past_tick
-# in inbox_refused), and with --hosts
-# netns the namespaces' names and the datagrams their kernels received and dropped.
+# timestamps (the reference's total_s among them), CPU time, memory, the sensor messages a
+# lockstep feeder sent again (to a participant back from a pause, when its lease lapsed during
+# it, which depends on the host's load: the feeder's sensor_messages_resent, and *_duplicate at
+# the agent; what the agent received in sequence and processed is compared), the lockstep
+# inbox's maps of past ticks (how much of the writers' history a restarted agent gets before its
+# first tick depends on the host: past_tick in inbox_refused), and with --hosts netns the
+# namespaces' names and the datagrams their kernels received and dropped.
 VOLATILE = frozenset({
     "wall_s", "real_time_factor", "cpu_s", "max_rss_mb", "wall", "wall_start", "wall_end", "peers_lost_wall",
-    "solve_s", "odom_duplicate", "scans_duplicate", "sensor_messages_resent", "past_tick",
+    "solve_s", "total_s", "odom_duplicate", "scans_duplicate", "sensor_messages_resent", "past_tick",
     "tag", "bridge_namespace", "namespace", "udp_received", "udp_dropped", "udp_dropped_percent",
 })
 BYTES = ["local_map.json", "global_map.json", "trajectory.json", "checkpoint.json", "history.jsonl"]

@@ -2,6 +2,7 @@
 schedule are the same run (scripts/swarm compare finds no difference), and the in-process bus
 (mapmesh-lab bus) gives the DDS swarm's maps, map for map."""
 
+import json
 import os
 import subprocess
 import unittest
@@ -21,9 +22,9 @@ def compare(a, b):
 
 
 class IdenticalRunsTest(SwarmCase):
-    def run_to(self, name, *args):
+    def run_to(self, name, *args, reference=False):
         self.out = self.out.parent / name
-        r = self.swarm(*args, "--no-report", "--no-reference", "--quiet")
+        r = self.swarm(*args, "--no-report", *([] if reference else ["--no-reference"]), "--quiet")
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         return self.out
 
@@ -59,6 +60,18 @@ class IdenticalRunsTest(SwarmCase):
     def test_two_lockstep_runs_joining_submap_chains_are_the_same_run(self):
         # The joining back-end (each solve started from the last) keeps runs identical too.
         self.assert_same_run(LINE3, *SUBMAPS, "--set", "agent.fusion=joining")
+
+    def test_two_runs_with_the_reference_are_the_same_run(self):
+        # The reference (on by default, as in the demo) is part of the run: reference.json and
+        # summary.json's reference block are compared, its wall time (total_s) left out.
+        first = self.run_to("first", CIRCLE, reference=True)
+        second = self.run_to("second", CIRCLE, reference=True)
+        reference = json.loads((first / "reference.json").read_text())
+        self.assertIn("total_s", reference)
+        self.assertIn("central", reference)
+        r = compare(first, second)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertRegex(r.stdout, r"\d+ files compared, 0 differ")
 
 
 class BusMatchesSwarmTest(SwarmCase):
