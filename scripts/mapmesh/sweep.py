@@ -11,6 +11,7 @@ import itertools
 import math
 import os
 import re
+import shutil
 import subprocess
 import sys
 import time
@@ -124,7 +125,7 @@ def _run_one(args, point, seed, run_dir):
     """One `swarm run` at a point of the grid; (its summary or None, its exit code, why it failed)."""
     cmd = [sys.executable, str(REPO / "scripts" / "swarm"), "run", args.scenario, "--out", str(run_dir),
            "--quiet", "--no-report",
-           "--force"]  # the sweep's own runs/ folder: a sweep run again replaces its runs, as before
+           "--force"]  # the sweep's own runs/ folder, new or cleared by the sweep's --force
     cmd += option_flags(args, args.run_defaults) + point_flags(point, seed)
     r = subprocess.run(cmd, capture_output=True, text=True)
     if not (run_dir / SUMMARY).exists():
@@ -148,6 +149,18 @@ def duration(seconds):
     return f"{seconds // 60} min {seconds % 60:02d} s" if seconds >= 60 else f"{seconds} s"
 
 
+def earlier_sweep(out):
+    """What an earlier sweep left in `out`: its sweep.csv and sweep.png, and its runs/ when it
+    holds any (empty when there is none)."""
+    found = [name for name in ("sweep.csv", "sweep.png") if (out / name).exists()]
+    runs = out / "runs"
+    if runs.is_dir():
+        n = sum(1 for p in runs.iterdir() if p.is_dir())
+        if n:
+            found.append(f"runs/ with {n} run{'s' if n != 1 else ''}")
+    return found
+
+
 def cmd_sweep(args):
     grid = parse_params(args.param, args.values)
     seeds = parse_seeds(args.seeds)
@@ -166,7 +179,15 @@ def cmd_sweep(args):
     def checking(done, total):
         print(f"sweep: checked {done} of {total} points", flush=True)
 
+    earlier = earlier_sweep(out)
+    if earlier and not getattr(args, "force", False):
+        raise RunError(f"--out {out}: holds an earlier sweep ({', '.join(earlier)}); choose another folder, or add "
+                       "--force to replace it", 2)
     check_all(args, plan, out, progress=None if getattr(args, "quiet", False) else checking)
+    if earlier:  # --force: nothing of the earlier sweep is left to be taken for this one's
+        shutil.rmtree(out / "runs", ignore_errors=True)
+        for name in ("sweep.csv", "sweep.png"):
+            (out / name).unlink(missing_ok=True)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     jobs = args.jobs or max(1, min(2, os.cpu_count() or 1))
     start = time.monotonic()

@@ -2,8 +2,10 @@
 running any: the grid, and every run option given to each run as `swarm run` takes it."""
 
 import sys
+import tempfile
 import unittest
 from importlib.machinery import SourceFileLoader
+from pathlib import Path
 
 from swarm_test import REPO
 
@@ -85,6 +87,29 @@ class SweepBoundsTest(unittest.TestCase):
             sweep.SwarmRun.check_plan = real
         self.assertEqual(checked, [["a=1", "seed=1"], ["a=2", "seed=1"]])
         self.assertEqual(shown, [(1, 2), (2, 2)])
+
+    def test_a_folder_holding_an_earlier_sweep_is_refused_and_kept(self):
+        # U1: a sweep run again into the same --out replaced the earlier runs silently, where
+        # `swarm run` refuses. Refused in one line before any check, nothing touched; with
+        # --force the points are checked first, and a point that fails its check leaves the
+        # earlier sweep as it was.
+        parser = swarm.build_parser()
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp)
+            (out / "sweep.csv").write_text("earlier\n")
+            (out / "runs" / "radio.range_m=5_seed1").mkdir(parents=True)
+            argv = ["sweep", "/nonexistent.yaml", "--param", "radio.range_m=5", "--out", str(out)]
+            with self.assertRaises(RunError) as e:
+                sweep.cmd_sweep(parser.parse_args(argv))
+            self.assertEqual(str(e.exception), f"--out {out}: holds an earlier sweep (sweep.csv, runs/ with 1 run); "
+                                               "choose another folder, or add --force to replace it")
+            self.assertEqual(e.exception.exit_code, 2)
+            with self.assertRaises(RunError) as e:
+                sweep.cmd_sweep(parser.parse_args(argv + ["--force"]))
+            self.assertIn("/nonexistent.yaml", str(e.exception))
+            self.assertEqual((out / "sweep.csv").read_text(), "earlier\n")
+            self.assertTrue((out / "runs" / "radio.range_m=5_seed1").is_dir())
+            self.assertEqual(sweep.earlier_sweep(out / "runs" / "radio.range_m=5_seed1"), [])
 
 
 if __name__ == "__main__":
