@@ -83,14 +83,9 @@ class Network : public LeastSquaresProblem {
     }
   }
 
-  // The largest excess of a submap's chi-square over its mean at the current state, in its
-  // standard deviations: max over factors of (w e^T P^-1 e - m) / sqrt(2 m), m = the size of
-  // e, w its chain's weight in `weights` (1 without).
-  double WorstExcess(const std::vector<double>* weights = nullptr) const {
-    const std::vector<double> x = Excesses(weights);
-    return x.empty() ? 0.0 : std::max(0.0, *std::max_element(x.begin(), x.end()));
-  }
-  // Per factor: (w e^T P^-1 e - m) / sqrt(2 m), as WorstExcess.
+  // Per factor: the excess of its chi-square over its mean at the current state, in its
+  // standard deviations: (w e^T P^-1 e - m) / sqrt(2 m), m = the size of e, w its chain's
+  // weight in `weights` (1 without).
   std::vector<double> Excesses(const std::vector<double>* weights = nullptr) const {
     std::vector<double> out;
     out.reserve(factors.size());
@@ -687,25 +682,30 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     }
     if (first_pass) break;
     // A join judged on the start frames stands unless a submap's residual says a pairing is
-    // wrong: its excess beyond recheck_sigmas, and beyond what a recheck found its own.
-    const auto beyond = [&](const std::vector<double>& excess, std::vector<std::pair<SubmapId, double>>* list) {
-      bool any = false, spared = false;
+    // wrong: its excess beyond recheck_sigmas, and beyond what a recheck found its own (*spared:
+    // some submap was beyond the check only by what the memo cleared). The submaps beyond go to
+    // `list`.
+    const auto beyond = [&](const std::vector<double>& excess, bool* spared,
+                            std::vector<std::pair<SubmapId, double>>* list) {
+      bool any = false;
       for (std::size_t i = 0; i < excess.size(); ++i) {
         if (excess[i] <= options.recheck_sigmas) continue;
         const SubmapId& id = second.net.factors[i].id;
         if (memo != nullptr && excess[i] <= memo->Cleared(id) + options.recheck_sigmas) {
-          spared = true;
+          *spared = true;
           continue;
         }
         any = true;
         if (list != nullptr) list->push_back({id, excess[i]});
       }
-      out.recheck_spared = out.recheck_spared || (spared && !any);
       return any;
     };
     judged_excess.clear();
-    const std::vector<double> excess = second.net.Excesses();
-    if (!beyond(excess, nullptr)) break;
+    bool spared = false;
+    if (!beyond(second.net.Excesses(), &spared, &judged_excess)) {
+      out.recheck_spared = spared;
+      break;
+    }
     // ... and with the calibration, unless its chain errs as a whole (every submap of it beyond
     // its covariance: a sensor's bias, a chain the calibration weighs down below), which the
     // first pass cannot mend and would meet at every join: the check is made again under the
@@ -713,12 +713,13 @@ NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::m
     // (one submap's chi-square some 15 times its mean).
     if (options.calibrate_sigmas > 0) {
       std::vector<double> weights(order.size(), 1.0);
-      if (second.net.Calibrate(options.calibrate_sigmas, &weights) && !beyond(second.net.Excesses(&weights), nullptr)) {
+      bool spared_weighted = false;
+      if (second.net.Calibrate(options.calibrate_sigmas, &weights) &&
+          !beyond(second.net.Excesses(&weights), &spared_weighted, nullptr)) {
+        out.recheck_spared = spared_weighted;
         break;
       }
     }
-    out.recheck_spared = false;
-    beyond(excess, &judged_excess);
     judged_landmarks = landmark_of;
   }
   // The pairings between chains that entered whose two references the join keeps apart.
