@@ -225,7 +225,7 @@ class SwarmRun:
     def __init__(self, args):
         self.args = args
         self.scenario = str(Path(args.scenario))
-        self.out = Path(args.out)
+        self.out = Path(os.path.abspath(args.out))  # the processes run in the repository
         self.kills = parse_schedule(args.kill, "kill")
         self.restarts = parse_schedule(args.restart, "restart")
         self.pauses = parse_pauses(getattr(args, "pause", None))
@@ -997,9 +997,12 @@ def cmd_run(args):
     for a in summary["agents"]:
         if a.get("map_shrank"):
             held = a["held"]
-            print(f"swarm: agent {a['id']}'s maps shrank: {(a.get('local') or {}).get('landmarks', '-')} local and "
-                  f"{(a.get('global') or {}).get('landmarks', '-')} global landmarks at the end, where it held "
-                  f"{held.get('local')} and {held.get('global')} (map_shrank in summary.json)", file=sys.stderr)
+            ends = {kind: (a.get(kind) or {}).get("landmarks") for kind in ("local", "global")}
+            which = [f"its {kind} map ended with {ends[kind]} landmarks where it held {held[kind]}"
+                     for kind in ("local", "global") if isinstance(ends[kind], int) and held.get(kind)
+                     and ends[kind] < SHRINK_FRACTION * held[kind]] or ["a final map ended smaller than it was"]
+            print(f"swarm: agent {a['id']}: " + "; ".join(which) + f" (fewer than {SHRINK_FRACTION:.0%}; the most at "
+                  "any checkpoint: map_shrank and held in summary.json)", file=sys.stderr)
     stopped = [a for a in summary["agents"] if (a.get("outputs") or {}).get("stopped_at") is not None]
     if stopped:
         print(f"swarm: agents {', '.join(str(a['id']) for a in stopped)}: snapshots and checkpoints stopped at a "
