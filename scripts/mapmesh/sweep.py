@@ -6,27 +6,51 @@ per parameter, then the seed and the agent's figures), and DIR/sweep.png drawn b
 scripts/plots/sweep.py."""
 
 import csv
+import ctypes
 import hashlib
 import itertools
+import json
 import math
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import threading
 import time
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from pathlib import Path
 
-from .columns import SWEEP_HEADER, sweep_row
-from . import provenance
-from .run import REPO, RunError, SwarmRun, last_line, plot
+from .columns import SWEEP_COLUMNS, SWEEP_HEADER, sweep_row
+from . import provenance, sweep_stats
+from .run import PR_SET_PDEATHSIG, REPO, RunError, SwarmRun, detach_from_terminal, last_line, plot, write_report
+from .run import cmd_report as cmd_report_run
 from .rundir import SUMMARY, read_json
+
+try:
+    _LIBC = ctypes.CDLL("libc.so.6", use_errno=True)
+except OSError:
+    _LIBC = None
 
 SEED_KEY = "seed"
 # A sweep runs at most this many runs (grid points times seeds); a larger grid is refused in one
 # line before anything is checked: split it into several sweeps.
 MAX_RUNS = 1000
+# Wall seconds a run stopped by the sweep's stop has to write its outputs before it is killed
+# (the acceptance bound of a stop is 10 s).
+SWEEP_STOP_GRACE_S = 8.0
+DEFINITION = "sweep.json"  # what the sweep is: scenario, grid, seeds, options (--resume compares it)
+SUMMARY_CSV = "sweep_summary.csv"
+OUTPUTS = ("sweep.csv", SUMMARY_CSV, "sweep.png", DEFINITION)
+# sweep_summary.csv after the swept parameters: per metric and group of agents (alive at the end,
+# killed), over the seeds: their count, the median, the interval and its coverage, the figures.
+SUMMARY_HEADER = ["metric", "agents", "seeds", "median", "lo", "hi", "interval_coverage", "per_seed"]
+# The figures summarised (sweep.csv's numeric agent columns) and the default of --metric.
+METRICS = [c.csv for c in SWEEP_COLUMNS if c.csv not in ("agent", "alive")]
+DEFAULT_METRIC = "gap_to_central"
+NEEDS_REFERENCE = {"gap_to_central", "gap_to_central_known_starts", "gap_to_own_batch", "rmse_central_same_m",
+                   "rmse_central_known_starts_same_m", "coverage_reached"}
 
 
 def parse_params(params, values):
@@ -121,27 +145,81 @@ def check_all(args, plan, out, progress=None, every_s=2.0):
             progress(done, len(points))
 
 
-def _run_one(args, point, seed, run_dir):
-    """One `swarm run` at a point of the grid; (its summary or None, its exit code, why it failed)."""
+class Runner:
+    """The sweep's `swarm run`s, each in a process group of its own (a terminal's Ctrl-C reaches the
+    sweep alone, which stops them in order) that dies with the sweep even if it is SIGKILLed.
+    After stop() no run starts, and the running ones are stopped as `swarm run` is stopped by
+    Ctrl-C (SIGINT: the agents write their maps); one still there after `grace_s` is killed."""
+
+    def __init__(self):
+        self.lock = threading.RLock()  # re-entered by a signal handler in the thread that holds it
+        self.running = set()
+        self.stopped = False
+
+    def run(self, cmd):
+        """(exit code, stderr) of the command, or None when the sweep was stopped before it started."""
+        with self.lock:
+            if self.stopped:
+                return None
+            proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                    process_group=0, preexec_fn=_die_with_the_sweep)
+            self.running.add(proc)
+        try:
+            _, err = proc.communicate()
+        finally:
+            with self.lock:
+                self.running.discard(proc)
+        return proc.returncode, err
+
+    def refuse_new(self):
+        """No run starts after this (a signal handler calls it: a run is started or refused whole)."""
+        with self.lock:
+            self.stopped = True
+
+    def stop(self, grace_s=SWEEP_STOP_GRACE_S):
+        with self.lock:
+            self.stopped = True
+            procs = list(self.running)
+        for proc in procs:
+            proc.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + grace_s
+        for proc in procs:
+            try:
+                proc.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                proc.kill()
+        return len(procs)
+
+
+def _die_with_the_sweep():
+    # In the child between fork and exec: one call into the libc loaded before any thread started.
+    if _LIBC is not None:
+        _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+
+
+def _run_one(args, runner, point, seed, run_dir):
+    """One `swarm run` at a point of the grid: (its summary or None, its exit code, why it failed),
+    or None when the sweep was stopped before it started."""
     cmd = [sys.executable, str(REPO / "scripts" / "swarm"), "run", args.scenario, "--out", str(run_dir),
            "--quiet", "--no-report",
            "--force"]  # the sweep's own runs/ folder, new or cleared by the sweep's --force
     cmd += option_flags(args, args.run_defaults) + point_flags(point, seed)
-    r = subprocess.run(cmd, capture_output=True, text=True)
+    ran = runner.run(cmd)
+    if ran is None:
+        return None
+    code, err = ran
     if not (run_dir / SUMMARY).exists():
-        return None, r.returncode, last_line(r.stderr, f"exit code {r.returncode}").removeprefix("swarm: ")
-    return read_json(run_dir / SUMMARY), r.returncode, None
+        return None, code, last_line(err, f"exit code {code}").removeprefix("swarm: ")
+    return read_json(run_dir / SUMMARY), code, None
 
 
-def mean_of(summary, *path):
-    vals = []
-    for a in summary["agents"]:
-        v = a
-        for p in path:
-            v = v.get(p) if isinstance(v, dict) else None
-        if isinstance(v, (int, float)) and math.isfinite(v):
-            vals.append(v)
-    return sum(vals) / len(vals) if vals else float("nan")
+def finished_summary(run_dir):
+    """The summary of a run that went to its end (one that was interrupted did not), or None."""
+    try:
+        summary = read_json(run_dir / SUMMARY)
+    except (OSError, ValueError, RunError):
+        return None
+    return None if not isinstance(summary, dict) or summary.get("interrupted", True) else summary
 
 
 def duration(seconds):
@@ -150,9 +228,9 @@ def duration(seconds):
 
 
 def earlier_sweep(out):
-    """What an earlier sweep left in `out`: its sweep.csv and sweep.png, and its runs/ when it
-    holds any (empty when there is none)."""
-    found = [name for name in ("sweep.csv", "sweep.png") if (out / name).exists()]
+    """What an earlier sweep left in `out`: its files and its runs/ when it holds any (empty when
+    there is none)."""
+    found = [name for name in OUTPUTS if (out / name).exists()]
     runs = out / "runs"
     if runs.is_dir():
         n = sum(1 for p in runs.iterdir() if p.is_dir())
@@ -161,11 +239,69 @@ def earlier_sweep(out):
     return found
 
 
+def sweep_definition(args, grid, seeds):
+    """What makes two sweeps the same sweep (sweep.json): the scenario file, the grid, the seeds
+    and the run options, as `--resume` compares them."""
+    return {"scenario": str(Path(args.scenario).resolve()), "grid": [[k, list(v)] for k, v in grid],
+            "seeds": seeds, "options": option_flags(args, args.run_defaults)}
+
+
+def resumable(out, definition):
+    """RunError unless `out` holds a sweep.json with this definition."""
+    try:
+        earlier = read_json(out / DEFINITION)
+    except FileNotFoundError:
+        raise RunError(f"--resume: {out} holds no {DEFINITION} (no sweep, or one written before --resume); "
+                       "run it again with --force", 2) from None
+    except (OSError, ValueError) as e:
+        raise RunError(f"--resume: {out / DEFINITION}: {e}", 2) from None
+    for key, what in (("scenario", "scenario"), ("grid", "grid"), ("seeds", "seeds"), ("options", "run options")):
+        if not isinstance(earlier, dict) or earlier.get(key) != definition[key]:
+            was = earlier.get(key) if isinstance(earlier, dict) else None
+            raise RunError(f"--resume: the sweep in {out} had another {what} ({json.dumps(was)}, now "
+                           f"{json.dumps(definition[key])}); give the same, or --force to replace it", 2)
+
+
+def pick_metric(args):
+    """The figure the progress lines give (--metric, a sweep.csv column): the gap by default, the
+    RMSE after a rigid fit without the reference."""
+    if args.metric is None:
+        return "rmse_global_aligned_m" if args.no_reference else DEFAULT_METRIC
+    if args.metric not in METRICS:
+        raise RunError(f"--metric {args.metric}: not a figure of sweep.csv; one of {', '.join(METRICS)}", 2)
+    if args.no_reference and args.metric in NEEDS_REFERENCE:
+        raise RunError(f"--metric {args.metric}: needs the reference, which --no-reference leaves out", 2)
+    return args.metric
+
+
+def progress_figures(summary, metric):
+    """`gap_to_central 2.54 (median over 3 agents alive at the end; 1 killed apart: 0.91), coverage_global 0.69`."""
+    rows = [{c.csv: c.csv_cell(a) for c in SWEEP_COLUMNS} for a in summary["agents"]]
+    parts = []
+    for m in dict.fromkeys([metric, "coverage_global"]):
+        figs = sweep_stats.run_figures(rows, m)
+        alive, killed = figs.get("alive"), figs.get("killed")
+        text = f"{m} {alive[0]:.3g}" if alive else f"{m} -"
+        if m == metric:
+            text += f" (median over {alive[1] if alive else 0} agents alive at the end"
+            text += f"; {killed[1]} killed apart: {killed[0]:.3g})" if killed else ")"
+        parts.append(text)
+    return ", ".join(parts)
+
+
+def on_signals(handler):
+    """Installs handler for SIGINT, SIGTERM and SIGHUP; the earlier handlers."""
+    return {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+
+
 def cmd_sweep(args):
     grid = parse_params(args.param, args.values)
     seeds = parse_seeds(args.seeds)
     if args.jobs is not None and args.jobs <= 0:
         raise RunError("--jobs must be positive", 2)
+    if args.force and args.resume:
+        raise RunError("--force replaces an earlier sweep, --resume completes it: give one", 2)
+    metric = pick_metric(args)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise RunError(f"--out {out}: is a file, not a folder; choose a folder", 2)
@@ -175,50 +311,107 @@ def cmd_sweep(args):
         counts = " x ".join(f"{len(v)} {k}" for k, v in grid) + (f" x {len(seeds)} seeds" if seeds != [None] else "")
         raise RunError(f"--param: {counts} is {runs} runs; a sweep runs at most {MAX_RUNS}: split the grid", 2)
     plan = [(tuple(zip(keys, combo)), s) for combo in itertools.product(*[v for _, v in grid]) for s in seeds]
+    definition = sweep_definition(args, grid, seeds)
 
     def checking(done, total):
         print(f"sweep: checked {done} of {total} points", flush=True)
 
     earlier = earlier_sweep(out)
-    if earlier and not getattr(args, "force", False):
-        raise RunError(f"--out {out}: holds an earlier sweep ({', '.join(earlier)}); choose another folder, or add "
-                       "--force to replace it", 2)
+    if earlier and not (args.force or args.resume):
+        raise RunError(f"--out {out}: holds an earlier sweep ({', '.join(earlier)}); choose another folder, add "
+                       "--resume to run only its missing runs, or --force to replace it", 2)
+    if args.resume and earlier:
+        resumable(out, definition)
     check_all(args, plan, out, progress=None if getattr(args, "quiet", False) else checking)
-    if earlier:  # --force: nothing of the earlier sweep is left to be taken for this one's
+    if earlier and args.force:  # nothing of the earlier sweep is left to be taken for this one's
         shutil.rmtree(out / "runs", ignore_errors=True)
-        for name in ("sweep.csv", "sweep.png"):
+        for name in OUTPUTS:
             (out / name).unlink(missing_ok=True)
     (out / "runs").mkdir(parents=True, exist_ok=True)
+    (out / DEFINITION).write_text(json.dumps(definition, indent=2) + "\n")
+    results = {}
+    if args.resume:
+        for point, seed in plan:
+            summary = finished_summary(out / "runs" / run_name(point, seed))
+            if summary is not None:
+                results[(point, seed)] = summary
+    todo = [(point, seed) for point, seed in plan if (point, seed) not in results]
     jobs = args.jobs or max(1, min(2, os.cpu_count() or 1))
-    start = time.monotonic()
     print(f"sweep: {' x '.join(f'{k} {v}' for k, v in grid)}, seeds "
-          f"{seeds if seeds != [None] else 'of the scenario'}: {len(plan)} runs, all checked, {jobs} at a time",
-          flush=True)
+          f"{seeds if seeds != [None] else 'of the scenario'}: {len(plan)} runs, all checked, "
+          + (f"{len(results)} finished before, {len(todo)} to run, " if args.resume else "")
+          + f"{jobs} at a time", flush=True)
 
-    results, failures = {}, []
+    runner, caught = Runner(), []
+
+    def interrupted(signum, _frame):
+        if signum == signal.SIGHUP:
+            detach_from_terminal()
+        runner.refuse_new()
+        caught.append(signal.Signals(signum).name)
+
+    failures = []
+    old_handlers = on_signals(interrupted)
+    try:
+        failures = execute(args, runner, out, todo, results, metric, caught)
+    finally:
+        for s, h in old_handlers.items():
+            signal.signal(s, h)
+    return finish(out, keys, plan, results, failures, caught)
+
+
+def execute(args, runner, out, todo, results, metric, caught):
+    """Runs `todo` with the runner, `--jobs` at a time, into results {(point, seed): summary} (the
+    runs that went to their end), with a progress line each, until all are done or a signal is
+    caught (then no run starts and the running ones are stopped); the failures, one line each."""
+    start = time.monotonic()
+    failures = []
+    jobs = args.jobs or max(1, min(2, os.cpu_count() or 1))
     with ThreadPoolExecutor(max_workers=jobs) as pool:
-        futures = {pool.submit(_run_one, args, point, seed, out / "runs" / run_name(point, seed)): (point, seed)
-                   for point, seed in plan}
-        for done, future in enumerate(as_completed(futures), 1):
-            point, seed = futures[future]
-            summary, code, why = future.result()
-            elapsed = time.monotonic() - start
-            eta = elapsed / done * (len(plan) - done)
-            head = f"[{done}/{len(plan)}] {describe(point, seed)}: "
-            tail = f"  ({duration(elapsed)}; about {duration(eta)} to go)" if done < len(plan) else \
-                f"  ({duration(elapsed)})"
-            if summary is None:
-                failures.append(f"{describe(point, seed)} ({why})")
-                print(head + f"failed: {why}" + tail, flush=True)
-                continue
-            results[(point, seed)] = summary
-            if code != 0:
-                failures.append(f"{describe(point, seed)} (exit code {code}; {out / 'runs' / run_name(point, seed)})")
-            print(head + f"mean global coverage {mean_of(summary, 'global', 'coverage'):.2f}, RMSE after rigid fit "
-                  f"{mean_of(summary, 'global', 'rmse_aligned_m'):.3f} m" + (f", exit code {code}" if code else "")
-                  + tail, flush=True)
-    path = out / "sweep.csv"
-    with open(path, "w", newline="") as f:
+        futures = {pool.submit(_run_one, args, runner, point, seed, out / "runs" / run_name(point, seed)):
+                   (point, seed) for point, seed in todo}
+        pending, done = set(futures), 0
+        while pending:
+            if caught:
+                runner.stop(SWEEP_STOP_GRACE_S)
+                for f in pending:
+                    f.cancel()
+                wait(pending)
+                break
+            finished, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+            for future in finished:
+                point, seed = futures[future]
+                ran = future.result()
+                if ran is None:  # stopped before it started
+                    continue
+                summary, code, why = ran
+                if summary is not None and summary.get("interrupted") and caught:
+                    continue  # stopped by the sweep's stop: not a finished run
+                done += 1
+                elapsed = time.monotonic() - start
+                eta = elapsed / done * (len(todo) - done)
+                head = f"[{done}/{len(todo)}] {describe(point, seed)}: "
+                tail = f"  ({duration(elapsed)}; about {duration(eta)} to go)" if done < len(todo) else \
+                    f"  ({duration(elapsed)})"
+                if summary is None:
+                    failures.append(f"{describe(point, seed)} ({why})")
+                    print(head + f"failed: {why}" + tail, flush=True)
+                    continue
+                results[(point, seed)] = summary
+                if code != 0:
+                    failures.append(f"{describe(point, seed)} (exit code {code}; "
+                                    f"{out / 'runs' / run_name(point, seed)})")
+                print(head + progress_figures(summary, metric) + (f", exit code {code}" if code else "") + tail,
+                      flush=True)
+    return failures
+
+
+def write_csvs(out, keys, plan, results):
+    """DIR/sweep.csv (a row per run and agent) and DIR/sweep_summary.csv (per grid point, metric and
+    group of agents: the median over the seeds of each run's median, its interval and the
+    per-seed figures; scripts/mapmesh/sweep_stats.py) of the finished runs, in the plan's order."""
+    rows = []  # (point, seed, [{column: cell}]) per finished run
+    with open(out / "sweep.csv", "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(keys + SWEEP_HEADER)
         for point, s in plan:
@@ -226,12 +419,54 @@ def cmd_sweep(args):
             if summary is None:
                 continue
             values = [v for _, v in point]
-            w.writerows(values + sweep_row(s if s is not None else "", summary, a) for a in summary["agents"])
-    print(f"csv:  {path}  ({len(results)} of {len(plan)} runs)")
+            lines = [sweep_row(s if s is not None else "", summary, a) for a in summary["agents"]]
+            w.writerows(values + line for line in lines)
+            rows.append((point, s, [dict(zip(SWEEP_HEADER, line)) for line in lines]))
+    with open(out / SUMMARY_CSV, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(keys + SUMMARY_HEADER)
+        for metric in METRICS:
+            for point, group, per_seed, (med, lo, hi, cover) in sweep_stats.summarise(rows, metric):
+                w.writerow([v for _, v in point] + [metric, group, len(per_seed), f"{med:.6g}", f"{lo:.6g}",
+                                                    f"{hi:.6g}", f"{cover:.4f}",
+                                                    " ".join(f"{'' if s is None else s}:{v:.6g}"
+                                                             for s, v in per_seed)])
+
+
+def finish(out, keys, plan, results, failures, caught):
+    """Writes the CSVs and the plot of the finished runs and says what happened; the exit code
+    (130 after a signal)."""
+    write_csvs(out, keys, plan, results)
+    print(f"csv:  {out / 'sweep.csv'}  ({len(results)} of {len(plan)} runs)")
+    print(f"      {out / SUMMARY_CSV}  (median and interval over the seeds per grid point)")
     plotted = bool(results) and plot("sweep.py", out, "sweep plot")
     if plotted:
         print(f"plot: {out / 'sweep.png'}")
+    if results:
+        print(f"reports: scripts/swarm report {out}  (or {out / 'runs' / 'RUN'} for one run)")
+    if caught:
+        print(f"swarm: sweep interrupted ({caught[0]}): {len(results)} of {len(plan)} runs finished and are in "
+              f"sweep.csv; the others did not run to their end; --resume runs them", file=sys.stderr)
+        return 130
     if failures:
         print(f"swarm: {len(failures)} of {len(plan)} runs failed: " + "; ".join(failures), file=sys.stderr)
         return 1
     return 0 if plotted else 1
+
+
+def cmd_report(args):
+    """`swarm report DIR`: the report of a run, or of each finished run of a sweep in DIR."""
+    out = Path(args.dir)
+    if (out / SUMMARY).exists() or not ((out / DEFINITION).exists() or (out / "sweep.csv").exists()):
+        return cmd_report_run(args)
+    runs = sorted(p for p in (out / "runs").glob("*") if p.is_dir() and finished_summary(p) is not None) \
+        if (out / "runs").is_dir() else []
+    if not runs:
+        raise RunError(f"{out}: a sweep with no finished run (scripts/swarm sweep ... --resume --out {out})", 1)
+    written = 0
+    for i, run_dir in enumerate(runs, 1):
+        report = write_report(run_dir)
+        written += report is not None
+        print(f"[{i}/{len(runs)}] report: {report if report else 'not written (above)'}", flush=True)
+    print(f"reports: {written} of {len(runs)} finished runs of {out}")
+    return 0 if written == len(runs) else 1

@@ -10,12 +10,18 @@ nees_global and rmse_global_aligned_m (as `swarm sweep` writes them; the summary
 global.coverage, global.nees_mean and global.rmse_aligned_m are accepted too, with '.' or '_').
 The RMSE panel draws the global map's RMSE after a least-squares rigid fit to the landmark truth,
 the primary accuracy figure (issue 19); a sweep.csv written before it, which has only the RMSE
-in the robot's true frame (rmse_global_m), gets that one, titled so, and a note on stderr. Other
-columns (seed, agent, the true-frame RMSE, ...) are ignored, apart from counting seeds and agents
-in the title. Empty, null, None and nan cells are skipped. The figure has a row of panels per
-parameter, one panel per metric: against the parameter's value, the mean over the seeds and agents
-as a line and their min-max as a shaded band, one line per combination of the other parameters'
-values. A parameter whose values are not all numbers is plotted as categories in order of appearance.
+in the robot's true frame (rmse_global_m), gets that one, titled so, and a note on stderr. The seed
+column groups the rows into runs and the alive column (1/0) says which agents were alive at the
+end; other columns (agent, the true-frame RMSE, ...) are ignored, apart from counting agents.
+Empty, null, None and nan cells are skipped. The figure has a row of panels per
+parameter, one panel per metric: against the parameter's value, one line per combination of the
+other parameters' values, drawn from the runs (scripts/mapmesh/sweep_stats.py, as `swarm sweep`
+writes sweep_summary.csv): per run the median over its agents alive at the end; over the seeds
+their median (the line), the distribution-free interval for the median (the band; its coverage in
+the title: 95 %, or the whole range where the seeds are too few) and each seed's figure (dots).
+Agents dead at the end (killed: their figures froze when they died) are drawn apart, grey, and
+counted in the title; a sweep.csv without the alive column counts every agent alive. A parameter
+whose values are not all numbers is plotted as categories in order of appearance.
 Prints the figure's path on stdout.
 Needs Debian's python3-matplotlib and python3-numpy (scripts/install-deps installs them)."""
 
@@ -27,6 +33,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
 from plotlib import directory_argument, plt, rows  # noqa: E402
+from mapmesh import sweep_stats  # noqa: E402
 from mapmesh.columns import BY_KEY, PLOT_COLUMNS  # noqa: E402
 
 # (column names, first preferred: sweep.csv's, then the summary.json path; panel title; y label)
@@ -64,19 +71,20 @@ def value(cell):
     return v if math.isfinite(v) else None
 
 
-def aggregate(data, column):
-    """[(parameter value, mean, min, max, count)] of a column over the rows of each value, in
-    the order of the parameter values (the keys as given: floats or category names)."""
-    groups = {}
+def aggregate(data, column, numeric):
+    """{group: [(parameter value, median, lo, hi, coverage, [(seed, figure)])]} of a column over the
+    runs (seeds) of each parameter value, in the order of the values (floats ascending, or category
+    names in order of appearance); sweep_stats has the statistics (each run's median over the
+    group's agents, then the median and interval over the seeds)."""
+    runs = {}  # (value, seed) -> rows
     for r in data:
-        key, v = r["_x"], value(r.get(column))
-        groups.setdefault(key, [])
-        if v is not None:
-            groups[key].append(v)
-    out = []
-    for key, vs in groups.items():
-        if vs:
-            out.append((key, sum(vs) / len(vs), min(vs), max(vs), len(vs)))
+        runs.setdefault((r["_x"], r["_seed"]), []).append(r)
+    ordered = [(x, seed, rows) for (x, seed), rows in runs.items()]
+    if numeric:
+        ordered.sort(key=lambda run: run[0])
+    out = {}
+    for x, group, per_seed, (med, lo, hi, cover) in sweep_stats.summarise(ordered, column):
+        out.setdefault(group, []).append((x, med, lo, hi, cover, per_seed))
     return out
 
 
@@ -113,11 +121,16 @@ def main(argv):
         print(f"sweep.py: {csv_path}: none of the columns {', '.join(columns)}", file=sys.stderr)
         return 1
     data = [r for r in data if all((r.get(k) or "").strip() for k in params)]
+    alive_col, agent_col = find_column(header, "alive"), find_column(header, "agent")
+    for r in data:  # a sweep.csv without the alive column: every agent counted alive
+        r["alive"] = "1" if alive_col is None or sweep_stats.group_of(r.get(alive_col)) == "alive" else "0"
+        r["_seed"] = (r.get(seed_col) or "").strip() if seed_col else ""
+    covers = set()
     numeric = {k: all(value(r[k]) is not None for r in data) for k in params}
     categories = {k: list(dict.fromkeys(r[k].strip() for r in data)) for k in params}
 
     fig, axes = plt.subplots(len(params), len(METRICS), figsize=(15, 0.6 + 4.2 * len(params)), squeeze=False)
-    fig.subplots_adjust(left=0.05, right=0.98, top=1 - 0.75 / (0.6 + 4.2 * len(params)),
+    fig.subplots_adjust(left=0.05, right=0.98, top=1 - 0.95 / (0.6 + 4.2 * len(params)),
                         bottom=0.5 / (0.6 + 4.2 * len(params)), wspace=0.25, hspace=0.45)
     for row, param in enumerate(params):
         others = [k for k in params if k != param]
@@ -130,17 +143,31 @@ def main(argv):
             col, title = columns[metric], titles[metric]
             drawn = []
             for i, (rest, group) in enumerate(groups.items()):
-                if numeric[param]:
-                    group = sorted(group, key=lambda r: r["_x"])
-                points = aggregate(group, col) if col else []
-                if not points:
+                by_group = aggregate(group, col, numeric[param]) if col else {}
+                if not by_group:
                     continue
                 color = f"C{i % 10}"
-                xs = [p[0] if numeric[param] else categories[param].index(p[0]) for p in points]
-                label = ", ".join(f"{k}={v}" for k, v in zip(others, rest)) or "mean over seeds and agents"
-                ax.fill_between(xs, [p[2] for p in points], [p[3] for p in points], color=color, alpha=0.15, lw=0)
-                ax.plot(xs, [p[1] for p in points], "o-", color=color, ms=4, label=label)
-                drawn += points
+                label = ", ".join(f"{k}={v}" for k, v in zip(others, rest))
+                for kind, points in by_group.items():
+                    xs = [p[0] if numeric[param] else categories[param].index(p[0]) for p in points]
+                    alive = kind == "alive"
+                    name = (label + ": " if label else "") + ("median" if alive else "killed agents (apart)")
+                    if alive:
+                        ax.fill_between(xs, [p[2] for p in points], [p[3] for p in points], color=color, alpha=0.15,
+                                        lw=0)
+                    ax.plot(xs, [p[1] for p in points], "o-" if alive else "x--", color=color if alive else "grey",
+                            ms=4, lw=1.5 if alive else 1, label=name)
+                    # Each seed's figure, a small shift apart so that equal ones stay visible.
+                    for x, p in zip(xs, points):
+                        seeds = p[5]
+                        width = 0.012 * (max(xs) - min(xs) if numeric[param] and len(xs) > 1 else 1.0)
+                        offs = [(j - (len(seeds) - 1) / 2) * width for j in range(len(seeds))]
+                        ax.scatter([x + o for o in offs], [v for _, v in seeds], s=16, marker="." if alive else "x",
+                                   color=color if alive else "grey", alpha=0.8, zorder=3, lw=0.8)
+                    drawn += [(p[0], p[1], min(p[2], *(v for _, v in p[5])), max(p[3], *(v for _, v in p[5])),
+                               p[4]) for p in points]
+                    if alive:
+                        covers.update(p[4] for p in points)
             if drawn:
                 if not numeric[param]:
                     ax.set_xticks(range(len(categories[param])))
@@ -152,8 +179,7 @@ def main(argv):
                         ax.set_yscale("log")
                 if metric.startswith("coverage"):
                     ax.set_ylim(0, 1.02)
-                ax.legend(fontsize=7, title="line: mean; band: min\u2013max" if not others else
-                          "mean (line), min\u2013max (band) over seeds and agents", title_fontsize=7)
+                ax.legend(fontsize=7, title="line: median over seeds; band: interval; dots: seeds", title_fontsize=7)
             else:
                 ax.text(0.5, 0.5, f"no {metric} values" if col else f"no column {metric}", transform=ax.transAxes,
                         ha="center", va="center", color="grey")
@@ -166,7 +192,14 @@ def main(argv):
         n = distinct(data, header, name)
         if n:
             counts.append(f"{n} {name}s")
-    fig.suptitle(f"sweep of {' x '.join(params)} ({', '.join(counts)}, {len(data)} rows)", fontsize=12)
+    killed = sorted({r["_seed"] + ":" + (r.get(agent_col) or "") for r in data if r["alive"] == "0"}) if agent_col \
+        else [r for r in data if r["alive"] == "0"]
+    cover = (f"interval for the median, coverage {min(covers):.0%}" if covers and min(covers) == max(covers)
+             else f"interval for the median, coverage {min(covers):.0%}-{max(covers):.0%}" if covers else "")
+    fig.suptitle(f"sweep of {' x '.join(params)} ({', '.join(counts)}, {len(data)} rows)\nper run the median over "
+                 f"the agents alive at the end, then over the seeds the median (line) and the {cover} (band)"
+                 + (f"; {len(killed)} agent-runs killed, dead at the end, drawn apart (grey x)" if killed else ""),
+                 fontsize=10)
     out = d / "sweep.png"
     fig.savefig(out, dpi=100)
     plt.close(fig)

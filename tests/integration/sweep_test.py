@@ -1,6 +1,9 @@
 """X1: how `swarm sweep` turns its arguments into runs (scripts/mapmesh/sweep.py), without
 running any: the grid, and every run option given to each run as `swarm run` takes it."""
 
+import json
+import random
+import statistics
 import sys
 import tempfile
 import unittest
@@ -10,7 +13,7 @@ from pathlib import Path
 from swarm_test import REPO
 
 sys.path.insert(0, str(REPO / "scripts"))
-from mapmesh import sweep  # noqa: E402
+from mapmesh import sweep, sweep_stats  # noqa: E402
 from mapmesh.run import RunError  # noqa: E402
 
 swarm = SourceFileLoader("swarm_cli", str(REPO / "scripts" / "swarm")).load_module()
@@ -102,7 +105,8 @@ class SweepBoundsTest(unittest.TestCase):
             with self.assertRaises(RunError) as e:
                 sweep.cmd_sweep(parser.parse_args(argv))
             self.assertEqual(str(e.exception), f"--out {out}: holds an earlier sweep (sweep.csv, runs/ with 1 run); "
-                                               "choose another folder, or add --force to replace it")
+                                               "choose another folder, add --resume to run only its "
+                                               "missing runs, or --force to replace it")
             self.assertEqual(e.exception.exit_code, 2)
             with self.assertRaises(RunError) as e:
                 sweep.cmd_sweep(parser.parse_args(argv + ["--force"]))
@@ -110,6 +114,72 @@ class SweepBoundsTest(unittest.TestCase):
             self.assertEqual((out / "sweep.csv").read_text(), "earlier\n")
             self.assertTrue((out / "runs" / "radio.range_m=5_seed1").is_dir())
             self.assertEqual(sweep.earlier_sweep(out / "runs" / "radio.range_m=5_seed1"), [])
+
+    def test_resume_refuses_another_sweep_and_force_with_it(self):
+        parser = swarm.build_parser()
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp)
+            (out / "sweep.csv").write_text("earlier\n")
+            argv = ["sweep", str(REPO / "scenarios" / "park4.yaml"), "--param", "radio.range_m=5,10", "--out", str(out)]
+            with self.assertRaisesRegex(RunError, "holds no sweep.json"):
+                sweep.cmd_sweep(parser.parse_args(argv + ["--resume"]))
+            args = parser.parse_args(argv)
+            definition = sweep.sweep_definition(args, sweep.parse_params(args.param, None), [None])
+            (out / "sweep.json").write_text(json.dumps(definition))
+            other = argv[:3] + ["radio.range_m=5,20"] + argv[4:] + ["--resume"]
+            with self.assertRaises(RunError) as e:
+                sweep.cmd_sweep(parser.parse_args(other))
+            self.assertEqual(str(e.exception), f'--resume: the sweep in {out} had another grid ([["radio.range_m", '
+                                               '["5", "10"]]], now [["radio.range_m", ["5", "20"]]]); give the same, '
+                                               'or --force to replace it')
+            with self.assertRaisesRegex(RunError, "had another run options"):
+                sweep.cmd_sweep(parser.parse_args(argv + ["--resume", "--kill", "2@10"]))
+            with self.assertRaisesRegex(RunError, "give one"):
+                sweep.cmd_sweep(parser.parse_args(argv + ["--resume", "--force"]))
+            for metric, why in (("nope", "not a figure of sweep.csv"), ("gap_to_central", "needs the reference")):
+                with self.assertRaisesRegex(RunError, why):
+                    sweep.cmd_sweep(parser.parse_args(argv + ["--resume", "--no-reference", "--metric", metric]))
+            self.assertEqual((out / "sweep.csv").read_text(), "earlier\n")
+
+
+class SweepStatsTest(unittest.TestCase):
+    # U1: the sweep plot drew a mean that one outlier (22x) pulled up, with a min-max band.
+    def test_the_interval_holds_the_median_as_often_as_it_says(self):
+        for n in range(1, 40):
+            med, lo, hi, cover = sweep_stats.median_interval(list(range(n, 0, -1)))
+            self.assertEqual(med, statistics.median(range(1, n + 1)))
+            k = lo  # the values are 1..n: the k-th order statistic is k
+            self.assertEqual(hi, n + 1 - k)
+            # The coverage by its own sum: P(k <= B <= n - k), B ~ Binomial(n, 1/2).
+            own = sum(sweep_stats.math.comb(n, i) for i in range(k, n - k + 1)) / 2 ** n
+            self.assertAlmostEqual(cover, own, places=12)
+            if n >= 6:
+                self.assertGreaterEqual(cover, 0.95)
+                wider = sum(sweep_stats.math.comb(n, i) for i in range(k + 1, n - k)) / 2 ** n
+                self.assertLess(wider, 0.95, n)  # the narrowest interval with 95 %
+            else:
+                self.assertEqual((lo, hi), (1, n))  # too few: the whole range, its coverage said
+                self.assertAlmostEqual(cover, 1 - 2 ** (1 - n))
+        # Seeded draws of a skewed law whose median is known (exponential: ln 2): the interval
+        # holds it as often as its coverage says (within four standard errors).
+        rng = random.Random(20261204)
+        for n in (3, 7, 12, 25):
+            trials, hits, cover = 3000, 0, None
+            for _ in range(trials):
+                _, lo, hi, cover = sweep_stats.median_interval([rng.expovariate(1.0) for _ in range(n)])
+                hits += lo <= sweep_stats.math.log(2) <= hi
+            se = (cover * (1 - cover) / trials) ** 0.5
+            self.assertLess(abs(hits / trials - cover), 4 * se + 1e-9, (n, hits / trials, cover))
+
+    def test_each_run_is_one_figure_per_group_and_killed_agents_are_apart(self):
+        rows = [{"alive": "1", "g": "1.0"}, {"alive": "1", "g": "22"}, {"alive": "1", "g": "1.2"},
+                {"alive": "0", "g": "5"}, {"alive": "1", "g": ""}]
+        self.assertEqual(sweep_stats.run_figures(rows, "g"), {"alive": (1.2, 3), "killed": (5.0, 1)})
+        runs = [("p", 1, rows), ("p", 2, [{"alive": "1", "g": "2"}]), ("q", 1, [{"alive": "0", "g": "nan"}])]
+        out = sweep_stats.summarise(runs, "g")
+        self.assertEqual([(p, g, s) for p, g, s, _ in out], [("p", "alive", [(1, 1.2), (2, 2.0)]),
+                                                             ("p", "killed", [(1, 5.0)])])
+        self.assertEqual(out[0][3][:3], (1.6, 1.2, 2.0))
 
 
 if __name__ == "__main__":
