@@ -310,11 +310,18 @@ TEST(PeerSchedule, PropertiesOverSeededRandomTables) {
       const auto f = std::find_if(facts.begin(), facts.end(), [&](const PeerFacts& x) { return x.key == t.key; });
       ASSERT_NE(f, facts.end());
       EXPECT_TRUE(f->has_map);
-      if (t.kind == TurnKind::kAlign || t.kind == TurnKind::kRendezvous) EXPECT_FALSE(f->aligned);
-      if (t.kind == TurnKind::kAlign) EXPECT_FALSE(f->carried);
-      if (t.kind == TurnKind::kRealign || t.kind == TurnKind::kVerify || t.kind == TurnKind::kRefine)
+      if (t.kind == TurnKind::kAlign || t.kind == TurnKind::kRendezvous) {
+        EXPECT_FALSE(f->aligned);
+      }
+      if (t.kind == TurnKind::kAlign) {
+        EXPECT_FALSE(f->carried);
+      }
+      if (t.kind == TurnKind::kRealign || t.kind == TurnKind::kVerify || t.kind == TurnKind::kRefine) {
         EXPECT_TRUE(f->aligned);
-      if (t.kind == TurnKind::kVerify || t.kind == TurnKind::kRefine) EXPECT_FALSE(f->stale);
+      }
+      if (t.kind == TurnKind::kVerify || t.kind == TurnKind::kRefine) {
+        EXPECT_FALSE(f->stale);
+      }
       full += t.kind == TurnKind::kAlign || t.kind == TurnKind::kRealign;
       rendezvous += t.kind == TurnKind::kRendezvous;
       if (last != t.key) {

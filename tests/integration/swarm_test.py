@@ -241,6 +241,19 @@ class RunFolderChoiceTest(SwarmCase):
         r = self.run_into()  # and a second run is refused again
         self.assertEqual(r.returncode, 2, r.stderr)
 
+    def test_a_relative_out_is_the_callers_folder(self):
+        # U1: the processes run in the repository, and a relative --out sent their outputs to
+        # REPO/DIR: the summary in DIR had no maps, silently.
+        name = f"relative_{os.getpid()}"
+        r = subprocess.run(SWARM + ["run", str(DATA / "three.yaml"), "--out", name, "--no-report", "--no-reference"],
+                           capture_output=True, text=True, timeout=120, cwd=self.tmp.name)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertFalse((REPO / name).exists())
+        out = Path(self.tmp.name) / name
+        self.assertTrue(all(a["local"] and a["local"]["landmarks"] > 0
+                            for a in json.loads((out / "summary.json").read_text())["agents"]))
+        self.assertTrue((out / "agent_1" / "local_map.json").exists())
+
 
 class ProvenanceTest(SwarmCase):
     """X1: `--set radio.range_m=11 --set seed=4` left no trace in the run directory; no command

@@ -7,7 +7,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <string>
+#include <utility>
 
 #include "common/config/scenario.h"
 #include "common/merge/submap_network.h"
@@ -19,6 +21,15 @@
 
 namespace mapmesh {
 namespace {
+
+// The reference's options with every other member at its default.
+lab::ReferenceOptions Options(bool known_pose, bool check_start = false, std::map<RobotId, double> until = {}) {
+  lab::ReferenceOptions o;
+  o.known_pose = known_pose;
+  o.check_start = check_start;
+  o.until = std::move(until);
+  return o;
+}
 
 Scenario SmallWorld(int seed) {
   // line3 (three robots, 180 landmarks in a 52 m x 20 m strip) for 90 s, most of a lap: a small
@@ -90,7 +101,7 @@ TEST(ReferenceQuality, CentralOptimumIsConsistentAndBetweenTheFloorAndTheLocalMa
   std::vector<double> ratio;  // fair over known starts, RMSE after a rigid fit
   for (int seed = 1; seed <= 50; ++seed) {
     const Scenario sc = SmallWorld(seed);
-    const lab::Reference ref = lab::ComputeReference(sc, {.check_start = true});
+    const lab::Reference ref = lab::ComputeReference(sc, Options(true, true));
     ASSERT_TRUE(ref.available) << ref.why_none;
     ASSERT_TRUE(ref.known_pose.has_value());
     ASSERT_TRUE(ref.central.rmse_m.has_value());  // in the world frame: the gauge's start is true
@@ -140,7 +151,7 @@ TEST(ReferenceQuality, CentralOptimumIsConsistentAndBetweenTheFloorAndTheLocalMa
 TEST(ReferenceQuality, ARobotsDataStopsWhereItStoppedReachingTheAgent) {
   const Scenario sc = SmallWorld(3);
   const lab::ReferenceInput in = lab::ReadReferenceInput(sc, "");
-  const lab::Reference whole = lab::ComputeReference(sc, {.known_pose = false});
+  const lab::Reference whole = lab::ComputeReference(sc, Options(false));
   ASSERT_TRUE(whole.available);
   const double until = 45.0;
   std::size_t before = 0, after = 0;
@@ -150,7 +161,7 @@ TEST(ReferenceQuality, ARobotsDataStopsWhereItStoppedReachingTheAgent) {
   }
   ASSERT_GT(before, 0u);
   ASSERT_GT(after, 0u);
-  const lab::Reference cut = lab::ComputeReference(sc, {.known_pose = false, .until = {{2, until}}});
+  const lab::Reference cut = lab::ComputeReference(sc, Options(false, false, {{2, until}}));
   ASSERT_TRUE(cut.available);
   EXPECT_EQ(cut.until, (std::map<RobotId, double>{{2, until}}));
   EXPECT_EQ(cut.own.at(2).solution.observations, before);
@@ -159,7 +170,7 @@ TEST(ReferenceQuality, ARobotsDataStopsWhereItStoppedReachingTheAgent) {
   ASSERT_FALSE(cut.central.solution.trajectories.at(2).empty());
   EXPECT_LE(cut.central.solution.trajectories.at(2).back().stamp, until);
   EXPECT_TRUE(cut.central.solution.report.converged);
-  const lab::Reference none = lab::ComputeReference(sc, {.known_pose = false, .until = {{2, 0.0}}});
+  const lab::Reference none = lab::ComputeReference(sc, Options(false, false, {{2, 0.0}}));
   EXPECT_EQ(none.own.at(2).solution.observations, 0u);
   EXPECT_EQ(none.central.solution.observations, whole.central.solution.observations - before - after);
 }
@@ -181,7 +192,7 @@ TEST(ReferenceQuality, ExactWindowsJoinedAreTheOptimum) {
                                      {ParseOverride("seed=" + std::to_string(seed)),
                                       ParseOverride("agent.align_by=overlap")});
     const lab::ReferenceInput in = lab::ReadReferenceInput(sc, "");
-    const lab::Reference ref = lab::ComputeReference(sc, {.known_pose = false});
+    const lab::Reference ref = lab::ComputeReference(sc, Options(false));
     ASSERT_TRUE(ref.available && ref.has_known_starts);
     ASSERT_EQ(ref.central.solution.sightings, 0u);
     ASSERT_EQ(ref.central.solution.components.size(), 1u);

@@ -100,7 +100,7 @@ TEST(Datasets, MissingDirectoryIsOneClearLine) {
     FAIL();
   } catch (const DatasetError& e) {
     EXPECT_EQ(std::string(e.what()),
-              "/nonexistent/datasets/nowhere: MRCLAM dataset directory not found (set MAPMESH_DATASETS or --datasets)");
+              "/nonexistent/datasets/nowhere: MRCLAM dataset directory not found (set MAPMESH_DATASETS, or mapmesh-feeder --datasets)");
   }
   Scenario v = ParseScenario("source: {type: victoria_park}\n", "t.yaml");
   EXPECT_THROW(MakeFeed(v, "/nonexistent/datasets"), DatasetError);

@@ -49,16 +49,16 @@ class SecurityFilesCheck : public ::testing::Test {
 };
 
 TEST_F(SecurityFilesCheck, AKeyMustBeItsCertificatesAndPrivate) {
-  EXPECT_EQ(CheckSecurityFiles({Path("a.pem"), Path("a.key")}), std::nullopt);
-  EXPECT_EQ(CheckSecurityFiles({Path("a.pem"), Path("b.key")}),
+  EXPECT_EQ(CheckSecurityFiles({Path("a.pem"), Path("a.key"), ""}), std::nullopt);
+  EXPECT_EQ(CheckSecurityFiles({Path("a.pem"), Path("b.key"), ""}),
             Path("b.key") + ": the private key does not match the certificate " + Path("a.pem"));
   ::chmod(Path("a.key").c_str(), 0644);
-  EXPECT_EQ(CheckSecurityFiles({Path("a.pem"), Path("a.key")}),
+  EXPECT_EQ(CheckSecurityFiles({Path("a.pem"), Path("a.key"), ""}),
             Path("a.key") + ": the private key is readable by others (mode 0644); chmod 600 it");
   ::chmod(Path("a.key").c_str(), 0400);  // stricter is fine
-  EXPECT_EQ(CheckSecurityFiles({Path("a.pem"), Path("a.key")}), std::nullopt);
-  EXPECT_EQ(CheckSecurityFiles({Path("a.key"), Path("a.key")}), Path("a.key") + ": not a PEM certificate");
-  EXPECT_EQ(CheckSecurityFiles({Path("a.pem"), Path("missing.key")}),
+  EXPECT_EQ(CheckSecurityFiles({Path("a.pem"), Path("a.key"), ""}), std::nullopt);
+  EXPECT_EQ(CheckSecurityFiles({Path("a.key"), Path("a.key"), ""}), Path("a.key") + ": not a PEM certificate");
+  EXPECT_EQ(CheckSecurityFiles({Path("a.pem"), Path("missing.key"), ""}),
             Path("missing.key") + ": cannot read the private key");
 }
 
