@@ -33,7 +33,8 @@ std::optional<Pose2> InterpolatePose(const std::vector<TableRow>& gt, double t) 
 
 ReplayData LoadMrclam(const std::string& dir, const Scenario& scenario) {
   if (!std::filesystem::is_directory(dir)) {
-    throw DatasetError(dir + ": MRCLAM dataset directory not found (set MAPMESH_DATASETS, or mapmesh-feeder --datasets)");
+    throw DatasetError(dir +
+                       ": MRCLAM dataset directory not found (set MAPMESH_DATASETS, or mapmesh-feeder --datasets)");
   }
   ReplayData data;
   std::map<int, int> subject_of_barcode;

@@ -10,7 +10,8 @@ namespace mapmesh {
 
 ReplayData LoadVictoriaPark(const std::string& dir, const Scenario& scenario) {
   if (!std::filesystem::is_directory(dir)) {
-    throw DatasetError(dir + ": Victoria Park dataset directory not found (set MAPMESH_DATASETS, or mapmesh-feeder --datasets)");
+    throw DatasetError(
+        dir + ": Victoria Park dataset directory not found (set MAPMESH_DATASETS, or mapmesh-feeder --datasets)");
   }
   const std::vector<TableRow> inputs = ReadTable(dir + "/inputs.dat", 3);
   const std::vector<TableRow> meas = ReadTable(dir + "/measurements.dat", 4);

@@ -99,8 +99,9 @@ TEST(Datasets, MissingDirectoryIsOneClearLine) {
     MakeFeed(m, "/nonexistent/datasets");
     FAIL();
   } catch (const DatasetError& e) {
-    EXPECT_EQ(std::string(e.what()),
-              "/nonexistent/datasets/nowhere: MRCLAM dataset directory not found (set MAPMESH_DATASETS, or mapmesh-feeder --datasets)");
+    EXPECT_EQ(
+        std::string(e.what()),
+        "/nonexistent/datasets/nowhere: MRCLAM dataset directory not found (set MAPMESH_DATASETS, or mapmesh-feeder --datasets)");
   }
   Scenario v = ParseScenario("source: {type: victoria_park}\n", "t.yaml");
   EXPECT_THROW(MakeFeed(v, "/nonexistent/datasets"), DatasetError);
