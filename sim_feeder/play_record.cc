@@ -10,7 +10,7 @@ namespace mapmesh {
 using io::json;
 
 PlayRecord::PlayRecord(const Scenario& sc, const FeedSource& source, std::vector<ReplayCounts> counts)
-    : sc_(sc), counts_(std::move(counts)) {
+    : sc_(sc), counts_(std::move(counts)), links_(sc.radio.links_period_s) {
   truth_.scenario = sc.name;
   truth_.duration_s = sc.duration_s;
   truth_.landmarks = source.Truth().landmarks;
@@ -27,6 +27,7 @@ PlayRecord::PlayRecord(const Scenario& sc, const FeedSource& source, std::vector
 
 void PlayRecord::Add(const FeedBatch& b) {
   played_until_ = std::max(played_until_, b.stamp);
+  if (b.links) links_.Add(*b.links);
   for (const GroundTruth& g : b.truth) {
     double& next = next_sample_[g.robot_id];
     if (g.stamp + 1e-9 < next) continue;
@@ -58,6 +59,12 @@ void PlayRecord::Write(const std::string& dir, const FeedSource& source, double 
     }
     robots.push_back(e);
   }
+  json spans = json::array();
+  for (const LinkSpans::Span& sp : links_.spans()) spans.push_back({sp.a, sp.b, sp.start, sp.end});
+  const json links = {{"model", std::string(NameOf(kRadioModels, sc_.radio.model))},
+                      {"period_s", sc_.radio.links_period_s},
+                      {"tables", links_.tables()},
+                      {"spans", spans}};
   io::WriteJsonAtomic(dir + "/feeder.json", {{"scenario", sc_.name},
                                              {"source", std::string(NameOf(kSourceTypes, sc_.source.type))},
                                              {"sim_duration_s", sc_.duration_s},
@@ -67,7 +74,8 @@ void PlayRecord::Write(const std::string& dir, const FeedSource& source, double 
                                              {"interrupted", interrupted},
                                              {"sensor_messages_resent", resent},
                                              {"sensor_messages_replayed", replayed},
-                                             {"robots", robots}});
+                                             {"robots", robots},
+                                             {"links", links}});
 }
 
 }  // namespace mapmesh

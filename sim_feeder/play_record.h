@@ -1,7 +1,7 @@
 #pragma once
 // What the feeder played: truth.json (the world and the true trajectories, sampled every
 // feeder.truth_period_s) and feeder.json (what was published per robot, and for datasets what
-// was read).
+// was read; who heard whom, as the link tables published said).
 
 #include <cstdint>
 #include <map>
@@ -11,6 +11,7 @@
 #include "common/config/scenario.h"
 #include "common/io/run_files.h"
 #include "sim_feeder/feed_source.h"
+#include "sim_feeder/radio_model.h"
 #include "sim_feeder/replay_source.h"
 
 namespace mapmesh {
@@ -34,6 +35,7 @@ class PlayRecord {
   std::map<RobotId, double> next_sample_;
   double played_until_ = 0.0;  // the stamp of the last batch played (where an interrupted run stopped)
   std::map<RobotId, std::uint32_t> odom_sent_, scans_sent_;
+  LinkSpans links_;  // who heard whom, as published (feeder.json "links")
 };
 
 }  // namespace mapmesh

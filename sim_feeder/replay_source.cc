@@ -33,8 +33,8 @@ void Truncate(ReplayData& data, double duration_s) {
   data.duration_s = std::min(data.duration_s, duration_s);
 }
 
-ReplaySource::ReplaySource(ReplayData data, const RadioOptions& radio)
-    : data_(std::move(data)), radio_(radio), cursors_(data_.robots.size()) {
+ReplaySource::ReplaySource(ReplayData data, const RadioOptions& radio, std::uint64_t seed)
+    : data_(std::move(data)), radio_(radio), radio_model_(radio, seed), cursors_(data_.robots.size()) {
   truth_.landmarks = data_.landmarks;
   truth_.seen = data_.seen;
   truth_.headings_known = data_.headings_known;
@@ -85,7 +85,7 @@ FeedBatch ReplaySource::Next() {
         unknown.push_back(r.id);
       }
     }
-    RadioLinks links{b.stamp, LinksInRange(known, radio_.range_m)};
+    RadioLinks links{b.stamp, radio_model_.Links(known, b.stamp)};
     if (radio_.range_m > 0.0) {
       for (RobotId u : unknown) {
         for (const RobotStreams& r : data_.robots) {

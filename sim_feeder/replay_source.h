@@ -8,6 +8,7 @@
 
 #include "common/config/scenario.h"
 #include "sim_feeder/feed_source.h"
+#include "sim_feeder/radio_model.h"
 
 namespace mapmesh {
 
@@ -47,7 +48,8 @@ void Truncate(ReplayData& data, double duration_s);
 
 class ReplaySource : public FeedSource {
  public:
-  ReplaySource(ReplayData data, const RadioOptions& radio);
+  // The radio's draws are seeded by `seed` (the scenario's).
+  ReplaySource(ReplayData data, const RadioOptions& radio, std::uint64_t seed = 1);
 
   bool Done() const override;
   FeedBatch Next() override;
@@ -61,6 +63,7 @@ class ReplaySource : public FeedSource {
 
   ReplayData data_;
   RadioOptions radio_;
+  RadioModel radio_model_;
   WorldTruth truth_;
   struct Cursor {
     std::size_t odom = 0, scan = 0, truth = 0;

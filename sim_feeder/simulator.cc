@@ -7,7 +7,7 @@
 namespace mapmesh {
 
 Simulator::Simulator(const Scenario& scenario, World world)
-    : scenario_(scenario), dt_(scenario.world.control_period_s) {
+    : scenario_(scenario), radio_(scenario.radio, scenario.seed), dt_(scenario.world.control_period_s) {
   for (RobotSpec& spec : scenario_.robots) {
     if (spec.path.type != PathType::kPark || world.paths.empty()) continue;
     const Polyline& line = world.paths[spec.path.index % world.paths.size()];
@@ -38,7 +38,7 @@ bool Simulator::Done() const { return step_ > last_step_; }
 RadioLinks Simulator::Links(double stamp) const {
   std::vector<RobotPosition> pos;
   for (const Robot& r : robots_) pos.push_back({r.spec->id, r.pose.x, r.pose.y});
-  return {stamp, LinksInRange(pos, scenario_.radio.range_m)};
+  return {stamp, radio_.Links(pos, stamp)};
 }
 
 Scan Simulator::Sense(Robot& r, double stamp) {

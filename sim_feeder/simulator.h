@@ -9,6 +9,7 @@
 
 #include "common/config/scenario.h"
 #include "sim_feeder/feed_source.h"
+#include "sim_feeder/radio_model.h"
 #include "sim_feeder/robot_sim.h"
 #include "sim_feeder/world.h"
 
@@ -54,6 +55,7 @@ class Simulator : public FeedSource {
   void SenseRobots(std::vector<Scan>& scans, std::size_t first);
 
   Scenario scenario_;
+  RadioModel radio_;  // seeded by the scenario
   WorldTruth truth_;
   std::vector<Robot> robots_;
   std::uint64_t step_ = 0;

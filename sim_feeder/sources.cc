@@ -29,7 +29,7 @@ Feed MakeFeed(Scenario& scenario, const std::string& datasets_root) {
   if (scenario.duration_given) Truncate(data, scenario.duration_s);
   scenario.duration_s = data.duration_s;
   feed.counts = data.counts;
-  feed.source = std::make_unique<ReplaySource>(std::move(data), scenario.radio);
+  feed.source = std::make_unique<ReplaySource>(std::move(data), scenario.radio, scenario.seed);
   return feed;
 }
 

@@ -143,8 +143,34 @@ struct RobotSpec {
   SensorOptions sensor;
 };
 
+// How the feeder decides who hears whom (sim_feeder/radio_model.h; docs/SCENARIOS.md "radio").
+enum class RadioModelKind { kDisc, kLogDistance };
+inline constexpr ChoiceTable<RadioModelKind, 2> kRadioModels{
+    {{RadioModelKind::kDisc, "disc"}, {RadioModelKind::kLogDistance, "log_distance"}}};
+
+// A wall between two points: the radio's line of sight through it is blocked (disc) or loses
+// wall_loss_db (log_distance).
+struct RadioWall {
+  Eigen::Vector2d a = Eigen::Vector2d::Zero();
+  Eigen::Vector2d b = Eigen::Vector2d::Zero();
+};
+
 struct RadioOptions {
-  double range_m = 20.0;               // robots further apart cannot hear each other
+  RadioModelKind model = RadioModelKind::kDisc;
+  // disc: robots further apart cannot hear each other; log_distance: the distance at which a link
+  // in the open is up half the time (the mean received power there is the receiver's threshold);
+  // 0: nobody hears anybody.
+  double range_m = 20.0;
+  // log_distance: received power falls by 10 n log10(d / range_m) dB (n the exponent), plus a
+  // log-normal shadowing of sigma dB per link, drawn again every shadowing_period_s, plus
+  // wall_loss_db per wall crossed; a table's link is up when the margin left, with the packet
+  // error curve's own normal spread of packet_error_width_db, is positive.
+  double path_loss_exponent = 3.0;
+  double shadowing_sigma_db = 6.0;
+  double shadowing_period_s = 10.0;
+  double packet_error_width_db = 2.0;
+  double wall_loss_db = 6.9;
+  std::vector<RadioWall> walls;
   double loss_probability = 0.0;       // chance that a map message is dropped
   double bandwidth_bytes_per_s = 0.0;  // per link; 0 means unlimited
   double links_period_s = 0.5;         // how often the feeder publishes the link table

@@ -70,6 +70,38 @@ std::vector<Eigen::Vector2d> ReadPoints(YamlReader& r, const std::string& key, i
   return pts;
 }
 
+// Reads a list of at most kMaxRadioWalls walls [x1, y1, x2, y2], each with two distinct ends.
+std::vector<RadioWall> ReadWalls(YamlReader& r, const std::string& key) {
+  std::vector<RadioWall> walls;
+  const YAML::Node n = r.Raw(key);
+  if (!n || n.IsNull()) return walls;
+  if (!n.IsSequence()) r.Fail(key, "expected a list of walls [x1, y1, x2, y2]");
+  if (n.size() > static_cast<std::size_t>(limits::kMaxRadioWalls)) {
+    r.Fail(key, "at most " + std::to_string(limits::kMaxRadioWalls) + " walls (got " + std::to_string(n.size()) + ")");
+  }
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    const YAML::Node& w = n[i];
+    const std::string path = r.KeyPath(key) + "[" + std::to_string(i) + "]";
+    std::vector<double> v;
+    if (w.IsSequence() && w.size() == 4) {
+      try {
+        for (const YAML::Node& x : w) v.push_back(x.as<double>());
+      } catch (const YAML::Exception&) {
+        v.clear();
+      }
+    }
+    if (v.size() != 4) r.FailAt(w, path, "expected a wall [x1, y1, x2, y2] of numbers");
+    for (double x : v) {
+      if (!std::isfinite(x) || std::abs(x) > kMaxCoordinateM) {
+        r.FailAt(w, path, "coordinates must be finite and within +-" + FormatNumber(kMaxCoordinateM) + " m");
+      }
+    }
+    if (v[0] == v[2] && v[1] == v[3]) r.FailAt(w, path, "a wall's two ends must differ");
+    walls.push_back({{v[0], v[1]}, {v[2], v[3]}});
+  }
+  return walls;
+}
+
 // Reads "x,y" rows; blank lines, '#' comments and a non-numeric header row are skipped. The
 // file must be a regular, readable file of at most kMaxCsvBytes holding 1 to kMaxLandmarks rows.
 std::vector<Eigen::Vector2d> ReadLandmarkCsv(YamlReader& r, const std::string& key, const std::string& path) {
@@ -338,7 +370,19 @@ void ReadPath(YamlReader p, PathOptions& o, const Rect& world_bounds) {
 
 RadioOptions ReadRadio(YamlReader r) {
   RadioOptions o;
+  r.GetChoice("model", o.model, kRadioModels);
   r.GetInRange("range_m", o.range_m, 0.0, kMaxLengthM);
+  const bool log_distance = o.model == RadioModelKind::kLogDistance;
+  for (const char* key :
+       {"path_loss_exponent", "shadowing_sigma_db", "shadowing_period_s", "packet_error_width_db", "wall_loss_db"}) {
+    if (!log_distance && r.Has(key)) r.Fail(key, "only with radio.model: log_distance");
+  }
+  r.GetPositiveUpTo("path_loss_exponent", o.path_loss_exponent, limits::kMaxPathLossExponent);
+  r.GetInRange("shadowing_sigma_db", o.shadowing_sigma_db, 0.0, limits::kMaxDecibels);
+  r.GetInRange("shadowing_period_s", o.shadowing_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
+  r.GetInRange("packet_error_width_db", o.packet_error_width_db, 0.0, limits::kMaxDecibels);
+  r.GetInRange("wall_loss_db", o.wall_loss_db, 0.0, limits::kMaxDecibels);
+  o.walls = ReadWalls(r, "walls");
   r.GetInRange("loss_probability", o.loss_probability, 0.0, 1.0);
   r.GetInRange("bandwidth_bytes_per_s", o.bandwidth_bytes_per_s, 0.0, limits::kMaxBandwidthBytesPerS);
   r.GetInRange("links_period_s", o.links_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);

@@ -20,7 +20,8 @@ import math
 import sys
 
 from .mcap import Writer
-from .rundir import (HISTORY, TRAJECTORY, TRUTH, alignment_changes, pose_at, radio_links, read_history, read_json,
+from .rundir import (HISTORY, TRAJECTORY, TRUTH, alignment_changes, links_from_spans, pose_at, published_spans,
+                     radio_links, read_history, read_json,
                      truth_robots)
 
 CHI2_95_2DOF = 5.991464547107979  # the 95 % quantile of chi-square with 2 degrees of freedom
@@ -190,12 +191,16 @@ def export_mcap(run, summary, path):
                 w.message(ch, ns(t), map_update(m, f"agent_{rid}", f"agent_{rid}/{kind}_map", t,
                                                 dict(colours[rid], a=0.5 if kind == "local" else 0.8)))
 
-    # Radio links from the true positions, as the feeder computes them (radio.range_m).
+    # Radio links as the feeder published them (feeder.json), or for a run written before it
+    # recorded them, from the true positions and radio.range_m (the disc).
     resolved = (run.read_if_present("run.json") or {}).get("resolved") or {}
     range_m, period = resolved.get("radio.range_m"), resolved.get("radio.links_period_s") or 0.5
-    if isinstance(range_m, (int, float)) and duration and len(robots) > 1:
+    published = published_spans(run.read_if_present("feeder.json"))
+    if (published is not None or isinstance(range_m, (int, float))) and duration and len(robots) > 1:
         ch = w.channel("/radio/links", "foxglove.SceneUpdate", SCENE_UPDATE)
-        for t, pairs in radio_links(robots, range_m, period, duration):
+        tables = links_from_spans(published, period, duration) if published is not None else \
+            radio_links(robots, range_m, period, duration)
+        for t, pairs in tables:
             points = []
             for ra, rb in pairs:
                 pa, pb = pose_at(robots[ra]["trajectory"], t), pose_at(robots[rb]["trajectory"], t)

@@ -217,6 +217,29 @@ def radio_spans(links, period_s):
     return spans
 
 
+def published_spans(feeder):
+    """{(a, b): [(start, end)]} of feeder.json's "links" (the tables the feeder published, whatever
+    radio.model decided), or None for a feeder.json written before it recorded them."""
+    links = (feeder or {}).get("links") if isinstance(feeder, dict) else None
+    if not isinstance(links, dict) or not isinstance(links.get("spans"), list):
+        return None
+    spans = {}
+    for a, b, start, end in links["spans"]:
+        spans.setdefault((min(a, b), max(a, b)), []).append((start, end))
+    return spans
+
+
+def links_from_spans(spans, period_s, duration_s):
+    """[(t, [(a, b), ...])] every period_s from 0 to duration_s, as radio_links gives them, from
+    the spans of published_spans: the pairs whose span holds t."""
+    out = []
+    for k in range(int(math.floor(duration_s / period_s + 1e-9)) + 1):
+        t = k * period_s
+        out.append((t, sorted(pair for pair, runs in spans.items()
+                              if any(start - 1e-9 <= t < end - 1e-9 for start, end in runs))))
+    return out
+
+
 def read_history(path):
     """The entries of an agent's history.jsonl (a line cut short by a kill is skipped)."""
     out = []

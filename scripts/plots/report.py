@@ -48,8 +48,8 @@ sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
 from plotlib import directory_argument, ellipse95, plt  # noqa: E402
 from mapmesh.columns import HTML_COLUMNS, lookup  # noqa: E402
 from mapmesh.rundir import (GLOBAL_MAP, HISTORY, LOCAL_MAP, REPORT, STATS, SUMMARY, TIMELINE,  # noqa: E402
-                            TRAJECTORY, TRUTH, RunDir, alignment_changes, pose_at, radio_links, radio_spans,
-                            read_history, truth_robots)
+                            TRAJECTORY, TRUTH, RunDir, alignment_changes, pose_at, published_spans, radio_links,
+                            radio_spans, read_history, truth_robots)
 
 import numpy as np  # noqa: E402
 from matplotlib.collections import PatchCollection  # noqa: E402
@@ -159,8 +159,13 @@ class Run(RunDir):
         self.links_period = resolved.get("radio.links_period_s") or 0.5
 
     def radio_spans(self):
-        """{(a, b): [(start, end)]} in which robots a < b were in radio range (truth and
-        radio.range_m of run.json), or {} when the run does not say its range."""
+        """{(a, b): [(start, end)]} in which robots a < b heard each other: the link tables the
+        feeder published (feeder.json, whatever radio.model decided); for a run written before
+        the feeder recorded them, from the truth and radio.range_m of run.json (the disc), or {}
+        when the run does not say its range."""
+        published = published_spans(self.load("feeder.json", quiet=True))
+        if published is not None:
+            return published
         if not isinstance(self.range_m, (int, float)) or not self.duration or not self.truth_robots:
             return {}
         return radio_spans(radio_links(self.truth_robots, self.range_m, self.links_period, self.duration),
