@@ -147,7 +147,7 @@ class Run(RunDir):
         self.timeline = self.load(TIMELINE, quiet=True)
         self.agents = [a for a in self.summary.get("agents", []) if isinstance(a, dict)]
         self.ids = [a.get("id") for a in self.agents]
-        self.colours = {rid: plt.get_cmap("tab10")(i % 10) for i, rid in enumerate(self.ids)}
+        self.colours, self.groups = agent_colours(self.ids)
         self.truth_robots = truth_robots(self.truth)
         # Kills and restarts as the summary and the timeline list them (the same, normally).
         self.kills = events(self.summary.get("kills"), (self.timeline or {}).get("kills"))
@@ -187,6 +187,45 @@ class Run(RunDir):
             back = [r for i, r in self.restarts if i == rid and r >= t]
             out.append((t, min(back) if back else (self.duration or t)))
         return out
+
+
+# Up to this many agents each has a colour of its own; beyond, the agents are cut into at most
+# COLOUR_GROUPS groups of consecutive ids, a hue each (shades within it), and legends name groups.
+DISTINCT_COLOURS = 16
+COLOUR_GROUPS = 8
+
+
+def agent_colours(ids):
+    """({id: RGBA}, [(label, RGBA, [ids])]): a colour per agent, distinct up to DISTINCT_COLOURS
+    (tab10, then tab20 with its dark shades first), grouped beyond (groups empty when not)."""
+    n = len(ids)
+    if n <= 10:
+        return {rid: plt.get_cmap("tab10")(i) for i, rid in enumerate(ids)}, []
+    if n <= DISTINCT_COLOURS:
+        order = list(range(0, 20, 2)) + list(range(1, 20, 2))  # the dark shade of each hue, then the light
+        return {rid: plt.get_cmap("tab20")(order[i]) for i, rid in enumerate(ids)}, []
+    size = -(-n // COLOUR_GROUPS)
+    colours, groups = {}, []
+    for g in range(0, n, size):
+        members = ids[g:g + size]
+        base = np.array(plt.get_cmap("tab10")(len(groups)))
+        for j, rid in enumerate(members):  # shades from the hue to a lighter one
+            mix = 0.45 * j / max(1, len(members) - 1)
+            colours[rid] = tuple(base[:3] * (1 - mix) + mix) + (1.0,)
+        groups.append((f"agents {members[0]}-{members[-1]}" if len(members) > 1 else f"agent {members[0]}",
+                       tuple(base), members))
+    return colours, groups
+
+
+def agent_label(run, rid):
+    """The legend label of agent rid's line: its own, or its group's on the group's first agent
+    (None on the others: one legend entry per group)."""
+    if not run.groups:
+        return f"agent {rid}"
+    for label, _, members in run.groups:
+        if rid == members[0]:
+            return label
+    return None
 
 
 def pauses_text(pauses):
@@ -284,9 +323,11 @@ def draw_estimates(ax, local, glob, traj, local_frame, global_frame, handles, ex
             continue
         xy = to_world(frame, xy)
         is_local = marker == "o"
+        # The global map's ellipses (most of them the peers' landmarks) light and thin, so that the
+        # local map drawn over them shows.
         ax.add_collection(PatchCollection(ellipse_patches(xy, covs, frame[2] if frame else 0.0), facecolor="none",
-                                          edgecolor=colour, linewidth=1.0 if is_local else 0.8,
-                                          alpha=1.0 if is_local else 0.75, zorder=z))
+                                          edgecolor=colour, linewidth=1.0 if is_local else 0.6,
+                                          alpha=1.0 if is_local else 0.4, zorder=z))
         ax.scatter(xy[:, 0], xy[:, 1], s=9 if is_local else 16, marker=marker, c=[colour], zorder=z,
                    linewidths=0 if is_local else 0.9)
         handles.append(Line2D([], [], ls="-", lw=0.8, marker=marker, ms=5, color=colour,
@@ -435,7 +476,7 @@ def agent_lines(ax, run, tl, value, cumulative=False, ls="-", labels=True):
         t, v = series(entries, value, cumulative, breaks=[k for i, k in run.kills if i == rid])
         if np.any(np.isfinite(v)):
             ax.plot(t, v, ls=ls, marker=".", ms=3, lw=1.2, color=run.colours.get(rid, "grey"),
-                    label=f"agent {rid}" if labels else None)
+                    label=agent_label(run, rid) if labels else None)
             drawn = True
     return drawn
 
@@ -464,7 +505,78 @@ def typical_period(tl):
     return steps[len(steps) // 2] if steps else 1.0
 
 
+# Up to this many agents the exchanges are a timeline, a row per (receiver, sender); beyond, a
+# matrix (the rows grow with the square of the swarm: 240 rows, 6,880 px at 16 agents).
+EXCHANGE_ROWS_AGENTS = 8
+
+
 def exchanges_figure(run, tl, period, path):
+    """The map exchanges: a timeline up to EXCHANGE_ROWS_AGENTS agents, else a matrix; returns
+    the kind drawn ("timeline" or "matrix")."""
+    if len(tl) <= EXCHANGE_ROWS_AGENTS:
+        exchanges_timeline(run, tl, period, path)
+        return "timeline"
+    exchanges_matrix(run, tl, path)
+    return "matrix"
+
+
+def exchanges_matrix(run, tl, path):
+    """Receiver (row) by sender (column): the share of the run the two were linked by the radio
+    (shade), the maps the receiver got from the sender (dot, its area by the count) and whether
+    it held the sender aligned at the end (a black frame). Its size does not grow past 1,200 px."""
+    ids = [r for r in run.ids if r in tl] or list(tl)
+    n = len(ids)
+    index = {rid: i for i, rid in enumerate(ids)}
+    linked, received = np.zeros((n, n)), np.zeros((n, n))
+    spans = run.radio_spans()
+    for (a, b), runs in spans.items():
+        if a in index and b in index and run.duration:
+            share = sum(max(0.0, min(end, run.duration) - start) for start, end in runs) / run.duration
+            linked[index[a], index[b]] = linked[index[b], index[a]] = min(1.0, share)
+    for r in ids:
+        last = {}
+        for e in tl.get(r, []):  # each incarnation counts from 0: the most of each, summed
+            inc = e.get("incarnation")
+            for k, v in (e.get("maps_received_from") or {}).items():
+                if isinstance(v, (int, float)):
+                    last[(inc, k)] = max(last.get((inc, k), 0), v)
+        for (_, k), v in last.items():
+            s = int(k) if str(k).lstrip("-").isdigit() else None
+            if s in index:
+                received[index[r], index[s]] += v
+    side = min(12.0, max(6.0, 0.17 * n + 3.0))
+    fig, ax = plt.subplots(figsize=(side + 1.6, side))
+    fig.subplots_adjust(left=0.1, right=0.9, top=0.92, bottom=0.11)
+    image = ax.imshow(linked, cmap="Greens", vmin=0, vmax=1, origin="upper", aspect="equal")
+    fig.colorbar(image, ax=ax, fraction=0.04, pad=0.02, label="share of the run linked by the radio")
+    if received.max() > 0:
+        ys, xs = np.nonzero(received)
+        ax.scatter(xs, ys, s=4 + 60 * received[ys, xs] / received.max() * (16 / max(16, n)), c="tab:blue",
+                   alpha=0.8, linewidths=0, label="maps received (area: count)")
+    aligned = {a.get("id"): set(a.get("peers_aligned") or []) for a in run.agents}
+    frames = [(index[r], index[p]) for r in ids for p in aligned.get(r, ()) if p in index]
+    if frames:
+        ax.scatter([x for _, x in frames], [y for y, _ in frames], s=30 * (16 / max(16, n)) + 8, marker="s",
+                   facecolors="none", edgecolors="black", linewidths=0.8, label="aligned at the end")
+    dead = [index[rid] for rid, _ in run.kills if rid in index and not next(
+        (a.get("alive_at_end", True) for a in run.agents if a.get("id") == rid), True)]
+    for y in dead:
+        ax.axhline(y, color="red", lw=0.8, alpha=0.6)
+    step = max(1, n // 16)
+    ax.set_xticks(range(0, n, step))
+    ax.set_xticklabels([str(ids[i]) for i in range(0, n, step)], fontsize=8)
+    ax.set_yticks(range(0, n, step))
+    ax.set_yticklabels([str(ids[i]) for i in range(0, n, step)], fontsize=8)
+    ax.set_xlabel("sender")
+    ax.set_ylabel("receiver")
+    ax.set_title(f"who heard whom over the run ({n} agents); red line: an agent dead at the end", fontsize=10)
+    if received.max() > 0 or frames:
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.05), ncol=2, fontsize=8, frameon=False)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def exchanges_timeline(run, tl, period, path):
     """A row per (receiver, sender): a bar over each period (s) in which the receiver's count of
     maps from the sender grew. Kills and restarts marked on the receiver's rows."""
     receivers = list(tl)
@@ -583,6 +695,40 @@ def rmse_figure(run, tl, path):
                      after=lambda ax: ax.set_ylim(bottom=0))
 
 
+# A global coverage that falls by this share between two checkpoints of one incarnation is an
+# event the coverage figure's caption names, with the alignments the agent dropped meanwhile.
+COVERAGE_DROP = 0.2
+
+
+def coverage_drops(run, tl):
+    """[(agent, t_before, before, t_after, after, [peers whose alignment it dropped by t_after])]:
+    each fall of an agent's global coverage by COVERAGE_DROP or more between two checkpoints of
+    one incarnation, in time order."""
+    drops = []
+    for rid, entries in tl.items():
+        dropped = [(t, peer) for t, peer, now in run.alignments(rid) if not now]
+        for a, b in zip(entries, entries[1:]):
+            ca, cb = lookup(a, "global.coverage"), lookup(b, "global.coverage")
+            if a.get("incarnation") != b.get("incarnation") or not all(
+                    isinstance(c, (int, float)) for c in (ca, cb)) or ca - cb < COVERAGE_DROP:
+                continue
+            drops.append((rid, a["t"], ca, b["t"], cb, sorted({p for t, p in dropped if a["t"] < t <= b["t"]})))
+    return sorted(drops, key=lambda d: (d[3], str(d[0])))
+
+
+def drops_text(drops, most=6):
+    """The caption's words on coverage_drops (at most `most` named, the rest counted)."""
+    if not drops:
+        return ""
+    items = [f"agent {rid} {before:.2f} \u2192 {after:.2f} at {t0:g}-{t1:g} s"
+             + (f" (dropped its alignment of {', '.join(map(str, peers))})" if peers else "")
+             for rid, t0, before, t1, after, peers in drops[:most]]
+    more = f"; {len(drops) - most} more" if len(drops) > most else ""
+    return (f" Falls of a global coverage by {COVERAGE_DROP:.0%} or more between two checkpoints: "
+            + "; ".join(items) + more + ". A dropped alignment takes that peer's landmarks out of the global map "
+            "until the peer is aligned again.")
+
+
 def coverage_figure(run, tl, path):
     fig, ax = plt.subplots(figsize=(11, 4.8))
     fig.subplots_adjust(left=0.07, right=0.98, top=0.86, bottom=0.24)
@@ -618,8 +764,11 @@ CSS = """
 body { font-family: sans-serif; margin: 1.5em; color: #222; max-width: 1600px; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
 table { border-collapse: collapse; font-size: 0.85em; margin: 0.6em 0; }
-table#summary { font-size: 0.72em; }
-table#summary th, table#summary td { padding: 0.15em 0.3em; }
+table.summary { font-size: 0.78em; }
+table.summary th, table.summary td { padding: 0.15em 0.35em; }
+table.summary th { max-width: 9em; }
+h3 { font-size: 1em; margin: 1em 0 0.2em 0; }
+div.side { display: flex; flex-wrap: wrap; column-gap: 2em; align-items: flex-start; }
 div.wide { overflow-x: auto; }
 th, td { border: 1px solid #ccc; padding: 0.2em 0.5em; }
 th { background: #f0f0f0; }
@@ -630,6 +779,7 @@ ul.flags { color: #8a1010; }
 img { max-width: 100%; height: auto; border: 1px solid #eee; margin: 0.4em 0; }
 .note { color: #7a4b00; }
 figure { margin: 0 0 1.2em 0; } figcaption { font-size: 0.85em; color: #555; }
+ul.terms { font-size: 0.85em; color: #444; }
 """
 
 
@@ -660,21 +810,45 @@ def flags_html(run):
             '<ul id="flags" class="flags">' + "".join(f"<li>{esc(i)}</li>" for i in items) + "</ul>")
 
 
+# The summary's columns (HTML_COLUMNS, in their order) cut into tables that each fit a 1400 px
+# page: (id, heading, key of its first column); the later tables repeat the agent column.
+SUMMARY_TABLES = [("summary", "The maps", "id"),
+                  ("summary-limit", "Against the limit (1: the limit; docs/EXPERIMENTS.md \"The limit\")",
+                   "global.central_rmse_aligned_m"),
+                  ("summary-traffic", "The path and the traffic", "local.trajectory_ate_aligned_m")]
+
+
+def summary_parts():
+    """[(table id, heading, [columns])]: HTML_COLUMNS cut at each SUMMARY_TABLES first key."""
+    starts = [next(i for i, c in enumerate(HTML_COLUMNS) if c.key == key) for _, _, key in SUMMARY_TABLES]
+    ends = starts[1:] + [len(HTML_COLUMNS)]
+    return [(tid, head, HTML_COLUMNS[a:b]) for (tid, head, _), a, b in zip(SUMMARY_TABLES, starts, ends)]
+
+
 def summary_table(run):
-    out = ['<table id="summary">', "<tr>" + "".join(f'<th data-key="{esc(c.key)}">{esc(c.html)}</th>'
-                                                    for c in HTML_COLUMNS) + "</tr>"]
-    for a in run.agents:
-        cls = "" if a.get("alive_at_end", True) else ' class="dead"'
-        cells = []
-        for c in HTML_COLUMNS:
-            v = c.value(a)
-            num = isinstance(v, (int, float, list)) and not isinstance(v, bool)
-            classes = (["num"] if num else []) + (["flag"] if c.key in NEES_KEYS and outside_band(v) else [])
-            cls_num = f' class="{" ".join(classes)}"' if classes else ""
-            cells.append(f'<td data-key="{esc(c.key)}" data-value="{esc(json.dumps(v))}"{cls_num}>'
-                         f"{esc(cell_text(v, c.count))}</td>")
-        out.append(f'<tr data-agent="{esc(a.get("id"))}"{cls}>' + "".join(cells) + "</tr>")
-    out.append("</table>")
+    """The summary tables: each agent's figures, a row per agent, a table per SUMMARY_TABLES."""
+    out = []
+    for n, (tid, head, columns) in enumerate(summary_parts()):
+        agent_th = '<th class="agent">agent</th>' if n else ""
+        if n == 1:
+            out.append('<div class="side">')  # the later tables side by side where the page has room
+        out += ["<div>" if n else "", f'<h3>{esc(head)}</h3>', f'<table id="{tid}" class="summary">',
+                "<tr>" + agent_th + "".join(f'<th data-key="{esc(c.key)}">{esc(c.html)}</th>' for c in columns)
+                + "</tr>"]
+        for a in run.agents:
+            cls = "" if a.get("alive_at_end", True) else ' class="dead"'
+            cells = [f'<td class="agent num">{esc(a.get("id"))}</td>'] if n else []
+            for c in columns:
+                v = c.value(a)
+                num = isinstance(v, (int, float, list)) and not isinstance(v, bool)
+                classes = (["num"] if num else []) + (["flag"] if c.key in NEES_KEYS and outside_band(v) else [])
+                cls_num = f' class="{" ".join(classes)}"' if classes else ""
+                cells.append(f'<td data-key="{esc(c.key)}" data-value="{esc(json.dumps(v))}"{cls_num}>'
+                             f"{esc(cell_text(v, c.count))}</td>")
+            out.append(f'<tr data-agent="{esc(a.get("id"))}"{cls}>' + "".join(cells) + "</tr>")
+        out.append("</table>" + ("</div>" if n else ""))
+    if len(SUMMARY_TABLES) > 1:
+        out.append("</div>")
     return "\n".join(out)
 
 
@@ -744,7 +918,19 @@ robot's own optimum's: 1 is the limit. The optimum that also knows every robot's
 agent does, is beside it (<i>global RMSE / optimum with the true starts</i>).{apart}</p>
 <table id="reference-table"><tr><th>map</th><th>landmarks</th><th>RMSE after rigid fit (m)</th>
 <th>RMSE, world frame (m)</th><th>NEES</th><th>converged</th><th>solve (s)</th></tr>
-{''.join(rows)}</table>"""
+{''.join(rows)}</table>
+<ul id="reference-terms" class="terms">
+<li><b>loss</b>: the robust loss on each reading's residual ({esc(ref.get('loss', 'none'))}; none: plain least
+squares, the optimum for Gaussian noise, as in simulated worlds; real datasets use a Cauchy loss against
+their heavy-tailed ranges).</li>
+<li><b>converged</b>: the solver stopped because the step no longer lowered the cost, not at its iteration
+cap; NO means the figures are of an unfinished solve.</li>
+<li><b>RMSE after rigid fit</b>: after the least-squares rigid fit of the whole map to the true landmarks (the
+accuracy figure); <b>world frame</b>: as the solve's gauge places it, with the frame's own error.</li>
+<li><b>a ratio below 1</b>: a map better than the optimum on the same landmarks. The optimum is the best
+estimate on average, not in every run: one robot's own map (gap to own batch optimum) or a map of few
+landmarks can beat it in one realisation of the noise by some percent.</li>
+</ul>"""
 
 
 def write_report(d):
@@ -768,7 +954,7 @@ def write_report(d):
     if run.timeline is not None:
         tl = timeline_entries(run)
         period = run.timeline.get("period_s") or typical_period(tl)
-        exchanges_figure(run, tl, period, out / "exchanges.png")
+        exchanges = exchanges_figure(run, tl, period, out / "exchanges.png")
         rmse_figure(run, tl, out / "rmse.png")
         nees_figure(run, tl, out / "nees.png")
         coverage_figure(run, tl, out / "coverage.png")
@@ -778,13 +964,19 @@ def write_report(d):
                         "Each map's accuracy over time: its RMSE after a least-squares rigid fit of the whole map "
                         "to the landmark truth, at each checkpoint. No line across the time an agent was dead."),
             figure_html("report/exchanges.png", "radio, map exchanges and alignments over time",
-                        "Per receiver \u2190 sender: when the two were within radio range, the checkpoint periods "
-                        f"({seconds(period)}) in which maps arrived, and when the receiver aligned the sender."),
+                        "Per receiver \u2190 sender: when the radio linked the two (as the feeder published the "
+                        f"links), the checkpoint periods ({seconds(period)}) in which maps arrived, and when the "
+                        "receiver aligned the sender." if exchanges == "timeline" else
+                        "Who heard whom: per receiver (row) and sender (column), the share of the run the radio "
+                        "linked them (as the feeder published the links), the maps received, and the peers "
+                        f"aligned at the end (over {EXCHANGE_ROWS_AGENTS} agents a matrix: a row per pair "
+                        "would grow with the square of the swarm)."),
             figure_html("report/nees.png", "NEES over time",
                         "Mean NEES of the matched landmarks over time, each map kind on its own axis; 2 is the "
                         f"expected value of a consistent estimate, and a map outside [{NEES_BAND[0]:g}, "
                         f"{NEES_BAND[1]:g}] is flagged in the summary."),
-            figure_html("report/coverage.png", "coverage over time", "Coverage of the seen true landmarks."),
+            figure_html("report/coverage.png", "coverage over time",
+                        "Coverage of the seen true landmarks." + drops_text(coverage_drops(run, tl))),
             figure_html("report/bytes.png", "bytes exchanged over time",
                         "Bytes sent and received, cumulative over an agent's incarnations."),
         ]

@@ -262,7 +262,7 @@ class _Page(HTMLParser):
             self._figure_agent = a.get("data-agent")
         if tag == "figcaption":
             self._caption = ""
-        if tag == "table" and a.get("id") == "summary":
+        if tag == "table" and a.get("id", "").startswith("summary"):  # the summary's tables, in order
             self._in_summary = True
         if tag == "ul" and a.get("id") == "flags":
             self._in_flags = True
@@ -276,7 +276,7 @@ class _Page(HTMLParser):
         elif tag == "th" and "data-key" in a:
             self.header_keys.append(a["data-key"])
             self._header = ""
-        elif tag == "td" and self._row is not None:
+        elif tag == "td" and self._row is not None and "data-key" in a:  # not a later table's agent column
             self._cell = [a.get("data-key"), a.get("data-value"), ""]
             if "flag" in (a.get("class") or "").split():
                 self.flagged.add((self._row_agent, a.get("data-key")))
@@ -605,6 +605,68 @@ class SweepTest(unittest.TestCase):
 
     def test_help_and_missing_directory(self):
         _check_help_and_missing(self, SWEEP, "sweep.csv", "scripts/swarm sweep ...")
+
+
+class ReportLayoutTest(unittest.TestCase):
+    """U1 (looked at in headless Chromium at 1400 px): the 24-column table needed a horizontal
+    scrollbar, past 10 agents the colours repeated, and the exchange chart was 6,880 px tall at 16
+    agents. Real runs of park4 at 4, 16 and 64 agents (64: label slow)."""
+
+    def check_layout(self, agents, duration_s):
+        sys.path.insert(0, str(REPORT.parent))
+        import report as report_module  # noqa: E402 (scripts/plots/report.py: needs matplotlib)
+        with tempfile.TemporaryDirectory(prefix="mapmesh_layout_") as tmp:
+            out = Path(tmp) / "run"
+            r = subprocess.run([sys.executable, str(REPO / "scripts" / "swarm"), "run", str(REPO / "scenarios" /
+                                "park4.yaml"), "--agents", str(agents), "--set", f"duration_s={duration_s}",
+                                "--kill", "2@10", "--quiet", "--out", str(out)],
+                               capture_output=True, text=True, timeout=1200)
+            self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+            facts = check_in_browser(self, out, Path(tmp) / "shot.jpg", width=1400)
+            self.assertEqual(facts["sideways"], [], "an element scrolls sideways")
+            self.assertLessEqual(facts["tallest_image"], 2000)
+            for tid in ("summary", "summary-limit", "summary-traffic"):
+                self.assertIn(tid, facts["tables"])
+            run = report_module.Run(out)
+            colours = [run.colours[rid] for rid in run.ids]
+            if agents <= report_module.DISTINCT_COLOURS:
+                self.assertEqual(len(set(colours)), agents)  # every agent a colour of its own
+                self.assertEqual(run.groups, [])
+            else:  # grouped: a hue per group of consecutive agents, each named once in the legends
+                self.assertLessEqual(len(run.groups), report_module.COLOUR_GROUPS)
+                self.assertEqual([rid for _, _, members in run.groups for rid in members], run.ids)
+                labels = [report_module.agent_label(run, rid) for rid in run.ids]
+                self.assertEqual([x for x in labels if x], [label for label, _, _ in run.groups])
+            page = (out / "report.html").read_text()
+            if agents > report_module.EXCHANGE_ROWS_AGENTS:
+                self.assertIn("Who heard whom", page)
+            return facts
+
+    def test_a_fall_of_coverage_is_captioned_with_the_alignment_dropped(self):
+        # U1: a coverage drop (0.80 -> 0.30 -> 0.80 at 130-150 s, an alignment dropped) had no caption.
+        sys.path.insert(0, str(REPORT.parent))
+        import report as report_module  # noqa: E402
+
+        class FakeRun:
+            def alignments(self, rid):
+                return [(100.0, 2, True), (135.0, 2, False), (150.0, 2, True)] if rid == 1 else []
+
+        def entry(t, c, inc=1):
+            return {"t": t, "incarnation": inc, "global": {"coverage": c}}
+        tl = {1: [entry(120, 0.8), entry(140, 0.3), entry(160, 0.8)],
+              3: [entry(120, 0.9), entry(140, 0.85), entry(160, 0.1, inc=2)]}  # a restart is not a fall
+        drops = report_module.coverage_drops(FakeRun(), tl)
+        self.assertEqual(drops, [(1, 120, 0.8, 140, 0.3, [2])])
+        self.assertIn("agent 1 0.80 \u2192 0.30 at 120-140 s (dropped its alignment of 2)",
+                      report_module.drops_text(drops))
+        self.assertEqual(report_module.drops_text([]), "")
+
+    def test_the_report_reads_at_a_glance_at_4_and_16_agents(self):
+        self.check_layout(4, 40)
+        self.check_layout(16, 30)
+
+    def test_the_report_reads_at_a_glance_at_64_agents(self):
+        self.check_layout(64, 20)
 
 
 if __name__ == "__main__":

@@ -4,6 +4,8 @@
 //   {"title", "images": n, "broken": [src of an image that did not load or has no size],
 //    "too_wide": [src of an image wider than the page shows it], "tables": [ids], "height": px,
 //    "page_width": px (wider than view_width: the page scrolls sideways),
+//    "sideways": [id or tag of an element that scrolls sideways inside the page],
+//    "tallest_image": px (the largest natural height of an image),
 //    "console_errors": [...]}
 // Usage: node tests/js/report_shot.mjs REPORT.html SHOT.(png|jpg) [WIDTH]
 // Exit status 1 with the reason on stderr when the browser cannot open the page.
@@ -40,6 +42,10 @@ try {
       height: document.documentElement.scrollHeight,
       page_width: document.documentElement.scrollWidth,
       view_width: document.documentElement.clientWidth,
+      sideways: [...document.querySelectorAll("body *")]
+        .filter((e) => e.scrollWidth > e.clientWidth + 1 && ["auto", "scroll"].includes(getComputedStyle(e).overflowX))
+        .map((e) => e.id || e.firstElementChild?.id || e.tagName.toLowerCase()),
+      tallest_image: Math.max(0, ...images.map((i) => i.naturalHeight)),
     };
   });
   const type = shot.endsWith(".jpg") || shot.endsWith(".jpeg") ? "jpeg" : "png";
