@@ -52,7 +52,7 @@ from mapmesh.rundir import (GLOBAL_MAP, HISTORY, LOCAL_MAP, REPORT, STATS, SUMMA
                             radio_spans, read_history, truth_robots)
 
 import numpy as np  # noqa: E402
-from matplotlib.collections import PatchCollection  # noqa: E402
+from matplotlib.collections import LineCollection, PatchCollection  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
 DPI = 100
@@ -273,6 +273,43 @@ def landmark_arrays(m):
     return np.array([[lm["x"], lm["y"]] for lm in lms], dtype=float).reshape(-1, 2), [lm.get("cov") for lm in lms]
 
 
+def nice_scale(x):
+    """The largest of 1, 2, 5, 10, 20, 50, ... not above x (at least 1)."""
+    best = 1
+    for k in range(0, 7):
+        for m in (1, 2, 5):
+            if m * 10 ** k <= x:
+                best = m * 10 ** k
+    return best
+
+
+def draw_errors(ax, run, maps, handles):
+    """The error vectors after the rigid fit: from each true landmark to where the map (placed by
+    its fit) puts it, by signature, scaled up by one factor for all (said in the legend) so that
+    centimetres show on a map of tens of metres. maps: [(map, frame, colour, label)]."""
+    truth = {lm.get("id"): (lm["x"], lm["y"]) for lm in (run.truth or {}).get("landmarks", [])
+             if isinstance(lm.get("x"), (int, float)) and isinstance(lm.get("y"), (int, float))}
+    pairs = []
+    for m, frame, colour, label in maps:
+        lms = [lm for lm in (m or {}).get("landmarks", []) if isinstance(lm.get("signature"), int)
+               and lm["signature"] in truth and isinstance(lm.get("x"), (int, float))
+               and isinstance(lm.get("y"), (int, float))]
+        if lms:
+            est = to_world(frame, [[lm["x"], lm["y"]] for lm in lms])
+            true = np.array([truth[lm["signature"]] for lm in lms], dtype=float)
+            pairs.append((true, est - true, colour, label))
+    if not pairs:
+        return
+    errors = np.concatenate([np.hypot(d[:, 0], d[:, 1]) for _, d, _, _ in pairs])
+    span = np.ptp(np.vstack([t for t, _, _, _ in pairs]), axis=0).max() if len(errors) > 1 else 1.0
+    median = float(np.median(errors))
+    scale = nice_scale(0.03 * span / median) if median > 0 else 1
+    for true, d, colour, label in pairs:
+        segments = np.stack([true, true + scale * d], axis=1)
+        ax.add_collection(LineCollection(segments, colors=[colour], linewidths=0.9, alpha=0.9, zorder=5))
+        handles.append(Line2D([], [], color=colour, lw=0.9, label=f"{label} error \u00d7{scale:g} (from the truth)"))
+
+
 def valid_frame(frame):
     """frame as [x, y, theta] floats when it is one, else None."""
     if isinstance(frame, list) and len(frame) == 3 and all(
@@ -391,6 +428,8 @@ def map_figure(run, agent, path):
         elif local_fit or global_fit:
             draw_estimates(ax, local if local_fit else None, glob if global_fit else None, traj if local_fit else None,
                            local_fit, global_fit, panel, extent)
+            draw_errors(ax, run, [(glob if global_fit else None, global_fit, GLOBAL_COLOUR, "global map"),
+                                  (local if local_fit else None, local_fit, LOCAL_COLOUR, "local map")], panel)
             title = (f"each map after its least-squares rigid fit to the truth:\nRMSE after rigid fit local "
                      f"{cell_text(loc.get('rmse_aligned_m'))} m / global {cell_text(glo.get('rmse_aligned_m'))} m")
         else:
@@ -949,7 +988,9 @@ def write_report(d):
         maps.append(figure_html(f"report/{name}", f"maps of agent {rid}",
                                 f"Agent {rid} ({frames[rid]}): true landmarks (grey; darker: seen by some robot), "
                                 "true trajectory (black), local map (blue dots) and global map (orange +) with 95 % "
-                                f"ellipses, estimated trajectory (purple, dashed). {rmse_text(a)}.", agent=rid))
+                                "ellipses, estimated trajectory (purple, dashed); on the right, after each map's "
+                                "rigid fit, each landmark's error from the truth as a line, scaled up by the legend's "
+                                f"factor. {rmse_text(a)}.", agent=rid))
 
     if run.timeline is not None:
         tl = timeline_entries(run)

@@ -622,6 +622,7 @@ class ReportLayoutTest(unittest.TestCase):
                                 "--kill", "2@10", "--quiet", "--out", str(out)],
                                capture_output=True, text=True, timeout=1200)
             self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+            self.assertTrue((out / "report.html").is_file(), r.stderr)
             facts = check_in_browser(self, out, Path(tmp) / "shot.jpg", width=1400)
             self.assertEqual(facts["sideways"], [], "an element scrolls sideways")
             self.assertLessEqual(facts["tallest_image"], 2000)
@@ -660,6 +661,31 @@ class ReportLayoutTest(unittest.TestCase):
         self.assertIn("agent 1 0.80 \u2192 0.30 at 120-140 s (dropped its alignment of 2)",
                       report_module.drops_text(drops))
         self.assertEqual(report_module.drops_text([]), "")
+
+    def test_the_fit_panel_draws_each_landmarks_error_scaled_up(self):
+        # U1: the "map frame" and "rigid fit" panels looked the same although their RMSEs differed tenfold.
+        sys.path.insert(0, str(REPORT.parent))
+        import report as report_module  # noqa: E402
+        self.assertEqual([report_module.nice_scale(x) for x in (0.3, 1, 3.9, 19, 20, 75, 1e9)],
+                         [1, 1, 2, 10, 20, 50, 5_000_000])
+
+        class FakeRun:
+            truth = {"landmarks": [{"id": i, "x": 10.0 * i, "y": 0.0} for i in range(5)]}
+        local = {"landmarks": [{"signature": i, "x": 10.0 * i + 0.01, "y": -0.02} for i in range(5)]
+                 + [{"signature": -1, "x": 3.0, "y": 3.0}]}  # no identity: no vector
+        fig, ax = report_module.plt.subplots()
+        handles = []
+        report_module.draw_errors(ax, FakeRun(), [(local, [0.0, 0.0, 0.0], "tab:blue", "local map")], handles)
+        (lines,) = ax.collections
+        segments = lines.get_segments()
+        self.assertEqual(len(segments), 5)
+        scale = report_module.nice_scale(0.03 * 40 / math.hypot(0.01, 0.02))  # 3 % of the span per median error
+        self.assertEqual(handles[0].get_label(), f"local map error \u00d7{scale:g} (from the truth)")
+        for i, seg in enumerate(segments):
+            self.assertAlmostEqual(seg[0][0], 10.0 * i)
+            self.assertAlmostEqual(seg[1][0] - seg[0][0], 0.01 * scale)
+            self.assertAlmostEqual(seg[1][1] - seg[0][1], -0.02 * scale)
+        report_module.plt.close(fig)
 
     def test_the_report_reads_at_a_glance_at_4_and_16_agents(self):
         self.check_layout(4, 40)
