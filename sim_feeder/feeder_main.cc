@@ -336,13 +336,13 @@ int Run(int argc, char** argv) {
 
   CLI::App cli{"mapmesh-feeder: simulates (or replays) the world and publishes it over DDS"};
   app::ProcessOptions po;
-  std::string out_dir = ".", pace, datasets, record_path;
+  std::string out_dir, pace, datasets, record_path;
   double rate = 0.0, stall_timeout_s = 120.0;
   bool check_only = false, events = false, control_enabled = false, no_dds = false;
   std::vector<double> holds;
   app::AddScenarioOptions(cli, po);
   app::AddDdsOptions(cli, po, /*domain_required=*/false);
-  cli.add_option("--out", out_dir, "directory for truth.json and feeder.json");
+  cli.add_option("--out", out_dir, "directory for truth.json and feeder.json (without it neither is written)");
   cli.add_option("--datasets", datasets,
                  "datasets root (default: $MAPMESH_DATASETS, else ../shared/datasets beside the sources)");
   std::vector<std::string> paces;
@@ -403,7 +403,7 @@ int Run(int argc, char** argv) {
     std::fprintf(stderr, "mapmesh-feeder: --domain is required (see --help)\n");
     return 2;
   }
-  std::filesystem::create_directories(out_dir);
+  if (!out_dir.empty()) std::filesystem::create_directories(out_dir);
   std::optional<RecordingWriter> recording;
   if (!record_path.empty()) recording.emplace(record_path);
   PlayRecord record(sc, source, feed.counts);
@@ -418,7 +418,9 @@ int Run(int argc, char** argv) {
       for (const Odometry& o : b.odom) record.CountSent(o);
     }
     recording->Close();
-    record.Write(out_dir, source, std::chrono::duration<double>(Clock::now() - wall_start).count(), false);
+    if (!out_dir.empty()) {
+      record.Write(out_dir, source, std::chrono::duration<double>(Clock::now() - wall_start).count(), false);
+    }
     return 0;
   }
 
@@ -514,7 +516,7 @@ int Run(int argc, char** argv) {
   }
   if (recording) recording->Close();
   const double wall_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
-  record.Write(out_dir, source, wall_s, exit_code != 0, pacer.resent(), pacer.replayed());
+  if (!out_dir.empty()) record.Write(out_dir, source, wall_s, exit_code != 0, pacer.resent(), pacer.replayed());
   feeder.Emit({{"event", "done"}, {"wall_s", wall_s}, {"interrupted", exit_code != 0}});
   spdlog::info("done in {:.1f} s wall", wall_s);
   return exit_code;

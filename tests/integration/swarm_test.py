@@ -595,6 +595,16 @@ class DeterminismTest(unittest.TestCase):
             truth_b = json.loads((Path(tmp) / "b" / "truth.json").read_text())
             self.assertEqual(truth_a, truth_b)
 
+    def test_a_recording_without_out_writes_nothing_else(self):
+        # A2: `mapmesh-feeder --no-dds --record FILE` left feeder.json and truth.json in the
+        # working directory.
+        with tempfile.TemporaryDirectory() as tmp:
+            r = subprocess.run([str(BIN / "mapmesh-feeder"), "--scenario", str(REPO / "scenarios" / "park4.yaml"),
+                                "--set", "duration_s=5", "--record", "stream.bin", "--no-dds"],
+                               capture_output=True, text=True, timeout=120, cwd=tmp)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertEqual(sorted(p.name for p in Path(tmp).iterdir()), ["stream.bin"])
+
 
 class DatasetReplayTest(SwarmCase):
     """Whole datasets through real agents in lockstep (skipped without ../shared/datasets)."""
