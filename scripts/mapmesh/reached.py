@@ -12,21 +12,18 @@ given, no processes."""
 
 import base64
 import binascii
-import struct
 
-# common/map/submap_codec.h, version 1: magic "MS", version, flags, robot, incarnation, index,
-# opened_s, closed_s.
-SUBMAP_HEADER = struct.Struct("<2sBBIIIdd")
+from . import submap_codec
 
 
 def submap_closed(encoded):
-    """(robot, closed_s) of a base64 submap as checkpoint.json holds it; None when it is not one."""
+    """(robot, closed_s) of a base64 submap as checkpoint.json holds it (its header: the submap
+    codec's); None when it is not one."""
     try:
-        raw = base64.b64decode(encoded, validate=True)
-        magic, _, _, robot, _, _, _, closed = SUBMAP_HEADER.unpack_from(raw)
-    except (binascii.Error, struct.error, ValueError, TypeError):
+        robot, _, _, _, closed, _ = submap_codec.header(base64.b64decode(encoded, validate=True))
+    except (binascii.Error, TypeError, ValueError):
         return None
-    return (robot, closed) if magic == b"MS" else None
+    return robot, closed
 
 
 def last_heard(stats):
