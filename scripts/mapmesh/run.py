@@ -329,11 +329,15 @@ class SwarmRun:
         cmd = [binary("mapmesh-agent"), "--scenario", self.scenario, "--id", str(rid),
                "--domain", str(self.lease.id), "--out", str(self.out / agent_dir(rid)),
                "--incarnation", str(incarnation)] + resume + self.common
-        if self.security:
-            cmd += ["--dds-config", str(self.security.agent_config(rid))]
-        elif self.dds_config:
-            cmd += ["--dds-config", str(self.dds_config)]
-        return cmd
+        return cmd + self.dds_flags(lambda: self.security.agent_config(rid))
+
+    def dds_flags(self, secure_config=None):
+        """The --dds-config a process gets: under --secure the config of its identity
+        (secure_config(); a process with none gets the run's), else the run's (--hosts netns),
+        else none (the default loopback config)."""
+        if self.security and secure_config is not None:
+            return ["--dds-config", str(secure_config())]
+        return ["--dds-config", str(self.dds_config)] if self.dds_config else []
 
     def spawn(self, cmd, log_path, append=False, host=None, **kw):
         """Starts cmd with its output in log_path; with --hosts netns, in namespace `host`."""
@@ -362,12 +366,13 @@ class SwarmRun:
         if getattr(self.args, "inject_sim_period", None):
             cmd += ["--sim-period-s", str(self.args.inject_sim_period)]
         who = self.args.inject_identity
-        if self.security and who == "forged":
-            cmd += ["--dds-config", str(self.security.forged_config())]
-        elif self.security and who.startswith("agent"):
-            cmd += ["--dds-config", str(self.security.agent_config(int(who[5:]))), "--as-robot", who[5:]]
-        elif self.dds_config:
-            cmd += ["--dds-config", str(self.dds_config)]
+        if who == "forged":
+            cmd += self.dds_flags(lambda: self.security.forged_config())
+        elif who.startswith("agent"):
+            cmd += self.dds_flags(lambda: self.security.agent_config(int(who[5:])))
+            cmd += ["--as-robot", who[5:]] if self.security else []
+        else:
+            cmd += self.dds_flags()
         self.injector = self.spawn(cmd, self.out / "inject.log", host="inject")
 
     # ----- the run ------------------------------------------------------------------------
@@ -400,10 +405,7 @@ class SwarmRun:
             holds = sorted({t for t, _ in self.kills + self.restarts} | {t for t, _, _ in self.pauses})
             cmd = [binary("mapmesh-feeder"), "--scenario", self.scenario, "--domain", str(self.lease.id),
                    "--out", str(self.out), "--events", "--control"] + self.common
-            if self.security:
-                cmd += ["--dds-config", str(self.security.feeder_config())]
-            elif self.dds_config:
-                cmd += ["--dds-config", str(self.dds_config)]
+            cmd += self.dds_flags(lambda: self.security.feeder_config())
             if self.args.rate:
                 cmd += ["--rate", str(self.args.rate)]
             for t in holds:
