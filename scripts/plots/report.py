@@ -819,6 +819,7 @@ img { max-width: 100%; height: auto; border: 1px solid #eee; margin: 0.4em 0; }
 .note { color: #7a4b00; }
 figure { margin: 0 0 1.2em 0; } figcaption { font-size: 0.85em; color: #555; }
 ul.terms { font-size: 0.85em; color: #444; }
+details.maps summary { cursor: pointer; font-weight: bold; margin: 0.4em 0; }
 """
 
 
@@ -972,6 +973,19 @@ landmarks can beat it in one realisation of the noise by some percent.</li>
 </ul>"""
 
 
+def maps_html(run, maps):
+    """The agents' map figures: all of them up to DISTINCT_COLOURS agents; beyond, folded by the
+    colour groups (a closed <details> each, opened by a click), so that the page stays short."""
+    if not run.groups:
+        return "".join(maps)
+    by_id = dict(zip(run.ids, maps))
+    return (f'<p>{len(run.ids)} agents: their maps are folded by groups of consecutive agents; open one to '
+            "see its agents' maps.</p>" + "".join(
+                f'<details class="maps"><summary>{esc(label)}</summary>'
+                + "".join(by_id[rid] for rid in members if rid in by_id) + "</details>"
+                for label, _, members in run.groups))
+
+
 def write_report(d):
     run = Run(d)
     out = run.dir / "report"
@@ -1061,7 +1075,7 @@ heading drift). Red rows: agents not alive at the end.</p>
 <h2>Peers and events</h2>
 {peers_table(run, frames)}
 <h2>Maps</h2>
-{''.join(maps)}
+{maps_html(run, maps)}
 <h2>Over time</h2>
 {''.join(timeline)}
 </body>

@@ -641,6 +641,8 @@ class ReportLayoutTest(unittest.TestCase):
             page = (out / "report.html").read_text()
             if agents > report_module.EXCHANGE_ROWS_AGENTS:
                 self.assertIn("Who heard whom", page)
+            # Beyond 16 agents the maps are folded by colour group (a closed <details> each).
+            self.assertEqual(page.count('<details class="maps">'), len(run.groups))
             return facts
 
     def test_a_fall_of_coverage_is_captioned_with_the_alignment_dropped(self):

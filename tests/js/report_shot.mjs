@@ -6,6 +6,7 @@
 //    "page_width": px (wider than view_width: the page scrolls sideways),
 //    "sideways": [id or tag of an element that scrolls sideways inside the page],
 //    "tallest_image": px (the largest natural height of an image),
+//    "shot_clipped": true when the page was taller than a screenshot holds (shot to 16384 px),
 //    "console_errors": [...]}
 // Usage: node tests/js/report_shot.mjs REPORT.html SHOT.(png|jpg) [WIDTH]
 // Exit status 1 with the reason on stderr when the browser cannot open the page.
@@ -18,6 +19,7 @@ if (!page_path || !shot) {
   process.exit(2);
 }
 const width = Number(width_arg ?? 1400);
+const MAX_SHOT_PX = 16384;
 const executablePath = process.env.CHROMIUM ?? "/usr/bin/chromium";
 // Flags for a closed network and a root user in a container (no sandbox, no background calls).
 const args = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
@@ -49,7 +51,11 @@ try {
     };
   });
   const type = shot.endsWith(".jpg") || shot.endsWith(".jpeg") ? "jpeg" : "png";
-  await page.screenshot({ path: shot, fullPage: true, type, ...(type === "jpeg" ? { quality: 70 } : {}) });
+  // An image format holds at most 16384 px a side in Chromium's encoder: a taller page is shot
+  // down to that ("shot_clipped").
+  const clip = facts.height > MAX_SHOT_PX ? { x: 0, y: 0, width, height: MAX_SHOT_PX } : undefined;
+  await page.screenshot({ path: shot, fullPage: !clip, clip, type, ...(type === "jpeg" ? { quality: 70 } : {}) });
+  facts.shot_clipped = Boolean(clip);
   console.log(JSON.stringify({ ...facts, console_errors }));
 } catch (e) {
   console.error(`report_shot: ${page_path}: ${e.message.split("\n")[0]}`);
