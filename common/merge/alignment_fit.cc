@@ -57,12 +57,6 @@ Eigen::Matrix3d Refine(const LandmarkMap& a, const LandmarkMap& b, const std::ve
 
 }  // namespace
 
-double LargestSigma(const Eigen::Matrix2d& c) {
-  const double tr = c.trace(), det = c.determinant();
-  const double disc = std::sqrt(std::max(0.0, tr * tr / 4.0 - det));
-  return std::sqrt(std::max(0.0, tr / 2.0 + disc));
-}
-
 Usable UsableLandmarks(const LandmarkMap& m) {
   Usable u;
   for (std::size_t i = 0; i < m.landmarks.size(); ++i) {

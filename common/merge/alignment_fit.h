@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/geometry/covariance2.h"
 #include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
 #include "common/merge/map_alignment.h"
@@ -24,8 +25,7 @@ struct Usable {
   double max_sigma = 0.0;
 };
 
-// sqrt of the covariance's largest eigenvalue.
-double LargestSigma(const Eigen::Matrix2d& c);
+using ::mapmesh::LargestSigma;  // common/geometry/covariance2.h
 
 Usable UsableLandmarks(const LandmarkMap& m);
 

@@ -8,17 +8,13 @@
 #include <cmath>
 #include <limits>
 
+#include "common/geometry/covariance2.h"
 #include "common/merge/point_grid.h"
 #include "common/metrics/chi2.h"
 #include "common/slam/jcbb.h"
 
 namespace mapmesh {
 namespace {
-
-double LargestEigen(const Eigen::Matrix2d& c) {
-  const double tr = c.trace(), det = c.determinant();
-  return 0.5 * tr + std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
-}
 
 struct Cluster {
   Gaussian2 anchor;               // the estimate candidates are gated against
@@ -231,11 +227,11 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
       double max_anchor = 0.0;
       for (const Cluster& c : clusters) {
         anchors.push_back(c.anchor.mean);
-        max_anchor = std::max(max_anchor, LargestEigen(c.anchor.cov));
+        max_anchor = std::max(max_anchor, LargestEigenvalue(c.anchor.cov));
       }
       const PointGrid2 grid(anchors);
       for (std::size_t s = 0; s < moved.size(); ++s) {
-        const double radius = std::sqrt(gate * (max_anchor + LargestEigen(moved[s].cov)));
+        const double radius = std::sqrt(gate * (max_anchor + LargestEigenvalue(moved[s].cov)));
         grid.Visit(moved[s].mean, radius, [&](int c) {
           const Eigen::Vector2d nu = clusters[c].anchor.mean - moved[s].mean;
           const Eigen::Matrix2d cov = clusters[c].anchor.cov + moved[s].cov;

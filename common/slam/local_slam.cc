@@ -6,6 +6,7 @@
 #include <unordered_set>
 
 #include "common/check.h"
+#include "common/geometry/covariance2.h"
 #include "common/merge/spatial.h"
 #include "common/slam/ekf_slam.h"
 #include "common/slam/iekf_slam.h"
@@ -184,9 +185,7 @@ double ShapeSigma(const LandmarkMap& map, const std::function<Eigen::Matrix2d(st
     const Landmark &a = map.landmarks[i], &b = map.landmarks[nearest[i]];
     const Eigen::Matrix2d c = cross_cov(i, static_cast<std::size_t>(nearest[i]));
     const Eigen::Matrix2d d = a.cov + b.cov - c - c.transpose();
-    const double tr = d.trace(), det = d.determinant();
-    const double largest = 0.5 * tr + std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
-    s.push_back(std::sqrt(std::max(0.0, largest) / 2.0));
+    s.push_back(std::sqrt(std::max(0.0, LargestEigenvalue(d)) / 2.0));
   }
   if (s.empty()) return 0.0;
   const std::size_t k = std::min(s.size() - 1, static_cast<std::size_t>(0.9 * static_cast<double>(s.size())));
