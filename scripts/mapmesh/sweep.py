@@ -47,7 +47,7 @@ OUTPUTS = ("sweep.csv", SUMMARY_CSV, "sweep.png", DEFINITION)
 # killed), over the seeds: their count, the median, the interval and its coverage, the figures.
 SUMMARY_HEADER = ["metric", "agents", "seeds", "median", "lo", "hi", "interval_coverage", "per_seed"]
 # The figures summarised (sweep.csv's numeric agent columns) and the default of --metric.
-METRICS = [c.csv for c in SWEEP_COLUMNS if c.csv not in ("agent", "alive")]
+METRICS = [c.name for c in SWEEP_COLUMNS if c.name not in ("agent", "alive")]
 DEFAULT_METRIC = "gap_to_central"
 NEEDS_REFERENCE = {"gap_to_central", "gap_to_central_known_starts", "gap_to_own_batch", "rmse_central_same_m",
                    "rmse_central_known_starts_same_m", "coverage_reached"}
@@ -276,7 +276,7 @@ def pick_metric(args):
 
 def progress_figures(summary, metric):
     """`gap_to_central 2.54 (median over 3 agents alive at the end; 1 killed apart: 0.91), coverage_global 0.69`."""
-    rows = [{c.csv: c.csv_cell(a) for c in SWEEP_COLUMNS} for a in summary["agents"]]
+    rows = [{c.name: c.csv_cell(a) for c in SWEEP_COLUMNS} for a in summary["agents"]]
     parts = []
     for m in dict.fromkeys([metric, "coverage_global"]):
         figs = sweep_stats.run_figures(rows, m)

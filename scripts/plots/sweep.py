@@ -37,9 +37,9 @@ from mapmesh import sweep_stats  # noqa: E402
 from mapmesh.columns import BY_KEY, PLOT_COLUMNS  # noqa: E402
 
 # (column names, first preferred: sweep.csv's, then the summary.json path; panel title; y label)
-METRICS = [((c.csv, c.key), *c.plot) for c in PLOT_COLUMNS]
+METRICS = [((c.name, c.key), *c.plot) for c in PLOT_COLUMNS]
 # Per metric, what an older sweep.csv without it offers instead: (column names, panel title).
-FALLBACKS = {c.csv: ((BY_KEY[c.plot_fallback].csv, c.plot_fallback), BY_KEY[c.plot_fallback].html.replace(" (m)", ""))
+FALLBACKS = {c.name: ((BY_KEY[c.plot_fallback].name, c.plot_fallback), BY_KEY[c.plot_fallback].html.replace(" (m)", ""))
              for c in PLOT_COLUMNS if c.plot_fallback}
 NEES_EXPECTED = 2.0
 MISSING = {"", "null", "none", "nan", "-", "\u2013"}

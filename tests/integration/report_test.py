@@ -559,7 +559,7 @@ class SweepTest(unittest.TestCase):
     def test_sweep_figure(self):
         # What `swarm sweep` writes: the rigid-fit RMSE before the true-frame one, global then local.
         self.assertEqual(columns.SWEEP_HEADER, SWEEP_HEADER)
-        self.assertEqual([c.csv for c in columns.PLOT_COLUMNS],
+        self.assertEqual([c.name for c in columns.PLOT_COLUMNS],
                          ["coverage_global", "nees_global", "rmse_global_aligned_m", "gap_to_central"])
         with tempfile.TemporaryDirectory(prefix="mapmesh_sweep_") as tmp:
             make_fake_sweep(tmp)

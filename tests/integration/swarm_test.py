@@ -18,11 +18,32 @@ BIN = Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
 DATASETS = Path(os.environ.get("MAPMESH_DATASETS", REPO.parent / "shared" / "datasets"))
 SWARM = [sys.executable, str(REPO / "scripts" / "swarm")]
 DATA = Path(__file__).resolve().parent / "data"
+sys.path.insert(0, str(REPO / "scripts"))
+from mapmesh.columns import SWEEP_HEADER  # noqa: E402
 # The table `swarm run` prints: a map's RMSE after a rigid fit to the truth first, the RMSE in
 # the robot's true frame beside it.
-TABLE_HEADER = ["id", "alive", "exit", "restarts", "lm_local", "rmse_local_fit", "rmse_local", "lm_global",
-                "rmse_global_fit", "rmse_global", "cov_global", "gap_central", "gap_own", "peers", "maps_rx", "kB_tx",
-                "kB_rx", "cpu_s", "rss_MB"]
+# The printed table's headers, block after block (each led by "agent"): sweep.csv's names.
+TABLE_BLOCKS = [["agent", "alive", "exit_code", "restarts", "lm_local", "rmse_local_aligned_m", "rmse_local_m"],
+                ["agent", "lm_global", "rmse_global_aligned_m", "rmse_global_m", "coverage_global", "gap_to_central",
+                 "gap_to_own_batch"],
+                ["agent", "peers_aligned", "maps_received", "bytes_sent", "bytes_received", "cpu_s", "max_rss_mb"]]
+
+
+def table_cells(stdout):
+    """The printed table's cells: {agent id: {column name: cell}}, and its headers block by block."""
+    lines = stdout.splitlines()
+    cells, headers = {}, []
+    for i, line in enumerate(lines):
+        if line.split()[:1] != ["agent"]:
+            continue
+        header = line.split()
+        headers.append(header)
+        for row in lines[i + 1:]:
+            if not row.strip()[:1].isdigit():
+                break
+            values = dict(zip(header, row.split()))
+            cells.setdefault(int(values["agent"]), {}).update(values)
+    return cells, headers
 
 
 def run_measured(cmd, timeout=30):
@@ -100,18 +121,28 @@ class PipelineTest(SwarmCase):
         for key in ["scenario", "sim_duration_s", "wall_s", "real_time_factor", "agents"]:
             self.assertIn(key, s)
         # The table is printed, one line per agent, its cells what summary.json says.
-        lines = r.stdout.splitlines()
-        header = next(i for i, line in enumerate(lines) if line.split()[:2] == ["id", "alive"])
-        self.assertEqual(lines[header].split(), TABLE_HEADER)
-        rows = [line.split() for line in lines[header + 1:header + 4]]
-        self.assertEqual(sum(1 for line in r.stdout.splitlines() if line.strip()[:1].isdigit()), 3)
-        for a, row in zip(s["agents"], rows):
-            cells = dict(zip(TABLE_HEADER, row))
-            self.assertEqual(int(cells["id"]), a["id"])
-            for name, kind in (("local", "local"), ("global", "global")):
+        # Its headers are sweep.csv's names (U1: the table said gap_central where the CSV says
+        # gap_to_central).
+        table, headers = table_cells(r.stdout)
+        self.assertEqual(headers, TABLE_BLOCKS)
+        self.assertEqual(sum(1 for line in r.stdout.splitlines() if line.strip()[:1].isdigit()), 3 * len(TABLE_BLOCKS))
+        self.assertEqual(sorted(table), [a["id"] for a in s["agents"]])
+        sweep_names = set(SWEEP_HEADER)  # what sweep.csv is written with
+        for a in s["agents"]:
+            cells = table[a["id"]]
+            for kind in ("local", "global"):
                 self.assertIsNotNone(a[kind]["rmse_aligned_m"])
-                self.assertEqual(cells[f"rmse_{name}_fit"], f"{a[kind]['rmse_aligned_m']:.3f}")
-                self.assertEqual(cells[f"rmse_{name}"], f"{a[kind]['rmse_m']:.3f}")
+                self.assertEqual(cells[f"rmse_{kind}_aligned_m"], f"{a[kind]['rmse_aligned_m']:.3f}")
+                self.assertEqual(cells[f"rmse_{kind}_m"], f"{a[kind]['rmse_m']:.3f}")
+            self.assertEqual(cells["coverage_global"], f"{a['global']['coverage']:.2f}")
+            self.assertEqual(int(cells["bytes_sent"]), a["bytes_sent"])
+            self.assertEqual(int(cells["maps_received"]), a["maps_received"])
+            # Every name is sweep.csv's, or else the agent's key in summary.json (its value the cell's).
+            for name, cell in cells.items():
+                if name not in sweep_names:
+                    self.assertIn(name, a, f"{name}: neither a sweep.csv column nor a summary.json key")
+                    digits = 2 if name == "cpu_s" else 1 if name == "max_rss_mb" else 0
+                    self.assertEqual(float(cell), round(float(a[name]), digits), name)
         truth = json.loads((self.out / "truth.json").read_text())
         self.assertEqual(len(truth["robots"]), 3)
         self.assertEqual(len(truth["landmarks"]), 60)

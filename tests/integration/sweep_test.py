@@ -13,7 +13,7 @@ from pathlib import Path
 from swarm_test import REPO
 
 sys.path.insert(0, str(REPO / "scripts"))
-from mapmesh import sweep, sweep_stats  # noqa: E402
+from mapmesh import columns, sweep, sweep_stats  # noqa: E402
 from mapmesh.run import RunError  # noqa: E402
 
 swarm = SourceFileLoader("swarm_cli", str(REPO / "scripts" / "swarm")).load_module()
@@ -180,6 +180,43 @@ class SweepStatsTest(unittest.TestCase):
         self.assertEqual([(p, g, s) for p, g, s, _ in out], [("p", "alive", [(1, 1.2), (2, 2.0)]),
                                                              ("p", "killed", [(1, 5.0)])])
         self.assertEqual(out[0][3][:3], (1.6, 1.2, 2.0))
+
+
+class RunTableTest(unittest.TestCase):
+    # U1: the printed table said gap_central / cov_global where sweep.csv and summary.json say
+    # gap_to_central / coverage_global.
+    def test_the_table_names_are_the_csv_names_and_fit_a_terminal_at_any_swarm(self):
+        rng = random.Random(7)
+        for n in (1, 4, 64, 256):
+            agents = [{"id": i, "alive_at_end": i % 5 != 0, "exit_code": 0 if i % 5 else None, "restarts": i % 3,
+                       "local": {"landmarks": rng.randrange(500), "rmse_aligned_m": rng.random(),
+                                 "rmse_m": 10 * rng.random()},
+                       "global": {"landmarks": rng.randrange(1000), "rmse_aligned_m": rng.random(), "rmse_m": None,
+                                  "coverage": rng.random()},
+                       "gap_to_central": 50 * rng.random(), "gap_to_own_batch": None,
+                       "peers_aligned": list(range(rng.randrange(n))), "maps_received": rng.randrange(10 ** 6),
+                       "bytes_sent": rng.randrange(10 ** 9), "bytes_received": rng.randrange(10 ** 9),
+                       "cpu_s": 100 * rng.random(), "max_rss_mb": 300 * rng.random()} for i in range(1, n + 1)]
+            summary = {"scenario": "s", "sim_duration_s": 1.0, "wall_s": 1.0, "real_time_factor": 1.0, "agents": agents}
+            lines = columns.format_table(summary).splitlines()[1:]
+            self.assertLessEqual(max(map(len, lines)), columns.TABLE_WIDTH)
+            blocks = "\n".join(lines).split("\n\n")
+            headers = [b.splitlines()[0].split() for b in blocks]
+            self.assertTrue(all(h[0] == "agent" for h in headers))
+            names = [name for h in headers for name in h[1:]]
+            self.assertEqual(["agent"] + names, [c.name for c in columns.TABLE_COLUMNS])
+            csv_names = set(columns.SWEEP_HEADER)
+            for c in columns.TABLE_COLUMNS:  # sweep.csv's name, else summary.json's key
+                self.assertTrue(c.name in csv_names or c.name == c.key, c.key)
+            for b in blocks:
+                rows = [r.split() for r in b.splitlines()[1:]]
+                self.assertEqual([int(r[0]) for r in rows], [a["id"] for a in agents])
+            cells = {name: [r.split()[i] for r in b.splitlines()[1:]]
+                     for b in blocks for i, name in enumerate(b.splitlines()[0].split())}
+            self.assertEqual(cells["gap_to_central"], [f"{a['gap_to_central']:.2f}" for a in agents])
+            self.assertEqual(cells["rmse_global_m"], ["-"] * n)
+            self.assertEqual(cells["peers_aligned"], [str(len(a["peers_aligned"])) for a in agents])
+            self.assertEqual(cells["exit_code"], ["0" if a["exit_code"] == 0 else "-" for a in agents])
 
 
 if __name__ == "__main__":
