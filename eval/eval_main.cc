@@ -2,6 +2,7 @@
 // --reference, against a reference map) and prints one JSON document on stdout (scripts/swarm
 // merges it into summary.json).
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -10,6 +11,7 @@
 #include <map>
 #include <optional>
 #include <random>
+#include <vector>
 
 #include "common/app/process.h"
 #include "common/io/run_files.h"
@@ -148,88 +150,6 @@ json AlignmentErrors(const json& stats, const io::RunTruth& truth, const std::op
   return out;
 }
 
-// The agent's history.jsonl with each snapshot's maps scored as the run went on.
-// Global snapshots are signed by their origins as the final map is (SignGlobalMap).
-json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::RunTruth& truth, double gate_m,
-                 const LocalSignatures& known) {
-  json out = json::array();
-  std::ifstream in(dir + "/history.jsonl");
-  std::string text;
-  while (std::getline(in, text)) {
-    json line = json::parse(text, nullptr, /*allow_exceptions=*/false);
-    if (line.is_discarded() || !line.is_object()) continue;  // a line cut short by a kill
-    std::optional<Pose2> origin = truth.headings_known ? robot.start : std::nullopt;
-    const json& t = line.value("frame_origin_stamp", json());
-    if (t.is_number() && truth.headings_known) origin = robot.PoseAt(t.get<double>());
-    const std::string snapshot = line.value("snapshot", "");
-    std::optional<Pose2> fit_start = origin;  // where the maps' frame is thought to lie, for the rigid fit
-    for (const char* kind : {"local", "global"}) {
-      const std::string path = dir + "/" + snapshot + "_" + kind + ".json";
-      if (snapshot.empty() || !std::filesystem::exists(path)) continue;
-      const json file = io::ReadJson(path);
-      LandmarkMap map = io::MapFromJson(file);
-      if (std::string(kind) == "global") SignGlobalMap(file, map, known);
-      const MapQuality q = EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, origin, gate_m);
-      line[kind] = QualityJson(q);
-      // As the final maps: after a rigid fit of the whole map to the truth (the global map's fit
-      // starts where the local map's signatures put the frame when the origin is not known).
-      if (!fit_start && std::string(kind) == "local") fit_start = MapFrameInWorld(map, truth.landmarks);
-      const MapQuality aligned = EvaluateFittedMap(map, truth.landmarks, truth.seen, fit_start, gate_m);
-      line[kind]["rmse_aligned_m"] = aligned.evaluated ? json(aligned.rmse_m) : json();
-    }
-    line.erase("snapshot");
-    out.push_back(line);
-  }
-  return out;
-}
-
-// For each peer incarnation the agent saw go silent for good (its writer gone), what its global
-// map holds of the last map received from it (dead_peers.h), in simulated worlds.
-json DeadPeersJson(const json& stats, const std::optional<LandmarkMap>& local, const LandmarkMap& global,
-                   const std::string& dir, const io::RunTruth& truth, const std::optional<Pose2>& origin,
-                   double gate_m) {
-  json out = json::array();
-  if (!stats.contains("peers") || !origin || !truth.headings_known || !local) return out;
-  const LandmarkMap& own = *local;
-  for (const json& p : stats.at("peers")) {
-    if (!p.value("stale", false) || p.value("own_checkpoint", false)) continue;
-    const RobotId robot = p.at("robot").get<RobotId>();
-    const std::uint32_t inc = p.at("incarnation").get<std::uint32_t>();
-    const std::string path = dir + "/peers/" + std::to_string(robot) + "_" + std::to_string(inc) + "_local.json";
-    const io::RobotTruth* rt = truth.Find(robot);
-    if (!rt || !std::filesystem::exists(path)) continue;
-    const std::optional<Pose2> peer_origin = rt->PoseAt(p.at("origin_stamp").get<double>());
-    if (!peer_origin) continue;
-    const HeldFromPeer h = CheckHeld(own, global, *origin, io::MapFromJson(io::ReadJson(path)), *peer_origin,
-                                     truth.landmarks, gate_m);
-    out.push_back({{"robot", robot},
-                   {"incarnation", inc},
-                   {"landmarks", h.landmarks},
-                   {"alignable", h.alignable()},
-                   {"aligned_tries", h.aligned_tries},
-                   {"overlaps", h.overlaps},
-                   {"verdict", h.verdict},
-                   {"covered", h.covered},
-                   {"inliers", h.inliers},
-                   {"held", h.held},
-                   {"aligned", p.value("aligned", false)}});
-  }
-  return out;
-}
-
-json ReferenceJson(const ReferenceQuality& q) {
-  json j = {{"aligned", q.aligned}, {"landmarks", q.landmarks}, {"reference_landmarks", q.reference_landmarks}};
-  if (!q.aligned) return j;
-  j.update({{"matched", q.matched},
-            {"duplicates", q.duplicates},
-            {"extra", q.extra},
-            {"reference_coverage", q.reference_coverage},
-            {"rmse_m", q.rmse_m},
-            {"nees_mean", q.nees_mean},
-            {"to_reference", {q.to_reference.x, q.to_reference.y, q.to_reference.theta}}});
-  return j;
-}
-
 // One reference map of reference.json, the frame it is in, and for a centralized optimum of
 // several components each landmark's component (each is fitted on its own).
 struct BatchReferenceMap {
@@ -290,6 +210,139 @@ json SameLandmarksRmse(const BatchReferenceMap& reference, const MapQuality& sco
   return q.evaluated && q.rmse_m > 0 ? json(q.rmse_m) : json();
 }
 
+// The centralized optimum of the data up to each of several times (DIR/reference_over_time.json,
+// written by swarm run: mapmesh-lab reference --until ROBOT=T for every robot), by time.
+std::vector<std::pair<double, BatchReferenceMap>> ReadReferenceOverTime(const std::string& path) {
+  std::vector<std::pair<double, BatchReferenceMap>> out;
+  if (!std::filesystem::exists(path)) return out;
+  const json j = io::ReadJson(path);
+  for (const json& sample : j.value("samples", json::array())) {
+    if (!sample.is_object() || !sample.value("t", json()).is_number()) continue;
+    if (auto m = ReadReferenceMap(sample.value("central", json()))) {
+      out.emplace_back(sample.at("t").get<double>(), std::move(*m));
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  return out;
+}
+
+// The agent's history.jsonl with each snapshot's maps scored as the run went on.
+// Global snapshots are signed by their origins as the final map is (SignGlobalMap).
+json HistoryJson(const std::string& dir, const io::RobotTruth& robot, const io::RunTruth& truth, double gate_m,
+                 const LocalSignatures& known, const std::vector<std::pair<double, BatchReferenceMap>>& over_time,
+                 const BatchReferenceMap* final_central) {
+  json out = json::array();
+  std::vector<std::optional<MapQuality>> global_fits;  // per line: its global map after the rigid fit
+  std::ifstream in(dir + "/history.jsonl");
+  std::string text;
+  while (std::getline(in, text)) {
+    json line = json::parse(text, nullptr, /*allow_exceptions=*/false);
+    if (line.is_discarded() || !line.is_object()) continue;  // a line cut short by a kill
+    std::optional<Pose2> origin = truth.headings_known ? robot.start : std::nullopt;
+    const json& t = line.value("frame_origin_stamp", json());
+    if (t.is_number() && truth.headings_known) origin = robot.PoseAt(t.get<double>());
+    const std::string snapshot = line.value("snapshot", "");
+    std::optional<Pose2> fit_start = origin;  // where the maps' frame is thought to lie, for the rigid fit
+    std::optional<MapQuality> global_fit;
+    for (const char* kind : {"local", "global"}) {
+      const std::string path = dir + "/" + snapshot + "_" + kind + ".json";
+      if (snapshot.empty() || !std::filesystem::exists(path)) continue;
+      const json file = io::ReadJson(path);
+      LandmarkMap map = io::MapFromJson(file);
+      if (std::string(kind) == "global") SignGlobalMap(file, map, known);
+      const MapQuality q = EvaluateOwnFrameMap(map, truth.landmarks, truth.seen, origin, gate_m);
+      line[kind] = QualityJson(q);
+      // As the final maps: after a rigid fit of the whole map to the truth (the global map's fit
+      // starts where the local map's signatures put the frame when the origin is not known).
+      if (!fit_start && std::string(kind) == "local") fit_start = MapFrameInWorld(map, truth.landmarks);
+      const MapQuality aligned = EvaluateFittedMap(map, truth.landmarks, truth.seen, fit_start, gate_m);
+      line[kind]["rmse_aligned_m"] = aligned.evaluated ? json(aligned.rmse_m) : json();
+      if (std::string(kind) == "global") global_fit = aligned;
+    }
+    line.erase("snapshot");
+    out.push_back(line);
+    global_fits.push_back(global_fit);
+  }
+  // The gap over time: at each time the optimum was solved for, the global map of the latest
+  // snapshot no later than it (and less than one snapshot period before it) over the optimum's
+  // RMSE on the same landmarks; at the final snapshot, over the run's own optimum.
+  const auto gap_at = [&](std::size_t i, const BatchReferenceMap& central, double sample_t) {
+    if (!global_fits[i] || !global_fits[i]->evaluated) return;
+    const json limit = SameLandmarksRmse(central, *global_fits[i], truth, gate_m);
+    if (!limit.is_number()) return;
+    out[i]["global"]["central_rmse_aligned_m"] = limit;
+    out[i]["gap_to_central"] = global_fits[i]->rmse_m / limit.get<double>();
+    out[i]["gap_solved_at"] = sample_t;
+  };
+  std::vector<double> times;
+  for (const json& line : out) times.push_back(line.value("t", json()).is_number() ? line.at("t").get<double>() : NAN);
+  std::vector<double> steps;
+  for (std::size_t i = 1; i < times.size(); ++i) {
+    if (times[i] > times[i - 1]) steps.push_back(times[i] - times[i - 1]);
+  }
+  std::sort(steps.begin(), steps.end());
+  const double period = steps.empty() ? 0.0 : steps[steps.size() / 2];
+  constexpr double kSameTime = 1e-6;
+  for (const auto& [sample_t, central] : over_time) {
+    std::optional<std::size_t> latest;
+    for (std::size_t i = 0; i < times.size(); ++i) {
+      if (times[i] <= sample_t + kSameTime && !out[i].value("final", false)) latest = i;
+    }
+    if (latest && sample_t - times[*latest] < std::max(period, kSameTime)) gap_at(*latest, central, sample_t);
+  }
+  if (final_central && !out.empty() && out.back().value("final", false)) {
+    gap_at(out.size() - 1, *final_central, times.back());
+  }
+  return out;
+}
+
+// For each peer incarnation the agent saw go silent for good (its writer gone), what its global
+// map holds of the last map received from it (dead_peers.h), in simulated worlds.
+json DeadPeersJson(const json& stats, const std::optional<LandmarkMap>& local, const LandmarkMap& global,
+                   const std::string& dir, const io::RunTruth& truth, const std::optional<Pose2>& origin,
+                   double gate_m) {
+  json out = json::array();
+  if (!stats.contains("peers") || !origin || !truth.headings_known || !local) return out;
+  const LandmarkMap& own = *local;
+  for (const json& p : stats.at("peers")) {
+    if (!p.value("stale", false) || p.value("own_checkpoint", false)) continue;
+    const RobotId robot = p.at("robot").get<RobotId>();
+    const std::uint32_t inc = p.at("incarnation").get<std::uint32_t>();
+    const std::string path = dir + "/peers/" + std::to_string(robot) + "_" + std::to_string(inc) + "_local.json";
+    const io::RobotTruth* rt = truth.Find(robot);
+    if (!rt || !std::filesystem::exists(path)) continue;
+    const std::optional<Pose2> peer_origin = rt->PoseAt(p.at("origin_stamp").get<double>());
+    if (!peer_origin) continue;
+    const HeldFromPeer h = CheckHeld(own, global, *origin, io::MapFromJson(io::ReadJson(path)), *peer_origin,
+                                     truth.landmarks, gate_m);
+    out.push_back({{"robot", robot},
+                   {"incarnation", inc},
+                   {"landmarks", h.landmarks},
+                   {"alignable", h.alignable()},
+                   {"aligned_tries", h.aligned_tries},
+                   {"overlaps", h.overlaps},
+                   {"verdict", h.verdict},
+                   {"covered", h.covered},
+                   {"inliers", h.inliers},
+                   {"held", h.held},
+                   {"aligned", p.value("aligned", false)}});
+  }
+  return out;
+}
+
+json ReferenceJson(const ReferenceQuality& q) {
+  json j = {{"aligned", q.aligned}, {"landmarks", q.landmarks}, {"reference_landmarks", q.reference_landmarks}};
+  if (!q.aligned) return j;
+  j.update({{"matched", q.matched},
+            {"duplicates", q.duplicates},
+            {"extra", q.extra},
+            {"reference_coverage", q.reference_coverage},
+            {"rmse_m", q.rmse_m},
+            {"nees_mean", q.nees_mean},
+            {"to_reference", {q.to_reference.x, q.to_reference.y, q.to_reference.theta}}});
+  return j;
+}
+
 int Run(int argc, char** argv) {
   CLI::App cli{"mapmesh-eval: scores a run's maps against its ground truth (JSON on stdout)"};
   std::string run_dir;
@@ -308,6 +361,8 @@ int Run(int argc, char** argv) {
   std::mt19937_64 rng(1);
   const io::RunTruth truth = io::TruthFromJson(io::ReadJson(run_dir + "/truth.json"));
   const std::optional<BatchReferenceMaps> batch = ReadBatchReference(run_dir + "/reference.json");
+  const std::vector<std::pair<double, BatchReferenceMap>> over_time = ReadReferenceOverTime(
+      run_dir + "/reference_over_time.json");
   std::map<RobotId, AgentFiles> files;
   for (const io::RobotTruth& robot : truth.robots) {
     files[robot.id] = ReadAgent(run_dir + "/agent_" + std::to_string(robot.id), truth);
@@ -481,7 +536,8 @@ int Run(int argc, char** argv) {
     // else its rigid fit by signatures, else unknown.
     const std::optional<Pose2> frame = origin ? origin : f.local_in_world;
     entry["frame_in_world"] = frame ? json{frame->x, frame->y, frame->theta} : json();
-    entry["history"] = HistoryJson(dir, robot, truth, gate_m, known);
+    entry["history"] = HistoryJson(dir, robot, truth, gate_m, known, over_time,
+                                   batch && batch->central ? &*batch->central : nullptr);
     agents[std::to_string(robot.id)] = entry;
   }
   std::printf("%s\n", json{{"agents", agents}, {"seen_landmarks", truth.seen.size()}}.dump(1).c_str());

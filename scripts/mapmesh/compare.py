@@ -2,7 +2,8 @@
 
 Compared byte for byte: every agent's local_map.json, global_map.json, trajectory.json,
 checkpoint.json, history.jsonl, peers/ and snapshots/, and truth.json. Compared as JSON with the
-host's measurements left out: summary.json, timeline.json, feeder.json, reference.json and each
+host's measurements left out: summary.json, timeline.json, feeder.json, reference.json,
+reference_over_time.json and each
 agent's stats.json. What is left out, and why, is VOLATILE; logs and the report are not compared.
 A secure run's checkpoint holds its submaps' signatures, which ECDSA draws afresh each time
 (the submaps are compared, their signatures are not): checkpoints that differ in bytes are
@@ -29,7 +30,7 @@ VOLATILE = frozenset({
 })
 BYTES = ["local_map.json", "global_map.json", "trajectory.json", "checkpoint.json", "history.jsonl"]
 BYTE_DIRS = ["peers", "snapshots"]
-JSON_TOP = ["summary.json", "timeline.json", "feeder.json", "reference.json"]
+JSON_TOP = ["summary.json", "timeline.json", "feeder.json", "reference.json", "reference_over_time.json"]
 
 
 def strip(value):

@@ -18,7 +18,7 @@ VERSION = 1
 # The `swarm run` options a run is made with, as argparse names them: what --from restores.
 OPTIONS = ("scenario", "agents", "kill", "restart", "pause", "set", "pace", "rate", "timeout", "inject",
            "inject_period", "inject_sim_period", "secure", "inject_identity", "hosts", "net_loss", "net_rate",
-           "no_reference")
+           "no_reference", "gap_samples")
 REPO = Path(__file__).resolve().parents[2]
 
 

@@ -2,6 +2,7 @@
 and restarts agents at scenario times, ends the run, stops every process it started (also
 when interrupted), scores the maps and writes DIR/summary.json."""
 
+import concurrent.futures
 import ctypes
 import errno
 import fcntl
@@ -12,6 +13,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -22,8 +24,8 @@ from .run_error import RunError  # noqa: F401  (re-exported: sweep and scale rai
 from .progress import Progress
 from . import provenance
 from .reached import reached_until
-from .rundir import (AGENT_LOG, CHECKPOINT, FEEDER, INJECT, REFERENCE, REFERENCE_REACHED, REPORT, STATS, SUMMARY,
-                     TIMELINE, TRUTH, RunDir, agent_dir, clear_earlier_run, earlier_run, read_json)
+from .rundir import (AGENT_LOG, CHECKPOINT, FEEDER, INJECT, REFERENCE, REFERENCE_OVER_TIME, REFERENCE_REACHED, REPORT,
+                     STATS, SUMMARY, TIMELINE, TRUTH, RunDir, agent_dir, clear_earlier_run, earlier_run, read_json)
 
 REPO = Path(__file__).resolve().parents[2]
 # Plots need matplotlib and numpy from Debian, which /usr/bin/python3 has (another python3 may
@@ -681,10 +683,59 @@ class SwarmRun:
                 failed.add(rid)
         return until, failed
 
+    def compute_reference_over_time(self, reference):
+        """DIR/reference_over_time.json, for the gap over time: the centralized optimum with no start
+        known (reference.json's `central`) of every robot's data up to each of several times, by
+        `mapmesh-lab reference --until ROBOT=T` for every robot (two at a time). The times: for k
+        in 1 .. --gap-samples - 1, the latest snapshot time of any agent (history.jsonl) no later
+        than k / --gap-samples of the scenario (the end is reference.json's). mapmesh-eval scores
+        each agent's snapshot at those times against them (timeline.json). Returns what
+        summary.json's reference holds of it (the times and the wall time), or None."""
+        samples = getattr(self.args, "gap_samples", 0) or 0
+        (self.out / REFERENCE_OVER_TIME).unlink(missing_ok=True)
+        if samples < 2 or not reference.get("available"):
+            return None
+        duration = float(self.info["duration"])
+        shots = sorted(snapshot_times(self.out / agent_dir(rid) / HISTORY for rid in self.agents))
+        times = []
+        for k in range(1, samples):
+            before = [t for t in shots if t <= duration * k / samples + 1e-9]
+            if before and before[-1] > 0 and before[-1] not in times:
+                times.append(before[-1])
+        if not times:
+            return None
+        if not self.args.quiet:
+            print(f"computing the optimum at {len(times)} earlier times, for the gap over time "
+                  "(--gap-samples 0 skips it)", flush=True)
+        lab = binary("mapmesh-lab")
+        start = time.monotonic()
+
+        def solve(t):
+            with tempfile.TemporaryDirectory() as tmp:
+                path = Path(tmp) / REFERENCE
+                cmd = [lab, "reference", "--scenario", self.scenario, "--no-known-pose", "--no-known-starts",
+                       "--out", str(path)] + self.common
+                for rid in sorted(self.agents):
+                    cmd += ["--until", f"{rid}={t}"]
+                r = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+                if r.returncode != 0 or not path.exists():
+                    print(f"swarm: the optimum at t={t:g} s failed: {last_line(r.stderr, f'exit code {r.returncode}')}",
+                          file=sys.stderr)
+                    return None
+                ref = read_json(path)
+                return {"t": t, "central": ref.get("central"), "total_s": ref.get("total_s")}
+
+        with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
+            solved = [s for s in pool.map(solve, times) if s is not None and s.get("central")]
+        wall = round(time.monotonic() - start, 3)
+        write_json(self.out / REFERENCE_OVER_TIME, {"available": bool(solved), "samples": solved})
+        return {"samples_t": [s["t"] for s in solved], "wall_s": wall}
+
     def summarise(self, wall_s, interrupted):
         run = RunDir(self.out)
         reference = self.compute_reference(interrupted)
         reached, reached_failed = self.compute_reached(reference)
+        over_time = self.compute_reference_over_time(reference)
         scores = {}
         if run.path(TRUTH).exists():
             r = subprocess.run([binary("mapmesh-eval"), "--run", str(self.out)], capture_output=True, text=True)
@@ -800,6 +851,8 @@ class SwarmRun:
             "failed_agents": [a["id"] for a in agents if a["failed"]],
         }
         summary["reference"] = reference
+        if over_time is not None:
+            summary["reference"]["over_time"] = over_time
         summary["network"] = self.hosts.summary() if self.hosts else {"hosts": "loopback"}
         if self.args.inject:
             summary["injected"] = run.read_if_present(INJECT)
@@ -855,10 +908,8 @@ def write_json(path, value):
         raise RunError(f"{path} not written: {e.strerror}", 1) from e
 
 
-def most_landmarks(path):
-    """The most landmarks of each map in an agent's history.jsonl (any incarnation):
-    {"local": n, "global": n}, or None without a history."""
-    most = {}
+def history_lines(path):
+    """The entries of an agent's history.jsonl (a line cut by a kill left out); none without one."""
     try:
         with open(path) as f:
             for line in f:
@@ -866,12 +917,27 @@ def most_landmarks(path):
                     entry = json.loads(line)
                 except ValueError:
                     continue  # a line cut by a kill
-                for kind in ("local", "global"):
-                    n = entry.get(f"{kind}_landmarks")
-                    if isinstance(n, int):
-                        most[kind] = max(most.get(kind, 0), n)
+                if isinstance(entry, dict):
+                    yield entry
     except OSError:
-        return None
+        return
+
+
+def snapshot_times(paths):
+    """The scenario times of the snapshots in these history.jsonl files but the final ones."""
+    return {e["t"] for p in paths for e in history_lines(p)
+            if isinstance(e.get("t"), (int, float)) and not e.get("final")}
+
+
+def most_landmarks(path):
+    """The most landmarks of each map in an agent's history.jsonl (any incarnation):
+    {"local": n, "global": n}, or None without a history."""
+    most = {}
+    for entry in history_lines(path):
+        for kind in ("local", "global"):
+            n = entry.get(f"{kind}_landmarks")
+            if isinstance(n, int):
+                most[kind] = max(most.get(kind, 0), n)
     return most or None
 
 

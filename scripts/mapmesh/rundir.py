@@ -17,6 +17,7 @@ TIMELINE = "timeline.json"
 FEEDER = "feeder.json"
 INJECT = "inject.json"
 REFERENCE = "reference.json"  # the limit of the run's data (mapmesh-lab reference)
+REFERENCE_OVER_TIME = "reference_over_time.json"  # the fair optimum of the data up to earlier times
 REPORT = "report.html"
 # Each agent's files, in its directory agent_dir(id).
 STATS = "stats.json"
@@ -32,8 +33,8 @@ REFERENCE_REACHED = "reference_reached.json"
 
 # Everything else a run writes in DIR, besides agent_dir(id) for each agent: what an earlier run
 # left there, for earlier_run() and clear_earlier_run().
-RUN_FILES = (SUMMARY, TRUTH, TIMELINE, FEEDER, INJECT, REFERENCE, REPORT, "feeder.log", "inject.log",
-             "cyclonedds.xml", "cyclonedds-netns.xml", "run.json", "scenario.yaml")
+RUN_FILES = (SUMMARY, TRUTH, TIMELINE, FEEDER, INJECT, REFERENCE, REFERENCE_OVER_TIME, REPORT, "feeder.log",
+             "inject.log", "cyclonedds.xml", "cyclonedds-netns.xml", "run.json", "scenario.yaml")
 RUN_DIRS = ("report", "security", "export")
 # A run's own files: DIR holds an earlier run when one of them is there.
 RUN_MARKS = (SUMMARY, FEEDER, TRUTH, "feeder.log", "run.json")

@@ -30,7 +30,9 @@ The page shows:
     of agents, when they were in radio range (truth and run.json's radio.range_m), when the
     receiver got maps from the sender and when it aligned it; mean NEES (each map kind on its own
     axis, the band [1, 3] drawn), coverage and bytes over time; no line across the time an agent
-    was dead. Without it the page says so.
+    was dead. Without it the page says so;
+  - in the limit section, from timeline.json too, the gap over time: each global map over the
+    centralized optimum of the data up to each time swarm run solved it for (--gap-samples).
 
 Reads summary.json (required), truth.json, timeline.json, run.json and agent_<id>/{local_map,
 global_map,trajectory,stats}.json and history.jsonl (each optional; whatever is missing is
@@ -734,6 +736,37 @@ def rmse_figure(run, tl, path):
                      after=lambda ax: ax.set_ylim(bottom=0))
 
 
+def gap_entries(tl):
+    """{agent: [its timeline entries that carry a gap to the optimum of the data up to then]}."""
+    return {rid: [e for e in entries if isinstance(e.get("gap_to_central"), (int, float))]
+            for rid, entries in tl.items()}
+
+
+def gap_figure(run, tl, path):
+    """The gap over time: each global map's RMSE after the rigid fit over the fair optimum's of the
+    data up to then, on the same landmarks (timeline.json's gap_to_central, at the times
+    reference_over_time.json was solved for and at the end); 1 is the limit. Log scale when the
+    gaps span more than 10x. False (nothing written) when no entry has one."""
+    gaps = gap_entries(tl)
+    if not any(gaps.values()):
+        return False
+    fig, ax = plt.subplots(figsize=(13, 4.8))
+    fig.subplots_adjust(left=0.065, right=0.98, top=0.86, bottom=0.24)
+    ax.axhline(1.0, color="black", ls="--", lw=1, label="the limit (1)")
+    agent_lines(ax, run, gaps, lambda e: e.get("gap_to_central"))
+    values = [e["gap_to_central"] for entries in gaps.values() for e in entries if e["gap_to_central"] > 0]
+    if values and max(values + [1.0]) / min(values + [1.0]) > 10:
+        ax.set_yscale("log")
+    else:
+        ax.set_ylim(bottom=0)
+    time_axis(ax, run, "global RMSE / optimum of the data up to then",
+              "global map over the centralized optimum of the data up to then (same landmarks)")
+    legend_below(fig, [ax])
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return True
+
+
 # A global coverage that falls by this share between two checkpoints of one incarnation is an
 # event the coverage figure's caption names, with the alignments the agent dropped meanwhile.
 COVERAGE_DROP = 0.2
@@ -1050,6 +1083,16 @@ def write_report(d):
              + (f" Pauses: {esc(pauses_text(s.get('pauses')))}." if s.get("pauses") else "")
              + (" <b>The run was interrupted.</b>" if s.get("interrupted") else ""))
     limit = reference_html(s.get("reference"))
+    if run.timeline is not None and gap_figure(run, tl, out / "gap.png"):
+        solved = ((s.get("reference") or {}).get("over_time") or {}).get("samples_t") or []
+        limit += figure_html(
+            "report/gap.png", "the gap over time",
+            "The gap over time: each global map's RMSE after a rigid fit over the centralized optimum's (no start "
+            "known) of every robot's data up to that time, on the same landmarks; 1 is the limit. Solved at "
+            + (", ".join(f"{t:g}" for t in solved) + " s and " if solved else "")
+            + "the end (swarm run --gap-samples), each against the agent's latest snapshot by then. Early on a "
+            "global map holds mostly its own robot's landmarks, where its gap is its local map's; each merge "
+            "adds landmarks placed by an imperfect transform.")
     notes = "".join(f"<li>{esc(n)}</li>" for n in dict.fromkeys(run.notes))
     page = f"""<!DOCTYPE html>
 <html lang="en">

@@ -8,9 +8,10 @@ Run: cd tests/integration && /usr/bin/python3 -m unittest fair_limit_test
 
 import json
 import math
+import subprocess
 import unittest
 
-from swarm_test import SwarmCase
+from swarm_test import BIN, REPO, SwarmCase
 
 # Two pairs of robots 80 m apart in one strip of trees: each pair's circles overlap, the pairs
 # share no tree, never see each other and are out of radio range.
@@ -57,6 +58,62 @@ def fitted_errors(points, truth):
 
 def rmse(errors):
     return math.sqrt(sum(e[0] ** 2 + e[1] ** 2 for e in errors) / len(errors))
+
+
+class GapOverTimeTest(SwarmCase):
+    # U1: the report had no gap over time (the optimum was solved once, at the end).
+    def test_the_gap_over_time_is_against_the_optimum_of_the_data_up_to_then(self):
+        park4 = REPO / "scenarios" / "park4.yaml"
+        r = self.swarm(park4, "--gap-samples", "4", "--kill", "2@70")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        s = self.summary()
+        timeline = json.loads((self.out / "timeline.json").read_text())["agents"]
+        shots = sorted({e["t"] for h in timeline.values() for e in h if not e.get("final")})
+        duration = s["scenario_duration_s"]
+        # The latest snapshot of any agent no later than each quarter of the scenario.
+        expected = [max(t for t in shots if t <= duration * k / 4) for k in (1, 2, 3)]
+        self.assertEqual(s["reference"]["over_time"]["samples_t"], expected)
+        samples = json.loads((self.out / "reference_over_time.json").read_text())["samples"]
+        self.assertEqual([x["t"] for x in samples], expected)
+        # Each solved on every robot's data up to its time: what mapmesh-lab gives on its own, and
+        # no more landmarks than later (the whole run's last).
+        middle = samples[1]
+        cmd = [str(BIN / "mapmesh-lab"), "reference", "--scenario", str(park4), "--no-known-pose", "--no-known-starts"]
+        for rid in range(1, 5):
+            cmd += ["--until", f"{rid}={middle['t']}"]
+        own = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
+        self.assertEqual(own.returncode, 0, own.stderr)
+        self.assertEqual(json.loads(own.stdout)["central"]["map"], middle["central"]["map"])
+        whole = json.loads((self.out / "reference.json").read_text())["central"]
+        counts = [len(x["central"]["map"]["landmarks"]) for x in samples] + [len(whole["map"]["landmarks"])]
+        self.assertEqual(counts, sorted(counts))
+        self.assertLess(counts[0], counts[-1])
+        for a in s["agents"]:
+            gaps = [e for e in timeline[str(a["id"])] if "gap_to_central" in e]
+            with self.subTest(agent=a["id"]):
+                for e in gaps:  # its global map's RMSE over the optimum's on the same landmarks
+                    self.assertAlmostEqual(e["gap_to_central"] * e["global"]["central_rmse_aligned_m"],
+                                           e["global"]["rmse_aligned_m"], places=12)
+                    self.assertLessEqual(e["t"], e["gap_solved_at"])
+                if a["alive_at_end"]:
+                    self.assertEqual([e["gap_solved_at"] for e in gaps], expected + [gaps[-1]["t"]])
+                    self.assertTrue(gaps[-1]["final"])
+                    self.assertEqual(gaps[-1]["gap_to_central"], a["gap_to_central"])  # the summary's
+                else:  # killed at 70 s: no snapshot near the later times, nor a final one
+                    self.assertEqual([e["gap_solved_at"] for e in gaps], [t for t in expected if t <= 70])
+        page = (self.out / "report.html").read_text()
+        self.assertIn('src="report/gap.png"', page)
+        self.assertIn(", ".join(f"{t:g}" for t in expected) + " s and the end", page)
+        self.assertGreater((self.out / "report" / "gap.png").stat().st_size, 10000)
+
+    def test_no_samples_is_the_end_only(self):
+        r = self.swarm(REPO / "scenarios" / "park4.yaml", "--gap-samples", "0", "--set", "duration_s=60")
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertNotIn("over_time", self.summary()["reference"])
+        self.assertFalse((self.out / "reference_over_time.json").exists())
+        bad = self.swarm(REPO / "scenarios" / "park4.yaml", "--gap-samples", "x")
+        self.assertEqual(bad.returncode, 2)
+        self.assertIn("'x': expected a whole number of samples", bad.stderr)
 
 
 class FairLimitTest(SwarmCase):
