@@ -37,8 +37,9 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SyncStats, odom_received, odom_processed, odo
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(MapperStats, offered, associated, initialised, tentative, rejected_gate, ambiguous,
                                    unidentified, out_of_range, invalid, failed_updates, diverged)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(AgentStats, maps_sent, bytes_sent, maps_received, bytes_received, maps_out_of_range,
-                                   maps_lost, maps_over_bandwidth, maps_unknown_sender, maps_stale_version,
-                                   maps_encode_failed, maps_encode_trimmed, maps_beyond_sample_size, links_refused)
+                                   maps_lost, maps_over_bandwidth, maps_delayed, maps_delay_overflow, in_flight,
+                                   maps_unknown_sender, maps_stale_version, maps_encode_failed, maps_encode_trimmed,
+                                   maps_beyond_sample_size, links_refused)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerReport, own_checkpoint, origin_stamp, local_landmarks, global_landmarks, aligned,
                                    ever_aligned, aligned_since, dropped, stale, stale_since, frozen, silent, last_heard,
                                    relayed, relay_conflicts, refuted, refuted_by, replaced, superseded, refuted_answers,
@@ -291,6 +292,7 @@ json StatsJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
               {"received", s.sightings_received},
               {"gated", s.sightings_gated},
               {"implausible", s.sightings_implausible},
+              {"delayed", s.sightings_delayed},
               {"tracker", node.rendezvous_stats()}}},
             {"submaps",
              {{"own", sc.own},

@@ -118,9 +118,28 @@ double AgentStats::BytesPerLandmark() const {
 }
 
 std::uint32_t AgentStats::MapsDropped() const {
-  return maps_out_of_range + maps_lost + maps_over_bandwidth + maps_unknown_sender + maps_stale_version +
-         MapsRejected() + MapsRefused();
+  return maps_out_of_range + maps_lost + maps_over_bandwidth + maps_delay_overflow + maps_unknown_sender +
+         maps_stale_version + MapsRejected() + MapsRefused();
 }
+
+namespace {
+
+RadioGateOptions GateOptions(const AgentOptions& options, const AgentRun& run) {
+  RadioGateOptions o;
+  o.loss_probability = run.loss_probability;
+  o.bandwidth_bytes_per_s = run.bandwidth_bytes_per_s;
+  o.max_stamp_jump_s = options.max_stamp_jump_s;
+  o.max_stamp_s = run.end_s + options.max_stamp_jump_s;
+  o.latency_s = run.latency_s;
+  o.latency_jitter_s = run.latency_jitter_s;
+  o.link_seed = run.seed;
+  return o;
+}
+
+// Arrivals this close to the radio's clock have arrived (the stamps' rounding).
+constexpr double kArrivalSlackS = 1e-9;
+
+}  // namespace
 
 AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId self, std::uint32_t incarnation,
                      AgentOutput& out)
@@ -129,19 +148,13 @@ AgentNode::AgentNode(const AgentOptions& options, const AgentRun& run, RobotId s
       self_(self),
       incarnation_(incarnation),
       out_(out),
-      gate_(self,
-            RadioGateOptions{run.loss_probability, run.bandwidth_bytes_per_s, options.max_stamp_jump_s,
-                             run.end_s + options.max_stamp_jump_s},
-            run.seed * 1000003ULL + self * 7919ULL + incarnation),
+      gate_(self, GateOptions(options, run), run.seed * 1000003ULL + self * 7919ULL + incarnation),
       sync_(*this, SensorSync::Options{options.sync.frame_at_first_landmark, options.max_stamp_jump_s,
                                        run.end_s + options.max_stamp_jump_s}),
       mapper_(MakeLocalMapper(options, run.noise, run.sensor)),
       trajectory_period_s_(run.trajectory_period_s),
       exchange_(self, incarnation, options.exchange, run.seed * 2654435761ULL + self * 40503ULL + incarnation),
-      sighting_gate_(self,
-                     RadioGateOptions{run.loss_probability, run.bandwidth_bytes_per_s, options.max_stamp_jump_s,
-                                      run.end_s + options.max_stamp_jump_s},
-                     run.seed * 998244353ULL + self * 104729ULL + incarnation),
+      sighting_gate_(self, GateOptions(options, run), run.seed * 998244353ULL + self * 104729ULL + incarnation),
       rendezvous_(self, incarnation, run.robots, options.rendezvous, run.sensor.sigma_range_m,
                   run.sensor.sigma_bearing_rad),
       submaps_([&] {
@@ -231,8 +244,36 @@ void AgentNode::ProcessSighting(const Sighting& msg) {
     ++stats_.sightings_gated;
     return;
   }
+  if (sighting_gate_.Delays()) {
+    const double arrival = sighting_gate_.Arrival(msg.robot_id, kSightingWireBytes, msg.stamp);
+    if (arrival > RadioNow() + kArrivalSlackS) {
+      if (delay_.Hold(arrival, msg)) {
+        ++stats_.sightings_delayed;
+      } else {
+        ++stats_.sightings_gated;  // no room: dropped as by the radio
+      }
+      stats_.in_flight = static_cast<std::uint32_t>(delay_.size());
+      return;
+    }
+  }
+  ApplySighting(msg);
+}
+
+void AgentNode::ApplySighting(const Sighting& msg) {
   ++stats_.sightings_received;
   rendezvous_.OnMessage(msg);
+}
+
+void AgentNode::TakeArrived() {
+  if (delay_.size() == 0) return;
+  for (DelayLine::Message& m : delay_.TakeArrived(RadioNow() + kArrivalSlackS)) {
+    if (auto* map = std::get_if<DelayLine::HeldMap>(&m)) {
+      ApplyMap(map->map);
+    } else {
+      ApplySighting(std::get<Sighting>(m));
+    }
+  }
+  stats_.in_flight = static_cast<std::uint32_t>(delay_.size());
 }
 
 void AgentNode::IntervalDone(const Odometry& odom) { AfterInterval(odom); }
@@ -240,6 +281,7 @@ void AgentNode::IntervalDone(const Odometry& odom) { AfterInterval(odom); }
 bool AgentNode::Mapped() const { return mapper_->size() > 0; }
 
 void AgentNode::AfterInterval(const Odometry& odom) {
+  if (!exchange_ticks_) TakeArrived();  // in lockstep, at the tick
   if (sync_.frame_fixed() && options_.exchange.ByRendezvous()) {
     rendezvous_.OnPose(sync_.processed_until(), mapper_->pose(), mapper_->pose_cov());
     if (!exchange_ticks_) {  // in lockstep, at the tick
@@ -464,6 +506,28 @@ void AgentNode::ProcessMap(const MapMessage& msg, const std::string& writer) {
     case GateVerdict::kBusy: ++stats_.maps_over_bandwidth; return;
     case GateVerdict::kPass: break;
   }
+  if (gate_.Delays()) {
+    const double arrival = gate_.Arrival(msg.robot_id, WireBytes(msg), msg.stamp);
+    if (arrival > RadioNow() + kArrivalSlackS) {
+      if (delay_.Hold(arrival, msg, writer, WireBytes(msg))) {
+        ++stats_.maps_delayed;
+      } else {
+        ++stats_.maps_delay_overflow;
+      }
+      stats_.in_flight = static_cast<std::uint32_t>(delay_.size());
+      return;
+    }
+  }
+  ApplyMap(msg);
+}
+
+void AgentNode::ApplyMap(const MapMessage& msg) {
+  const double now = Clock();
+  auto refuse = [this](MapRefusal r) { ++stats_.maps_refused[static_cast<int>(r)]; };
+  const auto refuse_riders = [&] {
+    const std::size_t riders = msg.submaps.size() + msg.open_relayed.size() + (msg.open_submap.empty() ? 0 : 1);
+    stats_.submaps_refused[static_cast<int>(SubmapRefusal::kOnRefusedMap)] += static_cast<std::uint32_t>(riders);
+  };
   stats_.bytes_received += WireBytes(msg);
   // A map larger than we will align is refused before it is decoded (kept within the codec's
   // own limit, so that a malformed count is still reported as such).
@@ -666,6 +730,7 @@ void AgentNode::Exchange(const ExchangeTick& tick) {
     gate_.SetLinks(tick.links);
     sighting_gate_.SetLinks(tick.links);
   }
+  tick_stamp_ = tick.stamp;
   ApplyInbox(tick.index);
   // Exactly the incarnations the tick lists are alive (after the inbox: a map of an incarnation
   // that has died since it was published must not make it alive again).
@@ -703,6 +768,7 @@ void AgentNode::ApplyInbox(std::uint32_t tick) {
   // Untagged messages (tick 0: from outside the run's agents) are applied at the next tick too;
   // those of ticks before this incarnation's first (a late reader gets them from the writers'
   // history) are not for it (the inbox drops them).
+  TakeArrived();  // first what has arrived over its links by now, then what came for this tick
   LockstepInbox::Due due = inbox_.TakeBefore(tick);
   for (std::size_t i = 0; i < due.maps.size(); ++i) ProcessMap(due.maps[i], due.writers[i]);
   if (!options_.exchange.ByRendezvous()) return;

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "agent/agent_options.h"
+#include "agent/delay_line.h"
 #include "agent/lockstep_inbox.h"
 #include "agent/map_exchange.h"
 #include "agent/radio_gate.h"
@@ -53,6 +54,8 @@ struct AgentRun {
   double trajectory_period_s = 0.5;    // how often the estimated pose is recorded (feeder.truth_period_s)
   double loss_probability = 0.0;       // radio.loss_probability
   double bandwidth_bytes_per_s = 0.0;  // radio.bandwidth_bytes_per_s (0: unlimited)
+  double latency_s = 0.0;              // radio.latency_s
+  double latency_jitter_s = 0.0;       // radio.latency_jitter_s
   FilterNoise noise;                   // the robot's motion model and its odometry and sensor noise
   SensorSpec sensor;                   // its sensor's range, noise and signatures
   bool exchange_ticks = false;         // feeder.pace lockstep: peers' messages are exchanged at ticks (ExchangeTick)
@@ -148,6 +151,13 @@ struct AgentStats {
   std::uint32_t sightings_received = 0;     // peers' sightings and answers that passed the radio gate
   std::uint32_t sightings_gated = 0;        // ... that it dropped (out of range, lost, busy)
   std::uint32_t sightings_implausible = 0;  // ... refused before it: unknown sender or a stamp ahead of ours
+  std::uint32_t sightings_delayed = 0;      // ... held in the delay line after the gate (radio.latency_s)
+  // Maps the gate passed that the link's latency or transmission time held in the delay line
+  // (each taken once it arrived, unless the run ended first: in_flight), and those it had no
+  // room for (dropped; sightings too).
+  std::uint32_t maps_delayed = 0;
+  std::uint32_t maps_delay_overflow = 0;
+  std::uint32_t in_flight = 0;                                            // messages in the delay line now
   std::array<std::uint32_t, kSubmapDecodeErrorCount> submaps_rejected{};  // peers' submaps, by SubmapDecodeError
   std::array<std::uint32_t, kSubmapRefusalCount> submaps_refused{};       // by SubmapRefusal
   std::uint32_t submaps_unsendable = 0;  // own closed submaps that cannot go on the wire (never sent)
@@ -261,13 +271,21 @@ class AgentNode : private SensorSync::Sink {
   // Publishes one map; true when it went out (with the riders, which it then takes).
   bool Publish(MapKind kind, const LandmarkMap& map, std::uint32_t version, std::uint32_t tick,
                std::vector<Sighting>& riders);
-  // A peer's map or sighting through the gates into the exchange (at once, or at a tick).
+  // A peer's map or sighting through the gates into the exchange (at once, or at a tick), or,
+  // when the link's latency has it arrive later, into the delay line.
   void ProcessMap(const MapMessage& msg, const std::string& writer);
+  // A map that passed the gates and has arrived over the link, into the exchange.
+  void ApplyMap(const MapMessage& msg);
+  // The delay line's messages that have arrived by RadioNow(), in order.
+  void TakeArrived();
+  // The radio's clock for arrivals: the exchange tick's stamp in lockstep, else Clock().
+  double RadioNow() const { return exchange_ticks_ ? tick_stamp_ : Clock(); }
   // The submaps and advertisement riding on a peer's local map that passed the gate, at `now`.
   void ProcessSubmaps(const MapMessage& msg, double now);
   // Own submaps closed since the last call into the relay's book.
   void TakeOwnSubmaps();
   void ProcessSighting(const Sighting& msg);
+  void ApplySighting(const Sighting& msg);
   // The exchange phase of a tick, its link table present (OnTick).
   void Exchange(const ExchangeTick& tick);
   // The inbox's messages of ticks before `tick`, in order, into the exchange; the rest stay.
@@ -303,6 +321,7 @@ class AgentNode : private SensorSync::Sink {
   AgentStats stats_;
   MapExchange exchange_;
   RadioGate sighting_gate_;  // the radio gate for sightings: its own loss draws, so maps see the same ones
+  DelayLine delay_;          // messages the gates passed, until they arrive over their link
   RendezvousTracker rendezvous_;
   SubmapRelay submaps_;
   SubmapOrigin* origin_ = nullptr;  // secure runs: signs own submaps, checks the peers'
@@ -330,6 +349,7 @@ class AgentNode : private SensorSync::Sink {
   std::vector<Sighting> held_sightings_;     // own sightings and answers, to go out at the next tick
   std::optional<std::uint32_t> first_tick_;  // the first exchange tick of this incarnation
   std::uint32_t tick_done_ = 0, tick_published_ = 0, tick_delivered_ = 0;
+  double tick_stamp_ = 0.0;          // the stamp of the exchange tick being applied
   bool continuity_checked_ = false;  // earlier incarnations that share this frame placed (PublishMaps)
   double next_checkpoint_s_ = 0.0;
   bool checkpoint_due_ = false;

@@ -18,6 +18,8 @@ AgentRun AgentRunFor(const Scenario& sc, RobotId self) {
   run.trajectory_period_s = sc.feeder.truth_period_s;
   run.loss_probability = sc.radio.loss_probability;
   run.bandwidth_bytes_per_s = sc.radio.bandwidth_bytes_per_s;
+  run.latency_s = sc.radio.latency_s;
+  run.latency_jitter_s = sc.radio.latency_jitter_s;
   run.exchange_ticks = sc.feeder.pace == Pace::kLockstep;
 
   const MotionModel motion = MotionModelFor(robot->motion);

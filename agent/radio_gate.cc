@@ -1,7 +1,10 @@
 #include "agent/radio_gate.h"
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
+
+#include "common/types/keyed_draw.h"
 
 namespace mapmesh {
 
@@ -39,6 +42,20 @@ void RadioGate::Use(const RadioLinks& links) {
     if (l.a == self_) neighbours_.insert(l.b);
     if (l.b == self_) neighbours_.insert(l.a);
   }
+}
+
+double LinkLatency(const RadioGateOptions& options, RobotId a, RobotId b) {
+  if (options.latency_jitter_s <= 0.0) return options.latency_s;
+  constexpr std::uint64_t kLatencyStream = 3;  // the feeder's radio model draws streams 1 and 2
+  const std::uint64_t key = DrawKey(options.link_seed, {kLatencyStream, std::min(a, b), std::max(a, b)});
+  return options.latency_s + options.latency_jitter_s * UniformDraw(key);
+}
+
+double RadioGate::Arrival(RobotId sender, std::size_t bytes, double stamp) const {
+  const double transmission = options_.bandwidth_bytes_per_s > 0.0
+                                  ? static_cast<double>(bytes) / options_.bandwidth_bytes_per_s
+                                  : 0.0;
+  return stamp + LinkLatency(options_, self_, sender) + transmission;
 }
 
 GateVerdict RadioGate::Admit(RobotId sender, std::size_t bytes, double stamp) {

@@ -4,25 +4,15 @@
 #include <cmath>
 #include <limits>
 
+#include "common/types/keyed_draw.h"
+
 namespace mapmesh {
 
 namespace {
 
-// splitmix64's output function: a bijective mix of 64 bits.
-std::uint64_t Mix(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
-
 std::uint64_t Key(std::uint64_t seed, std::uint64_t stream, RobotId a, RobotId b, std::int64_t index) {
-  std::uint64_t k = Mix(seed);
-  for (std::uint64_t part :
-       {stream, static_cast<std::uint64_t>(a), static_cast<std::uint64_t>(b), static_cast<std::uint64_t>(index)}) {
-    k = Mix(k ^ part);
-  }
-  return k;
+  return DrawKey(seed, {stream, static_cast<std::uint64_t>(a), static_cast<std::uint64_t>(b),
+                        static_cast<std::uint64_t>(index)});
 }
 
 double Cross(const Eigen::Vector2d& u, const Eigen::Vector2d& v) { return u.x() * v.y() - u.y() * v.x(); }
@@ -67,13 +57,6 @@ int WallsCrossed(const std::vector<RadioWall>& walls, const Eigen::Vector2d& p, 
   int n = 0;
   for (const RadioWall& w : walls) n += Intersect(p, q, w.a, w.b) ? 1 : 0;
   return n;
-}
-
-double NormalDraw(std::uint64_t key) {
-  const std::uint64_t h1 = Mix(key), h2 = Mix(h1);
-  const double u1 = (static_cast<double>(h1 >> 11) + 1.0) * 0x1.0p-53;  // (0, 1]
-  const double u2 = static_cast<double>(h2 >> 11) * 0x1.0p-53;          // [0, 1)
-  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
 }
 
 double RadioModel::Margin(double distance_m, int walls) const {

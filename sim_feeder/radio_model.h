@@ -23,6 +23,7 @@
 
 #include "common/config/scenario.h"
 #include "common/geometry/pose2.h"
+#include "common/types/keyed_draw.h"  // NormalDraw: a function of its key alone
 #include "common/types/messages.h"
 
 namespace mapmesh {
@@ -37,9 +38,6 @@ std::vector<Link> LinksInRange(const std::vector<RobotPosition>& robots, double 
 
 // The walls the segment p-q crosses (touching an end counts; a wall along the segment counts once).
 int WallsCrossed(const std::vector<RadioWall>& walls, const Eigen::Vector2d& p, const Eigen::Vector2d& q);
-
-// A standard normal draw that is a function of its key alone (splitmix64 and Box-Muller).
-double NormalDraw(std::uint64_t key);
 
 // The spans in which each pair was linked, from the tables published in order: a pair's span
 // runs from the first table holding it to one period after the last of an unbroken row.

@@ -173,7 +173,12 @@ struct RadioOptions {
   std::vector<RadioWall> walls;
   double loss_probability = 0.0;       // chance that a map message is dropped
   double bandwidth_bytes_per_s = 0.0;  // per link; 0 means unlimited
-  double links_period_s = 0.5;         // how often the feeder publishes the link table
+  // Each link's latency: latency_s plus a uniform draw in [0, latency_jitter_s) per pair (a
+  // function of the seed and the pair); a message of B bytes arrives that long plus B /
+  // bandwidth after it was sent (agent/radio_gate.h).
+  double latency_s = 0.0;
+  double latency_jitter_s = 0.0;
+  double links_period_s = 0.5;  // how often the feeder publishes the link table
 };
 
 // How the feeder paces the run: lockstep (as fast as the agents go) or realtime.

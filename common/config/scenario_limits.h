@@ -67,6 +67,7 @@ inline constexpr double kMaxSigmaBearingDeg = 180.0;  // sensor.sigma_bearing_de
 
 // Rates and thresholds.
 inline constexpr double kMaxBandwidthBytesPerS = 1e12;  // radio.bandwidth_bytes_per_s
+inline constexpr double kMaxLatencyS = 3600.0;          // radio.latency_s, latency_jitter_s
 inline constexpr double kMaxPathLossExponent = 10.0;    // radio.path_loss_exponent
 inline constexpr double kMaxDecibels = 200.0;           // radio.shadowing_sigma_db, wall_loss_db, ...
 inline constexpr int kMaxRadioWalls = 10000;            // radio.walls

@@ -385,6 +385,8 @@ RadioOptions ReadRadio(YamlReader r) {
   o.walls = ReadWalls(r, "walls");
   r.GetInRange("loss_probability", o.loss_probability, 0.0, 1.0);
   r.GetInRange("bandwidth_bytes_per_s", o.bandwidth_bytes_per_s, 0.0, limits::kMaxBandwidthBytesPerS);
+  r.GetInRange("latency_s", o.latency_s, 0.0, limits::kMaxLatencyS);
+  r.GetInRange("latency_jitter_s", o.latency_jitter_s, 0.0, limits::kMaxLatencyS);
   r.GetInRange("links_period_s", o.links_period_s, limits::kMinPeriodS, limits::kMaxPeriodS);
   r.Finish();
   return o;

@@ -977,6 +977,64 @@ TEST_F(LockstepTest, TheGatesUseTheTicksLinkTable) {
   EXPECT_EQ(node_.stats().maps_received, 0u);
 }
 
+// U1 (radio.latency_s): a peer's map that passed the gate waits until it has arrived over its
+// link, the first tick at or after its stamp plus the link's latency: 1 s + 2.5 s, tick 4.
+TEST(LockstepLatencyTest, APeersMapIsTakenAtTheFirstTickAfterItArrives) {
+  const Scenario sc = ParseScenario(R"(version: 1
+world: {landmarks: {list: [[5, 0], [0, 5]]}}
+robots:
+  list:
+    - {id: 1, start: [0, 0, 0]}
+    - {id: 2, start: [1, 0, 0]}
+feeder: {pace: lockstep}
+radio: {latency_s: 2.5}
+agent: {map_publish_period_s: 1.0, frame_at_first_landmark: false}
+)",
+                                    "test.yaml");
+  FullCapture out;
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
+  const std::vector<TickPeer> both = {{1, 1, 0}, {2, 1, 0}};
+  ASSERT_TRUE(node.OnTick(Tick(1, TickPhase::kExchange, both)));
+  MapMessage m = TaggedMap(2, 1, MapKind::kLocal, 1, 1, Points({{1, 2}, {3, 1}}));
+  m.stamp = 1.0;
+  node.OnMap(m);
+  ASSERT_TRUE(node.OnTick(Tick(2, TickPhase::kExchange, both)));
+  EXPECT_EQ(node.stats().maps_delayed, 1u);  // passed the gate, in flight
+  EXPECT_EQ(node.stats().in_flight, 1u);
+  EXPECT_EQ(node.stats().maps_received, 0u);
+  ASSERT_TRUE(node.OnTick(Tick(3, TickPhase::kExchange, both)));
+  EXPECT_EQ(node.stats().maps_received, 0u);
+  ASSERT_TRUE(node.OnTick(Tick(4, TickPhase::kExchange, both)));
+  EXPECT_EQ(node.stats().maps_received, 1u);
+  EXPECT_EQ(node.stats().in_flight, 0u);
+  EXPECT_EQ(node.stats().data_until.at(2), 1.0);
+  EXPECT_EQ(node.stats().MapsDropped(), 0u);
+}
+
+// Out of range when it was sent: dropped by the gate, never held.
+TEST(LockstepLatencyTest, AMapTheGateDropsIsNeverHeld) {
+  const Scenario sc = ParseScenario(R"(version: 1
+world: {landmarks: {list: [[5, 0], [0, 5]]}}
+robots:
+  list:
+    - {id: 1, start: [0, 0, 0]}
+    - {id: 2, start: [1, 0, 0]}
+feeder: {pace: lockstep}
+radio: {latency_s: 2.5}
+agent: {map_publish_period_s: 1.0, frame_at_first_landmark: false}
+)",
+                                    "test.yaml");
+  FullCapture out;
+  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
+  const std::vector<TickPeer> both = {{1, 1, 0}, {2, 1, 0}};
+  ASSERT_TRUE(node.OnTick(Tick(1, TickPhase::kExchange, both)));
+  node.OnMap(TaggedMap(2, 1, MapKind::kLocal, 1, 1, Points({{1, 2}, {3, 1}})));
+  ASSERT_TRUE(node.OnTick(Tick(2, TickPhase::kExchange, both, {2.0, {}})));
+  EXPECT_EQ(node.stats().maps_out_of_range, 1u);
+  EXPECT_EQ(node.stats().maps_delayed, 0u);
+  EXPECT_EQ(node.stats().in_flight, 0u);
+}
+
 // The ticks say who is alive: DDS liveliness is not used, and a peer incarnation missing from a
 // tick is stale from then on.
 TEST_F(LockstepTest, LivelinessComesFromTheTicks) {

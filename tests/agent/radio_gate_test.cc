@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cmath>
 #include <limits>
+#include <vector>
 
 namespace mapmesh {
 namespace {
@@ -48,6 +51,58 @@ TEST(RadioGate, BandwidthKeepsTheLinkBusyForBytesOverRate) {
   RadioGate unlimited(1, {}, 1);
   unlimited.UpdateLinks({0.0, {{1, 2}}}, 0.0);
   for (int i = 0; i < 100; ++i) EXPECT_EQ(unlimited.Admit(2, 1 << 20, 1.0), GateVerdict::kPass);
+}
+
+// U1: each link has its own latency, latency_s plus a uniform draw in [0, jitter) per pair: both
+// ends agree on it, every run of the scenario does, and over many pairs the draws are uniform.
+TEST(RadioGate, EachLinkHasItsOwnLatencyBothEndsAgreeOn) {
+  RadioGateOptions o;
+  o.latency_s = 0.5;
+  o.latency_jitter_s = 2.0;
+  o.link_seed = 11;
+  std::vector<double> draws;
+  for (RobotId a = 1; a <= 60; ++a) {
+    for (RobotId b = a + 1; b <= 60; ++b) {
+      const double l = LinkLatency(o, a, b);
+      EXPECT_EQ(l, LinkLatency(o, b, a));
+      EXPECT_GE(l, 0.5);
+      EXPECT_LT(l, 2.5);
+      draws.push_back((l - 0.5) / 2.0);
+    }
+  }
+  // 1770 pairs: the draws' mean within 4 standard errors of 1/2 (sd of U(0,1): 0.289), and
+  // each tenth of [0, 1) holds its share within 4 binomial sd.
+  double mean = 0.0;
+  std::array<int, 10> bins{};
+  for (double u : draws) {
+    mean += u / static_cast<double>(draws.size());
+    ++bins[static_cast<std::size_t>(u * 10.0)];
+  }
+  EXPECT_NEAR(mean, 0.5, 4.0 * 0.289 / std::sqrt(static_cast<double>(draws.size())));
+  const double n = static_cast<double>(draws.size());
+  for (int c : bins) EXPECT_NEAR(c, n / 10.0, 4.0 * std::sqrt(n * 0.1 * 0.9));
+  // Another seed, other draws; no jitter, latency_s on every link.
+  RadioGateOptions other = o;
+  other.link_seed = 12;
+  EXPECT_NE(LinkLatency(o, 1, 2), LinkLatency(other, 1, 2));
+  o.latency_jitter_s = 0.0;
+  EXPECT_EQ(LinkLatency(o, 3, 9), 0.5);
+}
+
+TEST(RadioGate, AMessageArrivesAfterTheLinksLatencyAndItsTransmissionTime) {
+  RadioGateOptions o;
+  o.latency_s = 1.5;
+  o.latency_jitter_s = 1.0;
+  o.link_seed = 3;
+  RadioGate g(1, o, 1);
+  EXPECT_TRUE(g.Delays());
+  EXPECT_DOUBLE_EQ(g.Arrival(2, 5000, 10.0), 10.0 + LinkLatency(o, 1, 2));
+  o.bandwidth_bytes_per_s = 1000.0;
+  RadioGate slow(2, o, 1);
+  EXPECT_DOUBLE_EQ(slow.Arrival(1, 5000, 10.0), 10.0 + LinkLatency(o, 1, 2) + 5.0);  // the same link's
+  RadioGate none(1, {}, 1);
+  EXPECT_FALSE(none.Delays());
+  EXPECT_EQ(none.Arrival(2, 1 << 20, 7.0), 7.0);
 }
 
 TEST(RadioGate, IsDeterministicForASeed) {
