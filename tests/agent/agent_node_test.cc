@@ -815,19 +815,26 @@ TEST_F(LockstepTest, MapsGoOutOnlyAtTicksTaggedWithThem) {
   EXPECT_EQ(out_.maps.size(), 2u);
 }
 
-// A joining agent's peers use its local map and submaps only: its global map stays off the
-// wire, and the tick counts the one map that went out.
-TEST(LockstepJoiningTest, AJoiningAgentPublishesItsLocalMapOnly) {
-  const Scenario sc = ParseScenario(R"(version: 1
+// Two robots in lockstep, maps every second; `radio` the radio section's keys, `agent` more of
+// the agent section's.
+Scenario LockstepPair(const std::string& radio, const std::string& agent = "") {
+  return ParseScenario(R"(version: 1
 world: {landmarks: {list: [[5, 0], [0, 5]]}}
 robots:
   list:
     - {id: 1, start: [0, 0, 0]}
     - {id: 2, start: [1, 0, 0]}
 feeder: {pace: lockstep}
-agent: {map_publish_period_s: 1.0, frame_at_first_landmark: false, slam: cekf_submaps, fusion: joining}
-)",
-                                    "test.yaml");
+radio: {)" + radio + R"(}
+agent: {map_publish_period_s: 1.0, frame_at_first_landmark: false)" +
+                           agent + "}\n",
+                       "test.yaml");
+}
+
+// A joining agent's peers use its local map and submaps only: its global map stays off the
+// wire, and the tick counts the one map that went out.
+TEST(LockstepJoiningTest, AJoiningAgentPublishesItsLocalMapOnly) {
+  const Scenario sc = LockstepPair("", ", slam: cekf_submaps, fusion: joining");
   FullCapture out;
   AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
   for (int k = 1; k <= 30; ++k) node.OnOdometry(Odom(0.1 * k, 0));
@@ -977,23 +984,18 @@ TEST_F(LockstepTest, TheGatesUseTheTicksLinkTable) {
   EXPECT_EQ(node_.stats().maps_received, 0u);
 }
 
+// Two robots in lockstep, every link 2.5 s long.
+class LockstepLatencyTest : public ::testing::Test {
+ protected:
+  Scenario sc = LockstepPair("latency_s: 2.5");
+  FullCapture out;
+  AgentNode node{sc.agent, AgentRunFor(sc, 1), 1, 1, out};
+  const std::vector<TickPeer> both = {{1, 1, 0}, {2, 1, 0}};
+};
+
 // U1 (radio.latency_s): a peer's map that passed the gate waits until it has arrived over its
 // link, the first tick at or after its stamp plus the link's latency: 1 s + 2.5 s, tick 4.
-TEST(LockstepLatencyTest, APeersMapIsTakenAtTheFirstTickAfterItArrives) {
-  const Scenario sc = ParseScenario(R"(version: 1
-world: {landmarks: {list: [[5, 0], [0, 5]]}}
-robots:
-  list:
-    - {id: 1, start: [0, 0, 0]}
-    - {id: 2, start: [1, 0, 0]}
-feeder: {pace: lockstep}
-radio: {latency_s: 2.5}
-agent: {map_publish_period_s: 1.0, frame_at_first_landmark: false}
-)",
-                                    "test.yaml");
-  FullCapture out;
-  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
-  const std::vector<TickPeer> both = {{1, 1, 0}, {2, 1, 0}};
+TEST_F(LockstepLatencyTest, APeersMapIsTakenAtTheFirstTickAfterItArrives) {
   ASSERT_TRUE(node.OnTick(Tick(1, TickPhase::kExchange, both)));
   MapMessage m = TaggedMap(2, 1, MapKind::kLocal, 1, 1, Points({{1, 2}, {3, 1}}));
   m.stamp = 1.0;
@@ -1012,21 +1014,7 @@ agent: {map_publish_period_s: 1.0, frame_at_first_landmark: false}
 }
 
 // Out of range when it was sent: dropped by the gate, never held.
-TEST(LockstepLatencyTest, AMapTheGateDropsIsNeverHeld) {
-  const Scenario sc = ParseScenario(R"(version: 1
-world: {landmarks: {list: [[5, 0], [0, 5]]}}
-robots:
-  list:
-    - {id: 1, start: [0, 0, 0]}
-    - {id: 2, start: [1, 0, 0]}
-feeder: {pace: lockstep}
-radio: {latency_s: 2.5}
-agent: {map_publish_period_s: 1.0, frame_at_first_landmark: false}
-)",
-                                    "test.yaml");
-  FullCapture out;
-  AgentNode node(sc.agent, AgentRunFor(sc, 1), 1, 1, out);
-  const std::vector<TickPeer> both = {{1, 1, 0}, {2, 1, 0}};
+TEST_F(LockstepLatencyTest, AMapTheGateDropsIsNeverHeld) {
   ASSERT_TRUE(node.OnTick(Tick(1, TickPhase::kExchange, both)));
   node.OnMap(TaggedMap(2, 1, MapKind::kLocal, 1, 1, Points({{1, 2}, {3, 1}})));
   ASSERT_TRUE(node.OnTick(Tick(2, TickPhase::kExchange, both, {2.0, {}})));
