@@ -476,28 +476,30 @@ void AgentNode::OnMap(const MapMessage& msg, const std::string& writer) {
   ProcessMap(msg, writer);
 }
 
+void AgentNode::RefuseMap(MapRefusal r) { ++stats_.maps_refused[static_cast<int>(r)]; }
+
+void AgentNode::RefuseRiders(const MapMessage& msg) {
+  // What rides on a map is taken only with the map (issue R3: a stale copy of a peer's map
+  // carried forged submaps and placements in, and its older advertisement replaced the newer).
+  const std::size_t riders = msg.submaps.size() + msg.open_relayed.size() + (msg.open_submap.empty() ? 0 : 1);
+  stats_.submaps_refused[static_cast<int>(SubmapRefusal::kOnRefusedMap)] += static_cast<std::uint32_t>(riders);
+}
+
 void AgentNode::ProcessMap(const MapMessage& msg, const std::string& writer) {
   if (!InRun(msg.robot_id)) {
     ++stats_.maps_unknown_sender;
     return;
   }
   const double now = Clock();
-  auto refuse = [this](MapRefusal r) { ++stats_.maps_refused[static_cast<int>(r)]; };
-  // What rides on a map is taken only with the map (issue R3: a stale copy of a peer's map
-  // carried forged submaps and placements in, and its older advertisement replaced the newer).
-  const auto refuse_riders = [&] {
-    const std::size_t riders = msg.submaps.size() + msg.open_relayed.size() + (msg.open_submap.empty() ? 0 : 1);
-    stats_.submaps_refused[static_cast<int>(SubmapRefusal::kOnRefusedMap)] += static_cast<std::uint32_t>(riders);
-  };
   // Kept in the inbox before the robot incarnation's first map was taken, from another writer;
   // else the first map with a plausible stamp binds its writer, whether or not the radio lets
   // it through (the writer is a fact of the transport, not of range).
   if (!writers_.Admits(msg.robot_id, msg.incarnation, writer)) {
-    refuse_riders();
-    return refuse(MapRefusal::kOtherWriter);
+    RefuseRiders(msg);
+    return RefuseMap(MapRefusal::kOtherWriter);
   }
   if (!std::isfinite(msg.stamp) || !std::isfinite(msg.origin_stamp) || msg.stamp > now + options_.max_stamp_jump_s) {
-    return refuse(MapRefusal::kImplausibleStamp);
+    return RefuseMap(MapRefusal::kImplausibleStamp);
   }
   writers_.Bind(msg.robot_id, msg.incarnation, writer);
   switch (gate_.Admit(msg.robot_id, WireBytes(msg), msg.stamp)) {
@@ -523,43 +525,40 @@ void AgentNode::ProcessMap(const MapMessage& msg, const std::string& writer) {
 
 void AgentNode::ApplyMap(const MapMessage& msg) {
   const double now = Clock();
-  auto refuse = [this](MapRefusal r) { ++stats_.maps_refused[static_cast<int>(r)]; };
-  const auto refuse_riders = [&] {
-    const std::size_t riders = msg.submaps.size() + msg.open_relayed.size() + (msg.open_submap.empty() ? 0 : 1);
-    stats_.submaps_refused[static_cast<int>(SubmapRefusal::kOnRefusedMap)] += static_cast<std::uint32_t>(riders);
-  };
   stats_.bytes_received += WireBytes(msg);
   // A map larger than we will align is refused before it is decoded (kept within the codec's
   // own limit, so that a malformed count is still reported as such).
   if (const auto n = MapPayloadCount(msg.payload);
       n && *n <= kMapCodecMaxLandmarks && *n > options_.peer_limits.max_landmarks) {
-    refuse_riders();
-    return refuse(MapRefusal::kTooManyLandmarks);
+    RefuseRiders(msg);
+    return RefuseMap(MapRefusal::kTooManyLandmarks);
   }
   MapDecodeResult decoded = DecodeMap(msg.payload);
   if (!decoded.ok()) {
-    refuse_riders();
+    RefuseRiders(msg);
     ++stats_.maps_rejected[static_cast<int>(decoded.error)];
     return;
   }
   const MapLimitViolation limits = CheckMapLimits(decoded.map, options_.peer_limits);
-  if (limits != MapLimitViolation::kNone) refuse_riders();
+  if (limits != MapLimitViolation::kNone) RefuseRiders(msg);
   switch (limits) {
     case MapLimitViolation::kNone: break;
-    case MapLimitViolation::kTooManyLandmarks: return refuse(MapRefusal::kTooManyLandmarks);
-    case MapLimitViolation::kOutOfWorld: return refuse(MapRefusal::kOutOfWorld);
-    case MapLimitViolation::kCovarianceTooLarge: return refuse(MapRefusal::kCovarianceTooLarge);
-    case MapLimitViolation::kCovarianceTooSmall: return refuse(MapRefusal::kCovarianceTooSmall);
+    case MapLimitViolation::kTooManyLandmarks: return RefuseMap(MapRefusal::kTooManyLandmarks);
+    case MapLimitViolation::kOutOfWorld: return RefuseMap(MapRefusal::kOutOfWorld);
+    case MapLimitViolation::kCovarianceTooLarge: return RefuseMap(MapRefusal::kCovarianceTooLarge);
+    case MapLimitViolation::kCovarianceTooSmall: return RefuseMap(MapRefusal::kCovarianceTooSmall);
   }
   switch (exchange_.OnPeerMap(msg.robot_id, msg.incarnation, msg.kind, msg.version, msg.origin_stamp,
                               std::move(decoded.map), now)) {
     case MapExchange::Receipt::kAccepted: break;
     case MapExchange::Receipt::kStaleVersion:
-      refuse_riders();
+      RefuseRiders(msg);
       ++stats_.maps_stale_version;
       return;
-    case MapExchange::Receipt::kVersionJump: refuse_riders(); return refuse(MapRefusal::kVersionJump);
-    case MapExchange::Receipt::kTooManyIncarnations: refuse_riders(); return refuse(MapRefusal::kTooManyIncarnations);
+    case MapExchange::Receipt::kVersionJump: RefuseRiders(msg); return RefuseMap(MapRefusal::kVersionJump);
+    case MapExchange::Receipt::kTooManyIncarnations:
+      RefuseRiders(msg);
+      return RefuseMap(MapRefusal::kTooManyIncarnations);
   }
   heard_.insert({msg.robot_id, msg.incarnation});
   if (msg.kind == MapKind::kLocal) ProcessSubmaps(msg, now);

@@ -276,6 +276,9 @@ class AgentNode : private SensorSync::Sink {
   void ProcessMap(const MapMessage& msg, const std::string& writer);
   // A map that passed the gates and has arrived over the link, into the exchange.
   void ApplyMap(const MapMessage& msg);
+  // Counts a peer's map refused, and (RefuseRiders) the submaps riding on one refused.
+  void RefuseMap(MapRefusal r);
+  void RefuseRiders(const MapMessage& msg);
   // The delay line's messages that have arrived by RadioNow(), in order.
   void TakeArrived();
   // The radio's clock for arrivals: the exchange tick's stamp in lockstep, else Clock().

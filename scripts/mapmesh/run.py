@@ -642,6 +642,15 @@ class SwarmRun:
         ref = RunDir(self.out).read(REFERENCE)
         return dict(strip_maps(ref), wall_s=wall)
 
+    def solve_until(self, lab, until, path):
+        """`mapmesh-lab reference` of the fair optimum alone (no known-pose map, no known-starts
+        optimum) on each robot's data up to until[robot] (the rest whole), into path."""
+        cmd = [lab, "reference", "--scenario", self.scenario, "--no-known-pose", "--no-known-starts",
+               "--out", str(path)] + self.common
+        for robot, t in sorted(until.items()):
+            cmd += ["--until", f"{robot}={t}"]
+        return subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+
     def compute_reached(self, reference):
         """agent_<id>/reference_reached.json for every agent that some robot's data reached only in
         part (reached.py): `mapmesh-lab reference` on the data that reached it, beside the
@@ -672,11 +681,7 @@ class SwarmRun:
             path.unlink(missing_ok=True)
             if not robots:
                 continue
-            cmd = [lab, "reference", "--scenario", self.scenario, "--no-known-pose", "--no-known-starts",
-                   "--out", str(path)] + self.common
-            for robot, t in sorted(robots.items()):
-                cmd += ["--until", f"{robot}={t}"]
-            r = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+            r = self.solve_until(lab, robots, path)
             if r.returncode != 0 or not path.exists():
                 print(f"swarm: the reference of what reached agent {rid} failed: "
                       f"{last_line(r.stderr, f'exit code {r.returncode}')}", file=sys.stderr)
@@ -713,11 +718,7 @@ class SwarmRun:
         def solve(t):
             with tempfile.TemporaryDirectory() as tmp:
                 path = Path(tmp) / REFERENCE
-                cmd = [lab, "reference", "--scenario", self.scenario, "--no-known-pose", "--no-known-starts",
-                       "--out", str(path)] + self.common
-                for rid in sorted(self.agents):
-                    cmd += ["--until", f"{rid}={t}"]
-                r = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+                r = self.solve_until(lab, {rid: t for rid in self.agents}, path)
                 if r.returncode != 0 or not path.exists():
                     print(f"swarm: the optimum at t={t:g} s failed: {last_line(r.stderr, f'exit code {r.returncode}')}",
                           file=sys.stderr)
