@@ -14,7 +14,6 @@
 #include <tuple>
 #include <vector>
 
-#include "agent/agent_options.h"
 #include "agent/delay_line.h"
 #include "agent/lockstep_inbox.h"
 #include "agent/map_exchange.h"
@@ -29,6 +28,7 @@
 #include "common/map/map_codec.h"
 #include "common/map/map_limits.h"
 #include "common/map/submap_origin.h"
+#include "common/options/agent_options.h"
 #include "common/slam/local_mapper.h"
 #include "common/types/messages.h"
 

@@ -14,7 +14,7 @@
 #include "common/merge/map_joining.h"
 #include "common/merge/submap_network.h"
 #include "common/merge/submap_placement.h"
-#include "common/metrics/chi2.h"
+#include "common/solver/chi2.h"
 
 namespace mapmesh {
 namespace {

@@ -19,11 +19,11 @@
 #include <set>
 #include <vector>
 
-#include "agent/exchange_options.h"
 #include "agent/peer_state.h"
 #include "common/map/submap_book.h"
 #include "common/merge/global_map.h"
 #include "common/merge/submap_placement.h"
+#include "common/options/exchange_options.h"
 #include "common/types/messages.h"
 
 namespace mapmesh {

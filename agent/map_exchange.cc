@@ -5,7 +5,7 @@
 #include <utility>
 
 #include "common/check.h"
-#include "common/metrics/chi2.h"
+#include "common/solver/chi2.h"
 
 namespace mapmesh {
 MapExchange::MapExchange(RobotId self, std::uint32_t incarnation, const ExchangeOptions& options, std::uint64_t seed)

@@ -18,7 +18,6 @@
 #include <set>
 #include <vector>
 
-#include "agent/exchange_options.h"
 #include "agent/fusion_backend.h"
 #include "agent/peer_book.h"
 #include "agent/peer_schedule.h"
@@ -26,6 +25,7 @@
 #include "agent/relay_policy.h"
 #include "common/merge/global_map.h"
 #include "common/merge/rendezvous.h"
+#include "common/options/exchange_options.h"
 
 namespace mapmesh {
 

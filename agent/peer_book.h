@@ -10,10 +10,10 @@
 #include <set>
 #include <vector>
 
-#include "agent/exchange_options.h"
 #include "agent/peer_schedule.h"
 #include "agent/peer_state.h"
 #include "common/io/checkpoint.h"
+#include "common/options/exchange_options.h"
 
 namespace mapmesh {
 

@@ -36,8 +36,8 @@
 #include <set>
 #include <vector>
 
-#include "agent/exchange_options.h"
 #include "agent/peer_state.h"
+#include "common/options/exchange_options.h"
 
 namespace mapmesh {
 

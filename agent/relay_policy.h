@@ -8,8 +8,8 @@
 #include <optional>
 #include <random>
 
-#include "agent/exchange_options.h"
 #include "agent/peer_state.h"
+#include "common/options/exchange_options.h"
 
 namespace mapmesh {
 

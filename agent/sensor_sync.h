@@ -28,6 +28,7 @@
 #include <optional>
 
 #include "agent/sequence_count.h"
+#include "common/options/sensor_sync_options.h"
 #include "common/slam/motion_model.h"
 #include "common/types/messages.h"
 
@@ -73,18 +74,7 @@ class SensorSync {
     virtual bool Mapped() const = 0;
   };
 
-  struct Options {
-    bool frame_at_first_landmark = true;  // agent.frame_at_first_landmark: see above
-    double max_stamp_jump_s = 20.0;       // stamps this far beyond the odometry received so far are implausible
-    double max_stamp_s = std::numeric_limits<double>::infinity();  // and any beyond this (the run's end)
-
-    // Reads its keys of the scenario's agent section (docs/SCENARIOS.md); the stamp bounds
-    // are the agent's (AgentOptions).
-    template <typename Reader>
-    void Read(Reader& r) {
-      r.Get("frame_at_first_landmark", frame_at_first_landmark);
-    }
-  };
+  using Options = SensorSyncOptions;
 
   SensorSync(Sink& sink, const Options& options)
       : sink_(sink), options_(options), frame_fixed_(!options.frame_at_first_landmark) {}

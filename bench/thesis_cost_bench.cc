@@ -21,10 +21,10 @@
 #include <vector>
 
 #include "common/geometry/rigid_fit.h"
+#include "common/geometry/spatial.h"
 #include "common/merge/alignment_fit.h"
 #include "common/merge/fusion.h"
 #include "common/merge/map_alignment.h"
-#include "common/merge/spatial.h"
 
 namespace mapmesh {
 namespace {
@@ -38,7 +38,7 @@ std::vector<Eigen::Vector2d> RandomLandmarks(int n, std::mt19937_64& rng) {
   return p;
 }
 
-// Fig. 43: CGAL's Delaunay triangulation (common/merge/spatial.h, what triangle matching
+// Fig. 43: CGAL's Delaunay triangulation (common/geometry/spatial.h, what triangle matching
 // calls), over 10 landmark sets per size, cycled.
 void BM_ThesisDelaunay(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0));

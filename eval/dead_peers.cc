@@ -3,10 +3,10 @@
 #include <random>
 #include <set>
 
-#include "agent/exchange_options.h"
 #include "common/merge/map_alignment.h"
 #include "common/metrics/landmark_metrics.h"
 #include "common/metrics/trajectory_metrics.h"
+#include "common/options/exchange_options.h"
 
 namespace mapmesh {
 namespace {

@@ -16,12 +16,12 @@
 #include <thread>
 
 #include "common/app/process.h"
-#include "common/config/scenario_limits.h"
 #include "common/io/run_files.h"
 #include "common/transport/session.h"
 #include "common/transport/shutdown.h"
 #include "common/transport/topics.h"
 #include "common/transport/typed.h"
+#include "common/types/scenario_limits.h"
 #include "sim_feeder/lockstep_pacer.h"
 #include "sim_feeder/play_record.h"
 #include "sim_feeder/recording.h"

@@ -11,9 +11,9 @@
 #include <set>
 #include <sstream>
 
-#include "common/config/scenario_limits.h"
 #include "common/config/scenario_sections.h"
 #include "common/config/yaml_reader.h"
+#include "common/types/scenario_limits.h"
 
 namespace mapmesh {
 namespace {

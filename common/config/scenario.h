@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "agent/agent_options.h"
 #include "common/config/resolved.h"
 #include "common/geometry/pose2.h"
+#include "common/options/agent_options.h"
 #include "common/slam/motion_model.h"
 #include "common/types/choice.h"
 #include "common/types/messages.h"
@@ -222,7 +222,7 @@ struct Scenario {
   WorldOptions world;
   std::vector<RobotSpec> robots;  // resolved: exactly the robots of this run
   RadioOptions radio;
-  AgentOptions agent;  // the agent section: each module's own options (agent/agent_options.h)
+  AgentOptions agent;  // the agent section: each module's own options (common/options/agent_options.h)
   FeederOptions feeder;
   FaultOptions faults;
   // Every value key the loader read, as taken (given, overridden or its default): what the run

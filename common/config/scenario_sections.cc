@@ -11,8 +11,8 @@
 #include <set>
 #include <sstream>
 
-#include "common/config/scenario_limits.h"
 #include "common/map/map_codec.h"
+#include "common/types/scenario_limits.h"
 
 namespace mapmesh::scenario_internal {
 

@@ -6,10 +6,10 @@
 #include <cstddef>
 #include <string_view>
 
-#include "common/config/scenario_limits.h"
 #include "common/map/landmark_map.h"
 #include "common/map/map_codec.h"
 #include "common/map/submap_codec.h"
+#include "common/types/scenario_limits.h"
 
 namespace mapmesh {
 

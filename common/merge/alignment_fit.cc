@@ -7,7 +7,7 @@
 #include <limits>
 
 #include "common/merge/point_grid.h"
-#include "common/metrics/chi2.h"
+#include "common/solver/chi2.h"
 
 namespace mapmesh::alignment_detail {
 namespace {

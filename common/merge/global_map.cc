@@ -10,8 +10,8 @@
 
 #include "common/geometry/covariance2.h"
 #include "common/merge/point_grid.h"
-#include "common/metrics/chi2.h"
 #include "common/slam/jcbb.h"
+#include "common/solver/chi2.h"
 
 namespace mapmesh {
 namespace {

@@ -9,7 +9,7 @@
 #include "common/merge/alignment_fit.h"
 #include "common/merge/global_map.h"
 #include "common/merge/transform_search.h"
-#include "common/metrics/chi2.h"
+#include "common/solver/chi2.h"
 
 namespace mapmesh {
 namespace {

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "common/geometry/rigid_fit.h"
-#include "common/metrics/chi2.h"
+#include "common/solver/chi2.h"
 
 namespace mapmesh {
 

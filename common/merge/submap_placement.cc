@@ -10,7 +10,7 @@
 
 #include "common/geometry/rigid_fit.h"
 #include "common/merge/point_grid.h"
-#include "common/metrics/chi2.h"
+#include "common/solver/chi2.h"
 
 namespace mapmesh {
 namespace {

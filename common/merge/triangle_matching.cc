@@ -7,9 +7,9 @@
 #include <unordered_map>
 #include <unordered_set>
 
+#include "common/geometry/spatial.h"
 #include "common/merge/alignment_fit.h"
 #include "common/merge/map_alignment.h"
-#include "common/merge/spatial.h"
 
 // Candidate landmark pairs from matched Delaunay triangles (thesis 3.3.2, eq. 51-53, and the
 // sorted-sides matcher with patch growing).

@@ -10,9 +10,9 @@
 #include <Eigen/Core>
 #include <unordered_map>
 
-#include "common/config/scenario_limits.h"
 #include "common/slam/ekf_state.h"
 #include "common/slam/landmark_filter.h"
+#include "common/types/scenario_limits.h"
 
 namespace mapmesh {
 

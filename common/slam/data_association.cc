@@ -5,9 +5,9 @@
 #include <limits>
 
 #include "common/check.h"
-#include "common/metrics/chi2.h"
 #include "common/slam/jcbb.h"
 #include "common/slam/observation_model.h"
+#include "common/solver/chi2.h"
 
 namespace mapmesh {
 namespace {

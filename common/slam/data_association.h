@@ -12,10 +12,10 @@
 #include <cstdint>
 #include <vector>
 
-#include "common/config/scenario_limits.h"
 #include "common/geometry/pose2.h"
 #include "common/slam/landmark_filter.h"
 #include "common/types/choice.h"
+#include "common/types/scenario_limits.h"
 
 namespace mapmesh {
 

@@ -9,12 +9,12 @@
 #include <unordered_map>
 #include <vector>
 
-#include "common/config/scenario_limits.h"
 #include "common/geometry/pose2.h"
 #include "common/map/landmark_map.h"
 #include "common/slam/local_mapper.h"
 #include "common/slam/motion_model.h"
 #include "common/types/messages.h"
+#include "common/types/scenario_limits.h"
 
 namespace mapmesh {
 

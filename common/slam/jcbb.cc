@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <limits>
 
-#include "common/metrics/chi2.h"
+#include "common/solver/chi2.h"
 
 namespace mapmesh {
 namespace {

@@ -7,7 +7,7 @@
 
 #include "common/check.h"
 #include "common/geometry/covariance2.h"
-#include "common/merge/spatial.h"
+#include "common/geometry/spatial.h"
 #include "common/slam/ekf_slam.h"
 #include "common/slam/iekf_slam.h"
 #include "common/slam/observation_model.h"

@@ -7,7 +7,7 @@
 #include <set>
 #include <vector>
 
-#include "common/metrics/chi2.h"
+#include "common/solver/chi2.h"
 #include "tests/testing/submap_world.h"
 
 namespace mapmesh {

@@ -8,7 +8,7 @@
 #include <limits>
 #include <random>
 
-#include "common/metrics/chi2.h"
+#include "common/solver/chi2.h"
 
 namespace mapmesh {
 namespace {

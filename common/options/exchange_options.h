@@ -1,15 +1,15 @@
 #pragma once
-// The settings of an agent's map exchange (map_exchange.h; docs/EXCHANGE.md explains the rules
-// they tune). Header-only: the scenario composes them (common/config/scenario.h).
+// The settings of an agent's map exchange (agent/map_exchange.h; docs/EXCHANGE.md explains the
+// rules they tune). Header-only: the scenario composes them (common/config/scenario.h).
 
 #include <cstdint>
 
-#include "agent/submap_relay.h"
-#include "common/config/scenario_limits.h"
 #include "common/merge/global_map.h"
 #include "common/merge/map_alignment.h"
+#include "common/options/submap_relay_options.h"
 #include "common/slam/submap_joiner.h"
 #include "common/types/choice.h"
+#include "common/types/scenario_limits.h"
 
 namespace mapmesh {
 

@@ -1,4 +1,4 @@
-#include "common/metrics/chi2.h"
+#include "common/solver/chi2.h"
 
 #include <boost/math/distributions/chi_squared.hpp>
 #include <cmath>

@@ -1,6 +1,6 @@
 // The one translation unit that includes CGAL (slow to compile): keep it that way.
 
-#include "common/merge/spatial.h"
+#include "common/geometry/spatial.h"
 
 #include <CGAL/Delaunay_triangulation_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>

@@ -1,26 +1,27 @@
 #pragma once
 // Everything an agent is configured with: the scenario's `agent` section (docs/SCENARIOS.md).
 // Each part is its module's own options struct, the one definition of its settings with their
-// defaults and a Read beside them; this struct composes them and adds the agent's own. It is
-// header-only, so the scenario can compose it without linking the agent.
+// defaults and a Read beside them; this struct composes them and adds the agent's own. Like
+// every header of common/options/ it is header-only and includes nothing of agent/: the
+// scenario loader (common/config/, the floor above) composes it without the agent's code.
 
 #include <algorithm>
 #include <cstddef>
 
-#include "agent/exchange_options.h"
-#include "agent/rendezvous_tracker.h"
-#include "agent/sensor_sync.h"
-#include "common/config/scenario_limits.h"
 #include "common/map/map_limits.h"
+#include "common/options/exchange_options.h"
+#include "common/options/rendezvous_options.h"
+#include "common/options/sensor_sync_options.h"
 #include "common/slam/dead_reckoning_mapper.h"
 #include "common/slam/local_slam.h"
+#include "common/types/scenario_limits.h"
 
 namespace mapmesh {
 
 struct AgentOptions {
   LocalSlamOptions slam;                // slam (the estimator), association, gates, ranges, region, FEJ
   DeadReckoningOptions dead_reckoning;  // slam: dead_reckoning
-  SensorSync::Options sync;             // frame_at_first_landmark
+  SensorSyncOptions sync;               // frame_at_first_landmark
   ExchangeOptions exchange;             // map_publish_period_s, fusion, alignment schedule, relay, silence
   RendezvousOptions rendezvous;         // rendezvous_period_s
   MapLimits peer_limits;                // what a peer's map may be: landmarks, extent, uncertainty

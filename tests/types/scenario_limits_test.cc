@@ -1,4 +1,4 @@
-// Scenario loading's bounds (common/config/scenario_limits.h) and its checks of keys and files:
+// Scenario loading's bounds (common/types/scenario_limits.h) and its checks of keys and files:
 // each bad case fails with one line naming the file, the line (or --set) and the key.
 
 #include <gtest/gtest.h>
@@ -10,7 +10,7 @@
 
 #include "common/config/config_error.h"
 #include "common/config/scenario.h"
-#include "common/config/scenario_limits.h"
+#include "common/types/scenario_limits.h"
 #include "tests/config/scenario_testing.h"
 
 namespace mapmesh {
