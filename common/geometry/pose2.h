@@ -45,6 +45,10 @@ struct Pose2 {
   }
   Eigen::Matrix2d Rotation() const;
   Eigen::Vector3d Vector() const { return {x, y, theta}; }
+  // The pose moved by a step d of its parameters (x, y, theta), the angle wrapped: the
+  // retraction that ends every least-squares step (GTSAM's retract), whose Jacobians are all with
+  // respect to these three parameters.
+  Pose2 Retract(const Eigen::Vector3d& d) const { return {x + d(0), y + d(1), WrapAngle(theta + d(2))}; }
 };
 
 // A pose with its sine and cosine evaluated once, for loops that map many points: Apply and

@@ -47,9 +47,7 @@ Eigen::Matrix3d Refine(const LandmarkMap& a, const LandmarkMap& b, const std::ve
     const Eigen::FullPivLU<Eigen::Matrix3d> lu(info);
     if (!lu.isInvertible()) break;
     const Eigen::Vector3d step = -lu.solve(g);
-    t->x += step(0);
-    t->y += step(1);
-    t->theta = WrapAngle(t->theta + step(2));
+    *t = t->Retract(step);
     if (step.head<2>().norm() < 1e-9 && std::abs(step(2)) < 1e-12) break;
   }
   return info;

@@ -126,8 +126,7 @@ GlobalMap JoinMaps(const LandmarkMap& local, RobotId self, std::uint32_t self_in
     }
     for (int k = 0; k < k_count; ++k) g[k] += dx.segment<2>(eq.offset(k));
     for (int s = 0; s < s_count; ++s) {
-      const Eigen::Vector3d d = dx.segment<3>(eq.offset(k_count + s));
-      t[s] = {t[s].x + d(0), t[s].y + d(1), WrapAngle(t[s].theta + d(2))};
+      t[s] = t[s].Retract(dx.segment<3>(eq.offset(k_count + s)));
     }
     st.iterations = iter + 1;
     // Reweighted for the first `reweightings` steps: each measurement's Huber weight from its

@@ -178,7 +178,7 @@ Pose2 Refine(std::span<const SightingPair> pairs, std::span<const RendezvousResu
     const Eigen::FullPivLU<Eigen::Matrix3d> lu(h);
     if (!lu.isInvertible()) return t;
     const Eigen::Vector3d d = lu.solve(g);
-    t = {t.x + d(0), t.y + d(1), WrapAngle(t.theta + d(2))};
+    t = t.Retract(d);
     if (d.head<2>().norm() < 1e-9 && std::abs(d(2)) < 1e-12) break;
   }
   return t;

@@ -179,7 +179,7 @@ class Network : public LeastSquaresProblem {
         if (v < 0) continue;
         const int o = offsets_[static_cast<std::size_t>(v)];
         Pose2& p = frames[c][k];
-        p = {p.x + dx(o), p.y + dx(o + 1), WrapAngle(p.theta + dx(o + 2))};
+        p = p.Retract(dx.segment<3>(o));
       }
     }
     for (int slot : held) {

@@ -103,7 +103,7 @@ std::optional<Fit> FitPlacement(const LandmarkMap& local, const LandmarkMap& tar
     const Eigen::Vector3d step = -ldlt.solve(g);
     if (!step.allFinite()) return std::nullopt;
     if (it == 2) break;  // the last pass evaluates the residual and h at the state
-    *pose = Pose2{pose->x + step.x(), pose->y + step.y(), WrapAngle(pose->theta + step.z())};
+    *pose = pose->Retract(step);
   }
   f.pose = *pose;
   // The target's landmarks (one map's) may share their errors: the covariance bounds

@@ -241,7 +241,7 @@ class BatchProblem : public LeastSquaresProblem {
         if (v < 0) continue;
         const int o = eq_->offset(v);
         Pose2& p = chains_[r].poses[i];
-        p = {p.x + dx(o), p.y + dx(o + 1), WrapAngle(p.theta + dx(o + 2))};
+        p = p.Retract(dx.segment<3>(o));
       }
     }
     for (std::size_t k = 0; k < landmarks_.size(); ++k) landmarks_[k] += dx.segment<2>(eq_->offset(landmark_var_[k]));

@@ -249,7 +249,7 @@ JoinedMap SubmapJoiner::Optimise(const std::deque<Factor>& factors, State* state
     for (std::size_t k : frames) {
       Pose2& p = state->poses.at(k);
       const int o = eq.offset(index.at(PoseVar(k)));
-      p = {p.x + scale * dx(o), p.y + scale * dx(o + 1), WrapAngle(p.theta + scale * dx(o + 2))};
+      p = p.Retract(scale * dx.segment<3>(o));
     }
     for (std::uint32_t k : keys) state->landmarks.at(k) += scale * dx.segment<2>(eq.offset(index.at(k)));
   };

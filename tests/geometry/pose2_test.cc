@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 #include <utility>
 
@@ -81,6 +82,35 @@ void ExpectJacobiansMatchNumericalDifferences(const Map& map, std::uint64_t seed
     EXPECT_LT((j_pose - num_pose).cwiseAbs().maxCoeff(), 1e-6) << "pose " << i;
     EXPECT_LT((j_point - num_point).cwiseAbs().maxCoeff(), 1e-6) << "point " << i;
   }
+}
+
+// Retract moves the parameters the Jacobians are taken against: x and y exactly by the step,
+// the angle by it and wrapped; so to first order a point maps as Apply's pose Jacobian says.
+TEST(Pose2, RetractStepsTheParametersAndMatchesApplysPoseJacobian) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-10, 10), ua(-M_PI, M_PI), step(-4.0, 4.0);
+  for (int i = 0; i < 200; ++i) {
+    const Pose2 p{u(rng), u(rng), ua(rng)};
+    const Eigen::Vector3d d(step(rng), step(rng), step(rng));
+    const Pose2 q = p.Retract(d);
+    EXPECT_EQ(q.x, p.x + d(0));
+    EXPECT_EQ(q.y, p.y + d(1));
+    EXPECT_GE(q.theta, -M_PI);
+    EXPECT_LT(q.theta, M_PI);
+    EXPECT_NEAR(std::remainder(q.theta - (p.theta + d(2)), 2 * M_PI), 0.0, 1e-12);
+    const Pose2 same = p.Retract(Eigen::Vector3d::Zero());
+    EXPECT_EQ(same.x, p.x);
+    EXPECT_NEAR(same.theta, p.theta, 1e-15);
+
+    const Eigen::Vector2d point(u(rng), u(rng));
+    Eigen::Matrix<double, 2, 3> j;
+    const Eigen::Vector2d at = p.Apply(point, &j);
+    const Eigen::Vector3d small = 1e-6 * d;
+    const Eigen::Vector2d moved = p.Retract(small).Apply(point);
+    EXPECT_LT((moved - at - j * small).norm(), 1e-9) << i;
+  }
+  const Pose2 wraps = Pose2{0.0, 0.0, 3.0}.Retract({0.0, 0.0, 0.5});
+  EXPECT_NEAR(wraps.theta, 3.5 - 2 * M_PI, 1e-12);
 }
 
 TEST(Pose2, ApplyJacobiansMatchNumericalDifferences) {
