@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from . import tum
-from .run import RunError
+from .run_error import RunError
 from .rundir import SUMMARY, TRAJECTORY, TRUTH, RunDir, truth_robots, why_unreadable
 
 EXPORT = "export"

@@ -148,3 +148,34 @@ def print_config(resolved):
     """The resolved scenario, one `key: value` line per key in path order (values as JSON)."""
     for key in sorted(resolved):
         print(f"{key}: {json.dumps(resolved[key])}")
+
+
+def apply_from(args):
+    """`swarm run --from DIR/run.json`: every run option of args set as that run was made (the
+    scenario file unchanged, else the copy beside the run.json), through the command line's own
+    parser and ranges. RunError (one line) when an option is given beside --from or the run.json
+    is unusable."""
+    from .run_error import RunError
+    if args.scenario:
+        raise RunError(f"--from {args.from_run}: the scenario comes from the run.json; give no SCENARIO", 2)
+    defaults = getattr(args, "option_defaults", {})
+    given = [n for n in OPTIONS if n != "scenario" and n in defaults and getattr(args, n) != defaults[n]]
+    if given:
+        raise RunError(f"--from {args.from_run}: every run option comes from the run.json; give none beside it "
+                       f"(got --{given[0].replace('_', '-')})", 2)
+    try:
+        options, _ = options_from(args.from_run)
+        # Every option as the command line takes it: the same parser, the same ranges.
+        if hasattr(args, "options_parser"):
+            parsed = args.options_parser().parse_args(option_flags(options, defaults))
+            why = args.option_values_error(parsed)
+            if why:
+                raise ValueError(why)
+            options = {name: getattr(parsed, name) if name != "scenario" else value
+                       for name, value in options.items()}
+    except ValueError as e:
+        message = str(e)
+        where = "" if message.startswith("--from") else f"--from {args.from_run}: "
+        raise RunError(where + message, 2) from None
+    for name, value in options.items():
+        setattr(args, name, value)

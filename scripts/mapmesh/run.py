@@ -2,9 +2,6 @@
 and restarts agents at scenario times, ends the run, stops every process it started (also
 when interrupted), scores the maps and writes DIR/summary.json."""
 
-import concurrent.futures
-import ctypes
-import errno
 import fcntl
 import json
 import os
@@ -13,214 +10,26 @@ import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 from .columns import format_table
 from . import ddsconfig, netns, secure
 from .domain import DomainLease
+from .procs import (EXIT_WRITE_FAILED, REPO, AgentSlot, Interrupted, Proc, bin_dir, binary, child_setup,
+                    detach_from_terminal, feeder_check, last_line, write_report)
 from .run_error import RunError  # noqa: F401  (re-exported: sweep and scale raise it)
 from .progress import Progress
 from . import provenance
-from .reached import reached_until
-from .rundir import (AGENT_LOG, CHECKPOINT, FEEDER, INJECT, REFERENCE, REFERENCE_OVER_TIME, REFERENCE_REACHED, REPORT,
-                     STATS, SUMMARY, TIMELINE, TRUTH, RunDir, agent_dir, clear_earlier_run, earlier_run, read_json)
-
-REPO = Path(__file__).resolve().parents[2]
-# Plots need matplotlib and numpy from Debian, which /usr/bin/python3 has (another python3 may
-# come first on PATH).
-PLOT_PYTHON = os.environ.get("MAPMESH_PLOT_PYTHON", "/usr/bin/python3")
-PR_SET_PDEATHSIG = 1
-
-
-EXIT_WRITE_FAILED = 3  # a process could not write a run file (common/app/process.h kExitWriteFailed)
-DISK_FULL_BYTES = 1 << 20  # less free space than this on --out's file system counts as full
-LOCK = ".lock"  # in DIR while a run uses it (flock): a second run on the same DIR is refused
-HISTORY = "history.jsonl"  # an agent's line of counters at every checkpoint, all incarnations
-SHRINK_FRACTION = 0.9  # a final local map under this share of the most it held is flagged
+from .rundir import AGENT_LOG, INJECT, SUMMARY, agent_dir, clear_earlier_run, earlier_run
+from .schedule import add_scenario_faults, check_fault_schedule, fault_label, parse_pauses, parse_schedule
+from .summary import describe_network, failure_message, summarise, warn_of_losses
+from .references import describe_reference
 
 STOP_GRACE_S = 15.0  # wall seconds the agents have to write their outputs once asked to stop ...
 STOP_GRACE_S_PER_AGENT = 0.5  # ... or this much per agent, when that is longer
-
-
-class Interrupted(Exception):
-    pass
-
-
-def detach_from_terminal():
-    """After a hangup, whatever is printed goes nowhere rather than failing on the closed
-    terminal (EIO)."""
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    for fd in (1, 2):
-        os.dup2(devnull, fd)
-    os.close(devnull)
-
-
-def bin_dir():
-    return Path(os.environ.get("MAPMESH_BIN", REPO / "build" / "bin"))
-
-
-def binary(name):
-    path = bin_dir() / name
-    if not path.exists():
-        raise RunError(f"{path} not found: build first (cmake -S . -B build && cmake --build build -j2)")
-    return str(path)
-
-
-def _child_setup(netns_path=None):
-    # Own process group (a terminal's Ctrl-C reaches only the launcher, which stops the
-    # children in order), and die with the launcher even if it is SIGKILLed. With --hosts
-    # netns, also move into the host's network namespace.
-    os.setpgrp()
-    try:
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-    except OSError:
-        pass
-    if netns_path:
-        netns.enter(netns_path)
-
-
-def parse_schedule(items, what):
-    """['2@10', '3@12.5'] -> [(10.0, 2), (12.5, 3)]"""
-    out = []
-    for item in items or []:
-        try:
-            rid, t = item.split("@")
-            rid, t = int(rid), float(t)
-            if rid <= 0 or t < 0:
-                raise ValueError
-        except ValueError:
-            raise RunError(f"--{what} {item}: expected ID@T with a robot id and a time in scenario seconds", 2)
-        out.append((t, rid))
-    return out
-
-
-FAULT_KINDS = ("kill", "restart", "pause")
-
-
-def fault_label(kind, rid, t, origins=None):
-    """How an error names a fault: the flag as given, or the scenario's faults entry."""
-    where = (origins or {}).get((kind, rid, t))
-    return f"{where} ({kind} {rid}@{t:g})" if where else f"--{kind} {rid}@{t:g}"
-
-
-def check_fault_schedule(kills, restarts, pauses, origins=None):
-    """The whole fault schedule, in scenario time, before anything starts: every restart follows a
-    kill of its agent (at the same time, the kill goes first), no agent is killed twice without a
-    restart between, and no agent is paused while killed. RunError (one line) on the first that
-    does not hold. kills and restarts as from parse_schedule, pauses as from parse_pauses;
-    origins names the faults that came from the scenario ({(kind, id, t): "faults.kill[0]"})."""
-    events = sorted([(t, 0, rid) for t, rid in kills] + [(t, 1, rid) for t, rid in restarts] +
-                    [(t, 2, rid) for t, rid, _ in pauses])
-    dead = {}  # robot -> when the kill in force was
-    for t, kind, rid in events:
-        name = fault_label(FAULT_KINDS[kind], rid, t, origins)
-        if kind == 0:
-            if rid in dead:
-                raise RunError(f"{name}: agent {rid} is already killed at {dead[rid]:g} s, with no "
-                               f"restart of it between", 2)
-            dead[rid] = t
-        elif kind == 1:
-            if rid not in dead:
-                raise RunError(f"{name}: agent {rid} is running then (restart only follows a "
-                               f"kill of it at or before {t:g} s)", 2)
-            del dead[rid]
-        elif rid in dead:
-            raise RunError(f"{name}: agent {rid} is killed then (at {dead[rid]:g} s)", 2)
-
-
-def parse_pauses(items):
-    """['2@30:10'] -> [(30.0, 2, 10.0)]: agent ID stopped (SIGSTOP) at scenario time T for SECONDS of wall time."""
-    out = []
-    for item in items or []:
-        try:
-            rid, rest = item.split("@")
-            t, seconds = rest.split(":")
-            rid, t, seconds = int(rid), float(t), float(seconds)
-            if rid <= 0 or t < 0 or not seconds > 0 or seconds > 86400:
-                raise ValueError
-        except ValueError:
-            raise RunError(f"--pause {item}: expected ID@T:SECONDS with a robot id, a time in scenario seconds "
-                           "and a pause in wall seconds (0 < SECONDS <= 86400)", 2)
-        out.append((t, rid, seconds))
-    return out
-
-
-class Proc:
-    """One started process, what it cost, and how the launcher ended it (if it did)."""
-
-    def __init__(self, popen):
-        self.popen = popen
-        self.pid = popen.pid
-        self.returncode = None
-        self.cpu_s = 0.0
-        self.max_rss_mb = 0.0
-        self.killed = False   # SIGKILLed by the --kill schedule: a fault we caused, not a failure
-        self.stopped = False  # still running when the run ended, and asked to stop
-
-    @property
-    def failed(self):
-        """True unless the process was killed by the schedule or, stopped at the end, exited 0:
-        a non-zero exit, a signal we did not send, or an end on its own while the run went on."""
-        if self.killed:
-            return False
-        return not self.stopped or self.returncode != 0
-
-    def _reaped(self, status, usage):
-        self.returncode = os.waitstatus_to_exitcode(status)
-        self.popen.returncode = self.returncode  # so Popen never waits for it again
-        self.cpu_s = usage.ru_utime + usage.ru_stime
-        self.max_rss_mb = usage.ru_maxrss / 1024.0
-
-    def poll(self):
-        if self.returncode is None:
-            try:
-                pid, status, usage = os.wait4(self.pid, os.WNOHANG)
-            except ChildProcessError:
-                return self.returncode
-            if pid == self.pid:
-                self._reaped(status, usage)
-        return self.returncode
-
-    def wait(self, timeout):
-        end = time.monotonic() + timeout
-        while self.poll() is None and time.monotonic() < end:
-            time.sleep(0.02)
-        return self.returncode
-
-    def signal(self, sig):
-        if self.poll() is None:
-            try:
-                os.kill(self.pid, sig)
-            except ProcessLookupError:
-                pass
-
-    def stop(self, grace_s):
-        """SIGTERM, then SIGKILL after grace_s."""
-        if self.poll() is not None:
-            return self.returncode
-        self.signal(signal.SIGTERM)
-        if self.wait(grace_s) is None:
-            self.signal(signal.SIGKILL)
-            self.wait(5.0)
-        return self.returncode
-
-
-class AgentSlot:
-    """Everything about one robot's agent across its incarnations."""
-
-    def __init__(self, rid):
-        self.id = rid
-        self.procs = []
-        self.killed_at = []
-        self.restarted_at = []
-        self.paused_at = []
-        self.alive_at_end = False
-
-    @property
-    def current(self):
-        return self.procs[-1] if self.procs else None
+DISK_FULL_BYTES = 1 << 20  # less free space than this on --out's file system counts as full
+LOCK = ".lock"  # in DIR while a run uses it (flock): a second run on the same DIR is refused
 
 
 class SwarmRun:
@@ -247,28 +56,12 @@ class SwarmRun:
         self.lock = None  # DIR/.lock's descriptor while this run holds it
 
     # ----- set-up -------------------------------------------------------------------------
-    def add_scenario_faults(self, faults):
-        """The scenario's `faults:` join the flags' (mapmesh-feeder checked each entry)."""
-        for kind, into in (("kill", self.kills), ("restart", self.restarts)):
-            for i, e in enumerate(faults.get(kind, [])):
-                into.append((float(e["t"]), int(e["id"])))
-                self.fault_origins[(kind, int(e["id"]), float(e["t"]))] = f"faults.{kind}[{i}]"
-        for i, e in enumerate(faults.get("pause", [])):
-            self.pauses.append((float(e["t"]), int(e["id"]), float(e["seconds"])))
-            self.fault_origins[("pause", int(e["id"]), float(e["t"]))] = f"faults.pause[{i}]"
-        if faults.get("inject"):
-            if self.args.inject:
-                raise RunError(f"--inject {self.args.inject}: the scenario injects too (faults.inject.cases: "
-                               f"{faults['inject']}); give one of them", 2)
-            self.args.inject = faults["inject"]
-            self.args.inject_period = float(faults.get("inject_period_s", self.args.inject_period))
-
     def check_plan(self):
         """Everything about the run checked before anything starts or is written: the scenario with
         its overrides, the whole fault schedule (flags and the scenario's faults), the injector's
         cases and the hosts. RunError (one line) on the first fault."""
         self.info = feeder_check(self.scenario, self.common)
-        self.add_scenario_faults(self.info.get("faults") or {})
+        add_scenario_faults(self, self.info.get("faults") or {})
         ids = set(self.info["robots"])
         schedule = ([("kill", t, rid) for t, rid in self.kills] + [("restart", t, rid) for t, rid in self.restarts]
                     + [("pause", t, rid) for t, rid, _ in self.pauses])
@@ -347,7 +140,7 @@ class SwarmRun:
         log = open(log_path, "ab" if append else "wb")
         try:
             p = subprocess.Popen(cmd, stdout=kw.pop("stdout", log), stderr=log,
-                                 preexec_fn=lambda: _child_setup(path), cwd=REPO, **kw)
+                                 preexec_fn=lambda: child_setup(path), cwd=REPO, **kw)
         finally:
             log.close()
         return Proc(p)
@@ -429,7 +222,7 @@ class SwarmRun:
                 self.lease.close()
         wall_s = time.monotonic() - wall_start
         try:
-            return self.summarise(wall_s, interrupted)
+            return summarise(self, wall_s, interrupted)
         finally:
             signal.signal(signal.SIGHUP, old_hup)
 
@@ -615,340 +408,6 @@ class SwarmRun:
                 except OSError:
                     pass
 
-    # ----- results ------------------------------------------------------------------------
-    def compute_reference(self, interrupted):
-        """DIR/reference.json by `mapmesh-lab reference` on the run's scenario (the same --agents and
-        --set): the centralized batch optimum (with no robot's start known, the fair limit, and with
-        every true start), each robot's own and the known-pose map, after the
-        run so that it takes nothing from the agents. What summary.json's `reference` holds (the
-        maps left out), with the wall time it took."""
-        if getattr(self.args, "no_reference", False):
-            return {"available": False, "why_none": "skipped (--no-reference)"}
-        if interrupted:
-            return {"available": False, "why_none": "the run was interrupted"}
-        try:
-            lab = binary("mapmesh-lab")
-        except RunError as e:  # nothing else of the run is lost for want of it (the table's last line says why)
-            return {"available": False, "why_none": str(e)}
-        if not self.args.quiet:
-            print("computing the reference (the centralized batch optimum; --no-reference skips it)", flush=True)
-        start = time.monotonic()
-        cmd = [lab, "reference", "--scenario", self.scenario, "--out", str(self.out / REFERENCE)] + self.common
-        r = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
-        wall = round(time.monotonic() - start, 3)
-        if r.returncode != 0 or not (self.out / REFERENCE).exists():
-            reason = last_line(r.stderr, f"exit code {r.returncode}").removeprefix("mapmesh-lab: ")
-            return {"available": False, "why_none": f"mapmesh-lab reference failed: {reason}", "wall_s": wall}
-        ref = RunDir(self.out).read(REFERENCE)
-        return dict(strip_maps(ref), wall_s=wall)
-
-    def solve_until(self, lab, until, path):
-        """`mapmesh-lab reference` of the fair optimum alone (no known-pose map, no known-starts
-        optimum) on each robot's data up to until[robot] (the rest whole), into path."""
-        cmd = [lab, "reference", "--scenario", self.scenario, "--no-known-pose", "--no-known-starts",
-               "--out", str(path)] + self.common
-        for robot, t in sorted(until.items()):
-            cmd += ["--until", f"{robot}={t}"]
-        return subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
-
-    def compute_reached(self, reference):
-        """agent_<id>/reference_reached.json for every agent that some robot's data reached only in
-        part (reached.py): `mapmesh-lab reference` on the data that reached it, beside the
-        central optimum of all of it. Returns {id: {robot: until_s}} (empty where all of it
-        reached the agent), and the agents whose reference failed (their gap_to_reached: null)."""
-        failed = set()  # agents whose reference of what reached them could not be computed
-        if not reference.get("available"):
-            return {}, failed
-        agents = {}
-        for rid in self.agents:
-            d = self.out / agent_dir(rid)
-            agents[rid] = tuple(read_json(d / name) if (d / name).exists() else None
-                                for name in (STATS, CHECKPOINT))
-        period = self.info.get("resolved", {}).get("agent.map_publish_period_s")
-        period = float(period) if isinstance(period, (int, float)) else 1.0
-        restarted = {rid for rid, slot in self.agents.items() if slot.restarted_at}
-        # A joining agent's maps carry its own data only (its global map stays off the wire).
-        joining = self.info.get("resolved", {}).get("agent.fusion") == "joining"
-        until = reached_until(agents, float(self.info["duration"]), 2.0 * period, restarted, maps_relay=not joining)
-        for rid, slot in self.agents.items():
-            # A restarted agent holds what its earlier incarnations took (its checkpoint), which
-            # its last process's stats do not count: its limit stays the whole run's.
-            if slot.restarted_at:
-                until[rid] = {}
-        lab = binary("mapmesh-lab")
-        for rid, robots in until.items():
-            path = self.out / agent_dir(rid) / REFERENCE_REACHED
-            path.unlink(missing_ok=True)
-            if not robots:
-                continue
-            r = self.solve_until(lab, robots, path)
-            if r.returncode != 0 or not path.exists():
-                print(f"swarm: the reference of what reached agent {rid} failed: "
-                      f"{last_line(r.stderr, f'exit code {r.returncode}')}", file=sys.stderr)
-                failed.add(rid)
-        return until, failed
-
-    def compute_reference_over_time(self, reference):
-        """DIR/reference_over_time.json, for the gap over time: the centralized optimum with no start
-        known (reference.json's `central`) of every robot's data up to each of several times, by
-        `mapmesh-lab reference --until ROBOT=T` for every robot (two at a time). The times: for k
-        in 1 .. --gap-samples - 1, the latest snapshot time of any agent (history.jsonl) no later
-        than k / --gap-samples of the scenario (the end is reference.json's). mapmesh-eval scores
-        each agent's snapshot at those times against them (timeline.json). Returns what
-        summary.json's reference holds of it (the times and the wall time), or None."""
-        samples = getattr(self.args, "gap_samples", 0) or 0
-        (self.out / REFERENCE_OVER_TIME).unlink(missing_ok=True)
-        if samples < 2 or not reference.get("available"):
-            return None
-        duration = float(self.info["duration"])
-        shots = sorted(snapshot_times(self.out / agent_dir(rid) / HISTORY for rid in self.agents))
-        times = []
-        for k in range(1, samples):
-            before = [t for t in shots if t <= duration * k / samples + 1e-9]
-            if before and before[-1] > 0 and before[-1] not in times:
-                times.append(before[-1])
-        if not times:
-            return None
-        if not self.args.quiet:
-            print(f"computing the optimum at {len(times)} earlier times, for the gap over time "
-                  "(--gap-samples 0 skips it)", flush=True)
-        lab = binary("mapmesh-lab")
-        start = time.monotonic()
-
-        def solve(t):
-            with tempfile.TemporaryDirectory() as tmp:
-                path = Path(tmp) / REFERENCE
-                r = self.solve_until(lab, {rid: t for rid in self.agents}, path)
-                if r.returncode != 0 or not path.exists():
-                    print(f"swarm: the optimum at t={t:g} s failed: {last_line(r.stderr, f'exit code {r.returncode}')}",
-                          file=sys.stderr)
-                    return None
-                ref = read_json(path)
-                return {"t": t, "central": ref.get("central"), "total_s": ref.get("total_s")}
-
-        with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
-            solved = [s for s in pool.map(solve, times) if s is not None and s.get("central")]
-        wall = round(time.monotonic() - start, 3)
-        write_json(self.out / REFERENCE_OVER_TIME, {"available": bool(solved), "samples": solved})
-        return {"samples_t": [s["t"] for s in solved], "wall_s": wall}
-
-    def summarise(self, wall_s, interrupted):
-        run = RunDir(self.out)
-        reference = self.compute_reference(interrupted)
-        reached, reached_failed = self.compute_reached(reference)
-        over_time = self.compute_reference_over_time(reference)
-        scores = {}
-        if run.path(TRUTH).exists():
-            r = subprocess.run([binary("mapmesh-eval"), "--run", str(self.out)], capture_output=True, text=True)
-            if r.returncode == 0:
-                scores = json.loads(r.stdout).get("agents", {})
-            else:
-                print(f"swarm: mapmesh-eval failed: {r.stderr.strip()}", file=sys.stderr)
-        feeder_stats = {r["id"]: r for r in (run.read_if_present(FEEDER) or {}).get("robots", [])}
-        agents = []
-        for rid, slot in self.agents.items():
-            # final, or the last checkpoint of a killed agent
-            stats = run.read_if_present(STATS, rid) or {}
-            held = most_landmarks(self.out / agent_dir(rid) / HISTORY)
-            score = scores.get(str(rid), {})
-            sent = feeder_stats.get(rid, {})
-            agents.append({
-                "id": rid,
-                "alive_at_end": slot.alive_at_end,
-                "exit_code": slot.current.returncode if slot.current else None,
-                "restarts": len(slot.restarted_at),
-                "killed_at": slot.killed_at,
-                "restarted_at": slot.restarted_at,
-                "paused_at": slot.paused_at,
-                "final_state": bool(stats.get("final", False)),
-                "local": score.get("local"),
-                "global": score.get("global"),
-                # The map against the limit on the same landmarks (RMSE after a rigid fit over the
-                # optimum's): the global map over the centralized batch optimum with no start
-                # known (the agents' knowledge), and over the one that knows every true start; the
-                # local map over the robot's own batch optimum (docs/EXPERIMENTS.md "The limit").
-                "gap_to_central": score.get("gap_to_central"),
-                "gap_to_central_known_starts": score.get("gap_to_central_known_starts"),
-                "gap_to_own_batch": score.get("gap_to_own_batch"),
-                # The global map over the optimum of the data that reached the agent by the end
-                # (each other robot's up to reached_until[robot] s, the rest whole; reached.py).
-                "gap_to_reached": None if rid in reached_failed else score.get("gap_to_reached"),
-                "reached_until": {str(r): t for r, t in sorted(reached.get(rid, {}).items())},
-                "peers_aligned": stats.get("peers_aligned", []),
-                "peers_stale": stats.get("peers_stale", []),
-                "alignment_errors": score.get("alignment_errors", {}),
-                # Per peer that can no longer speak: the last map received of it, whether it overlaps
-                # this agent's final local map, and how many of its landmarks the global map holds.
-                "dead_peers": score.get("dead_peers", []),
-                "maps_received": stats.get("maps_received"),
-                "maps_dropped": stats.get("maps_dropped"),
-                "maps_rejected": stats.get("maps_rejected", {}),
-                "bytes_sent": stats.get("bytes_sent"),
-                "bytes_received": stats.get("bytes_received"),
-                "bytes_per_landmark": stats.get("bytes_per_landmark"),
-                "odom_processed": stats.get("odom_processed"),
-                "scans_processed": stats.get("scans_processed"),
-                "odom_sent": sent.get("odom_sent"),
-                "scans_sent": sent.get("scans_sent"),
-                # Sensor messages the (last) agent process received in sequence, those it never got
-                # (gaps in their sequence numbers), and those sent before it joined the stream
-                # (sent = received + lost + before_join, but for a tail lost after the last);
-                # messages it got again, and numbers out of sequence, apart (docs/OUTPUTS.md).
-                "odom_received": stats.get("odom_received"),
-                "odometry_lost": stats.get("odometry_lost"),
-                "odom_before_join": stats.get("odom_before_join"),
-                "odom_duplicate": stats.get("odom_duplicate"),
-                "odom_out_of_sequence": stats.get("odom_out_of_sequence"),
-                "scans_received": stats.get("scans_received"),
-                "scans_lost": stats.get("scans_lost"),
-                "scans_before_join": stats.get("scans_before_join"),
-                "scans_duplicate": stats.get("scans_duplicate"),
-                "scans_out_of_sequence": stats.get("scans_out_of_sequence"),
-                "odom_implausible": stats.get("odom_implausible"),
-                "scans_implausible": stats.get("scans_implausible"),
-                "links_refused": stats.get("links_refused"),
-                "not_from_feeder": stats.get("not_from_feeder"),
-                # Samples its transport dropped unread for their size, and own maps not sent for it.
-                "transport_oversize": stats.get("transport_oversize"),
-                "maps_beyond_sample_size": stats.get("maps_beyond_sample_size"),
-                "maps_refused": stats.get("maps_refused", {}),
-                # Lockstep: peers' messages the inbox refused on arrival, by reason (docs/OUTPUTS.md).
-                "inbox_refused": stats.get("inbox_refused", {}),
-                # Writes that failed (a full disk): from the first, no snapshots or checkpoints.
-                "outputs": stats.get("outputs"),
-                # The most landmarks its local and global maps held at any checkpoint of any
-                # incarnation, and whether a final map has fewer than 90 % of them (a restart that
-                # lost what the agent held).
-                "held": held,
-                "map_shrank": shrank(held, stats),
-                "frame_in_world": score.get("frame_in_world"),
-                "cpu_s": round(sum(p.cpu_s for p in slot.procs), 3),
-                "max_rss_mb": round(max((p.max_rss_mb for p in slot.procs), default=0.0), 1),
-                "incarnations": [{"incarnation": i, "exit_code": p.returncode, "killed": p.killed, "failed": p.failed}
-                                 for i, p in enumerate(slot.procs, start=1)],
-                "failed": any(p.failed for p in slot.procs),
-            })
-        # Scenario time played: the whole scenario, or where an interrupted run stopped.
-        duration = self.info["duration"]
-        played = (run.read_if_present(FEEDER) or {}).get("played_until_s")
-        if interrupted and played is not None:
-            duration = min(duration, played)
-        summary = {
-            "scenario": self.info["name"],
-            "scenario_file": self.scenario,
-            "scenario_duration_s": self.info["duration"],
-            "sim_duration_s": duration,
-            "wall_s": round(wall_s, 3),
-            "real_time_factor": round(duration / wall_s, 3) if wall_s > 0 else None,
-            "pace": self.args.pace or self.info["pace"],
-            "interrupted": interrupted,
-            "kills": [{"id": r, "t": t, "wall": self.kill_wall.get((t, r))} for t, r in self.kills],
-            "restarts": [{"id": r, "t": t} for t, r in self.restarts],
-            "pauses": self.pause_log,
-            "feeder": {"exit_code": self.feeder.returncode if self.feeder else None,
-                       "cpu_s": round(self.feeder.cpu_s, 3) if self.feeder else None,
-                       "max_rss_mb": round(self.feeder.max_rss_mb, 1) if self.feeder else None},
-            "agents": agents,
-            "failed_agents": [a["id"] for a in agents if a["failed"]],
-        }
-        summary["reference"] = reference
-        if over_time is not None:
-            summary["reference"]["over_time"] = over_time
-        summary["network"] = self.hosts.summary() if self.hosts else {"hosts": "loopback"}
-        if self.args.inject:
-            summary["injected"] = run.read_if_present(INJECT)
-            summary["injector_exit_code"] = self.injector.returncode if self.injector else None
-        write_json(run.path(SUMMARY), summary)
-        # Each agent's counters and scored maps over time, for the report's time plots.
-        timeline = {"kills": summary["kills"], "restarts": summary["restarts"], "pauses": summary["pauses"],
-                    "agents": {str(rid): scores.get(str(rid), {}).get("history", []) for rid in self.agents}}
-        write_json(run.path(TIMELINE), timeline)
-        return summary
-
-
-def strip_maps(value):
-    """A reference.json without its maps (every "map" and "landmark_component" key, at any depth)."""
-    if isinstance(value, dict):
-        return {k: strip_maps(v) for k, v in value.items() if k not in ("map", "landmark_component")}
-    return value
-
-
-def describe_reference(ref):
-    """One line on the run's reference: the centralized optimum with no start known (the fair
-    limit), with the true starts, and the known-pose map; or why there is none."""
-    if not ref or not ref.get("available"):
-        return f"reference: none ({(ref or {}).get('why_none', 'not computed')})"
-    c = ref["central"]
-    line = f"reference: centralized batch optimum {c['rmse_aligned_m']:.3f} m after a rigid fit"
-    if c.get("nees_mean") is not None:
-        line += f" (NEES {c['nees_mean']:.2f})"
-    if not c.get("converged"):
-        line += " NOT CONVERGED"
-    if c.get("unconnected"):
-        line += f" (robots {', '.join(str(r) for r in c['unconnected'])} share too little with the rest: apart)"
-    s = ref.get("central_known_starts")
-    if s:
-        line += f", with the true starts {s['rmse_aligned_m']:.3f} m"
-    k = ref.get("known_pose")
-    if k:
-        line += f", known poses {k['rmse_aligned_m']:.3f} m"
-    return line + f"; solved in {ref.get('wall_s', ref.get('total_s', 0.0)):.1f} s"
-
-
-def write_json(path, value):
-    """Writes path atomically; on failure nothing is left behind (RunError "disk full" when the
-    file system has no room)."""
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        tmp.write_text(json.dumps(value, indent=1) + "\n")
-        tmp.replace(path)
-    except OSError as e:
-        tmp.unlink(missing_ok=True)
-        if e.errno in (errno.ENOSPC, errno.EDQUOT):
-            raise RunError(f"disk full: {path} not written ({e.strerror}); make room and run again", 1) from e
-        raise RunError(f"{path} not written: {e.strerror}", 1) from e
-
-
-def history_lines(path):
-    """The entries of an agent's history.jsonl (a line cut by a kill left out); none without one."""
-    try:
-        with open(path) as f:
-            for line in f:
-                try:
-                    entry = json.loads(line)
-                except ValueError:
-                    continue  # a line cut by a kill
-                if isinstance(entry, dict):
-                    yield entry
-    except OSError:
-        return
-
-
-def snapshot_times(paths):
-    """The scenario times of the snapshots in these history.jsonl files but the final ones."""
-    return {e["t"] for p in paths for e in history_lines(p)
-            if isinstance(e.get("t"), (int, float)) and not e.get("final")}
-
-
-def most_landmarks(path):
-    """The most landmarks of each map in an agent's history.jsonl (any incarnation):
-    {"local": n, "global": n}, or None without a history."""
-    most = {}
-    for entry in history_lines(path):
-        for kind in ("local", "global"):
-            n = entry.get(f"{kind}_landmarks")
-            if isinstance(n, int):
-                most[kind] = max(most.get(kind, 0), n)
-    return most or None
-
-
-def shrank(held, stats):
-    """Whether a final map (stats.json) has fewer than SHRINK_FRACTION of the most it held."""
-    if not held:
-        return False
-    return any(isinstance(stats.get(f"{kind}_landmarks"), int) and kind in held
-               and stats[f"{kind}_landmarks"] < SHRINK_FRACTION * held[kind] for kind in ("local", "global"))
-
 
 def disk_full(path):
     """The free bytes on path's file system when it is full (under DISK_FULL_BYTES), else None."""
@@ -978,27 +437,6 @@ def lock_run_dir(out):
     return fd
 
 
-def last_line(text, default):
-    """The last line of a process's stderr (its one-line reason), or default."""
-    return (text.strip().splitlines() or [default])[-1]
-
-
-def plot(script, run_dir, what):
-    """Runs scripts/plots/SCRIPT on RUN_DIR with Debian's python3 (matplotlib). True when it
-    worked; otherwise prints why WHAT was not written and returns False."""
-    r = subprocess.run([PLOT_PYTHON, str(REPO / "scripts" / "plots" / script), str(run_dir)],
-                       capture_output=True, text=True)
-    if r.returncode != 0:
-        print(f"swarm: {what} not written: {last_line(r.stderr, f'exit code {r.returncode}')}", file=sys.stderr)
-    return r.returncode == 0
-
-
-def write_report(run_dir):
-    """RUN_DIR/report.html by scripts/plots/report.py. Returns its path, or None with the
-    reason on stderr."""
-    return Path(run_dir) / REPORT if plot("report.py", run_dir, "report") else None
-
-
 def common_args(args):
     """The arguments every process of a run gets: agents, overrides and the pace (in lockstep the
     agents exchange maps at the feeder's ticks, so every process learns it)."""
@@ -1010,41 +448,9 @@ def common_args(args):
     return common
 
 
-def feeder_check(scenario, common):
-    """The scenario as the run's processes will read it (mapmesh-feeder --check --events): its
-    robots, duration, seed, faults and every key resolved. RunError (one line) when it is bad."""
-    r = subprocess.run([binary("mapmesh-feeder"), "--scenario", str(scenario), "--check", "--events"] + common,
-                       capture_output=True, text=True)
-    if r.returncode != 0:
-        raise RunError(last_line(r.stderr, "scenario check failed").removeprefix("mapmesh-feeder: "), 2)
-    return json.loads(r.stdout.strip().splitlines()[-1])
-
-
 def cmd_run(args):
     if args.from_run:
-        if args.scenario:
-            raise RunError(f"--from {args.from_run}: the scenario comes from the run.json; give no SCENARIO", 2)
-        defaults = getattr(args, "option_defaults", {})
-        given = [n for n in provenance.OPTIONS if n != "scenario" and n in defaults and getattr(args, n) != defaults[n]]
-        if given:
-            raise RunError(f"--from {args.from_run}: every run option comes from the run.json; give none beside it "
-                           f"(got --{given[0].replace('_', '-')})", 2)
-        try:
-            options, _ = provenance.options_from(args.from_run)
-            # Every option as the command line takes it: the same parser, the same ranges.
-            if hasattr(args, "options_parser"):
-                parsed = args.options_parser().parse_args(provenance.option_flags(options, defaults))
-                why = args.option_values_error(parsed)
-                if why:
-                    raise ValueError(why)
-                options = {name: getattr(parsed, name) if name != "scenario" else value
-                           for name, value in options.items()}
-        except ValueError as e:
-            message = str(e)
-            where = "" if message.startswith("--from") else f"--from {args.from_run}: "
-            raise RunError(where + message, 2) from None
-        for name, value in options.items():
-            setattr(args, name, value)
+        provenance.apply_from(args)
     if not args.scenario:
         raise RunError("give a SCENARIO.yaml (or --from DIR/run.json)", 2)
     if args.print_config:
@@ -1063,65 +469,13 @@ def cmd_run(args):
         report = write_report(args.out)
         if report:
             print(f"report:  {report}")
-    for a in summary["agents"]:
-        if a.get("map_shrank"):
-            held = a["held"]
-            ends = {kind: (a.get(kind) or {}).get("landmarks") for kind in ("local", "global")}
-            which = [f"its {kind} map ended with {ends[kind]} landmarks where it held {held[kind]}"
-                     for kind in ("local", "global") if isinstance(ends[kind], int) and held.get(kind)
-                     and ends[kind] < SHRINK_FRACTION * held[kind]] or ["a final map ended smaller than it was"]
-            print(f"swarm: agent {a['id']}: " + "; ".join(which) + f" (fewer than {SHRINK_FRACTION:.0%}; the most at "
-                  "any checkpoint: map_shrank and held in summary.json)", file=sys.stderr)
-    stopped = [a for a in summary["agents"] if (a.get("outputs") or {}).get("stopped_at") is not None]
-    if stopped:
-        print(f"swarm: agents {', '.join(str(a['id']) for a in stopped)}: snapshots and checkpoints stopped at a "
-              f"failed write ({stopped[0]['outputs']['reason']}); mapping went on and the final outputs were "
-              "written (stats.json outputs)", file=sys.stderr)
+    warn_of_losses(summary)
     if summary["interrupted"]:
         return 130
     if summary["failed_agents"]:
         print(failure_message(summary, args.out), file=sys.stderr)
         return 1
     return 0
-
-
-def describe_network(net):
-    """One line on the hosts of a --hosts netns run and what their kernels dropped."""
-    line = f"network: {len(net['per_host'])} hosts in namespaces {net['tag']}-* on one bridge"
-    if net.get("rate_mbit"):
-        line += f", {net['rate_mbit']:g} Mbit/s each"
-    if net.get("loss_percent"):
-        line += (f"; their kernels dropped {net['udp_dropped']} of {net['udp_received']} UDP datagrams received "
-                 f"({net['udp_dropped_percent']} %, asked {net['loss_percent']:g} %)")
-    return line
-
-
-def failure_message(summary, out):
-    """One line naming each failed agent, how each failed incarnation ended, and its log."""
-    parts = []
-    for a in summary["agents"]:
-        if not a["failed"]:
-            continue
-        how = ", ".join(f"incarnation {i['incarnation']} {describe_end(i['exit_code'])}"
-                        for i in a["incarnations"] if i["failed"])
-        log = Path(out) / agent_dir(a["id"]) / AGENT_LOG
-        parts.append(f"agent {a['id']} ({how}; see {log})")
-    return f"swarm: agents {summary['failed_agents']} failed: " + "; ".join(parts)
-
-
-def describe_end(code):
-    if code is None:
-        return "did not end"
-    if code < 0:
-        try:
-            return f"died of {signal.Signals(-code).name}"
-        except ValueError:
-            return f"died of signal {-code}"
-    if code == 0:
-        return "exited 0 before the end of the run"
-    if code == EXIT_WRITE_FAILED:
-        return f"could not write its outputs (exit code {code})"
-    return f"exited with code {code}"
 
 
 def cmd_report(args):

@@ -3,12 +3,15 @@ and how they are read, for the launcher (mapmesh/run.py, mapmesh/sweep.py), the 
 (scripts/plots/report.py) and scripts/relay-error; and a robot's true pose at a time from its
 truth.json trajectory. Standard library only."""
 
+import errno
 import json
 import math
 import os
 import shutil
 import stat
 from pathlib import Path
+
+from .run_error import RunError
 
 # The run's files.
 SUMMARY = "summary.json"
@@ -241,19 +244,25 @@ def links_from_spans(spans, period_s, duration_s):
     return out
 
 
+def history_lines(path):
+    """The entries of an agent's history.jsonl, one at a time (a line cut short by a kill is
+    skipped); none when the file is missing or unreadable."""
+    try:
+        with open(path) as f:
+            for line in f:
+                try:
+                    entry = json.loads(line)
+                except ValueError:
+                    continue  # a line cut by a kill
+                if isinstance(entry, dict):
+                    yield entry
+    except OSError:
+        return
+
+
 def read_history(path):
-    """The entries of an agent's history.jsonl (a line cut short by a kill is skipped)."""
-    out = []
-    path = Path(path)
-    if path.exists():
-        for text in path.read_text().splitlines():
-            try:
-                e = json.loads(text)
-            except ValueError:
-                continue
-            if isinstance(e, dict):
-                out.append(e)
-    return out
+    """The entries of an agent's history.jsonl as a list (history_lines)."""
+    return list(history_lines(path))
 
 
 def alignment_changes(entries):
@@ -270,3 +279,17 @@ def alignment_changes(entries):
         out += [(float(e["t"]), p, False) for p in sorted(held - now)]
         held = now
     return out
+
+
+def write_json(path, value):
+    """Writes path atomically; on failure nothing is left behind (RunError "disk full" when the
+    file system has no room)."""
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_text(json.dumps(value, indent=1) + "\n")
+        tmp.replace(path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        if e.errno in (errno.ENOSPC, errno.EDQUOT):
+            raise RunError(f"disk full: {path} not written ({e.strerror}); make room and run again", 1) from e
+        raise RunError(f"{path} not written: {e.strerror}", 1) from e

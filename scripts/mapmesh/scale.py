@@ -10,7 +10,8 @@ import sys
 import time
 from pathlib import Path
 
-from .run import REPO, RunError, last_line, plot
+from .procs import REPO, last_line, plot
+from .run_error import RunError
 from .rundir import SUMMARY, read_json
 
 # An aligned peer whose placement is this far from the truth (the transform between the two

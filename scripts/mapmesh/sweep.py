@@ -24,7 +24,9 @@ from pathlib import Path
 
 from .columns import SWEEP_COLUMNS, SWEEP_HEADER, sweep_row
 from . import provenance, sweep_stats
-from .run import PR_SET_PDEATHSIG, REPO, RunError, SwarmRun, detach_from_terminal, last_line, plot, write_report
+from .procs import PR_SET_PDEATHSIG, REPO, detach_from_terminal, last_line, plot, write_report
+from .run import SwarmRun
+from .run_error import RunError
 from .run import cmd_report as cmd_report_run
 from .rundir import SUMMARY, read_json
 
