@@ -33,6 +33,15 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerReport, own_checkpoint, origin_stamp, loc
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(RendezvousStats, sightings_sent, answers_sent, sightings_used, answers_used, mutual,
                                    refused, unmatched, fits, fits_accepted)
 
+// stats.json joining and ci_piecewise: the joining back-end's and the piecewise CI's counters.
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(JoiningReport, solves, chains_held, chains, chains_joined, sources_by_ci, submaps,
+                                   submaps_summarised, calibrated_solves, chains_calibrated, worst_variance_factor,
+                                   iterations, converged, solved, ties, ties_dropped, first_passes, placed_alone,
+                                   rechecks, rechecks_unchanged, rechecks_spared, relayed_chains, relayed_placed,
+                                   relayed_alignments, relayed_disagreements, relayed_by_placement, placements_refused,
+                                   superseded_chains, chains_extended)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PiecewiseStats, submaps, fitted, refused, chained, pairs, rest)
+
 namespace {
 
 // A map keyed by robot as a JSON object (keys are strings).
@@ -61,51 +70,18 @@ json PeersJson(const AgentNode& node, const std::map<RobotId, double>& lost_wall
   return {{"peers", peers}, {"peers_lost_wall", ByRobot(lost_wall)}};
 }
 
-// Creates path and its parents; io::WriteError when it cannot.
-void CreateDirectories(const std::string& path) {
-  std::error_code ec;
-  std::filesystem::create_directories(path, ec);
-  if (ec) throw io::WriteError(path, ec.value());
+// Counts by reason as a JSON object, each reason's name (ToString) from first to count - 1.
+template <typename Reason, typename Counts>
+json ByReason(const Counts& counts, int first, int count) {
+  json out = json::object();
+  for (int i = first; i < count; ++i) out[std::string(ToString(static_cast<Reason>(i)))] = counts[i];
+  return out;
 }
 
-}  // namespace
-
-bool OutputHealth::Failed(const io::WriteError& e, double t) {
-  ++write_failures;
-  if (stopped_at) return false;
-  stopped_at = t;
-  reason = e.what();
-  return true;
-}
-
-json StatsJson(const AgentNode& node, const ShellCounts& shell, const OutputHealth& health) {
-  const AgentStats& s = node.stats();
-  json rejected = json::object();
-  for (int i = 1; i < kMapDecodeErrorCount; ++i) {
-    rejected[std::string(ToString(static_cast<MapDecodeError>(i)))] = s.maps_rejected[i];
-  }
-  json refused = json::object();
-  for (int i = 0; i < kMapRefusalCount; ++i)
-    refused[std::string(ToString(static_cast<MapRefusal>(i)))] = s.maps_refused[i];
-  json submap_rejected = json::object();
-  for (int i = 1; i < kSubmapDecodeErrorCount; ++i) {
-    submap_rejected[std::string(ToString(static_cast<SubmapDecodeError>(i)))] = s.submaps_rejected[i];
-  }
-  json submap_refused = json::object();
-  for (int i = 0; i < kSubmapRefusalCount; ++i) {
-    submap_refused[std::string(ToString(static_cast<SubmapRefusal>(i)))] = s.submaps_refused[i];
-  }
-  // Lockstep: the peers' messages the inbox refused, by reason (lockstep_inbox.h).
-  json inbox_refused = json::object();
-  for (int i = 0; i < kInboxRefusalCount; ++i) {
-    inbox_refused[std::string(ToString(static_cast<InboxRefusal>(i)))] = node.inbox_refused()[static_cast<std::size_t>(
-        i)];
-  }
-  const SubmapRelay::Counters& sc = node.submaps().counters();
-  // Each chain held: how many from index 0 without a gap, how many in all, and the digest of
-  // each of the first (FNV-1a of its bytes): two agents holding a submap hold the same bytes.
+// Each chain held: how many from index 0 without a gap, how many in all, and the digest of
+// each of the first (FNV-1a of its bytes): two agents holding a submap hold the same bytes.
+json ChainsJson(const SubmapBook& book) {
   json chains = json::array();
-  const SubmapBook& book = node.submaps().book();
   for (const SubmapChain& c : book.Chains()) {
     json digests = json::array();
     for (std::uint32_t i = 0; i < c.count; ++i) {
@@ -125,6 +101,64 @@ json StatsJson(const AgentNode& node, const ShellCounts& shell, const OutputHeal
                       {"closed_until", closed_until},
                       {"digests", digests}});
   }
+  return chains;
+}
+
+// stats.json submaps: the closed submaps held, sent and refused, and the open ones.
+json SubmapsJson(const AgentNode& node) {
+  const AgentStats& s = node.stats();
+  const SubmapRelay::Counters& sc = node.submaps().counters();
+  return json{{"own", sc.own},
+              {"unsendable", s.submaps_unsendable},
+              {"held", node.submaps().book().size()},
+              {"held_bytes", node.submaps().book().bytes()},
+              {"chains", ChainsJson(node.submaps().book())},
+              {"received_new", sc.received_new},
+              {"restored", sc.restored},
+              {"duplicates", sc.duplicates},
+              {"conflicts", sc.conflicts},
+              {"owner_conflicts", sc.owner_conflicts},
+              {"ahead_of_owner", sc.ahead_of_owner},
+              {"full", sc.full},
+              {"chain_full", sc.chain_full},
+              {"sent", sc.sent},
+              {"bytes_sent", sc.bytes_sent},
+              {"sent_again", sc.sent_again},
+              {"held_back", sc.held_back},
+              {"debt_paid", sc.debt_paid},
+              {"open_own_bytes_sent", s.open_submap_bytes_sent},
+              {"open_held", node.submaps().open().size()},
+              {"open_taken", sc.open_taken},
+              {"open_gaps", sc.open_gaps},
+              {"open_relayed", sc.open_relayed},
+              {"open_bytes_relayed", sc.open_bytes_relayed},
+              {"rejected", ByReason<SubmapDecodeError>(s.submaps_rejected, 1, kSubmapDecodeErrorCount)},
+              {"refused", ByReason<SubmapRefusal>(s.submaps_refused, 0, kSubmapRefusalCount)}};
+}
+
+// Creates path and its parents; io::WriteError when it cannot.
+void CreateDirectories(const std::string& path) {
+  std::error_code ec;
+  std::filesystem::create_directories(path, ec);
+  if (ec) throw io::WriteError(path, ec.value());
+}
+
+}  // namespace
+
+bool OutputHealth::Failed(const io::WriteError& e, double t) {
+  ++write_failures;
+  if (stopped_at) return false;
+  stopped_at = t;
+  reason = e.what();
+  return true;
+}
+
+json StatsJson(const AgentNode& node, const ShellCounts& shell, const OutputHealth& health) {
+  const AgentStats& s = node.stats();
+  const json rejected = ByReason<MapDecodeError>(s.maps_rejected, 1, kMapDecodeErrorCount);
+  const json refused = ByReason<MapRefusal>(s.maps_refused, 0, kMapRefusalCount);
+  // Lockstep: the peers' messages the inbox refused, by reason (lockstep_inbox.h).
+  const json inbox_refused = ByReason<InboxRefusal>(node.inbox_refused(), 0, kInboxRefusalCount);
   const Pose2 pose = node.Pose();
   const AgentStatus status = node.Status();
   json j = s;
@@ -157,69 +191,9 @@ json StatsJson(const AgentNode& node, const ShellCounts& shell, const OutputHeal
               {"implausible", s.sightings_implausible},
               {"delayed", s.sightings_delayed},
               {"tracker", node.rendezvous_stats()}}},
-            {"submaps",
-             {{"own", sc.own},
-              {"unsendable", s.submaps_unsendable},
-              {"held", node.submaps().book().size()},
-              {"held_bytes", node.submaps().book().bytes()},
-              {"chains", chains},
-              {"received_new", sc.received_new},
-              {"restored", sc.restored},
-              {"duplicates", sc.duplicates},
-              {"conflicts", sc.conflicts},
-              {"owner_conflicts", sc.owner_conflicts},
-              {"ahead_of_owner", sc.ahead_of_owner},
-              {"full", sc.full},
-              {"chain_full", sc.chain_full},
-              {"sent", sc.sent},
-              {"bytes_sent", sc.bytes_sent},
-              {"sent_again", sc.sent_again},
-              {"held_back", sc.held_back},
-              {"debt_paid", sc.debt_paid},
-              {"open_own_bytes_sent", s.open_submap_bytes_sent},
-              {"open_held", node.submaps().open().size()},
-              {"open_taken", sc.open_taken},
-              {"open_gaps", sc.open_gaps},
-              {"open_relayed", sc.open_relayed},
-              {"open_bytes_relayed", sc.open_bytes_relayed},
-              {"rejected", submap_rejected},
-              {"refused", submap_refused}}},
-            {"joining",
-             {{"solves", node.exchange().joining().solves},
-              {"chains_held", node.exchange().joining().chains_held},
-              {"chains", node.exchange().joining().chains},
-              {"chains_joined", node.exchange().joining().chains_joined},
-              {"sources_by_ci", node.exchange().joining().sources_by_ci},
-              {"submaps", node.exchange().joining().submaps},
-              {"submaps_summarised", node.exchange().joining().submaps_summarised},
-              {"calibrated_solves", node.exchange().joining().calibrated_solves},
-              {"chains_calibrated", node.exchange().joining().chains_calibrated},
-              {"worst_variance_factor", node.exchange().joining().worst_variance_factor},
-              {"iterations", node.exchange().joining().iterations},
-              {"converged", node.exchange().joining().converged},
-              {"solved", node.exchange().joining().solved},
-              {"ties", node.exchange().joining().ties},
-              {"ties_dropped", node.exchange().joining().ties_dropped},
-              {"first_passes", node.exchange().joining().first_passes},
-              {"placed_alone", node.exchange().joining().placed_alone},
-              {"rechecks", node.exchange().joining().rechecks},
-              {"rechecks_unchanged", node.exchange().joining().rechecks_unchanged},
-              {"rechecks_spared", node.exchange().joining().rechecks_spared},
-              {"relayed_chains", node.exchange().joining().relayed_chains},
-              {"relayed_placed", node.exchange().joining().relayed_placed},
-              {"relayed_alignments", node.exchange().joining().relayed_alignments},
-              {"relayed_disagreements", node.exchange().joining().relayed_disagreements},
-              {"relayed_by_placement", node.exchange().joining().relayed_by_placement},
-              {"placements_refused", node.exchange().joining().placements_refused},
-              {"superseded_chains", node.exchange().joining().superseded_chains},
-              {"chains_extended", node.exchange().joining().chains_extended}}},
-            {"ci_piecewise",
-             {{"submaps", node.exchange().piecewise().submaps},
-              {"fitted", node.exchange().piecewise().fitted},
-              {"refused", node.exchange().piecewise().refused},
-              {"chained", node.exchange().piecewise().chained},
-              {"pairs", node.exchange().piecewise().pairs},
-              {"rest", node.exchange().piecewise().rest}}},
+            {"submaps", SubmapsJson(node)},
+            {"joining", node.exchange().joining()},
+            {"ci_piecewise", node.exchange().piecewise()},
             {"impersonations_refused",
              {{"maps", ByRobot(shell.maps_impersonated)}, {"sightings", ByRobot(shell.sightings_impersonated)}}},
             {"not_from_feeder", {{"links", shell.links_not_from_feeder}, {"ticks", shell.ticks_not_from_feeder}}},
