@@ -404,6 +404,440 @@ std::vector<std::vector<Pose2>> PlaceAlone(std::span<const ChainInput> chains, c
   return net.frames;
 }
 
+// The join, step by step (JoinSubmapNetwork): the input indexed, the pairings offered, the
+// chains that enter, the placing pass, the pairings judged and their unions, the exact join
+// from where they were judged, the recheck, the calibration and the result. One instance per
+// join; its members are what the steps share.
+class NetworkJoin {
+ public:
+  NetworkJoin(std::span<const ChainInput> chains, const NetworkOptions& options, SubmapInformation& info,
+              RecheckMemo* memo)
+      : chains_(chains), options_(options), info_(info), memo_(memo) {}
+
+  NetworkResult Run(const std::map<LandmarkRef, int>& groups);
+
+ private:
+  void IndexSlots();
+  void OfferTies(const std::map<LandmarkRef, int>& groups);
+  std::vector<std::size_t> Enter(const std::vector<Tie>& usable) const;
+  void PlaceNewChainsAlone(const std::vector<std::size_t>& first_order, const RobustKernel& first_kernel);
+  std::vector<Tie> KeepTies(const Network& at);
+  std::map<int, Eigen::Vector2d> UnionStarts(const Network& at, bool first_pass);
+  bool Beyond(const std::vector<double>& excess, bool* spared, std::vector<std::pair<SubmapId, double>>* list) const;
+  bool StandsOnStartFrames();
+  void CountDroppedTies();
+  std::vector<double> Calibrate();
+  void Result(const std::map<LandmarkRef, int>& groups);
+
+  std::span<const ChainInput> chains_;
+  const NetworkOptions& options_;
+  SubmapInformation& info_;
+  RecheckMemo* memo_;
+  NetworkResult out_;
+  std::vector<ChainInput> with_frames_;  // the chains with the placing pass's frames (chains_ then views it)
+  // Every reference its own slot, in chain order; per slot its chain and the submaps that hold it.
+  std::map<LandmarkRef, int> slot_of_;
+  std::vector<LandmarkRef> refs_;
+  std::vector<bool> wellformed_;
+  std::vector<std::size_t> chain_of_slot_;
+  std::vector<std::vector<int>> submaps_of_slot_;
+  std::vector<Tie> ties_;  // the caller's pairings across chains
+  std::unique_ptr<BlockNormalEquations> eq_;
+  Solved first_, second_;
+  std::vector<std::size_t> order_;          // the chains of the exact join, in order
+  std::map<LandmarkRef, int> landmark_of_;  // per reference: its union (the exact join's landmark)
+  Unions unions_;
+  // A join judged on the start frames: its submaps beyond the recheck with their excesses.
+  std::vector<std::pair<SubmapId, double>> judged_excess_;
+};
+
+// Every reference its own slot, in chain order; a chain whose submaps name one key twice (or
+// none at all) is malformed and stays out.
+void NetworkJoin::IndexSlots() {
+  wellformed_.assign(chains_.size(), true);
+  for (std::size_t c = 0; c < chains_.size(); ++c) {
+    if (chains_[c].submaps.empty()) wellformed_[c] = false;
+    for (const WireSubmap* s : chains_[c].submaps) {
+      std::set<std::uint32_t> keys(s->keys.begin(), s->keys.end());
+      if (keys.size() != s->keys.size()) wellformed_[c] = false;
+      for (std::uint32_t key : s->keys) {
+        const LandmarkRef ref{chains_[c].robot, chains_[c].incarnation, key};
+        if (slot_of_.emplace(ref, static_cast<int>(refs_.size())).second) refs_.push_back(ref);
+      }
+    }
+  }
+  std::map<std::pair<RobotId, std::uint32_t>, std::size_t> chain_index;  // (robot, incarnation) -> its chain
+  for (std::size_t c = 0; c < chains_.size(); ++c) chain_index[{chains_[c].robot, chains_[c].incarnation}] = c;
+  chain_of_slot_.reserve(refs_.size());
+  for (const LandmarkRef& ref : refs_) chain_of_slot_.push_back(chain_index.at({ref.robot, ref.incarnation}));
+  // The submaps that hold each slot, to refuse a union that would name one landmark twice in one.
+  submaps_of_slot_.assign(refs_.size(), {});
+  int submap_count = 0;
+  for (const ChainInput& c : chains_) {
+    for (const WireSubmap* s : c.submaps) {
+      for (std::uint32_t key : s->keys) {
+        submaps_of_slot_[static_cast<std::size_t>(slot_of_.at({c.robot, c.incarnation, key}))].push_back(submap_count);
+      }
+      ++submap_count;
+    }
+  }
+}
+
+// The caller's pairings across chains: every two references of one group in different chains.
+void NetworkJoin::OfferTies(const std::map<LandmarkRef, int>& groups) {
+  std::map<int, std::vector<int>> members;
+  for (const auto& [ref, g] : groups) {
+    const auto it = slot_of_.find(ref);
+    if (it != slot_of_.end()) members[g].push_back(it->second);
+  }
+  for (const auto& [g, slots] : members) {
+    for (std::size_t i = 0; i < slots.size(); ++i) {
+      for (std::size_t j = i + 1; j < slots.size(); ++j) {
+        const LandmarkRef& a = refs_[static_cast<std::size_t>(slots[i])];
+        const LandmarkRef& b = refs_[static_cast<std::size_t>(slots[j])];
+        if (a.robot != b.robot || a.incarnation != b.incarnation) ties_.push_back({slots[i], slots[j]});
+      }
+    }
+  }
+  out_.ties = static_cast<int>(ties_.size());
+}
+
+// The chains that enter: the first, then each tied to those in by enough landmarks, until none
+// more is.
+std::vector<std::size_t> NetworkJoin::Enter(const std::vector<Tie>& usable) const {
+  std::vector<std::size_t> order = {0};
+  std::vector<bool> in(chains_.size(), false);
+  in[0] = true;
+  for (bool more = true; more;) {
+    more = false;
+    for (std::size_t c = 1; c < chains_.size(); ++c) {
+      if (in[c] || !wellformed_[c]) continue;
+      std::set<int> shared;  // this chain's slots tied to a chain in
+      for (const Tie& t : usable) {
+        const std::size_t ca = chain_of_slot_[static_cast<std::size_t>(t.a)];
+        const std::size_t cb = chain_of_slot_[static_cast<std::size_t>(t.b)];
+        if (ca == c && in[cb]) shared.insert(t.a);
+        if (cb == c && in[ca]) shared.insert(t.b);
+      }
+      if (static_cast<int>(shared.size()) < options_.min_shared_landmarks) continue;
+      in[c] = true;
+      order.push_back(c);
+      more = true;
+    }
+  }
+  return order;
+}
+
+// Chains that enter without a previous solve's frames (new ones) while the first has them:
+// placed alone against the others' frames (the placing pass), so that every chain has frames
+// and the pairings are judged on them, without a first pass over every chain (whose cost
+// grows with the chains: 48 of them, seconds).
+void NetworkJoin::PlaceNewChainsAlone(const std::vector<std::size_t>& first_order, const RobustKernel& first_kernel) {
+  if (!options_.judge_on_start_frames || !options_.place_new_chains_alone || chains_[0].start_frames.empty()) return;
+  std::vector<std::size_t> known, fresh;
+  for (std::size_t c : first_order) (chains_[c].start_frames.empty() ? fresh : known).push_back(c);
+  if (fresh.empty()) return;
+  std::vector<bool> is_fresh(chains_.size(), false);
+  for (std::size_t c : fresh) is_fresh[c] = true;
+  const Network held = Place(chains_, known, slot_of_, refs_.size(), {}, nullptr, nullptr, info_);
+  std::vector<Tie> among;
+  std::vector<std::pair<int, Eigen::Vector2d>> anchors;
+  for (const Tie& t : ties_) {
+    const bool fa = is_fresh[chain_of_slot_[static_cast<std::size_t>(t.a)]];
+    const bool fb = is_fresh[chain_of_slot_[static_cast<std::size_t>(t.b)]];
+    if (fa && fb) among.push_back(t);
+    if (fa && !fb && held.Holds(t.b)) anchors.push_back({t.a, held.At(t.b)});
+    if (fb && !fa && held.Holds(t.a)) anchors.push_back({t.b, held.At(t.a)});
+  }
+  const std::vector<std::vector<Pose2>> frames = PlaceAlone(chains_, fresh, slot_of_, refs_.size(), among, anchors,
+                                                            options_.tie_sigma_m, first_kernel, options_.max_iterations,
+                                                            info_);
+  with_frames_.assign(chains_.begin(), chains_.end());
+  for (std::size_t i = 0; i < fresh.size(); ++i) with_frames_[fresh[i]].start_frames = frames[i];
+  chains_ = with_frames_;
+  out_.placed_alone = static_cast<int>(fresh.size());
+}
+
+// The pairings kept on the network they were judged on; their unions are the landmarks. A union
+// that one submap would reach twice keeps the pairings made first (closest first) and drops the
+// rest. Returns the pairings used.
+std::vector<Tie> NetworkJoin::KeepTies(const Network& at) {
+  std::vector<std::pair<double, Tie>> kept;
+  for (const Tie& t : at.ties) {
+    const double d = (at.At(t.a) - at.At(t.b)).norm();
+    if (d <= options_.keep_tie_m) kept.push_back({d, t});
+  }
+  std::sort(kept.begin(), kept.end(), [](const auto& x, const auto& y) {
+    return std::tie(x.first, x.second.a, x.second.b) < std::tie(y.first, y.second.a, y.second.b);
+  });
+  unions_ = Unions(refs_.size());
+  std::map<int, std::set<int>> submaps_of_root;  // per union root: the submaps its slots are in
+  auto submaps_of = [&](int root) -> std::set<int>& {
+    auto [it, fresh] = submaps_of_root.try_emplace(root);
+    if (fresh) {
+      const std::vector<int>& s = submaps_of_slot_[static_cast<std::size_t>(root)];
+      it->second.insert(s.begin(), s.end());
+    }
+    return it->second;
+  };
+  std::vector<Tie> used;
+  for (const auto& [d, t] : kept) {
+    const int ra = unions_.Find(t.a), rb = unions_.Find(t.b);
+    if (ra == rb) continue;
+    std::set<int>& sa = submaps_of(ra);
+    std::set<int>& sb = submaps_of(rb);
+    const bool overlap = std::any_of(sa.begin(), sa.end(), [&](int s) { return sb.count(s) > 0; });
+    if (overlap) continue;
+    unions_.Join(ra, rb);
+    const int root = unions_.Find(ra);  // the smaller of the two: its set takes the other's
+    std::set<int>& into = root == ra ? sa : sb;
+    std::set<int>& from = root == ra ? sb : sa;
+    into.insert(from.begin(), from.end());
+    submaps_of_root.erase(root == ra ? rb : ra);
+    used.push_back(t);
+  }
+  return used;
+}
+
+// Each union's start: the mean of its slots' positions on the network judged; on the start
+// frames, where a previous solve put the landmarks, where the chains say.
+std::map<int, Eigen::Vector2d> NetworkJoin::UnionStarts(const Network& at, bool first_pass) {
+  const auto mean_by_union = [&](const auto& position) {
+    std::map<int, std::pair<Eigen::Vector2d, int>> sums;
+    for (int slot : at.held) {
+      const std::optional<Eigen::Vector2d> p = position(slot, at.At(slot));
+      if (!p) continue;
+      auto [it, fresh] = sums.try_emplace(unions_.Find(slot), *p, 1);
+      if (!fresh) {
+        it->second.first += *p;
+        ++it->second.second;
+      }
+    }
+    std::map<int, Eigen::Vector2d> means;
+    for (const auto& [root, sum] : sums) means[root] = sum.first / sum.second;
+    return means;
+  };
+  std::map<int, Eigen::Vector2d> start = mean_by_union([](int, const Eigen::Vector2d& l) {
+    return std::optional<Eigen::Vector2d>(l);
+  });
+  if (!first_pass) {
+    const auto previous = mean_by_union([&](int slot, const Eigen::Vector2d&) -> std::optional<Eigen::Vector2d> {
+      const LandmarkRef& ref = refs_[static_cast<std::size_t>(slot)];
+      const auto& given = chains_[chain_of_slot_[static_cast<std::size_t>(slot)]].start_landmarks;
+      const auto it = given.find(ref.key);
+      if (it == given.end()) return std::nullopt;
+      return it->second;
+    });
+    for (const auto& [root, l] : previous) start[root] = l;
+  }
+  return start;
+}
+
+// Whether a submap's residual says a pairing of the join is wrong: its excess beyond
+// recheck_sigmas, and beyond what a recheck found its own (*spared: some submap was beyond the
+// check only by what the memo cleared). The submaps beyond go to `list`.
+bool NetworkJoin::Beyond(const std::vector<double>& excess, bool* spared,
+                         std::vector<std::pair<SubmapId, double>>* list) const {
+  bool any = false;
+  for (std::size_t i = 0; i < excess.size(); ++i) {
+    if (excess[i] <= options_.recheck_sigmas) continue;
+    const SubmapId& id = second_.net.factors[i].id;
+    if (memo_ != nullptr && excess[i] <= memo_->Cleared(id) + options_.recheck_sigmas) {
+      *spared = true;
+      continue;
+    }
+    any = true;
+    if (list != nullptr) list->push_back({id, excess[i]});
+  }
+  return any;
+}
+
+// A join judged on the start frames stands unless a submap's residual says a pairing is wrong
+// (Beyond) ... and with the calibration, unless its chain errs as a whole (every submap of it
+// beyond its covariance: a sensor's bias, a chain the calibration weighs down below), which the
+// first pass cannot mend and would meet at every join: the check is made again under the
+// variance factors the residuals give. A wrong pairing stands out of its chain's factor (one
+// submap's chi-square some 15 times its mean).
+bool NetworkJoin::StandsOnStartFrames() {
+  judged_excess_.clear();
+  bool spared = false;
+  if (!Beyond(second_.net.Excesses(), &spared, &judged_excess_)) {
+    out_.recheck_spared = spared;
+    return true;
+  }
+  if (options_.calibrate_sigmas > 0) {
+    std::vector<double> weights(order_.size(), 1.0);
+    bool spared_weighted = false;
+    if (second_.net.Calibrate(options_.calibrate_sigmas, &weights) &&
+        !Beyond(second_.net.Excesses(&weights), &spared_weighted, nullptr)) {
+      out_.recheck_spared = spared_weighted;
+      return true;
+    }
+  }
+  return false;
+}
+
+// The pairings between chains that entered whose two references the join keeps apart.
+void NetworkJoin::CountDroppedTies() {
+  std::vector<bool> entered(chains_.size(), false);
+  for (std::size_t c : order_) entered[c] = true;
+  out_.ties_dropped = 0;
+  for (const Tie& t : ties_) {
+    const std::size_t ca = chain_of_slot_[static_cast<std::size_t>(t.a)];
+    const std::size_t cb = chain_of_slot_[static_cast<std::size_t>(t.b)];
+    if (entered[ca] && entered[cb] && unions_.Find(t.a) != unions_.Find(t.b)) ++out_.ties_dropped;
+  }
+}
+
+// Each chain's information calibrated by its residuals (a variance factor per chain, estimated
+// as variance components are: chi-square over redundancy, reweighted until none is beyond what
+// chance gives it): a chain whose sensors err beyond their model weighs less. Returns per chain
+// in order 1 / its variance factor.
+std::vector<double> NetworkJoin::Calibrate() {
+  int calibrations = 0;
+  std::vector<double> weights(order_.size(), 1.0);
+  if (options_.calibrate_sigmas > 0) {
+    for (int round = 0; round < options_.max_calibrations; ++round) {
+      if (!second_.net.Calibrate(options_.calibrate_sigmas, &weights)) break;
+      std::vector<std::vector<Pose2>> frames = second_.net.frames;
+      std::map<int, Eigen::Vector2d> start;
+      for (int slot : second_.net.held) start[slot] = second_.net.At(slot);
+      second_ = Solve(chains_, order_, landmark_of_, refs_.size(), {}, 1.0, RobustKernel{}, &frames, &start,
+                      options_.max_iterations, info_, &eq_, &weights);
+      ++calibrations;
+    }
+  }
+  out_.calibrations = calibrations;
+  return weights;
+}
+
+// The landmarks with their marginals, each chain's frames, and each caller group's landmark: the
+// landmark of its first reference in chain order that entered.
+void NetworkJoin::Result(const std::map<LandmarkRef, int>& groups) {
+  std::vector<int> wanted, wanted_slots;
+  for (int slot : second_.net.held) {
+    wanted.push_back(second_.net.slot_var[static_cast<std::size_t>(slot)]);
+    wanted_slots.push_back(slot);
+  }
+  const std::vector<Eigen::MatrixXd> marginals = eq_->Marginals(wanted);
+  if (marginals.size() != wanted.size()) return;
+  out_.solved = true;
+  std::map<int, int> index_of;  // landmark slot -> place in out_.landmarks
+  for (std::size_t i = 0; i < wanted_slots.size(); ++i) {
+    NetworkLandmark l;
+    l.mean = second_.net.At(wanted_slots[i]);
+    l.cov = marginals[i];
+    index_of[wanted_slots[i]] = static_cast<int>(out_.landmarks.size());
+    out_.landmarks.push_back(std::move(l));
+  }
+  for (std::size_t i = 0; i < order_.size(); ++i) {
+    const ChainInput& c = chains_[order_[i]];
+    out_.joined[order_[i]] = true;
+    out_.origins[order_[i]] = second_.net.frames[i][0];
+    out_.frames[order_[i]] = second_.net.frames[i];
+    out_.submaps += static_cast<int>(c.submaps.size());
+    std::set<std::uint32_t> keys;
+    for (const WireSubmap* s : c.submaps) keys.insert(s->keys.begin(), s->keys.end());
+    for (std::uint32_t key : keys) {
+      const LandmarkRef ref{c.robot, c.incarnation, key};
+      out_.landmarks[static_cast<std::size_t>(index_of.at(landmark_of_.at(ref)))].refs.push_back(ref);
+    }
+  }
+  for (const auto& [ref, g] : groups) {
+    const auto l = landmark_of_.find(ref);
+    if (l == landmark_of_.end()) continue;
+    const auto i = index_of.find(l->second);
+    if (i == index_of.end()) continue;
+    int& slot = out_.of_group[static_cast<std::size_t>(g)];
+    const auto held = [&](int index) {
+      const NetworkLandmark& lm = out_.landmarks[static_cast<std::size_t>(index)];
+      for (std::size_t c : order_) {
+        for (const LandmarkRef& r : lm.refs) {
+          if (r.robot == chains_[c].robot && r.incarnation == chains_[c].incarnation) return c;
+        }
+      }
+      return chains_.size();
+    };
+    if (slot < 0 || held(i->second) < held(slot)) slot = i->second;
+  }
+}
+
+NetworkResult NetworkJoin::Run(const std::map<LandmarkRef, int>& groups) {
+  out_.joined.assign(chains_.size(), false);
+  out_.frames.assign(chains_.size(), {});
+  out_.origins.reserve(chains_.size());
+  for (const ChainInput& c : chains_) out_.origins.push_back(c.origin);
+  int caller_groups = 0;
+  for (const auto& [ref, g] : groups) caller_groups = std::max(caller_groups, g + 1);
+  out_.of_group.assign(static_cast<std::size_t>(caller_groups), -1);
+  if (chains_.empty()) return std::move(out_);
+  IndexSlots();
+  if (!wellformed_[0]) return std::move(out_);
+  OfferTies(groups);
+
+  const std::vector<std::size_t> first_order = Enter(ties_);
+  const RobustKernel first_kernel{RobustLoss::kCauchy, options_.tie_cauchy};
+  PlaceNewChainsAlone(first_order, first_kernel);
+  // Whether the pairings may be judged on the start frames: every chain to enter has them.
+  const bool on_start_frames = options_.judge_on_start_frames &&
+                               std::all_of(first_order.begin(), first_order.end(),
+                                           [&](std::size_t c) { return !chains_[c].start_frames.empty(); });
+  std::map<LandmarkRef, int> judged_landmarks;  // a join judged on the start frames and refused: its landmarks
+  for (bool rechecking = false;; rechecking = true) {
+    // The pairings judged: by the first pass (every reference its own landmark, the pairings
+    // soft ties under Cauchy's kernel), or on the start frames. `at` is the network they were
+    // judged on: where the exact join starts.
+    const bool first_pass = !on_start_frames || rechecking;
+    if (first_pass) {
+      first_ = Solve(chains_, first_order, slot_of_, refs_.size(), ties_, options_.tie_sigma_m, first_kernel, nullptr,
+                     nullptr, options_.max_iterations, info_, &eq_);
+    } else {
+      first_ = Solved{Place(chains_, first_order, slot_of_, refs_.size(), ties_, nullptr, nullptr, info_), {}};
+    }
+    const Network& at = first_.net;
+    // Second pass: the exact join, each union one landmark, from where the pairings were judged.
+    order_ = Enter(KeepTies(at));  // those of the first pass, or fewer
+    landmark_of_.clear();
+    for (const auto& [ref, slot] : slot_of_) landmark_of_[ref] = unions_.Find(slot);
+    std::map<int, Eigen::Vector2d> start = UnionStarts(at, first_pass);
+    // The judged network's frames, for the chains that enter again (by their place in its order).
+    std::vector<std::vector<Pose2>> frames;
+    for (std::size_t c : order_) {
+      const auto i = std::find(first_order.begin(), first_order.end(), c) - first_order.begin();
+      frames.push_back(at.frames[static_cast<std::size_t>(i)]);
+    }
+    second_ = Solve(chains_, order_, landmark_of_, refs_.size(), {}, 1.0, RobustKernel{}, &frames, &start,
+                    options_.max_iterations, info_, &eq_);
+    out_.first_pass = first_pass;
+    out_.rechecked = rechecking;
+    if (rechecking) {
+      // The recheck kept the pairings the start frames had: the excesses were the submaps' own.
+      out_.recheck_unchanged = landmark_of_ == judged_landmarks;
+      if (out_.recheck_unchanged && memo_ != nullptr) {
+        for (const auto& [id, excess] : judged_excess_) memo_->Clear(id, excess);
+      }
+      break;
+    }
+    if (first_pass || StandsOnStartFrames()) break;
+    judged_landmarks = landmark_of_;
+  }
+  CountDroppedTies();
+  if (memo_ != nullptr) {
+    std::set<SubmapId> ids;
+    for (const Factor& f : second_.net.factors) ids.insert(f.id);
+    memo_->KeepOnly(ids);
+  }
+  const std::vector<double> weights = Calibrate();
+  out_.variance_factors.assign(chains_.size(), 1.0);
+  for (std::size_t i = 0; i < order_.size(); ++i) out_.variance_factors[order_[i]] = 1.0 / weights[i];
+  info_.Sweep();
+  out_.iterations = first_.report.iterations + second_.report.iterations;
+  out_.converged = second_.report.converged;
+  out_.cost = second_.report.final_cost;
+  Result(groups);
+  return std::move(out_);
+}
+
 }  // namespace
 
 const Eigen::MatrixXd& SubmapInformation::Of(const WireSubmap& s) {
@@ -442,374 +876,9 @@ void RecheckMemo::KeepOnly(const std::set<SubmapId>& ids) {
 
 NetworkResult JoinSubmapNetwork(std::span<const ChainInput> chains, const std::map<LandmarkRef, int>& groups,
                                 const NetworkOptions& options, SubmapInformation* information, RecheckMemo* memo) {
-  NetworkResult out;
-  out.joined.assign(chains.size(), false);
-  out.frames.assign(chains.size(), {});
-  out.origins.reserve(chains.size());
-  for (const ChainInput& c : chains) out.origins.push_back(c.origin);
-  int caller_groups = 0;
-  for (const auto& [ref, g] : groups) caller_groups = std::max(caller_groups, g + 1);
-  out.of_group.assign(static_cast<std::size_t>(caller_groups), -1);
-  if (chains.empty()) return out;
-
-  // Every reference its own slot, in chain order; a chain whose submaps name one key twice (or
-  // none at all) is malformed and stays out.
-  std::map<LandmarkRef, int> slot_of;
-  std::vector<LandmarkRef> refs;
-  std::vector<bool> wellformed(chains.size(), true);
-  for (std::size_t c = 0; c < chains.size(); ++c) {
-    if (chains[c].submaps.empty()) wellformed[c] = false;
-    for (const WireSubmap* s : chains[c].submaps) {
-      std::set<std::uint32_t> keys(s->keys.begin(), s->keys.end());
-      if (keys.size() != s->keys.size()) wellformed[c] = false;
-      for (std::uint32_t key : s->keys) {
-        const LandmarkRef ref{chains[c].robot, chains[c].incarnation, key};
-        if (slot_of.emplace(ref, static_cast<int>(refs.size())).second) refs.push_back(ref);
-      }
-    }
-  }
-  if (!wellformed[0]) return out;
-  // The caller's pairings across chains: every two references of one group in different chains.
-  std::map<int, std::vector<int>> members;
-  for (const auto& [ref, g] : groups) {
-    const auto it = slot_of.find(ref);
-    if (it != slot_of.end()) members[g].push_back(it->second);
-  }
-  std::vector<Tie> ties;
-  for (const auto& [g, slots] : members) {
-    for (std::size_t i = 0; i < slots.size(); ++i) {
-      for (std::size_t j = i + 1; j < slots.size(); ++j) {
-        const LandmarkRef& a = refs[static_cast<std::size_t>(slots[i])];
-        const LandmarkRef& b = refs[static_cast<std::size_t>(slots[j])];
-        if (a.robot != b.robot || a.incarnation != b.incarnation) ties.push_back({slots[i], slots[j]});
-      }
-    }
-  }
-  out.ties = static_cast<int>(ties.size());
-
-  std::map<std::pair<RobotId, std::uint32_t>, std::size_t> chain_index;  // (robot, incarnation) -> its chain
-  for (std::size_t c = 0; c < chains.size(); ++c) chain_index[{chains[c].robot, chains[c].incarnation}] = c;
-  std::vector<std::size_t> chain_of_slot;  // per slot: the chain its reference names
-  chain_of_slot.reserve(refs.size());
-  for (const LandmarkRef& ref : refs) chain_of_slot.push_back(chain_index.at({ref.robot, ref.incarnation}));
-
-  // The chains that enter: the first, then each tied to those in by enough landmarks, until
-  // none more is.
-  auto enter = [&](const std::vector<Tie>& usable) {
-    std::vector<std::size_t> order = {0};
-    std::vector<bool> in(chains.size(), false);
-    in[0] = true;
-    for (bool more = true; more;) {
-      more = false;
-      for (std::size_t c = 1; c < chains.size(); ++c) {
-        if (in[c] || !wellformed[c]) continue;
-        std::set<int> shared;  // this chain's slots tied to a chain in
-        for (const Tie& t : usable) {
-          const std::size_t ca = chain_of_slot[static_cast<std::size_t>(t.a)];
-          const std::size_t cb = chain_of_slot[static_cast<std::size_t>(t.b)];
-          if (ca == c && in[cb]) shared.insert(t.a);
-          if (cb == c && in[ca]) shared.insert(t.b);
-        }
-        if (static_cast<int>(shared.size()) < options.min_shared_landmarks) continue;
-        in[c] = true;
-        order.push_back(c);
-        more = true;
-      }
-    }
-    return order;
-  };
-
-  const std::vector<std::size_t> first_order = enter(ties);
   SubmapInformation own_information;
-  SubmapInformation& info = information != nullptr ? *information : own_information;
-  const RobustKernel first_kernel{RobustLoss::kCauchy, options.tie_cauchy};
-
-  // Chains that enter without a previous solve's frames (new ones) while the first has them:
-  // placed alone against the others' frames (the placing pass), so that every chain has frames
-  // and the pairings are judged on them, without a first pass over every chain (whose cost
-  // grows with the chains: 48 of them, seconds).
-  std::vector<ChainInput> with_frames;
-  if (options.judge_on_start_frames && options.place_new_chains_alone && !chains[0].start_frames.empty()) {
-    std::vector<std::size_t> known, fresh;
-    for (std::size_t c : first_order) (chains[c].start_frames.empty() ? fresh : known).push_back(c);
-    if (!fresh.empty()) {
-      std::vector<bool> is_fresh(chains.size(), false);
-      for (std::size_t c : fresh) is_fresh[c] = true;
-      const Network held = Place(chains, known, slot_of, refs.size(), {}, nullptr, nullptr, info);
-      std::vector<Tie> among;
-      std::vector<std::pair<int, Eigen::Vector2d>> anchors;
-      for (const Tie& t : ties) {
-        const bool fa = is_fresh[chain_of_slot[static_cast<std::size_t>(t.a)]];
-        const bool fb = is_fresh[chain_of_slot[static_cast<std::size_t>(t.b)]];
-        if (fa && fb) among.push_back(t);
-        if (fa && !fb && held.Holds(t.b)) anchors.push_back({t.a, held.At(t.b)});
-        if (fb && !fa && held.Holds(t.a)) anchors.push_back({t.b, held.At(t.a)});
-      }
-      const std::vector<std::vector<Pose2>> frames = PlaceAlone(chains, fresh, slot_of, refs.size(), among, anchors,
-                                                                options.tie_sigma_m, first_kernel,
-                                                                options.max_iterations, info);
-      with_frames.assign(chains.begin(), chains.end());
-      for (std::size_t i = 0; i < fresh.size(); ++i) with_frames[fresh[i]].start_frames = frames[i];
-      chains = with_frames;
-      out.placed_alone = static_cast<int>(fresh.size());
-    }
-  }
-  // Whether the pairings may be judged on the start frames: every chain to enter has them.
-  const bool on_start_frames = options.judge_on_start_frames &&
-                               std::all_of(first_order.begin(), first_order.end(),
-                                           [&](std::size_t c) { return !chains[c].start_frames.empty(); });
-
-  // The submaps that hold each slot, to refuse a union that would name one landmark twice in one.
-  std::vector<std::vector<int>> submaps_of_slot(refs.size());
-  int submap_count = 0;
-  for (const ChainInput& c : chains) {
-    for (const WireSubmap* s : c.submaps) {
-      for (std::uint32_t key : s->keys) {
-        submaps_of_slot[static_cast<std::size_t>(slot_of.at({c.robot, c.incarnation, key}))].push_back(submap_count);
-      }
-      ++submap_count;
-    }
-  }
-
-  std::unique_ptr<BlockNormalEquations> eq;
-  Solved first, second;
-  std::vector<std::size_t> order;
-  std::map<LandmarkRef, int> landmark_of;
-  // A join judged on the start frames and refused: its landmarks, and its submaps beyond the
-  // recheck with their excesses.
-  std::map<LandmarkRef, int> judged_landmarks;
-  std::vector<std::pair<SubmapId, double>> judged_excess;
-  Unions unions;
-  for (bool rechecking = false;; rechecking = true) {
-    // The pairings judged: by the first pass (every reference its own landmark, the pairings
-    // soft ties under Cauchy's kernel), or on the start frames. `at` is the network they were
-    // judged on: where the exact join starts.
-    const bool first_pass = !on_start_frames || rechecking;
-    if (first_pass) {
-      first = Solve(chains, first_order, slot_of, refs.size(), ties, options.tie_sigma_m, first_kernel, nullptr,
-                    nullptr, options.max_iterations, info, &eq);
-    } else {
-      first = Solved{Place(chains, first_order, slot_of, refs.size(), ties, nullptr, nullptr, info), {}};
-    }
-    const Network& at = first.net;
-    // The pairings kept; their unions are the landmarks. A union that one submap would reach
-    // twice keeps the pairings made first (closest first) and drops the rest.
-    std::vector<std::pair<double, Tie>> kept;
-    for (const Tie& t : at.ties) {
-      const double d = (at.At(t.a) - at.At(t.b)).norm();
-      if (d <= options.keep_tie_m) kept.push_back({d, t});
-    }
-    std::sort(kept.begin(), kept.end(), [](const auto& x, const auto& y) {
-      return std::tie(x.first, x.second.a, x.second.b) < std::tie(y.first, y.second.a, y.second.b);
-    });
-    unions = Unions(refs.size());
-    std::map<int, std::set<int>> submaps_of_root;  // per union root: the submaps its slots are in
-    auto submaps_of = [&](int root) -> std::set<int>& {
-      auto [it, fresh] = submaps_of_root.try_emplace(root);
-      if (fresh) {
-        const std::vector<int>& s = submaps_of_slot[static_cast<std::size_t>(root)];
-        it->second.insert(s.begin(), s.end());
-      }
-      return it->second;
-    };
-    std::vector<Tie> used;
-    for (const auto& [d, t] : kept) {
-      const int ra = unions.Find(t.a), rb = unions.Find(t.b);
-      if (ra == rb) continue;
-      std::set<int>& sa = submaps_of(ra);
-      std::set<int>& sb = submaps_of(rb);
-      const bool overlap = std::any_of(sa.begin(), sa.end(), [&](int s) { return sb.count(s) > 0; });
-      if (overlap) continue;
-      unions.Join(ra, rb);
-      const int root = unions.Find(ra);  // the smaller of the two: its set takes the other's
-      std::set<int>& into = root == ra ? sa : sb;
-      std::set<int>& from = root == ra ? sb : sa;
-      into.insert(from.begin(), from.end());
-      submaps_of_root.erase(root == ra ? rb : ra);
-      used.push_back(t);
-    }
-
-    // Second pass: the exact join, each union one landmark, from where the pairings were judged.
-    order = enter(used);  // those of the first pass, or fewer
-    landmark_of.clear();
-    for (const auto& [ref, slot] : slot_of) landmark_of[ref] = unions.Find(slot);
-    // Each union's start: the mean of its slots' positions where `position` gives one.
-    const auto mean_by_union = [&](const auto& position) {
-      std::map<int, std::pair<Eigen::Vector2d, int>> sums;
-      for (int slot : at.held) {
-        const std::optional<Eigen::Vector2d> p = position(slot, at.At(slot));
-        if (!p) continue;
-        auto [it, fresh] = sums.try_emplace(unions.Find(slot), *p, 1);
-        if (!fresh) {
-          it->second.first += *p;
-          ++it->second.second;
-        }
-      }
-      std::map<int, Eigen::Vector2d> means;
-      for (const auto& [root, sum] : sums) means[root] = sum.first / sum.second;
-      return means;
-    };
-    std::map<int, Eigen::Vector2d> start = mean_by_union([](int, const Eigen::Vector2d& l) {
-      return std::optional<Eigen::Vector2d>(l);
-    });
-    if (!first_pass) {  // where a previous solve put the landmarks, where the chains say
-      const auto previous = mean_by_union([&](int slot, const Eigen::Vector2d&) -> std::optional<Eigen::Vector2d> {
-        const LandmarkRef& ref = refs[static_cast<std::size_t>(slot)];
-        const auto& given = chains[chain_of_slot[static_cast<std::size_t>(slot)]].start_landmarks;
-        const auto it = given.find(ref.key);
-        if (it == given.end()) return std::nullopt;
-        return it->second;
-      });
-      for (const auto& [root, l] : previous) start[root] = l;
-    }
-    // The judged network's frames, for the chains that enter again (by their place in its order).
-    std::vector<std::vector<Pose2>> frames;
-    for (std::size_t c : order) {
-      const auto i = std::find(first_order.begin(), first_order.end(), c) - first_order.begin();
-      frames.push_back(at.frames[static_cast<std::size_t>(i)]);
-    }
-    second = Solve(chains, order, landmark_of, refs.size(), {}, 1.0, RobustKernel{}, &frames, &start,
-                   options.max_iterations, info, &eq);
-    out.first_pass = first_pass;
-    out.rechecked = rechecking;
-    if (rechecking) {
-      // The recheck kept the pairings the start frames had: the excesses were the submaps' own.
-      out.recheck_unchanged = landmark_of == judged_landmarks;
-      if (out.recheck_unchanged && memo != nullptr) {
-        for (const auto& [id, excess] : judged_excess) memo->Clear(id, excess);
-      }
-      break;
-    }
-    if (first_pass) break;
-    // A join judged on the start frames stands unless a submap's residual says a pairing is
-    // wrong: its excess beyond recheck_sigmas, and beyond what a recheck found its own (*spared:
-    // some submap was beyond the check only by what the memo cleared). The submaps beyond go to
-    // `list`.
-    const auto beyond = [&](const std::vector<double>& excess, bool* spared,
-                            std::vector<std::pair<SubmapId, double>>* list) {
-      bool any = false;
-      for (std::size_t i = 0; i < excess.size(); ++i) {
-        if (excess[i] <= options.recheck_sigmas) continue;
-        const SubmapId& id = second.net.factors[i].id;
-        if (memo != nullptr && excess[i] <= memo->Cleared(id) + options.recheck_sigmas) {
-          *spared = true;
-          continue;
-        }
-        any = true;
-        if (list != nullptr) list->push_back({id, excess[i]});
-      }
-      return any;
-    };
-    judged_excess.clear();
-    bool spared = false;
-    if (!beyond(second.net.Excesses(), &spared, &judged_excess)) {
-      out.recheck_spared = spared;
-      break;
-    }
-    // ... and with the calibration, unless its chain errs as a whole (every submap of it beyond
-    // its covariance: a sensor's bias, a chain the calibration weighs down below), which the
-    // first pass cannot mend and would meet at every join: the check is made again under the
-    // variance factors the residuals give. A wrong pairing stands out of its chain's factor
-    // (one submap's chi-square some 15 times its mean).
-    if (options.calibrate_sigmas > 0) {
-      std::vector<double> weights(order.size(), 1.0);
-      bool spared_weighted = false;
-      if (second.net.Calibrate(options.calibrate_sigmas, &weights) &&
-          !beyond(second.net.Excesses(&weights), &spared_weighted, nullptr)) {
-        out.recheck_spared = spared_weighted;
-        break;
-      }
-    }
-    judged_landmarks = landmark_of;
-  }
-  // The pairings between chains that entered whose two references the join keeps apart.
-  {
-    std::vector<bool> entered(chains.size(), false);
-    for (std::size_t c : order) entered[c] = true;
-    out.ties_dropped = 0;
-    for (const Tie& t : ties) {
-      const std::size_t ca = chain_of_slot[static_cast<std::size_t>(t.a)];
-      const std::size_t cb = chain_of_slot[static_cast<std::size_t>(t.b)];
-      if (entered[ca] && entered[cb] && unions.Find(t.a) != unions.Find(t.b)) ++out.ties_dropped;
-    }
-  }
-  if (memo != nullptr) {
-    std::set<SubmapId> ids;
-    for (const Factor& f : second.net.factors) ids.insert(f.id);
-    memo->KeepOnly(ids);
-  }
-  // Each chain's information calibrated by its residuals (a variance factor per chain,
-  // estimated as variance components are: chi-square over redundancy, reweighted until none is
-  // beyond what chance gives it): a chain whose sensors err beyond their model weighs less.
-  int calibrations = 0;
-  std::vector<double> weights(order.size(), 1.0);  // per chain in order: 1 / its variance factor
-  if (options.calibrate_sigmas > 0) {
-    for (int round = 0; round < options.max_calibrations; ++round) {
-      if (!second.net.Calibrate(options.calibrate_sigmas, &weights)) break;
-      std::vector<std::vector<Pose2>> frames = second.net.frames;
-      std::map<int, Eigen::Vector2d> start;
-      for (int slot : second.net.held) start[slot] = second.net.At(slot);
-      second = Solve(chains, order, landmark_of, refs.size(), {}, 1.0, RobustKernel{}, &frames, &start,
-                     options.max_iterations, info, &eq, &weights);
-      ++calibrations;
-    }
-  }
-  out.calibrations = calibrations;
-  out.variance_factors.assign(chains.size(), 1.0);
-  for (std::size_t i = 0; i < order.size(); ++i) out.variance_factors[order[i]] = 1.0 / weights[i];
-  info.Sweep();
-  out.iterations = first.report.iterations + second.report.iterations;
-  out.converged = second.report.converged;
-  out.cost = second.report.final_cost;
-
-  std::vector<int> wanted, wanted_slots;
-  for (int slot : second.net.held) {
-    wanted.push_back(second.net.slot_var[static_cast<std::size_t>(slot)]);
-    wanted_slots.push_back(slot);
-  }
-  const std::vector<Eigen::MatrixXd> marginals = eq->Marginals(wanted);
-  if (marginals.size() != wanted.size()) return out;
-  out.solved = true;
-  std::map<int, int> index_of;  // landmark slot -> place in out.landmarks
-  for (std::size_t i = 0; i < wanted_slots.size(); ++i) {
-    NetworkLandmark l;
-    l.mean = second.net.At(wanted_slots[i]);
-    l.cov = marginals[i];
-    index_of[wanted_slots[i]] = static_cast<int>(out.landmarks.size());
-    out.landmarks.push_back(std::move(l));
-  }
-  for (std::size_t i = 0; i < order.size(); ++i) {
-    const ChainInput& c = chains[order[i]];
-    out.joined[order[i]] = true;
-    out.origins[order[i]] = second.net.frames[i][0];
-    out.frames[order[i]] = second.net.frames[i];
-    out.submaps += static_cast<int>(c.submaps.size());
-    std::set<std::uint32_t> keys;
-    for (const WireSubmap* s : c.submaps) keys.insert(s->keys.begin(), s->keys.end());
-    for (std::uint32_t key : keys) {
-      const LandmarkRef ref{c.robot, c.incarnation, key};
-      out.landmarks[static_cast<std::size_t>(index_of.at(landmark_of.at(ref)))].refs.push_back(ref);
-    }
-  }
-  // Each caller group: the landmark of its first reference in chain order that entered.
-  for (const auto& [ref, g] : groups) {
-    const auto l = landmark_of.find(ref);
-    if (l == landmark_of.end()) continue;
-    const auto i = index_of.find(l->second);
-    if (i == index_of.end()) continue;
-    int& slot = out.of_group[static_cast<std::size_t>(g)];
-    const auto held = [&](int index) {
-      const NetworkLandmark& lm = out.landmarks[static_cast<std::size_t>(index)];
-      for (std::size_t c : order) {
-        for (const LandmarkRef& r : lm.refs) {
-          if (r.robot == chains[c].robot && r.incarnation == chains[c].incarnation) return c;
-        }
-      }
-      return chains.size();
-    };
-    if (slot < 0 || held(i->second) < held(slot)) slot = i->second;
-  }
-  return out;
+  NetworkJoin join(chains, options, information != nullptr ? *information : own_information, memo);
+  return join.Run(groups);
 }
 
 }  // namespace mapmesh
