@@ -89,9 +89,9 @@ struct ExchangeOptions {
   int max_relay_comparisons_per_update = 64;  // agent.max_relay_comparisons_per_update: ... and fewer when judging
                                               // them would compare more maps than this: a relay is compared with
                                               // every aligned peer's map (one relay per Update at least)
-  std::uint32_t version_slack = 64;           // a map's version may exceed the last one received by this plus
-      // MaxVersionsPerS() times the scenario seconds since (and any version that
-      // rate times now)
+  // A map's version may exceed the last one received by this plus MaxVersionsPerS() times the
+  // scenario seconds since (and any version that rate times now).
+  std::uint32_t version_slack = 64;
   int max_incarnations = 8;  // incarnations kept per robot; a newer one evicts one never aligned and frozen
   AlignmentOptions align = ExchangeAlignment();  // align.search: agent.align_search
   // A rendezvous fit is verified by the maps at it with this many inliers (not align.min_inliers):

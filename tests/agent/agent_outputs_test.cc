@@ -185,7 +185,9 @@ TEST_F(AgentOutputsTest, ThePeerEventLogTellsAnAlignmentOnceWithItsTransform) {
     const std::vector<std::string> now = log.Update(node_);
     lines.insert(lines.end(), now.begin(), now.end());
     EXPECT_TRUE(log.Update(node_).empty());  // the same update: told once
-    if (node_.exchange().updates() == updates) EXPECT_TRUE(log.Update(node_).empty());
+    if (node_.exchange().updates() == updates) {
+      EXPECT_TRUE(log.Update(node_).empty());
+    }
   }
   ASSERT_TRUE(node_.exchange().Peers().at(0).aligned);
   ASSERT_EQ(lines.size(), 1u);
