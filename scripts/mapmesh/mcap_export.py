@@ -141,8 +141,20 @@ def export_mcap(run, summary, path):
     robots = truth_robots(truth)
     agents = [a for a in summary.get("agents", []) if isinstance(a, dict)]
     colours = {a["id"]: colour(i) for i, a in enumerate(agents)}
-    duration = run_duration(summary, truth)
+    write_frames(w, agents)
+    write_truth_landmarks(w, truth)
+    for a in agents:
+        write_agent(w, run, a["id"], robots.get(a["id"]) or {}, colours[a["id"]])
+    write_radio_links(w, run, robots, run_duration(summary, truth))
+    write_logs(w, run, summary, agents)
+    counts = w.finish(path)
+    for c in w.channels:  # a channel with no message is counted as such
+        counts.setdefault(c[2], 0)
+    return path, counts
 
+
+def write_frames(w, agents):
+    """/tf: each agent's map frame in the world (at the world's origin where it is not known)."""
     tf = w.channel("/tf", "foxglove.FrameTransforms", FRAME_TRANSFORMS)
     transforms = []
     for a in agents:
@@ -156,62 +168,74 @@ def export_mcap(run, summary, path):
                            "rotation": pose(0, 0, frame[2])["orientation"]})
     w.message(tf, 0, {"transforms": transforms})
 
-    if truth.get("landmarks"):
-        spheres = [{"pose": pose(lm[1], lm[2]) if isinstance(lm, list) else pose(lm["x"], lm["y"]),
-                    "size": {"x": 0.3, "y": 0.3, "z": 0.3}, "bottom_scale": 1.0, "top_scale": 1.0,
-                    "color": {"r": 0.1, "g": 0.1, "b": 0.1, "a": 0.8}} for lm in truth["landmarks"]]
-        update = map_update(None, "world", "truth/landmarks", 0.0, None)
-        update["entities"][0]["spheres"] = spheres
-        update["entities"][0]["metadata"] = [{"key": "landmarks", "value": str(len(spheres))}]
-        w.message(w.channel("/truth/landmarks", "foxglove.SceneUpdate", SCENE_UPDATE), 0, update)
 
-    for a in agents:
-        rid = a["id"]
-        robot = robots.get(rid) or {}
-        if robot.get("trajectory"):
-            ch = w.channel(f"/truth/agent_{rid}/pose", "foxglove.PoseInFrame", POSE_IN_FRAME)
-            for t, x, y, theta in (p[:4] for p in robot["trajectory"]):
-                w.message(ch, ns(t), {"timestamp": stamp(t), "frame_id": "world", "pose": pose(x, y, theta)})
-        traj = run.read_if_present(TRAJECTORY, rid) or {}
-        if traj.get("poses"):
-            ch = w.channel(f"/agent_{rid}/pose", "foxglove.PoseInFrame", POSE_IN_FRAME)
-            for t, x, y, theta in (p[:4] for p in traj["poses"]):
-                w.message(ch, ns(t), {"timestamp": stamp(t), "frame_id": f"agent_{rid}", "pose": pose(x, y, theta)})
-        for kind in ("local", "global"):
-            ch = None
-            for t, snap in snapshots(run, rid):
-                f = run.path(f"{snap}_{kind}.json", rid)
-                if not f.exists():
-                    continue
-                try:
-                    m = read_json(f)
-                except (OSError, ValueError):
-                    continue
-                ch = ch or w.channel(f"/agent_{rid}/{kind}_map", "foxglove.SceneUpdate", SCENE_UPDATE)
-                w.message(ch, ns(t), map_update(m, f"agent_{rid}", f"agent_{rid}/{kind}_map", t,
-                                                dict(colours[rid], a=0.5 if kind == "local" else 0.8)))
+def write_truth_landmarks(w, truth):
+    """/truth/landmarks, where the run knows them."""
+    if not truth.get("landmarks"):
+        return
+    spheres = [{"pose": pose(lm[1], lm[2]) if isinstance(lm, list) else pose(lm["x"], lm["y"]),
+                "size": {"x": 0.3, "y": 0.3, "z": 0.3}, "bottom_scale": 1.0, "top_scale": 1.0,
+                "color": {"r": 0.1, "g": 0.1, "b": 0.1, "a": 0.8}} for lm in truth["landmarks"]]
+    update = map_update(None, "world", "truth/landmarks", 0.0, None)
+    update["entities"][0]["spheres"] = spheres
+    update["entities"][0]["metadata"] = [{"key": "landmarks", "value": str(len(spheres))}]
+    w.message(w.channel("/truth/landmarks", "foxglove.SceneUpdate", SCENE_UPDATE), 0, update)
 
-    # Radio links as the feeder published them (feeder.json), or for a run written before it
-    # recorded them, from the true positions and radio.range_m (the disc).
+
+def write_agent(w, run, rid, robot, rgb):
+    """One agent's channels: its true poses, its estimated ones, and its local and global maps at
+    every snapshot."""
+    if robot.get("trajectory"):
+        ch = w.channel(f"/truth/agent_{rid}/pose", "foxglove.PoseInFrame", POSE_IN_FRAME)
+        for t, x, y, theta in (p[:4] for p in robot["trajectory"]):
+            w.message(ch, ns(t), {"timestamp": stamp(t), "frame_id": "world", "pose": pose(x, y, theta)})
+    traj = run.read_if_present(TRAJECTORY, rid) or {}
+    if traj.get("poses"):
+        ch = w.channel(f"/agent_{rid}/pose", "foxglove.PoseInFrame", POSE_IN_FRAME)
+        for t, x, y, theta in (p[:4] for p in traj["poses"]):
+            w.message(ch, ns(t), {"timestamp": stamp(t), "frame_id": f"agent_{rid}", "pose": pose(x, y, theta)})
+    for kind in ("local", "global"):
+        ch = None
+        for t, snap in snapshots(run, rid):
+            f = run.path(f"{snap}_{kind}.json", rid)
+            if not f.exists():
+                continue
+            try:
+                m = read_json(f)
+            except (OSError, ValueError):
+                continue
+            ch = ch or w.channel(f"/agent_{rid}/{kind}_map", "foxglove.SceneUpdate", SCENE_UPDATE)
+            w.message(ch, ns(t), map_update(m, f"agent_{rid}", f"agent_{rid}/{kind}_map", t,
+                                            dict(rgb, a=0.5 if kind == "local" else 0.8)))
+
+
+def write_radio_links(w, run, robots, duration):
+    """/radio/links: as the feeder published them (feeder.json), or for a run written before it
+    recorded them, from the true positions and radio.range_m (the disc)."""
     resolved = (run.read_if_present("run.json") or {}).get("resolved") or {}
     range_m, period = resolved.get("radio.range_m"), resolved.get("radio.links_period_s") or 0.5
     published = published_spans(run.read_if_present("feeder.json"))
-    if (published is not None or isinstance(range_m, (int, float))) and duration and len(robots) > 1:
-        ch = w.channel("/radio/links", "foxglove.SceneUpdate", SCENE_UPDATE)
-        tables = links_from_spans(published, period, duration) if published is not None else \
-            radio_links(robots, range_m, period, duration)
-        for t, pairs in tables:
-            points = []
-            for ra, rb in pairs:
-                pa, pb = pose_at(robots[ra]["trajectory"], t), pose_at(robots[rb]["trajectory"], t)
-                points += [{"x": pa[0], "y": pa[1], "z": 0.0}, {"x": pb[0], "y": pb[1], "z": 0.0}]
-            update = map_update(None, "world", "radio/links", t, None)
-            update["entities"][0]["lines"] = [{
-                "type": 2, "pose": pose(0, 0), "thickness": 2.0, "scale_invariant": True, "points": points,
-                "color": {"r": 0.2, "g": 0.6, "b": 0.2, "a": 0.7}, "colors": [], "indices": []}]
-            update["entities"][0]["metadata"] = [{"key": "links", "value": str(len(pairs))}]
-            w.message(ch, ns(t), update)
+    if not ((published is not None or isinstance(range_m, (int, float))) and duration and len(robots) > 1):
+        return
+    ch = w.channel("/radio/links", "foxglove.SceneUpdate", SCENE_UPDATE)
+    tables = links_from_spans(published, period, duration) if published is not None else \
+        radio_links(robots, range_m, period, duration)
+    for t, pairs in tables:
+        points = []
+        for ra, rb in pairs:
+            pa, pb = pose_at(robots[ra]["trajectory"], t), pose_at(robots[rb]["trajectory"], t)
+            points += [{"x": pa[0], "y": pa[1], "z": 0.0}, {"x": pb[0], "y": pb[1], "z": 0.0}]
+        update = map_update(None, "world", "radio/links", t, None)
+        update["entities"][0]["lines"] = [{
+            "type": 2, "pose": pose(0, 0), "thickness": 2.0, "scale_invariant": True, "points": points,
+            "color": {"r": 0.2, "g": 0.6, "b": 0.2, "a": 0.7}, "colors": [], "indices": []}]
+        update["entities"][0]["metadata"] = [{"key": "links", "value": str(len(pairs))}]
+        w.message(ch, ns(t), update)
 
+
+def write_logs(w, run, summary, agents):
+    """/alignments (each agent's peers aligned and lost, from its history) and /events (kills,
+    restarts and pauses)."""
     alignments = w.channel("/alignments", "foxglove.Log", LOG)
     for a in agents:
         for t, peer, aligned in alignment_changes(read_history(run.path(HISTORY, a["id"]))):
@@ -225,7 +249,3 @@ def export_mcap(run, summary, path):
             if isinstance(e, dict) and isinstance(e.get("t"), (int, float)):
                 extra = f" for {e['seconds']} s" if key == "pauses" and "seconds" in e else ""
                 w.message(events, ns(e["t"]), log(e["t"], level, "swarm", f"agent {e.get('id')} {what}{extra}"))
-    counts = w.finish(path)
-    for c in w.channels:  # a channel with no message is counted as such
-        counts.setdefault(c[2], 0)
-    return path, counts
