@@ -254,7 +254,9 @@ TEST(SubmapNetwork, AChainThatErrsAsAWholeDoesNotRunTheFirstPassAtEveryJoin) {
       const NetworkResult r = JoinSubmapNetwork(judged, t.groups, o);
       ASSERT_TRUE(r.solved && r.joined[1]) << run;
       (o.calibrate_sigmas > 0 ? rechecked_calibrated : rechecked_plain) += r.rechecked ? 1 : 0;
-      if (o.calibrate_sigmas > 0) EXPECT_GT(r.variance_factors[1], 4.0) << run;
+      if (o.calibrate_sigmas > 0) {
+        EXPECT_GT(r.variance_factors[1], 4.0) << run;
+      }
     }
   }
   EXPECT_EQ(rechecked_plain, 10);

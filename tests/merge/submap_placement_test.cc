@@ -89,7 +89,9 @@ TEST(PlaceSubmapsPiecewise, EachSubmapOfABentChainLandsWhereItIs) {
       EXPECT_LT((placed[k].to_own.Apply(l.mean) - w.landmarks[l.id]).norm(), 1e-9);
     }
     // Along the chain alone it would be off by the bend.
-    if (k >= 2) EXPECT_GT(PlacementError(chained, t.frames[k]), 0.05) << k;
+    if (k >= 2) {
+      EXPECT_GT(PlacementError(chained, t.frames[k]), 0.05) << k;
+    }
     chained = chained * Pose2{subs[k].x(0), subs[k].x(1), subs[k].x(2)};
   }
 }
