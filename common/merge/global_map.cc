@@ -189,12 +189,210 @@ Landmark TransformLandmark(const Landmark& l, const PoseMap2& t, const Eigen::Ma
   return out;
 }
 
+namespace {
+
+// One source's gated candidates: a radius search on the clusters' anchors, then the Mahalanobis
+// test. Per source landmark its edges (nearest first), per cluster the source landmarks gated to it.
+struct Candidates {
+  std::vector<std::vector<Edge>> edges_of;
+  std::vector<std::vector<int>> sources_of;
+};
+
+Candidates GatedCandidates(const std::vector<Cluster>& clusters, const std::vector<Landmark>& moved, double gate) {
+  Candidates out{std::vector<std::vector<Edge>>(moved.size()), std::vector<std::vector<int>>(clusters.size())};
+  if (clusters.empty() || moved.empty()) return out;
+  std::vector<Eigen::Vector2d> anchors;
+  anchors.reserve(clusters.size());
+  double max_anchor = 0.0;
+  for (const Cluster& c : clusters) {
+    anchors.push_back(c.anchor.mean);
+    max_anchor = std::max(max_anchor, LargestEigenvalue(c.anchor.cov));
+  }
+  const PointGrid2 grid(anchors);
+  for (std::size_t s = 0; s < moved.size(); ++s) {
+    const double radius = std::sqrt(gate * (max_anchor + LargestEigenvalue(moved[s].cov)));
+    grid.Visit(moved[s].mean, radius, [&](int c) {
+      const Eigen::Vector2d nu = clusters[c].anchor.mean - moved[s].mean;
+      const Eigen::Matrix2d cov = clusters[c].anchor.cov + moved[s].cov;
+      const double d2 = nu.dot(cov.inverse() * nu);
+      if (d2 < gate) {
+        out.edges_of[s].push_back({static_cast<int>(s), c, d2});
+        out.sources_of[c].push_back(static_cast<int>(s));
+      }
+      return false;
+    });
+    std::sort(out.edges_of[s].begin(), out.edges_of[s].end(),
+              [](const Edge& a, const Edge& b) { return a.d2 != b.d2 ? a.d2 < b.d2 : a.c < b.c; });
+  }
+  return out;
+}
+
+// The source landmarks connected to s0 through shared candidate clusters (s0 first, the rest as
+// found), each marked in group_of.
+std::vector<int> ConnectedGroup(std::size_t s0, const Candidates& cand, std::vector<int>& group_of) {
+  std::vector<int> group{static_cast<int>(s0)};
+  group_of[s0] = static_cast<int>(s0);
+  for (std::size_t h = 0; h < group.size(); ++h) {
+    for (const Edge& e : cand.edges_of[group[h]]) {
+      for (int s : cand.sources_of[e.c]) {
+        if (group_of[s] < 0) {
+          group_of[s] = static_cast<int>(s0);
+          group.push_back(s);
+        }
+      }
+    }
+  }
+  return group;
+}
+
+// The build's state across its sources: the clusters so far, the stats and the memo.
+class GlobalMapBuild {
+ public:
+  GlobalMapBuild(const GlobalMapOptions& o, AssociationMemo* memo, GlobalMapStats& stats)
+      : o_(o), memo_(memo), stats_(stats), gate_(Chi2Quantile(o.gate_probability, 2)) {}
+  std::vector<Cluster>& clusters() { return clusters_; }
+  void AddSource(const MapSource& src);
+
+ private:
+  void AssociateJointly(const MapSource& src, const std::vector<Landmark>& moved,
+                        const std::vector<Eigen::Matrix<double, 2, 3>>& jac, const Candidates& cand,
+                        const std::vector<int>& group, std::vector<int>& assign);
+  void AssociateGreedily(const Candidates& cand, const std::vector<int>& group, std::vector<int>& assign) const;
+  void Fuse(const MapSource& src, const std::vector<Landmark>& moved, const std::vector<int>& assign);
+
+  const GlobalMapOptions& o_;
+  AssociationMemo* memo_;
+  GlobalMapStats& stats_;
+  const double gate_;
+  std::vector<double> joint_gate_{0.0};  // by pairings (from 1): the chi-squared quantile, 2 dof per pairing
+  std::vector<Cluster> clusters_;
+};
+
+void GlobalMapBuild::AddSource(const MapSource& src) {
+  if (!ValidTransform(src)) {
+    ++stats_.rejected_sources;
+    return;
+  }
+  ++stats_.sources;
+  // The source's usable landmarks, in the own frame.
+  std::vector<Landmark> moved;
+  std::vector<Eigen::Matrix<double, 2, 3>> jac;
+  const PoseMap2 to_own(src.to_own);
+  for (const Landmark& l : src.map.landmarks) {
+    if (!Usable(l, stats_)) continue;
+    moved.push_back(TransformLandmark(l, to_own, src.to_own_cov, &jac.emplace_back()));
+  }
+  const Candidates cand = GatedCandidates(clusters_, moved, gate_);
+  // Connected groups of source landmarks through shared candidate clusters: one candidate alone
+  // is taken, an ambiguous group judged jointly (JCBB) or, beyond max_jcbb_landmarks, greedily.
+  std::vector<int> assign(moved.size(), -1), group_of(moved.size(), -1);
+  for (std::size_t s0 = 0; s0 < moved.size(); ++s0) {
+    if (group_of[s0] >= 0 || cand.edges_of[s0].empty()) continue;
+    std::vector<int> group = ConnectedGroup(s0, cand, group_of);
+    if (group.size() == 1 && cand.edges_of[s0].size() == 1) {
+      assign[s0] = cand.edges_of[s0][0].c;
+      continue;
+    }
+    std::sort(group.begin(), group.end());
+    if (static_cast<int>(group.size()) <= o_.max_jcbb_landmarks) {
+      AssociateJointly(src, moved, jac, cand, group, assign);
+    } else {
+      AssociateGreedily(cand, group, assign);
+    }
+  }
+  Fuse(src, moved, assign);
+}
+
+// An ambiguous group by joint compatibility; with a memo, the same members with the same
+// candidates keep the earlier pairing while it is still jointly compatible.
+void GlobalMapBuild::AssociateJointly(const MapSource& src, const std::vector<Landmark>& moved,
+                                      const std::vector<Eigen::Matrix<double, 2, 3>>& jac, const Candidates& cand,
+                                      const std::vector<int>& group, std::vector<int>& assign) {
+  ++stats_.ambiguous_groups;
+  GroupJointD2 incremental(moved, jac, src.to_own_cov, clusters_, group);
+  const auto joint_d2 = [&](std::span<const JcbbPairing> pairs) { return incremental(pairs); };
+  CanonicalGroup canonical;
+  if (memo_ != nullptr) {
+    canonical = Canonical(group, cand.edges_of, clusters_, src, moved);
+    if (const std::vector<int>* kept = memo_->Previous(canonical.key)) {
+      std::vector<JcbbPairing> pairs;
+      for (std::size_t k = 0; k < kept->size(); ++k) {
+        if ((*kept)[k] >= 0) pairs.push_back({canonical.member[k], 0, canonical.clusters[k][(*kept)[k]]});
+      }
+      std::sort(pairs.begin(), pairs.end(), [](const JcbbPairing& a, const JcbbPairing& b) { return a.item < b.item; });
+      while (joint_gate_.size() <= pairs.size())
+        joint_gate_.push_back(Chi2Quantile(o_.gate_probability, 2 * static_cast<int>(joint_gate_.size())));
+      if (pairs.empty() || joint_d2(pairs) < joint_gate_[pairs.size()]) {
+        for (const JcbbPairing& pr : pairs) assign[group[pr.item]] = pr.target;
+        memo_->Keep(std::move(canonical.key), *kept, /*reused=*/true);
+        return;
+      }
+    }
+  }
+  std::vector<std::vector<int>> candidates;
+  for (int s : group) {
+    candidates.emplace_back();
+    for (const Edge& e : cand.edges_of[s]) candidates.back().push_back(e.c);
+  }
+  const JcbbResult best = JointCompatibility(candidates, joint_d2, o_.gate_probability, o_.max_jcbb_nodes);
+  for (std::size_t i = 0; i < group.size(); ++i) {
+    if (best.option[i] >= 0) assign[group[i]] = candidates[i][best.option[i]];
+  }
+  if (memo_ != nullptr) {
+    std::vector<int> choice;
+    for (std::size_t k = 0; k < canonical.member.size(); ++k) {
+      const int chosen = assign[group[canonical.member[k]]];
+      const auto& cands = canonical.clusters[k];
+      const auto at = std::find(cands.begin(), cands.end(), chosen);
+      choice.push_back(at == cands.end() ? -1 : static_cast<int>(at - cands.begin()));
+    }
+    memo_->Keep(std::move(canonical.key), std::move(choice), /*reused=*/false);
+  }
+}
+
+// A group too large for joint compatibility: its pairings nearest first, each cluster once.
+void GlobalMapBuild::AssociateGreedily(const Candidates& cand, const std::vector<int>& group,
+                                       std::vector<int>& assign) const {
+  ++stats_.greedy_groups;
+  std::vector<Edge> all;
+  for (int s : group) all.insert(all.end(), cand.edges_of[s].begin(), cand.edges_of[s].end());
+  std::sort(all.begin(), all.end(), [](const Edge& a, const Edge& b) { return a.d2 < b.d2; });
+  std::vector<bool> taken(clusters_.size(), false);
+  for (const Edge& e : all) {
+    if (assign[e.s] >= 0 || taken[e.c]) continue;
+    assign[e.s] = e.c;
+    taken[e.c] = true;
+  }
+}
+
+// Fuses the source's landmarks into their matched clusters; starts new ones for the rest.
+void GlobalMapBuild::Fuse(const MapSource& src, const std::vector<Landmark>& moved, const std::vector<int>& assign) {
+  for (std::size_t s = 0; s < moved.size(); ++s) {
+    const Gaussian2 e{moved[s].mean, moved[s].cov};
+    const LandmarkOrigin origin{src.robot, src.incarnation, moved[s].id, src.relayed};
+    if (assign[s] >= 0) {
+      Cluster& c = clusters_[assign[s]];
+      c.inputs.push_back(e);
+      c.origins.push_back(origin);
+      // A known identity survives inputs of unknown identity (peers' maps carry none);
+      // two different known ones make it unknown.
+      if (moved[s].signature >= 0 && c.signature != moved[s].signature) c.signature = -1;
+      ++stats_.associated;
+    } else {
+      clusters_.push_back({e, {e}, {origin}, moved[s].signature});
+      ++stats_.appended;
+    }
+  }
+}
+
+}  // namespace
+
 GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const MapSource> sources,
                          const GlobalMapOptions& o, std::uint32_t self_incarnation, AssociationMemo* memo) {
   GlobalMap g;
   if (memo != nullptr) memo->BeginBuild();
-  std::vector<double> joint_gate{0.0};  // by pairings (from 1): the chi-squared quantile, 2 dof per pairing
-  std::vector<Cluster> clusters;
+  GlobalMapBuild build(o, memo, g.stats);
+  std::vector<Cluster>& clusters = build.clusters();
   clusters.reserve(local.size());
   for (const Landmark& l : local.landmarks) {
     if (!Usable(l, g.stats)) continue;
@@ -202,151 +400,12 @@ GlobalMap BuildGlobalMap(const LandmarkMap& local, RobotId self, std::span<const
     clusters.push_back({e, {e}, {{self, self_incarnation, l.id}}, l.signature});
     ++g.stats.local;
   }
-  const double gate = Chi2Quantile(o.gate_probability, 2);
-
-  for (const MapSource& src : sources) {
-    if (!ValidTransform(src)) {
-      ++g.stats.rejected_sources;
-      continue;
-    }
-    ++g.stats.sources;
-    // The source's usable landmarks, in the own frame.
-    std::vector<Landmark> moved;
-    std::vector<Eigen::Matrix<double, 2, 3>> jac;
-    const PoseMap2 to_own(src.to_own);
-    for (const Landmark& l : src.map.landmarks) {
-      if (!Usable(l, g.stats)) continue;
-      moved.push_back(TransformLandmark(l, to_own, src.to_own_cov, &jac.emplace_back()));
-    }
-    // Gated candidates: a radius search on the anchors, then the Mahalanobis test.
-    std::vector<std::vector<Edge>> edges_of(moved.size());
-    std::vector<std::vector<int>> sources_of(clusters.size());
-    if (!clusters.empty() && !moved.empty()) {
-      std::vector<Eigen::Vector2d> anchors;
-      anchors.reserve(clusters.size());
-      double max_anchor = 0.0;
-      for (const Cluster& c : clusters) {
-        anchors.push_back(c.anchor.mean);
-        max_anchor = std::max(max_anchor, LargestEigenvalue(c.anchor.cov));
-      }
-      const PointGrid2 grid(anchors);
-      for (std::size_t s = 0; s < moved.size(); ++s) {
-        const double radius = std::sqrt(gate * (max_anchor + LargestEigenvalue(moved[s].cov)));
-        grid.Visit(moved[s].mean, radius, [&](int c) {
-          const Eigen::Vector2d nu = clusters[c].anchor.mean - moved[s].mean;
-          const Eigen::Matrix2d cov = clusters[c].anchor.cov + moved[s].cov;
-          const double d2 = nu.dot(cov.inverse() * nu);
-          if (d2 < gate) {
-            edges_of[s].push_back({static_cast<int>(s), c, d2});
-            sources_of[c].push_back(static_cast<int>(s));
-          }
-          return false;
-        });
-        std::sort(edges_of[s].begin(), edges_of[s].end(),
-                  [](const Edge& a, const Edge& b) { return a.d2 != b.d2 ? a.d2 < b.d2 : a.c < b.c; });
-      }
-    }
-    // Connected groups of source landmarks through shared candidate clusters.
-    std::vector<int> assign(moved.size(), -1), group_of(moved.size(), -1);
-    for (std::size_t s0 = 0; s0 < moved.size(); ++s0) {
-      if (group_of[s0] >= 0 || edges_of[s0].empty()) continue;
-      std::vector<int> group{static_cast<int>(s0)};
-      group_of[s0] = static_cast<int>(s0);
-      for (std::size_t h = 0; h < group.size(); ++h) {
-        for (const Edge& e : edges_of[group[h]]) {
-          for (int s : sources_of[e.c]) {
-            if (group_of[s] < 0) {
-              group_of[s] = static_cast<int>(s0);
-              group.push_back(s);
-            }
-          }
-        }
-      }
-      if (group.size() == 1 && edges_of[s0].size() == 1) {
-        assign[s0] = edges_of[s0][0].c;
-        continue;
-      }
-      std::sort(group.begin(), group.end());
-      if (static_cast<int>(group.size()) <= o.max_jcbb_landmarks) {
-        ++g.stats.ambiguous_groups;
-        GroupJointD2 incremental(moved, jac, src.to_own_cov, clusters, group);
-        const auto joint_d2 = [&](std::span<const JcbbPairing> pairs) { return incremental(pairs); };
-        CanonicalGroup canonical;
-        if (memo != nullptr) {
-          canonical = Canonical(group, edges_of, clusters, src, moved);
-          if (const std::vector<int>* kept = memo->Previous(canonical.key)) {
-            // The same members with the same candidates: the earlier pairing stands while it
-            // is still jointly compatible.
-            std::vector<JcbbPairing> pairs;
-            for (std::size_t k = 0; k < kept->size(); ++k) {
-              if ((*kept)[k] >= 0) pairs.push_back({canonical.member[k], 0, canonical.clusters[k][(*kept)[k]]});
-            }
-            std::sort(pairs.begin(), pairs.end(),
-                      [](const JcbbPairing& a, const JcbbPairing& b) { return a.item < b.item; });
-            while (joint_gate.size() <= pairs.size())
-              joint_gate.push_back(Chi2Quantile(o.gate_probability, 2 * static_cast<int>(joint_gate.size())));
-            if (pairs.empty() || joint_d2(pairs) < joint_gate[pairs.size()]) {
-              for (const JcbbPairing& pr : pairs) assign[group[pr.item]] = pr.target;
-              memo->Keep(std::move(canonical.key), *kept, /*reused=*/true);
-              continue;
-            }
-          }
-        }
-        std::vector<std::vector<int>> candidates;
-        for (int s : group) {
-          candidates.emplace_back();
-          for (const Edge& e : edges_of[s]) candidates.back().push_back(e.c);
-        }
-        const JcbbResult best = JointCompatibility(candidates, joint_d2, o.gate_probability, o.max_jcbb_nodes);
-        for (std::size_t i = 0; i < group.size(); ++i) {
-          if (best.option[i] >= 0) assign[group[i]] = candidates[i][best.option[i]];
-        }
-        if (memo != nullptr) {
-          std::vector<int> choice;
-          for (std::size_t k = 0; k < canonical.member.size(); ++k) {
-            const int chosen = assign[group[canonical.member[k]]];
-            const auto& cands = canonical.clusters[k];
-            const auto at = std::find(cands.begin(), cands.end(), chosen);
-            choice.push_back(at == cands.end() ? -1 : static_cast<int>(at - cands.begin()));
-          }
-          memo->Keep(std::move(canonical.key), std::move(choice), /*reused=*/false);
-        }
-      } else {
-        ++g.stats.greedy_groups;
-        std::vector<Edge> all;
-        for (int s : group) all.insert(all.end(), edges_of[s].begin(), edges_of[s].end());
-        std::sort(all.begin(), all.end(), [](const Edge& a, const Edge& b) { return a.d2 < b.d2; });
-        std::vector<bool> taken(clusters.size(), false);
-        for (const Edge& e : all) {
-          if (assign[e.s] >= 0 || taken[e.c]) continue;
-          assign[e.s] = e.c;
-          taken[e.c] = true;
-        }
-      }
-    }
-    // Fuse into the matched clusters; start new ones for the rest.
-    for (std::size_t s = 0; s < moved.size(); ++s) {
-      const Gaussian2 e{moved[s].mean, moved[s].cov};
-      const LandmarkOrigin origin{src.robot, src.incarnation, moved[s].id, src.relayed};
-      if (assign[s] >= 0) {
-        Cluster& c = clusters[assign[s]];
-        c.inputs.push_back(e);
-        c.origins.push_back(origin);
-        // A known identity survives inputs of unknown identity (peers' maps carry none);
-        // two different known ones make it unknown.
-        if (moved[s].signature >= 0 && c.signature != moved[s].signature) c.signature = -1;
-        ++g.stats.associated;
-      } else {
-        clusters.push_back({e, {e}, {origin}, moved[s].signature});
-        ++g.stats.appended;
-      }
-    }
-  }
+  for (const MapSource& src : sources) build.AddSource(src);
 
   g.map.landmarks.reserve(clusters.size());
   g.origins.reserve(clusters.size());
   for (Cluster& c : clusters) {
-    const FusionResult f = Fuse(c.inputs, o.method);
+    const FusionResult f = mapmesh::Fuse(c.inputs, o.method);
     Landmark l;
     l.id = static_cast<std::uint32_t>(g.map.size());
     l.signature = c.signature;
